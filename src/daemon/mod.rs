@@ -1,0 +1,2 @@
+//! The acquisition daemon: tokio tasks that move bytes from a source through
+//! the synchronous numerics into the sinks.

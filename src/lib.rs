@@ -1,0 +1,24 @@
+//! # sagnac
+//!
+//! Ring-laser-gyro (RLG) bench testing. The data flow, and so the module layout:
+//!
+//! ```text
+//! source (serial, replay, frame decoding, file input)
+//!   -> dsp (streaming wavelet bank, quantization-noise removal)
+//!   -> allan (batch and streaming Allan statistics with confidence intervals)
+//!   -> model (noise terms, estimation, simulation, diagnosis)
+//!   -> sink (MCAP recording, Prometheus metrics)
+//! ```
+//!
+//! `daemon` wires the stages into tokio tasks; `cli` holds the subcommands.
+//! The numeric modules (`dsp`, `allan`, `model`) are plain synchronous Rust and
+//! never import tokio: the daemon and the offline commands share the same code.
+
+pub mod allan;
+pub mod cli;
+pub mod daemon;
+pub mod dsp;
+pub mod model;
+pub mod sink;
+pub mod source;
+pub mod units;

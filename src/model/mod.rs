@@ -1,0 +1,2 @@
+//! Noise models: IEEE 952 terms and their Allan signatures, estimation,
+//! simulation of the gyro, and diagnosis of model-versus-recording mismatch.

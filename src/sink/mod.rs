@@ -1,0 +1,1 @@
+//! Sinks: MCAP recording and Prometheus metrics.
