@@ -4,6 +4,8 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+pub mod simulate;
+
 #[derive(Debug, Parser)]
 #[command(name = "sagnac", version, about = "Ring-laser-gyro bench testing: acquisition, wavelet QN removal, Allan variance, noise estimation")]
 pub struct Cli {
@@ -12,7 +14,10 @@ pub struct Cli {
 }
 
 #[derive(Debug, Subcommand)]
-pub enum Command {}
+pub enum Command {
+    /// Simulate a gyro from a model file and write its pulse stream.
+    Simulate(simulate::SimulateArgs),
+}
 
 /// Parse the command line, run, print the error chain and exit 2 on failure.
 pub fn main() -> ExitCode {
@@ -30,5 +35,7 @@ pub fn main() -> ExitCode {
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
-    match cli.command {}
+    match cli.command {
+        Command::Simulate(args) => simulate::run(args),
+    }
 }

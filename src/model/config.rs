@@ -1,0 +1,350 @@
+//! The gyro model file (TOML): what the simulator runs and what the diagnosis
+//! compares a recording with (and writes back, updated, after estimation).
+//!
+//! ```toml
+//! [gyro]
+//! sample_rate_hz = 1000.0
+//! pulse_weight_arcsec = 1.21      # angle per counter pulse, d
+//! input_rate_dph = 12.3           # constant input (e.g. Earth rate on the axis); default 0
+//!
+//! [noise]                         # IEEE 952 coefficients; an absent key = the term is absent
+//! quantization_arcsec = 0.35      # total white-angle Q seen by the Allan variance (>= d/sqrt(12))
+//! arw_dpsh = 0.001                # angle random walk N
+//! bias_instability_dph = 0.002    # flicker B (1/f from bias_instability_f_lo_hz upward)
+//! bias_instability_f_lo_hz = 1e-7 # optional low edge of the flicker band (default 1e-7 Hz)
+//! rrw_dphsh = 0.0                 # rate random walk K
+//! rate_ramp_dphh = 0.0            # rate ramp R (sign allowed)
+//!
+//! [[noise.gauss_markov]]          # catalog terms, each repeatable
+//! sigma_dph = 0.008
+//! tau_c_s = 90.0
+//! [[noise.sinusoid]]
+//! amplitude_dph = 0.004
+//! period_s = 600.0
+//! [[noise.random_telegraph]]      # bias flips between +a and -a (mode hops)
+//! amplitude_dph = 0.003
+//! mean_dwell_s = 300.0
+//!
+//! [thermal]                       # optional; present = the simulator emits a temp_c channel
+//! temp_c0 = 25.0                  # temperature at t = 0
+//! ramp_c_per_h = 0.5              # linear trend (default 0)
+//! sine_amplitude_c = 0.2          # periodic part (default 0) ...
+//! sine_period_s = 3600.0          # ... with this period (required when the amplitude > 0)
+//! bias_sensitivity_dph_per_c = 0.001   # rate bias per degree away from temp_c0 (default 0)
+//! ```
+//!
+//! Quantization: the counter alone gives a white angle error of `d/sqrt(12)`; a
+//! `quantization_arcsec` above that is reached by adding a white Gaussian angle
+//! error (the dither residual) of `sqrt(Q^2 - d^2/12)` before the counter. A value
+//! below `d/sqrt(12)` is an error. Note that the counter's error is white only
+//! when the angle's sub-pulse phase is randomised between samples (see
+//! [`super::terms::counter_readout_avar`]).
+//!
+//! Thermal: `T(t) = temp_c0 + ramp_c_per_h t/3600 + sine_amplitude_c sin(2 pi t/sine_period_s)`
+//! and the rate bias is `bias_sensitivity_dph_per_c (T(t) - temp_c0)`; in Allan terms
+//! this is a rate ramp `s * ramp` (deg/h/h) plus a sinusoid of amplitude `s * A`.
+//!
+//! Unknown keys are errors naming the key and line (`deny_unknown_fields` on every
+//! table); [`GyroModel::validate`] names the key and the value of any out-of-range
+//! entry. [`GyroModel::to_toml`] writes the model back.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use super::ModelError;
+use super::terms::{DEFAULT_FLICKER_F_LO_HZ, Term};
+
+/// A complete gyro model.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GyroModel {
+    pub gyro: GyroParams,
+    #[serde(default)]
+    pub noise: NoiseParams,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub thermal: Option<ThermalParams>,
+}
+
+/// The readout: sample rate, pulse weight and the constant input rate.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GyroParams {
+    pub sample_rate_hz: f64,
+    pub pulse_weight_arcsec: f64,
+    #[serde(default)]
+    pub input_rate_dph: f64,
+}
+
+/// IEEE 952 coefficients and the catalog terms. `None` / empty = absent.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NoiseParams {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub quantization_arcsec: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub arw_dpsh: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bias_instability_dph: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bias_instability_f_lo_hz: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rrw_dphsh: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rate_ramp_dphh: Option<f64>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub gauss_markov: Vec<GaussMarkovParams>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub sinusoid: Vec<SinusoidParams>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub random_telegraph: Vec<RandomTelegraphParams>,
+}
+
+/// A first-order Gauss-Markov bias.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GaussMarkovParams {
+    pub sigma_dph: f64,
+    pub tau_c_s: f64,
+}
+
+/// A sinusoidal bias (random phase in the simulator).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SinusoidParams {
+    pub amplitude_dph: f64,
+    pub period_s: f64,
+}
+
+/// A random telegraph bias flipping between +a and -a.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RandomTelegraphParams {
+    pub amplitude_dph: f64,
+    pub mean_dwell_s: f64,
+}
+
+/// A slow temperature profile and the bias it causes.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ThermalParams {
+    pub temp_c0: f64,
+    #[serde(default)]
+    pub ramp_c_per_h: f64,
+    #[serde(default)]
+    pub sine_amplitude_c: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sine_period_s: Option<f64>,
+    #[serde(default)]
+    pub bias_sensitivity_dph_per_c: f64,
+}
+
+fn byte_to_line_col(text: &str, byte: usize) -> (usize, usize) {
+    let byte = byte.min(text.len());
+    let before = &text.as_bytes()[..byte];
+    let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
+    let col = before.iter().rev().take_while(|&&b| b != b'\n').count() + 1;
+    (line, col)
+}
+
+impl GyroModel {
+    /// Parse and validate a model from TOML text; `origin` names the source in errors.
+    pub fn from_toml_str(text: &str, origin: &str) -> Result<Self, ModelError> {
+        let model: GyroModel = toml::from_str(text).map_err(|e| {
+            let (line, column) = e.span().map(|s| byte_to_line_col(text, s.start)).unwrap_or((0, 0));
+            ModelError::Parse {
+                origin: origin.to_string(),
+                line,
+                column,
+                message: e.message().trim().to_string(),
+            }
+        })?;
+        model.validate().map_err(|e| e.with_origin(origin))?;
+        Ok(model)
+    }
+
+    /// Read, parse and validate a model file.
+    pub fn load(path: &Path) -> Result<Self, ModelError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ModelError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::from_toml_str(&text, &path.display().to_string())
+    }
+
+    /// The model as TOML text (parses back to an equal model).
+    pub fn to_toml(&self) -> Result<String, ModelError> {
+        toml::to_string(self).map_err(|e| ModelError::Serialize(e.to_string()))
+    }
+
+    /// Sample period, s.
+    pub fn tau0_s(&self) -> f64 {
+        1.0 / self.gyro.sample_rate_hz
+    }
+
+    /// The white-angle error of the counter alone, `d / sqrt(12)`, arcsec.
+    pub fn counter_q_arcsec(&self) -> f64 {
+        self.gyro.pulse_weight_arcsec / 12f64.sqrt()
+    }
+
+    /// Total quantization coefficient Q (arcsec): the configured value, or
+    /// `d/sqrt(12)` when absent.
+    pub fn quantization_q_arcsec(&self) -> f64 {
+        self.noise.quantization_arcsec.unwrap_or_else(|| self.counter_q_arcsec())
+    }
+
+    /// Standard deviation of the white dither residual added before the counter,
+    /// `sqrt(Q^2 - d^2/12)` (0 when Q is absent or equal to `d/sqrt(12)`), arcsec.
+    pub fn dither_sigma_arcsec(&self) -> f64 {
+        let q = self.quantization_q_arcsec();
+        let c = self.counter_q_arcsec();
+        (q * q - c * c).max(0.0).sqrt()
+    }
+
+    /// Low edge of the flicker band, Hz.
+    pub fn flicker_f_lo_hz(&self) -> f64 {
+        self.noise.bias_instability_f_lo_hz.unwrap_or(DEFAULT_FLICKER_F_LO_HZ)
+    }
+
+    /// Check every value; errors name the key (with its table path) and the value.
+    pub fn validate(&self) -> Result<(), ModelError> {
+        fn finite(key: &str, v: f64) -> Result<(), ModelError> {
+            if v.is_finite() { Ok(()) } else { Err(ModelError::invalid(key, v, "must be finite")) }
+        }
+        fn nonneg(key: &str, v: f64) -> Result<(), ModelError> {
+            if v.is_finite() && v >= 0.0 {
+                Ok(())
+            } else {
+                Err(ModelError::invalid(key, v, "must be finite and >= 0"))
+            }
+        }
+        fn positive(key: &str, v: f64) -> Result<(), ModelError> {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(ModelError::invalid(key, v, "must be finite and > 0"))
+            }
+        }
+        let g = &self.gyro;
+        positive("gyro.sample_rate_hz", g.sample_rate_hz)?;
+        positive("gyro.pulse_weight_arcsec", g.pulse_weight_arcsec)?;
+        finite("gyro.input_rate_dph", g.input_rate_dph)?;
+
+        let n = &self.noise;
+        if let Some(q) = n.quantization_arcsec {
+            nonneg("noise.quantization_arcsec", q)?;
+            let c = self.counter_q_arcsec();
+            if q < c * (1.0 - 1e-9) {
+                return Err(ModelError::invalid(
+                    "noise.quantization_arcsec",
+                    q,
+                    format!(
+                        "below pulse_weight_arcsec/sqrt(12) = {c:.6}: the pulse counter alone already gives \
+                         d/sqrt(12); Q must be >= that (omit the key to get exactly d/sqrt(12))"
+                    ),
+                ));
+            }
+        }
+        if let Some(v) = n.arw_dpsh {
+            nonneg("noise.arw_dpsh", v)?;
+        }
+        if let Some(v) = n.bias_instability_dph {
+            nonneg("noise.bias_instability_dph", v)?;
+        }
+        if let Some(v) = n.bias_instability_f_lo_hz {
+            positive("noise.bias_instability_f_lo_hz", v)?;
+            let top = super::terms::FLICKER_TOP_PER_SAMPLE_RATE * g.sample_rate_hz;
+            if v * 2.0 > top {
+                return Err(ModelError::invalid(
+                    "noise.bias_instability_f_lo_hz",
+                    v,
+                    format!("must be below half the flicker top corner ({top} Hz = 4 x sample rate)"),
+                ));
+            }
+        }
+        if let Some(v) = n.rrw_dphsh {
+            nonneg("noise.rrw_dphsh", v)?;
+        }
+        if let Some(v) = n.rate_ramp_dphh {
+            finite("noise.rate_ramp_dphh", v)?;
+        }
+        for (i, t) in n.gauss_markov.iter().enumerate() {
+            nonneg(&format!("noise.gauss_markov[{i}].sigma_dph"), t.sigma_dph)?;
+            positive(&format!("noise.gauss_markov[{i}].tau_c_s"), t.tau_c_s)?;
+        }
+        for (i, t) in n.sinusoid.iter().enumerate() {
+            nonneg(&format!("noise.sinusoid[{i}].amplitude_dph"), t.amplitude_dph)?;
+            positive(&format!("noise.sinusoid[{i}].period_s"), t.period_s)?;
+        }
+        for (i, t) in n.random_telegraph.iter().enumerate() {
+            nonneg(&format!("noise.random_telegraph[{i}].amplitude_dph"), t.amplitude_dph)?;
+            positive(&format!("noise.random_telegraph[{i}].mean_dwell_s"), t.mean_dwell_s)?;
+        }
+        if let Some(th) = &self.thermal {
+            finite("thermal.temp_c0", th.temp_c0)?;
+            finite("thermal.ramp_c_per_h", th.ramp_c_per_h)?;
+            nonneg("thermal.sine_amplitude_c", th.sine_amplitude_c)?;
+            match th.sine_period_s {
+                Some(p) => positive("thermal.sine_period_s", p)?,
+                None if th.sine_amplitude_c > 0.0 => {
+                    return Err(ModelError::invalid(
+                        "thermal.sine_period_s",
+                        "(missing)",
+                        "required when thermal.sine_amplitude_c > 0",
+                    ));
+                }
+                None => {}
+            }
+            finite("thermal.bias_sensitivity_dph_per_c", th.bias_sensitivity_dph_per_c)?;
+        }
+        Ok(())
+    }
+
+    /// The model's noise terms for the Allan analysis, in a fixed order:
+    /// quantization (total Q), ARW, bias instability (ideal 1/f on
+    /// `[flicker_f_lo_hz, inf)`), RRW, rate ramp (model ramp plus thermal ramp
+    /// `s * ramp`, added linearly since both are deterministic), the catalog terms,
+    /// and the thermal sinusoid. Absent or zero terms are left out.
+    pub fn terms(&self) -> Vec<Term> {
+        let n = &self.noise;
+        let mut out = vec![Term::Quantization { q_arcsec: self.quantization_q_arcsec() }];
+        if let Some(v) = n.arw_dpsh.filter(|v| *v > 0.0) {
+            out.push(Term::AngleRandomWalk { n_dpsh: v });
+        }
+        if let Some(v) = n.bias_instability_dph.filter(|v| *v > 0.0) {
+            out.push(Term::BiasInstability {
+                b_dph: v,
+                f_lo_hz: self.flicker_f_lo_hz(),
+                f_hi_hz: f64::INFINITY,
+            });
+        }
+        if let Some(v) = n.rrw_dphsh.filter(|v| *v > 0.0) {
+            out.push(Term::RateRandomWalk { k_dphsh: v });
+        }
+        let thermal_ramp = self
+            .thermal
+            .as_ref()
+            .map(|t| t.bias_sensitivity_dph_per_c * t.ramp_c_per_h)
+            .unwrap_or(0.0);
+        let ramp = n.rate_ramp_dphh.unwrap_or(0.0) + thermal_ramp;
+        if ramp != 0.0 {
+            out.push(Term::RateRamp { r_dphh: ramp });
+        }
+        for t in &n.gauss_markov {
+            out.push(Term::GaussMarkov { sigma_dph: t.sigma_dph, tau_c_s: t.tau_c_s });
+        }
+        for t in &n.sinusoid {
+            out.push(Term::Sinusoid { amplitude_dph: t.amplitude_dph, period_s: t.period_s });
+        }
+        for t in &n.random_telegraph {
+            out.push(Term::RandomTelegraph { amplitude_dph: t.amplitude_dph, mean_dwell_s: t.mean_dwell_s });
+        }
+        if let Some(th) = &self.thermal {
+            let a = (th.bias_sensitivity_dph_per_c * th.sine_amplitude_c).abs();
+            if let (true, Some(p)) = (a > 0.0, th.sine_period_s) {
+                out.push(Term::Sinusoid { amplitude_dph: a, period_s: p });
+            }
+        }
+        out
+    }
+}

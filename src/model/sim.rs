@@ -1,0 +1,662 @@
+//! The gyro simulator: a physical model of a ring-laser gyro's readout, streamed
+//! block by block (the daemon's built-in gyro, `sagnac simulate`, and the test
+//! bench of the estimator and the diagnosis).
+//!
+//! # The model
+//! Per sample period `tau0 = 1/fs` the simulator integrates the **true rate**
+//! exactly over the period into a **true angle**:
+//! * the constant input rate (e.g. the Earth-rate component on the axis);
+//! * ARW: white rate noise (angle increment `N sqrt(tau0) g`);
+//! * bias instability: 1/f rate noise from a [`FlickerBank`] (octave-spaced
+//!   Gauss-Markov processes plus a white tail; see [`super::terms`]);
+//! * RRW: a rate random walk; rate ramp; Gauss-Markov biases; sinusoidal biases
+//!   (random phase); random-telegraph biases (exponential dwell times, switching
+//!   instants resolved inside the sample); the thermal bias `s (T(t) - T0)`.
+//!
+//! Every Gaussian process is integrated **exactly** in distribution: for an
+//! Ornstein-Uhlenbeck rate the pair (next rate, angle increment) is jointly
+//! Gaussian, drawn as one normal for the rate innovation plus the conditional
+//! residual of the increment; all those residuals (and ARW) are independent of
+//! everything else, so they are merged into one normal per sample. The Allan
+//! variance of the simulated angle samples is therefore exactly the sum of the
+//! closed forms in [`super::terms`], at every `tau = m tau0`.
+//!
+//! The **readout** then adds a white Gaussian angle error `e` (the dither
+//! residual, `sqrt(Q^2 - d^2/12)`) and quantises with a cumulative up/down pulse
+//! counter: `C_k = floor((theta_k + e_k) / d)`; the output is the increment
+//! `C_k - C_{k-1}` (an integer). The true angle is kept as whole pulses (i64) plus
+//! a fraction in [0, 1), so precision does not degrade over indefinite runs.
+//!
+//! Physics note on quantization: the counter's error is white with variance
+//! `d^2/12` only if the angle's sub-pulse phase is randomised between the samples
+//! being compared. At a slow constant input and a dither residual well below
+//! `d/2`, it is a sawtooth and its Allan variance oscillates around `3Q^2/tau^2`
+//! ([`super::terms::counter_readout_avar`] gives the exact curve); this is what a
+//! real counter does, and the simulator reproduces it.
+//!
+//! # Streaming
+//! [`Simulator::next_block`] appends the next `n` pulse increments; the stream is
+//! identical whatever the block sizes (each term draws from its own ChaCha8 stream
+//! in sample order), memory is bounded, and runs may be indefinite.
+//! Determinism: `(model, seed)` fixes the output (rand_chacha ChaCha8Rng, value-stable;
+//! normals and exponentials from rand_distr). Each term has its own RNG stream, so
+//! adding a term does not change the realisation of the others.
+
+use std::f64::consts::PI;
+use std::io::Write;
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Exp1, StandardNormal};
+
+use super::ModelError;
+use super::config::GyroModel;
+use super::terms::FlickerBank;
+use crate::units;
+
+/// Samples generated per internal chunk (bounds the scratch memory).
+const CHUNK: usize = 4096;
+
+// RNG stream numbers (each term has its own stream).
+const STREAM_INIT: u64 = 0;
+const STREAM_WHITE: u64 = 1;
+const STREAM_DITHER: u64 = 2;
+const STREAM_RRW: u64 = 3;
+const STREAM_FLICKER: u64 = 1_000;
+const STREAM_GM: u64 = 2_000;
+const STREAM_RTN: u64 = 3_000;
+const STREAM_SINE: u64 = 4_000;
+
+fn rng_for(seed: u64, stream: u64) -> ChaCha8Rng {
+    let mut r = ChaCha8Rng::seed_from_u64(seed);
+    r.set_stream(stream);
+    r
+}
+
+#[inline]
+fn normal(rng: &mut ChaCha8Rng) -> f64 {
+    rng.sample::<f64, _>(StandardNormal)
+}
+
+/// Ground truth of a block, for tests and for the diagnosis.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Truth {
+    /// True angle increment over each sample period (everything except the
+    /// readout error), arcsec.
+    pub angle_increment_arcsec: Vec<f64>,
+    /// White dither residual added before the counter at the end of each sample, arcsec.
+    pub readout_error_arcsec: Vec<f64>,
+}
+
+/// An exactly integrated Ornstein-Uhlenbeck rate.
+#[derive(Debug, Clone)]
+struct Ou {
+    x: f64,
+    a: f64,
+    c_int: f64,
+    k_cov: f64,
+    s1: f64,
+    rng: ChaCha8Rng,
+}
+
+/// `f(h) = h - 2(1 - e^-h) + (1 - e^-2h)/2` without cancellation.
+fn ou_f(h: f64) -> f64 {
+    if h < 0.1 {
+        // sum_{n>=3} (-1)^(n+1) (2^(n-1) - 2) h^n / n!
+        let mut sum = 0.0;
+        let mut t = h * h * h / 6.0;
+        let mut p = 4.0;
+        for n in 3..20u32 {
+            let sign = if n % 2 == 1 { 1.0 } else { -1.0 };
+            sum += sign * (p - 2.0) * t;
+            t *= h / (n + 1) as f64;
+            p *= 2.0;
+        }
+        sum
+    } else {
+        h + 2.0 * (-h).exp_m1() - 0.5 * (-2.0 * h).exp_m1()
+    }
+}
+
+/// Exact discretisation of an OU rate (stationary sigma, correlation time tc) over
+/// one sample of length `dt`: returns `(a, c_int, k_cov, s1, residual_var)` with
+/// `x' = a x + w1`, `w1 ~ N(0, s1^2)`, increment `= c_int x + k_cov w1 + r`,
+/// `r ~ N(0, residual_var)` independent of `w1`.
+fn ou_discretise(sigma: f64, tc: f64, dt: f64) -> (f64, f64, f64, f64, f64) {
+    let h = dt / tc;
+    let em = -(-h).exp_m1(); // 1 - a
+    let e2 = -(-2.0 * h).exp_m1(); // 1 - a^2
+    let a = 1.0 - em;
+    let s1 = sigma * e2.sqrt();
+    let c_int = tc * em;
+    let k_cov = tc * em / (2.0 - em); // Cov(w1, w2) / Var(w1) = Tc (1-a)/(1+a)
+    let resid = sigma * sigma * tc * tc * (2.0 * ou_f(h) - em * em * em / (2.0 - em));
+    (a, c_int, k_cov, s1, resid.max(0.0))
+}
+
+#[derive(Debug, Clone)]
+struct Rrw {
+    w: f64,
+    step: f64,
+    rng: ChaCha8Rng,
+}
+
+#[derive(Debug, Clone)]
+struct Sine {
+    /// `2 A / omega * sin(omega tau0 / 2)`, arcsec.
+    gain: f64,
+    omega: f64,
+    phase: f64,
+}
+
+#[derive(Debug, Clone)]
+struct Rtn {
+    amp: f64,
+    dwell: f64,
+    state: f64,
+    remaining: f64,
+    rng: ChaCha8Rng,
+}
+
+#[derive(Debug, Clone)]
+struct Thermal {
+    temp_c0: f64,
+    ramp_c_per_s: f64,
+    sine_amp_c: f64,
+    omega: f64,
+    /// rate bias per degree, arcsec/s/C
+    sens: f64,
+}
+
+impl Thermal {
+    fn temp_at(&self, t: f64) -> f64 {
+        let mut v = self.temp_c0 + self.ramp_c_per_s * t;
+        if self.omega > 0.0 {
+            v += self.sine_amp_c * (self.omega * t).sin();
+        }
+        v
+    }
+}
+
+/// The streaming gyro simulator.
+#[derive(Debug, Clone)]
+pub struct Simulator {
+    fs: f64,
+    tau0: f64,
+    d: f64,
+    inv_d: f64,
+    input_inc: f64,
+    total: Option<u64>,
+    k: u64,
+    whole: i64,
+    frac: f64,
+    counter: i64,
+    dither_sigma: f64,
+    dither_rng: ChaCha8Rng,
+    white_sigma: f64,
+    white_rng: ChaCha8Rng,
+    ous: Vec<Ou>,
+    rrw: Option<Rrw>,
+    ramp: f64,
+    sines: Vec<Sine>,
+    rtns: Vec<Rtn>,
+    thermal: Option<Thermal>,
+    flicker: Option<FlickerBank>,
+    buf_dtheta: Vec<f64>,
+    buf_e: Vec<f64>,
+}
+
+impl Simulator {
+    /// A simulator for `model` (validated here), seeded with `seed`. With
+    /// `duration_s = Some(D)` the stream ends after `round(D fs)` samples;
+    /// with `None` it is unbounded.
+    pub fn new(model: &GyroModel, seed: u64, duration_s: Option<f64>) -> Result<Self, ModelError> {
+        model.validate()?;
+        let fs = model.gyro.sample_rate_hz;
+        let tau0 = 1.0 / fs;
+        let d = model.gyro.pulse_weight_arcsec;
+        let total = match duration_s {
+            None => None,
+            Some(dur) => {
+                if !(dur.is_finite() && dur > 0.0) {
+                    return Err(ModelError::invalid("duration_s", dur, "must be finite and > 0"));
+                }
+                let n = (dur * fs).round();
+                if n < 1.0 {
+                    return Err(ModelError::invalid("duration_s", dur, "shorter than one sample period"));
+                }
+                Some(n as u64)
+            }
+        };
+        let noise = &model.noise;
+        let mut white_var = 0.0;
+        if let Some(n) = noise.arw_dpsh {
+            let n = units::dpsh_to_arcsec_per_sqrt_s(n);
+            white_var += n * n * tau0;
+        }
+        let mut ous = Vec::new();
+        let mut add_ou = |sigma: f64, tc: f64, stream: u64, white_var: &mut f64| {
+            let (a, c_int, k_cov, s1, resid) = ou_discretise(sigma, tc, tau0);
+            let mut rng = rng_for(seed, stream);
+            let x = sigma * normal(&mut rng); // stationary start
+            *white_var += resid;
+            ous.push(Ou { x, a, c_int, k_cov, s1, rng });
+        };
+        let mut flicker = None;
+        if let Some(b) = noise.bias_instability_dph.filter(|b| *b > 0.0) {
+            let bank = FlickerBank::for_sample_rate(b, model.flicker_f_lo_hz(), fs)?;
+            for (j, c) in bank.components().iter().enumerate() {
+                add_ou(c.sigma_arcsec_s, c.tau_c_s, STREAM_FLICKER + j as u64, &mut white_var);
+            }
+            // white tail: one-sided PSD S0 -> angle increment variance S0 tau0 / 2
+            white_var += bank.white_psd() * tau0 / 2.0;
+            flicker = Some(bank);
+        }
+        for (i, g) in noise.gauss_markov.iter().enumerate() {
+            if g.sigma_dph > 0.0 {
+                add_ou(units::dph_to_arcsec_per_s(g.sigma_dph), g.tau_c_s, STREAM_GM + i as u64, &mut white_var);
+            }
+        }
+        let rrw = noise.rrw_dphsh.filter(|k| *k > 0.0).map(|k| {
+            let k = units::dphsh_to_arcsec_per_s_sqrt_s(k);
+            white_var += k * k * tau0 * tau0 * tau0 / 12.0;
+            Rrw { w: 0.0, step: k * tau0.sqrt(), rng: rng_for(seed, STREAM_RRW) }
+        });
+        let sines = noise
+            .sinusoid
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.amplitude_dph > 0.0)
+            .map(|(i, s)| {
+                let a = units::dph_to_arcsec_per_s(s.amplitude_dph);
+                let omega = 2.0 * PI / s.period_s;
+                let mut rng = rng_for(seed, STREAM_SINE + i as u64);
+                let phase = 2.0 * PI * rng.random::<f64>();
+                Sine { gain: 2.0 * a / omega * (0.5 * omega * tau0).sin(), omega, phase }
+            })
+            .collect();
+        let rtns = noise
+            .random_telegraph
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| r.amplitude_dph > 0.0)
+            .map(|(i, r)| {
+                let mut rng = rng_for(seed, STREAM_RTN + i as u64);
+                let state = if rng.random::<bool>() { 1.0 } else { -1.0 };
+                let remaining = r.mean_dwell_s * rng.sample::<f64, _>(Exp1);
+                Rtn { amp: units::dph_to_arcsec_per_s(r.amplitude_dph), dwell: r.mean_dwell_s, state, remaining, rng }
+            })
+            .collect();
+        let thermal = model.thermal.as_ref().map(|t| Thermal {
+            temp_c0: t.temp_c0,
+            ramp_c_per_s: t.ramp_c_per_h / units::S_PER_H,
+            sine_amp_c: t.sine_amplitude_c,
+            omega: match t.sine_period_s {
+                Some(p) if t.sine_amplitude_c > 0.0 => 2.0 * PI / p,
+                _ => 0.0,
+            },
+            sens: units::dph_to_arcsec_per_s(t.bias_sensitivity_dph_per_c),
+        });
+        let dither_sigma = model.dither_sigma_arcsec();
+        let mut dither_rng = rng_for(seed, STREAM_DITHER);
+        let mut init = rng_for(seed, STREAM_INIT);
+        let frac: f64 = init.random::<f64>();
+        let e0 = if dither_sigma > 0.0 { dither_sigma * normal(&mut dither_rng) } else { 0.0 };
+        let counter = (frac + e0 / d).floor() as i64;
+        Ok(Simulator {
+            fs,
+            tau0,
+            d,
+            inv_d: 1.0 / d,
+            input_inc: units::dph_to_arcsec_per_s(model.gyro.input_rate_dph) * tau0,
+            total,
+            k: 0,
+            whole: 0,
+            frac,
+            counter,
+            dither_sigma,
+            dither_rng,
+            white_sigma: white_var.sqrt(),
+            white_rng: rng_for(seed, STREAM_WHITE),
+            ous,
+            rrw,
+            ramp: units::dphh_to_arcsec_per_s2(noise.rate_ramp_dphh.unwrap_or(0.0)),
+            sines,
+            rtns,
+            thermal,
+            flicker,
+            buf_dtheta: vec![0.0; CHUNK],
+            buf_e: vec![0.0; CHUNK],
+        })
+    }
+
+    /// Sample rate, Hz.
+    pub fn sample_rate_hz(&self) -> f64 {
+        self.fs
+    }
+    /// Sample period, s.
+    pub fn tau0_s(&self) -> f64 {
+        self.tau0
+    }
+    /// Pulse weight d, arcsec.
+    pub fn pulse_weight_arcsec(&self) -> f64 {
+        self.d
+    }
+    /// Standard deviation of the white dither residual added before the counter, arcsec.
+    pub fn dither_sigma_arcsec(&self) -> f64 {
+        self.dither_sigma
+    }
+    /// Whether the model has a thermal section (a `temp_c` channel).
+    pub fn has_temperature(&self) -> bool {
+        self.thermal.is_some()
+    }
+    /// The flicker generator, when the model has bias instability.
+    pub fn flicker_bank(&self) -> Option<&FlickerBank> {
+        self.flicker.as_ref()
+    }
+    /// Samples emitted so far.
+    pub fn samples_emitted(&self) -> u64 {
+        self.k
+    }
+    /// Total samples of a finite run (`None` = unbounded).
+    pub fn samples_total(&self) -> Option<u64> {
+        self.total
+    }
+    /// Samples left in a finite run (`None` = unbounded).
+    pub fn remaining(&self) -> Option<u64> {
+        self.total.map(|t| t - self.k)
+    }
+    /// The cumulative counter reading (pulses) after the last emitted sample.
+    pub fn counter(&self) -> i64 {
+        self.counter
+    }
+    /// The true angle as (whole pulses, fraction in [0, 1)) after the last emitted sample.
+    pub fn true_angle_pulses(&self) -> (i64, f64) {
+        (self.whole, self.frac)
+    }
+    /// Temperature of the thermal profile at time `t_s`, deg C (`None` without thermal model).
+    pub fn temperature_at(&self, t_s: f64) -> Option<f64> {
+        self.thermal.as_ref().map(|t| t.temp_at(t_s))
+    }
+
+    /// Append the next `n` pulse increments (fewer at the end of a finite run) to
+    /// `counts`; returns how many were appended.
+    pub fn next_block(&mut self, n: usize, counts: &mut Vec<i64>) -> usize {
+        self.generate(n, counts, None, None)
+    }
+
+    /// Like [`Simulator::next_block`], and also append the temperature (deg C) at
+    /// the end of each sample period to `temp_c` when the model has a thermal
+    /// section (otherwise `temp_c` is left untouched).
+    pub fn next_block_with_temp(&mut self, n: usize, counts: &mut Vec<i64>, temp_c: &mut Vec<f64>) -> usize {
+        self.generate(n, counts, Some(temp_c), None)
+    }
+
+    /// Like [`Simulator::next_block_with_temp`], and also append the ground truth.
+    pub fn next_block_truth(
+        &mut self,
+        n: usize,
+        counts: &mut Vec<i64>,
+        temp_c: &mut Vec<f64>,
+        truth: &mut Truth,
+    ) -> usize {
+        self.generate(n, counts, Some(temp_c), Some(truth))
+    }
+
+    fn generate(
+        &mut self,
+        n: usize,
+        counts: &mut Vec<i64>,
+        mut temp_c: Option<&mut Vec<f64>>,
+        mut truth: Option<&mut Truth>,
+    ) -> usize {
+        let n = match self.remaining() {
+            Some(r) => n.min(usize::try_from(r).unwrap_or(usize::MAX)),
+            None => n,
+        };
+        counts.reserve(n);
+        let mut done = 0;
+        while done < n {
+            let m = (n - done).min(CHUNK);
+            self.fill_chunk(m);
+            let inv_d = self.inv_d;
+            for i in 0..m {
+                self.frac += self.buf_dtheta[i] * inv_d;
+                let f = self.frac.floor();
+                self.whole += f as i64;
+                self.frac -= f;
+                let c = self.whole + (self.frac + self.buf_e[i] * inv_d).floor() as i64;
+                counts.push(c - self.counter);
+                self.counter = c;
+            }
+            if let (Some(out), Some(th)) = (temp_c.as_deref_mut(), self.thermal.as_ref()) {
+                out.extend((0..m).map(|i| th.temp_at((self.k + i as u64 + 1) as f64 * self.tau0)));
+            }
+            if let Some(t) = truth.as_deref_mut() {
+                t.angle_increment_arcsec.extend_from_slice(&self.buf_dtheta[..m]);
+                t.readout_error_arcsec.extend_from_slice(&self.buf_e[..m]);
+            }
+            self.k += m as u64;
+            done += m;
+        }
+        n
+    }
+
+    /// True angle increments (arcsec) of the next `m` samples into `buf_dtheta`,
+    /// dither residuals into `buf_e`.
+    fn fill_chunk(&mut self, m: usize) {
+        let tau0 = self.tau0;
+        let k0 = self.k;
+        let Simulator {
+            buf_dtheta,
+            buf_e,
+            ous,
+            rrw,
+            sines,
+            rtns,
+            thermal,
+            white_rng,
+            dither_rng,
+            ..
+        } = self;
+        let dth = &mut buf_dtheta[..m];
+        let e = &mut buf_e[..m];
+        dth.fill(self.input_inc);
+        let t_mid = |i: usize| ((k0 + i as u64) as f64 + 0.5) * tau0;
+        if self.ramp != 0.0 {
+            let g = self.ramp * tau0;
+            for (i, v) in dth.iter_mut().enumerate() {
+                *v += g * t_mid(i);
+            }
+        }
+        for s in sines.iter() {
+            for (i, v) in dth.iter_mut().enumerate() {
+                *v += s.gain * (s.omega * t_mid(i) + s.phase).sin();
+            }
+        }
+        if let Some(th) = thermal.as_ref() {
+            let g_ramp = th.sens * th.ramp_c_per_s * tau0;
+            let g_sine = if th.omega > 0.0 {
+                th.sens * th.sine_amp_c * 2.0 / th.omega * (0.5 * th.omega * tau0).sin()
+            } else {
+                0.0
+            };
+            for (i, v) in dth.iter_mut().enumerate() {
+                let t = t_mid(i);
+                *v += g_ramp * t;
+                if g_sine != 0.0 {
+                    *v += g_sine * (th.omega * t).sin();
+                }
+            }
+        }
+        for ou in ous.iter_mut() {
+            let (mut x, a, c_int, k_cov, s1) = (ou.x, ou.a, ou.c_int, ou.k_cov, ou.s1);
+            for v in dth.iter_mut() {
+                let w1 = s1 * normal(&mut ou.rng);
+                *v += c_int * x + k_cov * w1;
+                x = a * x + w1;
+            }
+            ou.x = x;
+        }
+        if let Some(r) = rrw.as_mut() {
+            for v in dth.iter_mut() {
+                let dw = r.step * normal(&mut r.rng);
+                *v += (r.w + 0.5 * dw) * tau0;
+                r.w += dw;
+            }
+        }
+        for r in rtns.iter_mut() {
+            for v in dth.iter_mut() {
+                let mut left = tau0;
+                let mut acc = 0.0;
+                while r.remaining < left {
+                    acc += r.state * r.remaining;
+                    left -= r.remaining;
+                    r.state = -r.state;
+                    r.remaining = r.dwell * r.rng.sample::<f64, _>(Exp1);
+                }
+                acc += r.state * left;
+                r.remaining -= left;
+                *v += r.amp * acc;
+            }
+        }
+        if self.white_sigma > 0.0 {
+            let s = self.white_sigma;
+            for v in dth.iter_mut() {
+                *v += s * normal(white_rng);
+            }
+        }
+        if self.dither_sigma > 0.0 {
+            let s = self.dither_sigma;
+            for v in e.iter_mut() {
+                *v = s * normal(dither_rng);
+            }
+        } else {
+            e.fill(0.0);
+        }
+    }
+}
+
+fn push_i64(buf: &mut Vec<u8>, v: i64) {
+    let mut tmp = [0u8; 20];
+    let mut i = tmp.len();
+    let mut u = v.unsigned_abs();
+    loop {
+        i -= 1;
+        tmp[i] = b'0' + (u % 10) as u8;
+        u /= 10;
+        if u == 0 {
+            break;
+        }
+    }
+    if v < 0 {
+        buf.push(b'-');
+    }
+    buf.extend_from_slice(&tmp[i..]);
+}
+
+/// Fixed-point with 4 decimals (0.1 mK for temperatures).
+fn push_fixed4(buf: &mut Vec<u8>, v: f64) {
+    if !v.is_finite() {
+        buf.extend_from_slice(b"nan");
+        return;
+    }
+    let s = (v * 1e4).round() as i64;
+    if s < 0 {
+        buf.push(b'-');
+    }
+    let u = s.unsigned_abs();
+    push_i64(buf, (u / 10_000) as i64);
+    buf.push(b'.');
+    let f = u % 10_000;
+    buf.extend_from_slice(&[
+        b'0' + (f / 1000) as u8,
+        b'0' + (f / 100 % 10) as u8,
+        b'0' + (f / 10 % 10) as u8,
+        b'0' + (f % 10) as u8,
+    ]);
+}
+
+/// Run the simulator to its end and write CSV: header `counts` (or `counts,temp_c`
+/// with a thermal model; temperatures with 4 decimals), one row per sample.
+/// Returns the number of rows. The simulator must have a finite duration.
+pub fn write_csv<W: Write>(sim: &mut Simulator, out: W) -> Result<u64, ModelError> {
+    if sim.samples_total().is_none() {
+        return Err(ModelError::invalid("duration_s", "(none)", "CSV output needs a finite duration"));
+    }
+    const BLOCK: usize = 65_536;
+    let mut out = std::io::BufWriter::with_capacity(1 << 20, out);
+    let thermal = sim.has_temperature();
+    out.write_all(if thermal { b"counts,temp_c\n" } else { b"counts\n" })
+        .map_err(ModelError::Write)?;
+    let mut counts = Vec::with_capacity(BLOCK);
+    let mut temps = Vec::with_capacity(BLOCK);
+    let mut buf = Vec::with_capacity(BLOCK * 20);
+    let mut rows = 0u64;
+    loop {
+        counts.clear();
+        temps.clear();
+        buf.clear();
+        let n = sim.next_block_with_temp(BLOCK, &mut counts, &mut temps);
+        if n == 0 {
+            break;
+        }
+        for i in 0..n {
+            push_i64(&mut buf, counts[i]);
+            if thermal {
+                buf.push(b',');
+                push_fixed4(&mut buf, temps[i]);
+            }
+            buf.push(b'\n');
+        }
+        out.write_all(&buf).map_err(ModelError::Write)?;
+        rows += n as u64;
+    }
+    out.flush().map_err(ModelError::Write)?;
+    Ok(rows)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ou_discretisation_matches_angle_structure_function() {
+        // Total increment variance c^2 s^2 + k^2 s1^2 + resid must equal
+        // D(dt) = 2 sigma^2 Tc^2 (h - 1 + e^-h), over 12 decades of h.
+        for &h in &[1e-9, 1e-6, 1e-3, 0.05, 0.099, 0.1, 0.5, 1.0, 3.0, 30.0, 700.0] {
+            let (sigma, dt) = (0.7, 1e-3);
+            let tc = dt / h;
+            let (_a, c, k, s1, r) = ou_discretise(sigma, tc, dt);
+            let total = c * c * sigma * sigma + k * k * s1 * s1 + r;
+            let d = if h < 1e-3 {
+                // series of h - 1 + e^-h = h^2/2 - h^3/6 + h^4/24
+                2.0 * sigma * sigma * tc * tc * (h * h / 2.0 - h * h * h / 6.0 + h.powi(4) / 24.0)
+            } else {
+                2.0 * sigma * sigma * tc * tc * (h - 1.0 + (-h).exp())
+            };
+            assert!((total / d - 1.0).abs() < 1e-9, "h={h}: {total} vs {d}");
+            // and the residual alone is the Brownian-bridge value sigma^2 dt^3/(6 Tc) for small h
+            if h < 1e-3 {
+                let bb = sigma * sigma * dt * dt * dt / (6.0 * tc);
+                assert!((r / bb - 1.0).abs() < 1e-3, "h={h}: resid {r} vs {bb}");
+            }
+        }
+    }
+
+    #[test]
+    fn fixed_point_formatting() {
+        let mut b = Vec::new();
+        for v in [0.0, 25.0, -3.14159, 1234.56789, -0.00004, 0.00005] {
+            push_fixed4(&mut b, v);
+            b.push(b' ');
+        }
+        push_i64(&mut b, i64::MIN);
+        b.push(b' ');
+        push_i64(&mut b, -7);
+        assert_eq!(
+            String::from_utf8(b).unwrap(),
+            "0.0000 25.0000 -3.1416 1234.5679 0.0000 0.0001 -9223372036854775808 -7"
+        );
+    }
+}
