@@ -44,8 +44,12 @@ pub struct SimulateArgs {
 pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     match args.format {
         SimFormat::Csv => {}
-        SimFormat::Frames => bail!("--format frames is not wired yet (the frame encoder is merged later); use --format csv"),
-        SimFormat::Mcap => bail!("--format mcap is not wired yet (the MCAP writer is merged later); use --format csv"),
+        SimFormat::Frames => bail!(
+            "--format frames is not wired yet (the frame encoder is merged later); use --format csv"
+        ),
+        SimFormat::Mcap => bail!(
+            "--format mcap is not wired yet (the MCAP writer is merged later); use --format csv"
+        ),
     }
     let model = GyroModel::load(&args.model).context("loading the gyro model")?;
     let mut simulator = Simulator::new(&model, args.seed, Some(args.duration_s))
@@ -53,7 +57,8 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     let rows = if args.out.as_os_str() == "-" {
         sim::write_csv(&mut simulator, std::io::stdout().lock())
     } else {
-        let file = File::create(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+        let file =
+            File::create(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
         sim::write_csv(&mut simulator, file)
     }
     .with_context(|| format!("writing {}", args.out.display()))?;

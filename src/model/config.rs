@@ -151,7 +151,10 @@ impl GyroModel {
     /// Parse and validate a model from TOML text; `origin` names the source in errors.
     pub fn from_toml_str(text: &str, origin: &str) -> Result<Self, ModelError> {
         let model: GyroModel = toml::from_str(text).map_err(|e| {
-            let (line, column) = e.span().map(|s| byte_to_line_col(text, s.start)).unwrap_or((0, 0));
+            let (line, column) = e
+                .span()
+                .map(|s| byte_to_line_col(text, s.start))
+                .unwrap_or((0, 0));
             ModelError::Parse {
                 origin: origin.to_string(),
                 line,
@@ -190,7 +193,9 @@ impl GyroModel {
     /// Total quantization coefficient Q (arcsec): the configured value, or
     /// `d/sqrt(12)` when absent.
     pub fn quantization_q_arcsec(&self) -> f64 {
-        self.noise.quantization_arcsec.unwrap_or_else(|| self.counter_q_arcsec())
+        self.noise
+            .quantization_arcsec
+            .unwrap_or_else(|| self.counter_q_arcsec())
     }
 
     /// Standard deviation of the white dither residual added before the counter,
@@ -203,13 +208,19 @@ impl GyroModel {
 
     /// Low edge of the flicker band, Hz.
     pub fn flicker_f_lo_hz(&self) -> f64 {
-        self.noise.bias_instability_f_lo_hz.unwrap_or(DEFAULT_FLICKER_F_LO_HZ)
+        self.noise
+            .bias_instability_f_lo_hz
+            .unwrap_or(DEFAULT_FLICKER_F_LO_HZ)
     }
 
     /// Check every value; errors name the key (with its table path) and the value.
     pub fn validate(&self) -> Result<(), ModelError> {
         fn finite(key: &str, v: f64) -> Result<(), ModelError> {
-            if v.is_finite() { Ok(()) } else { Err(ModelError::invalid(key, v, "must be finite")) }
+            if v.is_finite() {
+                Ok(())
+            } else {
+                Err(ModelError::invalid(key, v, "must be finite"))
+            }
         }
         fn nonneg(key: &str, v: f64) -> Result<(), ModelError> {
             if v.is_finite() && v >= 0.0 {
@@ -258,7 +269,9 @@ impl GyroModel {
                 return Err(ModelError::invalid(
                     "noise.bias_instability_f_lo_hz",
                     v,
-                    format!("must be below half the flicker top corner ({top} Hz = 4 x sample rate)"),
+                    format!(
+                        "must be below half the flicker top corner ({top} Hz = 8 x sample rate)"
+                    ),
                 ));
             }
         }
@@ -273,12 +286,21 @@ impl GyroModel {
             positive(&format!("noise.gauss_markov[{i}].tau_c_s"), t.tau_c_s)?;
         }
         for (i, t) in n.sinusoid.iter().enumerate() {
-            nonneg(&format!("noise.sinusoid[{i}].amplitude_dph"), t.amplitude_dph)?;
+            nonneg(
+                &format!("noise.sinusoid[{i}].amplitude_dph"),
+                t.amplitude_dph,
+            )?;
             positive(&format!("noise.sinusoid[{i}].period_s"), t.period_s)?;
         }
         for (i, t) in n.random_telegraph.iter().enumerate() {
-            nonneg(&format!("noise.random_telegraph[{i}].amplitude_dph"), t.amplitude_dph)?;
-            positive(&format!("noise.random_telegraph[{i}].mean_dwell_s"), t.mean_dwell_s)?;
+            nonneg(
+                &format!("noise.random_telegraph[{i}].amplitude_dph"),
+                t.amplitude_dph,
+            )?;
+            positive(
+                &format!("noise.random_telegraph[{i}].mean_dwell_s"),
+                t.mean_dwell_s,
+            )?;
         }
         if let Some(th) = &self.thermal {
             finite("thermal.temp_c0", th.temp_c0)?;
@@ -295,7 +317,10 @@ impl GyroModel {
                 }
                 None => {}
             }
-            finite("thermal.bias_sensitivity_dph_per_c", th.bias_sensitivity_dph_per_c)?;
+            finite(
+                "thermal.bias_sensitivity_dph_per_c",
+                th.bias_sensitivity_dph_per_c,
+            )?;
         }
         Ok(())
     }
@@ -307,7 +332,9 @@ impl GyroModel {
     /// and the thermal sinusoid. Absent or zero terms are left out.
     pub fn terms(&self) -> Vec<Term> {
         let n = &self.noise;
-        let mut out = vec![Term::Quantization { q_arcsec: self.quantization_q_arcsec() }];
+        let mut out = vec![Term::Quantization {
+            q_arcsec: self.quantization_q_arcsec(),
+        }];
         if let Some(v) = n.arw_dpsh.filter(|v| *v > 0.0) {
             out.push(Term::AngleRandomWalk { n_dpsh: v });
         }
@@ -331,18 +358,30 @@ impl GyroModel {
             out.push(Term::RateRamp { r_dphh: ramp });
         }
         for t in &n.gauss_markov {
-            out.push(Term::GaussMarkov { sigma_dph: t.sigma_dph, tau_c_s: t.tau_c_s });
+            out.push(Term::GaussMarkov {
+                sigma_dph: t.sigma_dph,
+                tau_c_s: t.tau_c_s,
+            });
         }
         for t in &n.sinusoid {
-            out.push(Term::Sinusoid { amplitude_dph: t.amplitude_dph, period_s: t.period_s });
+            out.push(Term::Sinusoid {
+                amplitude_dph: t.amplitude_dph,
+                period_s: t.period_s,
+            });
         }
         for t in &n.random_telegraph {
-            out.push(Term::RandomTelegraph { amplitude_dph: t.amplitude_dph, mean_dwell_s: t.mean_dwell_s });
+            out.push(Term::RandomTelegraph {
+                amplitude_dph: t.amplitude_dph,
+                mean_dwell_s: t.mean_dwell_s,
+            });
         }
         if let Some(th) = &self.thermal {
             let a = (th.bias_sensitivity_dph_per_c * th.sine_amplitude_c).abs();
             if let (true, Some(p)) = (a > 0.0, th.sine_period_s) {
-                out.push(Term::Sinusoid { amplitude_dph: a, period_s: p });
+                out.push(Term::Sinusoid {
+                    amplitude_dph: a,
+                    period_s: p,
+                });
             }
         }
         out

@@ -65,7 +65,11 @@ fn origin_prefix(origin: &Option<String>) -> String {
 
 impl ModelError {
     /// An [`ModelError::Invalid`] without a file origin.
-    pub fn invalid(key: impl Into<String>, value: impl std::fmt::Display, reason: impl Into<String>) -> Self {
+    pub fn invalid(
+        key: impl Into<String>,
+        value: impl std::fmt::Display,
+        reason: impl Into<String>,
+    ) -> Self {
         ModelError::Invalid {
             origin: None,
             key: key.into(),
@@ -77,7 +81,9 @@ impl ModelError {
     /// Attach a file name to an `Invalid` error (other variants are returned unchanged).
     pub fn with_origin(self, origin: impl Into<String>) -> Self {
         match self {
-            ModelError::Invalid { key, value, reason, .. } => ModelError::Invalid {
+            ModelError::Invalid {
+                key, value, reason, ..
+            } => ModelError::Invalid {
                 origin: Some(origin.into()),
                 key,
                 value,

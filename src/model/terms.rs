@@ -45,8 +45,11 @@ pub const EULER_GAMMA: f64 = 0.577_215_664_901_532_9;
 /// Default low band edge of the simulated flicker (1e-7 Hz: periods up to ~116 days).
 pub const DEFAULT_FLICKER_F_LO_HZ: f64 = 1e-7;
 
-/// The flicker bank's top corner, as a multiple of the sample rate (8 x Nyquist).
-pub const FLICKER_TOP_PER_SAMPLE_RATE: f64 = 4.0;
+/// The flicker bank's top corner, as a multiple of the sample rate (16 x Nyquist).
+pub const FLICKER_TOP_PER_SAMPLE_RATE: f64 = 8.0;
+
+/// Largest spacing of the flicker bank's corner frequencies, in octaves.
+pub const FLICKER_OCTAVES_PER_NODE: f64 = 1.5;
 
 // ---------------------------------------------------------------------------
 // Special functions
@@ -261,7 +264,12 @@ pub fn gauss_markov_psd(sigma_arcsec_s: f64, tau_c_s: f64, f_hz: f64) -> f64 {
 /// not a ratio of small integers of the pulse weight (equidistributed phase),
 /// for records many periods `d/rate` long. Dither residuals below `1e-6 d` are
 /// treated as zero (error below `2e-6 d^2` in R).
-pub fn counter_readout_avar(pulse_arcsec: f64, dither_sigma_arcsec: f64, rate_dph: f64, tau_s: f64) -> f64 {
+pub fn counter_readout_avar(
+    pulse_arcsec: f64,
+    dither_sigma_arcsec: f64,
+    rate_dph: f64,
+    tau_s: f64,
+) -> f64 {
     let d = pulse_arcsec;
     let s = dither_sigma_arcsec / d;
     let rate = units::dph_to_arcsec_per_s(rate_dph);
@@ -302,24 +310,27 @@ pub struct GmComponent {
 }
 
 /// The design of the simulator's flicker (bias-instability) generator: a sum of
-/// Gauss-Markov processes with corner frequencies `f_j` spaced at most one octave
+/// Gauss-Markov processes with corner frequencies `f_j` spaced at most 1.5 octaves
 /// apart from `f_lo` to `f_top`, plus white rate noise standing in for the
 /// components above `f_top`.
 ///
 /// Why it is 1/f: a GM component with corner `f_c` has PSD
 /// `(2 sigma^2/(pi f_c)) / (1 + (f/f_c)^2)`. Integrating such Lorentzians over
 /// `ln f_c` with weight `2 B^2 / (pi^2 f_c)` gives exactly `B^2/(pi f)` between
-/// the edges; the bank is the trapezoid rule of that integral in `ln f_c` (weights
-/// `W_j = h`, `h/2` at the ends, `sigma_j^2 = W_j B^2 / pi`). Poisson summation
-/// bounds the ripple of the trapezoid rule by `4 exp(-pi^2/h)` = 3e-6 for `h = ln 2`.
-/// The components above `f_top` would each add a flat `2 W B^2/(pi^2 f_c)` below
-/// their corner; their sum `2 B^2 / (pi^2 f_top)` is added as white rate noise, so
-/// the PSD stays 1/f up to a fraction of `f_top` instead of rolling off like an
-/// arctangent. With `f_top = 4 fs` (8 x Nyquist) the bank's Allan variance is
-/// within 7e-4 of the ideal `[f_lo, inf)` flicker for `tau0 <= tau <= 1e-4/f_lo`,
-/// within 0.4 % up to `1e-3/f_lo` and within 3.5 % up to `1e-2/f_lo` (the soft
-/// low corner). Memory and cost per sample are constant (one Gaussian draw per
-/// component), so the generator runs indefinitely.
+/// the edges; the bank is a quadrature of that integral in `ln f_c` with step
+/// `h <= 1.5 ln 2` (equal weights `h`, Gregory end corrections `3/8, 7/6, 23/24`;
+/// `sigma_j^2 = W_j B^2 / pi`). Poisson summation bounds the interior ripple of the
+/// equal-weight rule by `4 exp(-pi^2/h)` = 3e-4. The components above `f_top` would
+/// each add a flat `2 W B^2/(pi^2 f_c)` below their corner; their sum
+/// `2 B^2 / (pi^2 f_top)` is added as white rate noise, so the PSD stays 1/f up to a
+/// fraction of `f_top` instead of rolling off like an arctangent.
+///
+/// With `f_top = 8 fs` (16 x Nyquist; 26 components from 1e-7 Hz at 1 kHz) the
+/// bank's Allan variance is within 7e-4 of the ideal `[f_lo, inf)` flicker for
+/// `tau0 <= tau <= 1e-4/f_lo`, within 0.4 % up to `1e-3/f_lo` and within 3.5 % up to
+/// `1e-2/f_lo` (the soft low corner); its PSD is within 0.3 % of `B^2/(pi f)` on
+/// `[1000 f_lo, fs/2]` (all tested). Memory and cost per sample are constant (one
+/// Gaussian draw per component), so the generator runs indefinitely.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FlickerBank {
     b_arcsec_s: f64,
@@ -333,10 +344,18 @@ impl FlickerBank {
     /// A bank for bias instability `b_dph` (deg/h) from `f_lo_hz` to `f_top_hz`.
     pub fn new(b_dph: f64, f_lo_hz: f64, f_top_hz: f64) -> Result<Self, ModelError> {
         if !(b_dph.is_finite() && b_dph >= 0.0) {
-            return Err(ModelError::invalid("bias_instability_dph", b_dph, "must be finite and >= 0"));
+            return Err(ModelError::invalid(
+                "bias_instability_dph",
+                b_dph,
+                "must be finite and >= 0",
+            ));
         }
         if !(f_lo_hz.is_finite() && f_lo_hz > 0.0) {
-            return Err(ModelError::invalid("bias_instability_f_lo_hz", f_lo_hz, "must be finite and > 0"));
+            return Err(ModelError::invalid(
+                "bias_instability_f_lo_hz",
+                f_lo_hz,
+                "must be finite and > 0",
+            ));
         }
         if !(f_top_hz.is_finite() && f_top_hz >= 2.0 * f_lo_hz) {
             return Err(ModelError::invalid(
@@ -347,12 +366,29 @@ impl FlickerBank {
         }
         let b = units::dph_to_arcsec_per_s(b_dph);
         let span = (f_top_hz / f_lo_hz).ln();
-        let intervals = (span / LN_2 - 1e-9).ceil().max(1.0) as usize;
+        let intervals = (span / (FLICKER_OCTAVES_PER_NODE * LN_2) - 1e-9)
+            .ceil()
+            .max(1.0) as usize;
         let h = span / intervals as f64;
-        let components = (0..=intervals)
+        let nodes = intervals + 1;
+        let components = (0..nodes)
             .map(|j| {
                 let f_c = f_lo_hz * (h * j as f64).exp();
-                let w = if j == 0 || j == intervals { 0.5 * h } else { h };
+                // Gregory end corrections (3/8, 7/6, 23/24) when there are enough nodes,
+                // else the plain trapezoid rule
+                let from_end = j.min(nodes - 1 - j);
+                let w = if nodes >= 6 {
+                    h * match from_end {
+                        0 => 3.0 / 8.0,
+                        1 => 7.0 / 6.0,
+                        2 => 23.0 / 24.0,
+                        _ => 1.0,
+                    }
+                } else if from_end == 0 {
+                    0.5 * h
+                } else {
+                    h
+                };
                 GmComponent {
                     sigma_arcsec_s: (w / PI).sqrt() * b,
                     tau_c_s: 1.0 / (2.0 * PI * f_c),
@@ -368,8 +404,12 @@ impl FlickerBank {
         })
     }
 
-    /// The bank the simulator uses at `sample_rate_hz`: `f_top = 4 fs`.
-    pub fn for_sample_rate(b_dph: f64, f_lo_hz: f64, sample_rate_hz: f64) -> Result<Self, ModelError> {
+    /// The bank the simulator uses at `sample_rate_hz`: `f_top = 8 fs`.
+    pub fn for_sample_rate(
+        b_dph: f64,
+        f_lo_hz: f64,
+        sample_rate_hz: f64,
+    ) -> Result<Self, ModelError> {
         Self::new(b_dph, f_lo_hz, FLICKER_TOP_PER_SAMPLE_RATE * sample_rate_hz)
     }
 
@@ -429,7 +469,11 @@ pub enum Term {
     AngleRandomWalk { n_dpsh: f64 },
     /// Bias instability: 1/f rate noise `B^2/(pi f)` on `[f_lo_hz, f_hi_hz]`
     /// (`f_hi_hz` may be infinite). B in deg/h.
-    BiasInstability { b_dph: f64, f_lo_hz: f64, f_hi_hz: f64 },
+    BiasInstability {
+        b_dph: f64,
+        f_lo_hz: f64,
+        f_hi_hz: f64,
+    },
     /// Rate random walk, K in deg/h/sqrt(h).
     RateRandomWalk { k_dphsh: f64 },
     /// Rate ramp, R in deg/h/h.
@@ -439,7 +483,10 @@ pub enum Term {
     /// Sinusoidal bias, amplitude in deg/h, period in s.
     Sinusoid { amplitude_dph: f64, period_s: f64 },
     /// Random telegraph bias (+a / -a), amplitude in deg/h, mean dwell time in s.
-    RandomTelegraph { amplitude_dph: f64, mean_dwell_s: f64 },
+    RandomTelegraph {
+        amplitude_dph: f64,
+        mean_dwell_s: f64,
+    },
 }
 
 impl Term {
@@ -559,10 +606,18 @@ impl Term {
         match *self {
             Term::Quantization { q_arcsec } => nonneg("quantization_arcsec", q_arcsec),
             Term::AngleRandomWalk { n_dpsh } => nonneg("arw_dpsh", n_dpsh),
-            Term::BiasInstability { b_dph, f_lo_hz, f_hi_hz } => {
+            Term::BiasInstability {
+                b_dph,
+                f_lo_hz,
+                f_hi_hz,
+            } => {
                 nonneg("bias_instability_dph", b_dph)?;
                 if !(f_lo_hz.is_finite() && f_lo_hz >= 0.0) {
-                    return Err(ModelError::invalid("bias_instability_f_lo_hz", f_lo_hz, "must be finite and >= 0"));
+                    return Err(ModelError::invalid(
+                        "bias_instability_f_lo_hz",
+                        f_lo_hz,
+                        "must be finite and >= 0",
+                    ));
                 }
                 if f_hi_hz.is_nan() || f_hi_hz <= f_lo_hz {
                     return Err(ModelError::invalid(
@@ -578,18 +633,28 @@ impl Term {
                 if r_dphh.is_finite() {
                     Ok(())
                 } else {
-                    Err(ModelError::invalid("rate_ramp_dphh", r_dphh, "must be finite"))
+                    Err(ModelError::invalid(
+                        "rate_ramp_dphh",
+                        r_dphh,
+                        "must be finite",
+                    ))
                 }
             }
             Term::GaussMarkov { sigma_dph, tau_c_s } => {
                 nonneg("sigma_dph", sigma_dph)?;
                 positive("tau_c_s", tau_c_s)
             }
-            Term::Sinusoid { amplitude_dph, period_s } => {
+            Term::Sinusoid {
+                amplitude_dph,
+                period_s,
+            } => {
                 nonneg("amplitude_dph", amplitude_dph)?;
                 positive("period_s", period_s)
             }
-            Term::RandomTelegraph { amplitude_dph, mean_dwell_s } => {
+            Term::RandomTelegraph {
+                amplitude_dph,
+                mean_dwell_s,
+            } => {
                 nonneg("amplitude_dph", amplitude_dph)?;
                 positive("mean_dwell_s", mean_dwell_s)
             }
@@ -618,7 +683,11 @@ impl Term {
                 let n = units::dpsh_to_arcsec_per_sqrt_s(n_dpsh);
                 2.0 * n * n
             }
-            Term::BiasInstability { b_dph, f_lo_hz, f_hi_hz } => {
+            Term::BiasInstability {
+                b_dph,
+                f_lo_hz,
+                f_hi_hz,
+            } => {
                 if f < f_lo_hz || f > f_hi_hz || f <= 0.0 {
                     0.0
                 } else {
@@ -639,9 +708,14 @@ impl Term {
                 gauss_markov_psd(units::dph_to_arcsec_per_s(sigma_dph), tau_c_s, f)
             }
             Term::Sinusoid { .. } => 0.0,
-            Term::RandomTelegraph { amplitude_dph, mean_dwell_s } => {
-                gauss_markov_psd(units::dph_to_arcsec_per_s(amplitude_dph), 0.5 * mean_dwell_s, f)
-            }
+            Term::RandomTelegraph {
+                amplitude_dph,
+                mean_dwell_s,
+            } => gauss_markov_psd(
+                units::dph_to_arcsec_per_s(amplitude_dph),
+                0.5 * mean_dwell_s,
+                f,
+            ),
         }
     }
 
@@ -649,7 +723,10 @@ impl Term {
     /// (`A^2/2` at `1/T`); `None` for the other terms.
     pub fn spectral_line(&self) -> Option<(f64, f64)> {
         match *self {
-            Term::Sinusoid { amplitude_dph, period_s } => {
+            Term::Sinusoid {
+                amplitude_dph,
+                period_s,
+            } => {
                 let a = units::dph_to_arcsec_per_s(amplitude_dph);
                 Some((1.0 / period_s, 0.5 * a * a))
             }
@@ -663,15 +740,19 @@ impl Term {
         match *self {
             Term::Quantization { .. } => quantization_avar(1.0, tau_s),
             Term::AngleRandomWalk { .. } => arw_avar(units::dpsh_to_arcsec_per_sqrt_s(1.0), tau_s),
-            Term::BiasInstability { f_lo_hz, f_hi_hz, .. } => {
-                flicker_avar(units::dph_to_arcsec_per_s(1.0), tau_s, f_lo_hz, f_hi_hz)
+            Term::BiasInstability {
+                f_lo_hz, f_hi_hz, ..
+            } => flicker_avar(units::dph_to_arcsec_per_s(1.0), tau_s, f_lo_hz, f_hi_hz),
+            Term::RateRandomWalk { .. } => {
+                rrw_avar(units::dphsh_to_arcsec_per_s_sqrt_s(1.0), tau_s)
             }
-            Term::RateRandomWalk { .. } => rrw_avar(units::dphsh_to_arcsec_per_s_sqrt_s(1.0), tau_s),
             Term::RateRamp { .. } => rate_ramp_avar(units::dphh_to_arcsec_per_s2(1.0), tau_s),
             Term::GaussMarkov { tau_c_s, .. } => {
                 gauss_markov_avar(units::dph_to_arcsec_per_s(1.0), tau_c_s, tau_s)
             }
-            Term::Sinusoid { period_s, .. } => sinusoid_avar(units::dph_to_arcsec_per_s(1.0), period_s, tau_s),
+            Term::Sinusoid { period_s, .. } => {
+                sinusoid_avar(units::dph_to_arcsec_per_s(1.0), period_s, tau_s)
+            }
             Term::RandomTelegraph { mean_dwell_s, .. } => {
                 random_telegraph_avar(units::dph_to_arcsec_per_s(1.0), mean_dwell_s, tau_s)
             }
@@ -686,7 +767,11 @@ impl Term {
 
     /// Allan variance over a tau grid: `out[i] = avar(taus[i])`.
     pub fn avar_into(&self, taus: &[f64], out: &mut [f64]) {
-        assert_eq!(taus.len(), out.len(), "avar_into: taus and out differ in length");
+        assert_eq!(
+            taus.len(),
+            out.len(),
+            "avar_into: taus and out differ in length"
+        );
         let c2 = self.coefficient() * self.coefficient();
         for (o, &t) in out.iter_mut().zip(taus) {
             *o = c2 * self.unit_avar(t);
@@ -695,7 +780,11 @@ impl Term {
 
     /// Add this term's Allan variance over a tau grid to `out`.
     pub fn add_avar_into(&self, taus: &[f64], out: &mut [f64]) {
-        assert_eq!(taus.len(), out.len(), "add_avar_into: taus and out differ in length");
+        assert_eq!(
+            taus.len(),
+            out.len(),
+            "add_avar_into: taus and out differ in length"
+        );
         let c2 = self.coefficient() * self.coefficient();
         for (o, &t) in out.iter_mut().zip(taus) {
             *o += c2 * self.unit_avar(t);
@@ -705,7 +794,11 @@ impl Term {
 
 /// Sum of the Allan variances of independent terms over a tau grid.
 pub fn total_avar_into(terms: &[Term], taus: &[f64], out: &mut [f64]) {
-    assert_eq!(taus.len(), out.len(), "total_avar_into: taus and out differ in length");
+    assert_eq!(
+        taus.len(),
+        out.len(),
+        "total_avar_into: taus and out differ in length"
+    );
     out.iter_mut().for_each(|o| *o = 0.0);
     for t in terms {
         t.add_avar_into(taus, out);
@@ -719,8 +812,8 @@ mod tests {
     #[test]
     fn gm_shape_series_joins_direct_form() {
         // both branches at the switch point agree to 1e-10 relative
-        let u = 0.05;
-        let direct = 2.0 * u - 3.0 + 4.0 * (-u as f64).exp() - (-2.0 * u as f64).exp();
+        let u: f64 = 0.05;
+        let direct: f64 = 2.0 * u - 3.0 + 4.0 * (-u).exp() - (-2.0 * u).exp();
         let series = {
             let mut s = 0.0;
             let mut t = u * u * u / 6.0;
@@ -732,7 +825,10 @@ mod tests {
             }
             s
         };
-        assert!((direct / series - 1.0).abs() < 1e-10, "{direct} vs {series}");
+        assert!(
+            (direct / series - 1.0).abs() < 1e-10,
+            "{direct} vs {series}"
+        );
         assert!((gm_shape(1e-4) / (2.0 / 3.0 * 1e-12) - 1.0).abs() < 1e-3);
     }
 

@@ -1,0 +1,255 @@
+//! The gyro model file: config/paper_gyro.toml parses, unknown keys and
+//! out-of-range values are errors naming the key (and line / value), and the
+//! model round-trips through TOML.
+
+use sagnac::model::ModelError;
+use sagnac::model::config::{GyroModel, ThermalParams};
+use sagnac::model::terms::Term;
+
+fn paper_path() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/paper_gyro.toml")
+}
+
+const BASE: &str = r#"
+[gyro]
+sample_rate_hz = 1000.0
+pulse_weight_arcsec = 1.21
+input_rate_dph = 12.3
+
+[noise]
+quantization_arcsec = 0.35
+arw_dpsh = 0.001
+
+[[noise.gauss_markov]]
+sigma_dph = 0.008
+tau_c_s = 90.0
+
+[[noise.sinusoid]]
+amplitude_dph = 0.004
+period_s = 600.0
+
+[thermal]
+temp_c0 = 25.0
+ramp_c_per_h = 0.5
+bias_sensitivity_dph_per_c = 0.001
+"#;
+
+fn err_of(text: &str) -> String {
+    match GyroModel::from_toml_str(text, "m.toml") {
+        Ok(_) => panic!("expected an error for:\n{text}"),
+        Err(e) => e.to_string(),
+    }
+}
+
+#[test]
+fn paper_gyro_parses_with_the_papers_numbers() {
+    let m = GyroModel::load(&paper_path()).unwrap();
+    assert_eq!(m.gyro.sample_rate_hz, 1000.0);
+    assert_eq!(m.gyro.pulse_weight_arcsec, 1.21);
+    assert_eq!(m.gyro.input_rate_dph, 12.3);
+    assert_eq!(m.noise.quantization_arcsec, Some(0.35));
+    assert_eq!(m.noise.arw_dpsh, Some(0.001));
+    assert_eq!(m.noise.bias_instability_dph, Some(0.002));
+    assert_eq!(m.noise.rrw_dphsh, Some(0.0));
+    assert_eq!(m.noise.gauss_markov.len(), 1);
+    assert_eq!(m.noise.sinusoid[0].period_s, 600.0);
+    assert_eq!(m.noise.random_telegraph[0].mean_dwell_s, 300.0);
+    assert!(m.thermal.is_none());
+    // d/sqrt(12) = 0.349297..., dither residual sqrt(0.35^2 - 1.21^2/12) = 0.022181...
+    assert!((m.counter_q_arcsec() - 0.349_297_2).abs() < 1e-6);
+    assert!(
+        (m.dither_sigma_arcsec() - 0.022_181).abs() < 1e-5,
+        "{}",
+        m.dither_sigma_arcsec()
+    );
+    // the term list: Q, ARW, BI, GM, sinusoid, RTN (zero RRW / ramp left out)
+    let names: Vec<&str> = m.terms().iter().map(|t| t.name()).collect();
+    assert_eq!(
+        names,
+        [
+            "quantization",
+            "arw",
+            "bias_instability",
+            "gauss_markov",
+            "sinusoid",
+            "random_telegraph"
+        ]
+    );
+    assert_eq!(
+        m.terms()[2],
+        Term::BiasInstability {
+            b_dph: 0.002,
+            f_lo_hz: 1e-7,
+            f_hi_hz: f64::INFINITY
+        }
+    );
+}
+
+#[test]
+fn unknown_keys_are_errors_naming_key_and_line_at_every_level() {
+    let cases = [
+        ("[gyro]\n", "[gyro]\nsample_rate = 1.0\n", "sample_rate"),
+        (
+            "arw_dpsh = 0.001\n",
+            "arw_dpsh = 0.001\narw = 0.001\n",
+            "arw",
+        ),
+        (
+            "sigma_dph = 0.008\n",
+            "sigma_dph = 0.008\nsigma_dphh = 1.0\n",
+            "sigma_dphh",
+        ),
+        (
+            "period_s = 600.0\n",
+            "period_s = 600.0\nphase_deg = 3.0\n",
+            "phase_deg",
+        ),
+        (
+            "temp_c0 = 25.0\n",
+            "temp_c0 = 25.0\ntemp_c = 3.0\n",
+            "temp_c",
+        ),
+    ];
+    for (anchor, replacement, key) in cases {
+        assert!(BASE.contains(anchor), "{anchor}");
+        let text = BASE.replacen(anchor, replacement, 1);
+        // 1-based line of the inserted key
+        let line = text
+            .lines()
+            .position(|l| l.starts_with(&format!("{key} =")))
+            .unwrap()
+            + 1;
+        let msg = err_of(&text);
+        assert!(
+            msg.contains(&format!("`{key}`")),
+            "message does not name `{key}`: {msg}"
+        );
+        assert!(
+            msg.starts_with(&format!("m.toml:{line}:")),
+            "wrong line for {key}: {msg}"
+        );
+    }
+    // an unknown table at the top level
+    let msg = err_of(&format!("{BASE}\n[dither]\nx = 1\n"));
+    assert!(msg.contains("`dither`"), "{msg}");
+}
+
+#[test]
+fn out_of_range_values_name_key_and_value() {
+    let cases = [
+        (
+            "sigma_dph = 0.008",
+            "sigma_dph = -0.5",
+            "noise.gauss_markov[0].sigma_dph = -0.5",
+        ),
+        (
+            "period_s = 600.0",
+            "period_s = 0.0",
+            "noise.sinusoid[0].period_s = 0",
+        ),
+        (
+            "tau_c_s = 90.0",
+            "tau_c_s = -1",
+            "noise.gauss_markov[0].tau_c_s = -1",
+        ),
+        ("arw_dpsh = 0.001", "arw_dpsh = nan", "noise.arw_dpsh = NaN"),
+        ("arw_dpsh = 0.001", "arw_dpsh = inf", "noise.arw_dpsh = inf"),
+        (
+            "sample_rate_hz = 1000.0",
+            "sample_rate_hz = 0.0",
+            "gyro.sample_rate_hz = 0",
+        ),
+        (
+            "pulse_weight_arcsec = 1.21",
+            "pulse_weight_arcsec = -1.21",
+            "gyro.pulse_weight_arcsec = -1.21",
+        ),
+        ("temp_c0 = 25.0", "temp_c0 = -inf", "thermal.temp_c0 = -inf"),
+    ];
+    for (from, to, expect) in cases {
+        let msg = err_of(&BASE.replacen(from, to, 1));
+        assert!(msg.starts_with("m.toml: "), "{msg}");
+        assert!(msg.contains(expect), "expected `{expect}` in: {msg}");
+    }
+    // Q below the counter's own d/sqrt(12) is an error that says why
+    let msg = err_of(&BASE.replacen("quantization_arcsec = 0.35", "quantization_arcsec = 0.3", 1));
+    assert!(msg.contains("noise.quantization_arcsec = 0.3"), "{msg}");
+    assert!(
+        msg.contains("d/sqrt(12)") && msg.contains("0.349297"),
+        "{msg}"
+    );
+    // a thermal sine without a period
+    let msg = err_of(&BASE.replacen(
+        "temp_c0 = 25.0",
+        "temp_c0 = 25.0\nsine_amplitude_c = 0.3",
+        1,
+    ));
+    assert!(msg.contains("thermal.sine_period_s"), "{msg}");
+    // a wrong type is a parse error naming the key's line
+    let text = BASE.replacen("arw_dpsh = 0.001", "arw_dpsh = \"small\"", 1);
+    let line = text
+        .lines()
+        .position(|l| l.starts_with("arw_dpsh"))
+        .unwrap()
+        + 1;
+    let msg = err_of(&text);
+    assert!(msg.starts_with(&format!("m.toml:{line}:")), "{msg}");
+}
+
+#[test]
+fn model_round_trips_through_toml() {
+    let paper = GyroModel::load(&paper_path()).unwrap();
+    let mut models = vec![
+        paper.clone(),
+        GyroModel::from_toml_str(BASE, "base").unwrap(),
+    ];
+    let mut with_thermal = paper;
+    with_thermal.thermal = Some(ThermalParams {
+        temp_c0: 21.5,
+        ramp_c_per_h: -0.25,
+        sine_amplitude_c: 0.4,
+        sine_period_s: Some(86_400.0),
+        bias_sensitivity_dph_per_c: 0.0015,
+    });
+    with_thermal.noise.bias_instability_f_lo_hz = Some(3e-6);
+    models.push(with_thermal);
+    for m in models {
+        let text = m.to_toml().unwrap();
+        let back = GyroModel::from_toml_str(&text, "round-trip").unwrap();
+        assert_eq!(back, m, "round trip changed the model; TOML was:\n{text}");
+        assert!(text.contains("[[noise.gauss_markov]]"), "{text}");
+    }
+}
+
+#[test]
+fn minimal_model_defaults_and_missing_file() {
+    let m = GyroModel::from_toml_str(
+        "[gyro]\nsample_rate_hz = 100\npulse_weight_arcsec = 2.0\n",
+        "min",
+    )
+    .unwrap();
+    assert_eq!(m.gyro.input_rate_dph, 0.0);
+    assert_eq!(m.quantization_q_arcsec(), 2.0 / 12f64.sqrt());
+    assert_eq!(m.dither_sigma_arcsec(), 0.0);
+    assert_eq!(m.terms().len(), 1);
+    let e = GyroModel::load(std::path::Path::new("/nonexistent/dir/model.toml")).unwrap_err();
+    assert!(matches!(e, ModelError::Read { .. }));
+    assert!(e.to_string().contains("/nonexistent/dir/model.toml"));
+}
+
+#[test]
+fn thermal_terms_are_a_ramp_and_a_sinusoid() {
+    let mut m = GyroModel::from_toml_str(BASE, "base").unwrap();
+    m.noise.rate_ramp_dphh = Some(0.01);
+    m.thermal.as_mut().unwrap().sine_amplitude_c = 0.2;
+    m.thermal.as_mut().unwrap().sine_period_s = Some(3600.0);
+    let terms = m.terms();
+    // model ramp + thermal ramp (0.001 dph/C * 0.5 C/h), added linearly
+    assert!(terms.contains(&Term::RateRamp {
+        r_dphh: 0.01 + 0.0005
+    }));
+    assert!(terms.contains(&Term::Sinusoid {
+        amplitude_dph: 0.0002,
+        period_s: 3600.0
+    }));
+}
