@@ -462,7 +462,7 @@ impl Simulator {
             Some(r) => n.min(usize::try_from(r).unwrap_or(usize::MAX)),
             None => n,
         };
-        counts.reserve(n);
+        counts.reserve(n.min(1 << 20));
         let mut done = 0;
         while done < n {
             let m = (n - done).min(CHUNK);
