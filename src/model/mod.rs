@@ -3,3 +3,4 @@
 
 pub mod wvar;
 pub mod fit;
+pub mod estimate;
