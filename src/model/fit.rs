@@ -217,6 +217,14 @@ impl Problem<'_> {
     }
 }
 
+/// One-shot weighted non-negative least squares: minimise
+/// `sum_j w_j (y_j - sum_k theta_k phi_jk)^2` over `theta >= 0`.
+pub fn weighted_nnls(phi: &[Vec<f64>], y: &[f64], w: &[f64]) -> Vec<f64> {
+    let k = phi.first().map_or(0, |r| r.len());
+    let prob = Problem { phi, y: y.to_vec(), half_edf: vec![1.0; y.len()], k };
+    prob.wnnls(&vec![true; k], &vec![0.0; k], w)
+}
+
 /// Solve a small dense system by Gaussian elimination with partial pivoting.
 fn solve(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Option<Vec<f64>> {
     let n = b.len();

@@ -4,3 +4,4 @@
 pub mod wvar;
 pub mod fit;
 pub mod estimate;
+pub mod baseline;
