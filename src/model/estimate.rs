@@ -28,7 +28,7 @@ use std::f64::consts::PI;
 use serde::{Deserialize, Serialize};
 
 use super::fit::{FitOptions, LevelFit, LevelObs, fit_rows};
-use super::wvar::{LevelBasis, SpectralTerm};
+use super::wvar::{Domain, LevelBasis, SpectralTerm};
 use crate::units;
 
 /// One overlapping Allan variance point of the raw rate.
@@ -112,6 +112,9 @@ pub struct EstimatorInput<'a> {
     pub dec_hi: &'a [f64],
     /// Detail-coefficient variances of the raw rate, (arcsec/s)^2.
     pub levels: &'a [LevelObs],
+    /// Detail-coefficient variances of the raw angle (cumulative counts x
+    /// pulse weight), arcsec^2, for the fine levels (the QN band).
+    pub angle_levels: &'a [LevelObs],
     /// Raw-rate overlapping Allan variances; only those beyond the deepest
     /// level are used.
     pub allan: &'a [AllanObs],
@@ -163,45 +166,101 @@ pub fn oadev_edf_approx(alpha: i32, m: u64, n: u64) -> f64 {
 }
 
 /// Run the estimator.
+///
+/// 1. Quantization, read from the noise component as the paper does, made
+///    exact: QN is white-or-periodic noise in *angle*, so its variance is the
+///    high-frequency energy of the angle signal, `Q^2 = sum_j 2^{-j} v_j` over
+///    the angle-domain detail levels (Parseval for an orthonormal DWT), minus
+///    the small contribution of the low-frequency terms. This holds whatever
+///    the shape of the readout error: white (a well-dithered counter) or the
+///    sawtooth of a slowly moving angle read by an integer counter, whose Allan
+///    variance oscillates around `3Q^2/tau^2` instead of following it.
+/// 2. The low-frequency terms (N, B, K) from the rate-domain levels where a
+///    white QN of that Q would carry at most half the variance, plus long-tau
+///    Allan points, with a free white-angle nuisance term so that QN leakage
+///    is absorbed when it is white and costs nothing when it is not.
 pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
     let tau0 = input.tau0_s;
     let terms = standard_terms(input.n_samples, tau0);
-    let levels: Vec<LevelObs> =
-        input.levels.iter().copied().filter(|l| l.n_coef >= MIN_LEVEL_COEFS && l.mean_sq > 0.0).collect();
-    let level_ids: Vec<u32> = levels.iter().map(|l| l.level).collect();
-    let basis = LevelBasis::new(input.dec_lo, input.dec_hi, tau0, &level_ids, &terms);
-    let deepest = level_ids.iter().copied().max().unwrap_or(0);
-    // Allan points strictly below the deepest band (main lobe at nu ~ 0.37/m)
-    let m_min = 1u64 << (deepest + 1).min(62);
-    let allan: Vec<AllanObs> =
-        input.allan.iter().copied().filter(|a| a.m >= m_min && a.avar > 0.0 && a.n_phase > 2 * a.m + 1).collect();
+    let usable = |l: &LevelObs| l.n_coef >= MIN_LEVEL_COEFS && l.mean_sq > 0.0;
 
-    let mut phi: Vec<Vec<f64>> = basis.phi.clone();
-    let mut y: Vec<f64> = levels.iter().map(|l| l.mean_sq).collect();
-    let mut edf0: Vec<f64> = levels.iter().map(|l| l.n_coef).collect();
-    for a in &allan {
-        phi.push(terms.iter().map(|t| t.allan_var(a.m, tau0)).collect());
-        y.push(a.avar);
-        edf0.push(oadev_edf_approx(0, a.m, a.n_phase));
-    }
-    let nl = levels.len();
-    let edf = |j: usize, theta: &[f64]| -> f64 {
-        if j < nl {
-            basis.edf(j, theta, levels[j].n_coef)
-        } else {
-            let a = &allan[j - nl];
-            let tau = a.m as f64 * tau0;
-            // noise type of the term that dominates this tau under the fit
-            let dom = (0..terms.len())
-                .max_by(|&p, &q| {
-                    (theta[p] * phi[j][p]).partial_cmp(&(theta[q] * phi[j][q])).unwrap_or(std::cmp::Ordering::Equal)
-                })
-                .unwrap_or(1);
-            oadev_edf_approx(terms[dom].alpha_at(tau), a.m, a.n_phase)
+    // --- 1. quantization from the angle-domain levels (first pass without LF correction)
+    let angle: Vec<LevelObs> = input.angle_levels.iter().copied().filter(usable).collect();
+    let q_from_angle = |theta_lf: &[f64]| -> (f64, f64) {
+        if angle.is_empty() {
+            return (0.0, f64::INFINITY);
         }
+        let ids: Vec<u32> = angle.iter().map(|l| l.level).collect();
+        let b = LevelBasis::new_in(input.dec_lo, input.dec_hi, tau0, &ids, &terms, Domain::Angle);
+        let jmax = ids.iter().copied().max().unwrap_or(1);
+        let (mut q2, mut var) = (0.0, 0.0);
+        for (j, l) in angle.iter().enumerate() {
+            let w = 2f64.powi(-(l.level as i32));
+            // low-frequency terms' share of this level (theta_lf[0], the white-angle nuisance, excluded)
+            let lf: f64 = (1..terms.len()).map(|k| theta_lf[k] * b.phi[j][k]).sum();
+            q2 += w * (l.mean_sq - lf);
+            var += w * w * 2.0 * l.mean_sq * l.mean_sq / l.n_coef;
+        }
+        let norm = 1.0 - 2f64.powi(-(jmax as i32));
+        (q2 / norm, var.sqrt() / norm)
     };
-    let fit = fit_rows(&phi, &y, &edf0, &edf, opts);
-    let theta = [fit.terms[0].theta, fit.terms[1].theta, fit.terms[2].theta, fit.terms[3].theta];
+    let (mut q2, mut q2_sd) = q_from_angle(&[0.0; 4]);
+
+    // --- 2. low-frequency terms
+    let levels_all: Vec<LevelObs> = input.levels.iter().copied().filter(usable).collect();
+    let ids_all: Vec<u32> = levels_all.iter().map(|l| l.level).collect();
+    let basis_all = LevelBasis::new(input.dec_lo, input.dec_hi, tau0, &ids_all, &terms);
+    let mut fit_and_basis = None;
+    for _pass in 0..2 {
+        // levels where white QN of strength q2 would be at most half the variance
+        let keep: Vec<usize> = (0..levels_all.len())
+            .filter(|&j| q2.max(0.0) * basis_all.phi[j][0] <= 0.5 * levels_all[j].mean_sq)
+            .collect();
+        let levels: Vec<LevelObs> = keep.iter().map(|&j| levels_all[j]).collect();
+        let ids: Vec<u32> = levels.iter().map(|l| l.level).collect();
+        let basis = LevelBasis::new(input.dec_lo, input.dec_hi, tau0, &ids, &terms);
+        let deepest = ids_all.iter().copied().max().unwrap_or(0);
+        let m_min = 1u64 << (deepest + 1).min(62);
+        let allan: Vec<AllanObs> = input
+            .allan
+            .iter()
+            .copied()
+            .filter(|a| a.m >= m_min && a.avar > 0.0 && a.n_phase > 2 * a.m + 1)
+            .collect();
+        let mut phi: Vec<Vec<f64>> = basis.phi.clone();
+        let mut y: Vec<f64> = levels.iter().map(|l| l.mean_sq).collect();
+        let mut edf0: Vec<f64> = levels.iter().map(|l| l.n_coef).collect();
+        for a in &allan {
+            phi.push(terms.iter().map(|t| t.allan_var(a.m, tau0)).collect());
+            y.push(a.avar);
+            edf0.push(oadev_edf_approx(0, a.m, a.n_phase));
+        }
+        let nl = levels.len();
+        let edf = |j: usize, theta: &[f64]| -> f64 {
+            if j < nl {
+                basis.edf(j, theta, levels[j].n_coef)
+            } else {
+                let a = &allan[j - nl];
+                let tau = a.m as f64 * tau0;
+                let dom = (0..terms.len())
+                    .max_by(|&p, &q| {
+                        (theta[p] * phi[j][p]).partial_cmp(&(theta[q] * phi[j][q])).unwrap_or(std::cmp::Ordering::Equal)
+                    })
+                    .unwrap_or(1);
+                oadev_edf_approx(terms[dom].alpha_at(tau), a.m, a.n_phase)
+            }
+        };
+        let mut o = *opts;
+        o.always_keep |= 1; // the white-angle term is a nuisance here, never selected away
+        let fit = fit_rows(&phi, &y, &edf0, &edf, &o);
+        let theta_lf = [fit.terms[0].theta, fit.terms[1].theta, fit.terms[2].theta, fit.terms[3].theta];
+        let (a, b) = q_from_angle(&theta_lf);
+        q2 = a;
+        q2_sd = b;
+        fit_and_basis = Some(fit);
+    }
+    let fit = fit_and_basis.expect("two passes ran");
+    let theta = [q2.max(0.0), fit.terms[1].theta, fit.terms[2].theta, fit.terms[3].theta];
 
     let conv: [fn(f64) -> f64; 4] = [
         |t: f64| t.sqrt(),
@@ -218,6 +277,13 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
             Coefficient { value: None, ci95: None, upper95: Some(conv[i](t.upper95.unwrap_or(0.0))) }
         }
     };
+    // QN is a variance estimate with a near-normal sampling law (thousands of coefficients)
+    let z = 1.959_964;
+    let quantization = if q2 > z * q2_sd {
+        Coefficient { value: Some(q2.sqrt()), ci95: Some([(q2 - z * q2_sd).max(0.0).sqrt(), (q2 + z * q2_sd).sqrt()]), upper95: None }
+    } else {
+        Coefficient { value: None, ci95: None, upper95: Some((q2.max(0.0) + 1.644_854 * q2_sd).sqrt()) }
+    };
 
     // ramp: LS slope with its variance under the fitted spectrum
     let ramp = input.ramp.filter(|r| r.count() > 2).map(|r| {
@@ -232,16 +298,16 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
             // a signed parameter: include when the likelihood-ratio (z^2) test
             // passes at 5 % (chi2_1 = 3.84)
             if sd > 0.0 && (s / sd).powi(2) >= opts.ci_lr {
-                Coefficient { value: Some(to(s)), ci95: Some([to(s - 1.959_964 * sd), to(s + 1.959_964 * sd)]), upper95: None }
+                Coefficient { value: Some(to(s)), ci95: Some([to(s - z * sd), to(s + z * sd)]), upper95: None }
             } else {
-                Coefficient { value: None, ci95: None, upper95: Some(to(s.abs() + 1.959_964 * sd)) }
+                Coefficient { value: None, ci95: None, upper95: Some(to(s.abs() + z * sd)) }
             }
         }
         None => Coefficient { value: None, ci95: None, upper95: None },
     };
     EstimatorOutput {
         estimates: NoiseEstimates {
-            quantization_arcsec: coef(0),
+            quantization_arcsec: quantization,
             arw_dpsh: coef(1),
             bias_instability_dph: coef(2),
             rrw_dphsh: coef(3),

@@ -45,7 +45,29 @@ pub enum SpectralTerm {
     GaussMarkov { tau_c_s: f64 },
 }
 
+/// Which signal the DWT analyses: the rate (arcsec/s) or the angle (arcsec,
+/// the cumulative sum of rate x tau0).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Domain {
+    Rate,
+    Angle,
+}
+
 impl SpectralTerm {
+    /// One-sided PSD per unit theta, in the given domain: (arcsec/s)^2 or
+    /// arcsec^2 per (cycle/sample). The angle is the running sum of rate x tau0,
+    /// so its PSD is the rate PSD times `tau0^2 / (4 sin^2(pi nu))`.
+    pub fn psd_domain(&self, nu: f64, tau0_s: f64, domain: Domain) -> f64 {
+        match (domain, self) {
+            (Domain::Rate, _) => self.psd_cs(nu, tau0_s),
+            (Domain::Angle, SpectralTerm::WhiteAngle) => 2.0,
+            (Domain::Angle, _) => {
+                let s = (PI * nu).sin();
+                self.psd_cs(nu, tau0_s) * tau0_s * tau0_s / (4.0 * s * s)
+            }
+        }
+    }
+
     /// One-sided PSD per unit theta in (arcsec/s)^2 per (cycle/sample), at `nu`
     /// cycles/sample, for sample period `tau0_s` (discrete-time forms).
     pub fn psd_cs(&self, nu: f64, tau0_s: f64) -> f64 {
@@ -71,7 +93,13 @@ impl SpectralTerm {
 
     /// Rate autocovariance at lags 0, 1, ... per unit theta, for terms with
     /// finite support.
-    fn finite_autocov(&self, tau0_s: f64) -> Option<Vec<f64>> {
+    fn finite_autocov(&self, tau0_s: f64, domain: Domain) -> Option<Vec<f64>> {
+        if domain == Domain::Angle {
+            return match *self {
+                SpectralTerm::WhiteAngle => Some(vec![1.0]),
+                _ => None,
+            };
+        }
         match *self {
             SpectralTerm::WhiteAngle => {
                 Some(vec![2.0 / (tau0_s * tau0_s), -1.0 / (tau0_s * tau0_s)])
@@ -297,11 +325,23 @@ impl LevelBasis {
     /// Build the basis for `levels` (1-based DWT levels) of a record sampled at
     /// `tau0_s`, with filters `lo`/`hi` (orthonormal analysis pair).
     pub fn new(lo: &[f64], hi: &[f64], tau0_s: f64, levels: &[u32], terms: &[SpectralTerm]) -> Self {
+        Self::new_in(lo, hi, tau0_s, levels, terms, Domain::Rate)
+    }
+
+    /// As [`LevelBasis::new`], for a DWT of the rate or of the angle.
+    pub fn new_in(
+        lo: &[f64],
+        hi: &[f64],
+        tau0_s: f64,
+        levels: &[u32],
+        terms: &[SpectralTerm],
+        domain: Domain,
+    ) -> Self {
         let max_level = levels.iter().copied().max().unwrap_or(1);
         // exact variances for finite-support terms
         let finite: Vec<Option<Vec<f64>>> = terms
             .iter()
-            .map(|t| t.finite_autocov(tau0_s).map(|r0| finite_level_vars(lo, hi, &r0, max_level)))
+            .map(|t| t.finite_autocov(tau0_s, domain).map(|r0| finite_level_vars(lo, hi, &r0, max_level)))
             .collect();
         let mut phi = Vec::with_capacity(levels.len());
         let mut gram = Vec::with_capacity(levels.len());
@@ -323,7 +363,7 @@ impl LevelBasis {
             let (mut w_int, mut w_int2) = (0.0, 0.0);
             for &(nu, w, h2) in &nodes {
                 for (i, t) in terms.iter().enumerate() {
-                    p[i] = t.psd_cs(nu, tau0_s) * h2;
+                    p[i] = t.psd_domain(nu, tau0_s, domain) * h2;
                     row[i] += w * p[i];
                 }
                 for a in 0..k {
@@ -465,6 +505,22 @@ mod tests {
             let want = (1.0 / (x * x)) * (2.0 * x - 3.0 + 4.0 * (-x).exp() - (-2.0 * x).exp());
             let v = SpectralTerm::GaussMarkov { tau_c_s: tc }.allan_var(m, tau0);
             assert!((v - want).abs() / want < 5e-3, "gm m={m}: {v} vs {want}");
+        }
+    }
+
+    #[test]
+    fn angle_domain_white_angle_is_flat_and_arw_grows_like_a_random_walk() {
+        let tau0 = 1e-3;
+        let levels: Vec<u32> = (1..=10).collect();
+        let b = LevelBasis::new_in(&SYM8_LO, &SYM8_HI, tau0, &levels, &[SpectralTerm::WhiteAngle, SpectralTerm::WhiteRate], Domain::Angle);
+        for j in 0..levels.len() {
+            assert!((b.phi[j][0] - 1.0).abs() < 1e-12, "white angle level {}: {}", levels[j], b.phi[j][0]);
+            if j >= 3 {
+                // a random walk (PSD ~ 1/nu^2) through an orthonormal octave band of gain 2^j:
+                // variance ~ 4^j, once the band is far from Nyquist
+                let r = b.phi[j][1] / b.phi[j - 1][1];
+                assert!((r - 4.0).abs() < 0.1, "ARW angle ratio at level {}: {r}", levels[j]);
+            }
         }
     }
 
