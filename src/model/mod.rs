@@ -13,12 +13,21 @@
 //!   angle, adds the white dither residual and quantises it with a cumulative
 //!   pulse counter, exactly as an RLG readout does.
 //!
+//! * [`wvar`], [`fit`], [`estimate`]: automatic estimation of the IEEE 952
+//!   coefficients from the wavelet variances and Allan curves, with model
+//!   selection and profile-likelihood intervals; [`baseline`] holds the
+//!   estimators users have today, for comparison.
+//!
 //! Units inside: angles in arcsec, rates in arcsec/s (= deg/h), times in s; see
 //! [`crate::units`]. Allan variances are in (arcsec/s)^2 = (deg/h)^2.
 
+pub mod baseline;
 pub mod config;
+pub mod estimate;
+pub mod fit;
 pub mod sim;
 pub mod terms;
+pub mod wvar;
 
 use std::path::PathBuf;
 

@@ -1,0 +1,335 @@
+//! The daemon's configuration: `config/default.toml` documents every key.
+//!
+//! One serde struct per stage, `deny_unknown_fields` on every one of them, and
+//! `validate()` with messages that name the key and the offending value.
+//! Command-line flags of `sagnac run` override the file.
+
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+/// Errors reading or validating a configuration.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("cannot read config file {path}: {source}")]
+    Read { path: PathBuf, source: std::io::Error },
+    #[error("config file {path}: {message}")]
+    Parse { path: PathBuf, message: String },
+    #[error("config key `{key}`: {message} (got {value})")]
+    Invalid { key: &'static str, value: String, message: &'static str },
+}
+
+/// Where samples come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum SourceKind {
+    Serial,
+    Replay,
+    #[default]
+    Simulate,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SourceConfig {
+    /// `serial`, `replay` or `simulate` (the built-in simulated bench).
+    pub kind: SourceKind,
+    /// Serial device path (kind = serial).
+    pub serial_path: String,
+    /// Serial baud rate.
+    pub baud: u32,
+    /// First reconnect delay after the device disappears, seconds.
+    pub reconnect_initial_s: f64,
+    /// Longest reconnect delay (exponential backoff), seconds.
+    pub reconnect_max_s: f64,
+    /// Capture to replay: a raw frame capture (`.bin`) or an MCAP recording (kind = replay).
+    pub replay_path: String,
+    /// Replay pace in multiples of real time; 0 = as fast as possible.
+    pub speed: f64,
+    /// Gyro model TOML for the simulated bench; empty = the built-in paper gyro.
+    pub model: String,
+    /// Seed of the simulated bench.
+    pub seed: u64,
+}
+
+impl Default for SourceConfig {
+    fn default() -> Self {
+        SourceConfig {
+            kind: SourceKind::Simulate,
+            serial_path: String::new(),
+            baud: 921_600,
+            reconnect_initial_s: 0.5,
+            reconnect_max_s: 10.0,
+            replay_path: String::new(),
+            speed: 0.0,
+            model: String::new(),
+            seed: 1,
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GyroConfig {
+    /// Sample (frame) rate, Hz.
+    pub rate_hz: f64,
+    /// Angle per counter pulse, arcsec.
+    pub pulse_arcsec: f64,
+}
+
+impl Default for GyroConfig {
+    fn default() -> Self {
+        GyroConfig { rate_hz: 1000.0, pulse_arcsec: 1.21 }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DspConfig {
+    /// Wavelet of the QN-removal bank (sym8, haar, db4, sym4, db8).
+    pub wavelet: String,
+    /// Decomposition depth; 0 = automatic (deepest detail band below ~0.5 Hz).
+    pub levels: u32,
+}
+
+impl Default for DspConfig {
+    fn default() -> Self {
+        DspConfig { wavelet: "sym8".into(), levels: 0 }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct AllanConfig {
+    /// Largest averaging factor computed with full overlap (a power of two).
+    pub full_overlap_max_m: u64,
+}
+
+impl Default for AllanConfig {
+    fn default() -> Self {
+        AllanConfig { full_overlap_max_m: 1 << 16 }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct EstimatorConfig {
+    /// Seconds of data between estimator updates.
+    pub interval_s: f64,
+}
+
+impl Default for EstimatorConfig {
+    fn default() -> Self {
+        EstimatorConfig { interval_s: 5.0 }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MetricsConfig {
+    /// Address of the Prometheus endpoint (`/metrics`); loopback by default.
+    /// Empty disables it.
+    pub addr: String,
+}
+
+impl Default for MetricsConfig {
+    fn default() -> Self {
+        MetricsConfig { addr: "127.0.0.1:9898".into() }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RecordConfig {
+    /// Directory for MCAP recordings (one file per run); empty = do not record.
+    pub dir: String,
+    /// Longest time between chunk flushes, seconds: what a crash can lose.
+    pub flush_interval_s: f64,
+    /// Samples per `/gyro/raw` message.
+    pub batch_samples: usize,
+}
+
+impl Default for RecordConfig {
+    fn default() -> Self {
+        RecordConfig { dir: "recordings".into(), flush_interval_s: 2.0, batch_samples: 1000 }
+    }
+}
+
+/// Log output format.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum LogFormat {
+    #[default]
+    Human,
+    Json,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LogConfig {
+    pub format: LogFormat,
+    /// tracing filter directive, e.g. `info` or `sagnac=debug`.
+    pub level: String,
+}
+
+impl Default for LogConfig {
+    fn default() -> Self {
+        LogConfig { format: LogFormat::Human, level: "info".into() }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RunConfig {
+    /// Stop after this many seconds of samples; 0 = run until SIGINT/SIGTERM
+    /// (or the end of a replay).
+    pub duration_s: f64,
+    /// Capacity (in batches) of every channel between tasks.
+    pub channel_capacity: usize,
+}
+
+impl Default for RunConfig {
+    fn default() -> Self {
+        RunConfig { duration_s: 0.0, channel_capacity: 64 }
+    }
+}
+
+/// The whole configuration.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct Config {
+    pub source: SourceConfig,
+    pub gyro: GyroConfig,
+    pub dsp: DspConfig,
+    pub allan: AllanConfig,
+    pub estimator: EstimatorConfig,
+    pub metrics: MetricsConfig,
+    pub record: RecordConfig,
+    pub log: LogConfig,
+    pub run: RunConfig,
+}
+
+fn invalid(key: &'static str, value: impl ToString, message: &'static str) -> ConfigError {
+    ConfigError::Invalid { key, value: value.to_string(), message }
+}
+
+fn positive(key: &'static str, v: f64) -> Result<(), ConfigError> {
+    if v.is_finite() && v > 0.0 { Ok(()) } else { Err(invalid(key, v, "must be a finite number > 0")) }
+}
+
+impl Config {
+    /// Parse TOML text; `path` names the file in messages.
+    pub fn from_toml(text: &str, path: &Path) -> Result<Config, ConfigError> {
+        let cfg: Config =
+            toml::from_str(text).map_err(|e| ConfigError::Parse { path: path.to_path_buf(), message: e.to_string() })?;
+        Ok(cfg)
+    }
+
+    /// Read and parse a file (not yet validated: flags may still override).
+    pub fn load(path: &Path) -> Result<Config, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read { path: path.to_path_buf(), source })?;
+        Config::from_toml(&text, path)
+    }
+
+    /// Check every value; the first problem is reported with its key.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        positive("gyro.rate_hz", self.gyro.rate_hz)?;
+        positive("gyro.pulse_arcsec", self.gyro.pulse_arcsec)?;
+        match self.source.kind {
+            SourceKind::Serial => {
+                if self.source.serial_path.is_empty() {
+                    return Err(invalid("source.serial_path", "\"\"", "required when source.kind = \"serial\""));
+                }
+                if self.source.baud == 0 {
+                    return Err(invalid("source.baud", 0, "must be > 0"));
+                }
+            }
+            SourceKind::Replay => {
+                if self.source.replay_path.is_empty() {
+                    return Err(invalid("source.replay_path", "\"\"", "required when source.kind = \"replay\""));
+                }
+            }
+            SourceKind::Simulate => {}
+        }
+        positive("source.reconnect_initial_s", self.source.reconnect_initial_s)?;
+        positive("source.reconnect_max_s", self.source.reconnect_max_s)?;
+        if self.source.reconnect_max_s < self.source.reconnect_initial_s {
+            return Err(invalid("source.reconnect_max_s", self.source.reconnect_max_s, "must be >= source.reconnect_initial_s"));
+        }
+        if !(self.source.speed.is_finite() && self.source.speed >= 0.0) {
+            return Err(invalid("source.speed", self.source.speed, "must be >= 0 (0 = as fast as possible)"));
+        }
+        if !["sym8", "haar", "db4", "sym4", "db8"].contains(&self.dsp.wavelet.as_str()) {
+            return Err(invalid("dsp.wavelet", &self.dsp.wavelet, "must be one of sym8, haar, db4, sym4, db8"));
+        }
+        if self.dsp.levels > 30 {
+            return Err(invalid("dsp.levels", self.dsp.levels, "must be 0 (auto) to 30"));
+        }
+        let m = self.allan.full_overlap_max_m;
+        if m < 2 || !m.is_power_of_two() || m > (1 << 24) {
+            return Err(invalid("allan.full_overlap_max_m", m, "must be a power of two from 2 to 2^24"));
+        }
+        positive("estimator.interval_s", self.estimator.interval_s)?;
+        if !self.metrics.addr.is_empty() && self.metrics.addr.parse::<SocketAddr>().is_err() {
+            return Err(invalid("metrics.addr", &self.metrics.addr, "must be IP:PORT, e.g. 127.0.0.1:9898"));
+        }
+        positive("record.flush_interval_s", self.record.flush_interval_s)?;
+        if self.record.batch_samples == 0 {
+            return Err(invalid("record.batch_samples", 0, "must be > 0"));
+        }
+        if !(self.run.duration_s.is_finite() && self.run.duration_s >= 0.0) {
+            return Err(invalid("run.duration_s", self.run.duration_s, "must be >= 0 (0 = until stopped)"));
+        }
+        if self.run.channel_capacity == 0 {
+            return Err(invalid("run.channel_capacity", 0, "must be > 0"));
+        }
+        if self.log.level.trim().is_empty() {
+            return Err(invalid("log.level", "\"\"", "must be a tracing filter such as info"));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn default_toml() -> String {
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/default.toml")).unwrap()
+    }
+
+    #[test]
+    fn default_toml_parses_validates_and_equals_the_built_in_defaults() {
+        let cfg = Config::from_toml(&default_toml(), Path::new("config/default.toml")).unwrap();
+        cfg.validate().unwrap();
+        assert_eq!(cfg, Config::default(), "config/default.toml must document the built-in defaults");
+    }
+
+    #[test]
+    fn unknown_keys_are_rejected_at_every_level() {
+        for (text, key) in [("bogus = 1", "bogus"), ("[gyro]\nrate = 5", "rate"), ("[record]\nflush_s = 1", "flush_s")] {
+            let err = Config::from_toml(text, Path::new("x.toml")).unwrap_err().to_string();
+            assert!(err.contains(key) && err.contains("x.toml"), "{err}");
+        }
+    }
+
+    #[test]
+    fn bad_values_name_their_key() {
+        let cases = [
+            ("[gyro]\nrate_hz = -1.0", "gyro.rate_hz"),
+            ("[gyro]\npulse_arcsec = 0.0", "gyro.pulse_arcsec"),
+            ("[source]\nkind = \"serial\"", "source.serial_path"),
+            ("[source]\nkind = \"replay\"", "source.replay_path"),
+            ("[dsp]\nwavelet = \"morlet\"", "dsp.wavelet"),
+            ("[allan]\nfull_overlap_max_m = 1000", "allan.full_overlap_max_m"),
+            ("[metrics]\naddr = \"localhost\"", "metrics.addr"),
+            ("[source]\nspeed = -2.0", "source.speed"),
+        ];
+        for (text, key) in cases {
+            let cfg = Config::from_toml(text, Path::new("x.toml")).unwrap();
+            let err = cfg.validate().unwrap_err().to_string();
+            assert!(err.contains(key), "{text}: {err}");
+        }
+    }
+}

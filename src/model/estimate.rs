@@ -1,0 +1,428 @@
+//! Automatic estimation of the IEEE 952 coefficients: quantization (Q),
+//! angle random walk (N), bias instability (B), rate random walk (K) and rate
+//! ramp (R), each with a 95 % interval or, when the data do not support the
+//! term, a 95 % upper bound.
+//!
+//! What goes in (all produced by the streaming pipeline, so the daemon and
+//! `sagnac analyze` give the same answer):
+//! * the variances of the sym8 detail coefficients of the raw rate, level by
+//!   level, counting only coefficients free of start-up transients. sym8's
+//!   sharp bands separate quantization noise (rate PSD rising as f^2) from ARW
+//!   (flat) far better than the Allan filter, whose 1/f^2 sidelobes let QN
+//!   leak into every tau: this is the paper's wavelet step, made quantitative;
+//! * the overlapping Allan variance of the raw rate at octave taus beyond the
+//!   deepest level that has enough sym8 coefficients (a 16-tap filter spans
+//!   ~15 x 2^j samples, so the longest scales are only reachable by the Allan
+//!   estimator);
+//! * running sums for the least-squares rate slope (the ramp), which the
+//!   wavelets cannot see (sym8 has 8 vanishing moments).
+//!
+//! The fit is `model::fit` (maximum likelihood on the chi-square sampling law
+//! of each variance, model selection by likelihood ratio, profile intervals).
+//! The ramp is a least-squares slope whose variance is computed from the
+//! fitted noise spectrum (`int S(nu) |W(nu)|^2 dnu`), not from a white-noise
+//! formula, so its interval stays honest under flicker and random walk.
+
+use std::f64::consts::PI;
+
+use serde::{Deserialize, Serialize};
+
+use super::fit::{FitOptions, LevelFit, LevelObs, fit_rows};
+use super::wvar::{Domain, LevelBasis, SpectralTerm};
+use crate::units;
+
+/// One overlapping Allan variance point of the raw rate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AllanObs {
+    /// Averaging factor (tau = m tau0).
+    pub m: u64,
+    /// Number of phase points the estimate was computed from.
+    pub n_phase: u64,
+    /// Allan variance, (arcsec/s)^2.
+    pub avar: f64,
+}
+
+/// Streaming least-squares slope of the rate against time (Welford updates).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct RampAccumulator {
+    n: u64,
+    mean_k: f64,
+    mean_r: f64,
+    m2_k: f64,
+    c_kr: f64,
+}
+
+impl RampAccumulator {
+    /// Add one rate sample (arcsec/s); samples are equally spaced.
+    #[inline]
+    pub fn push(&mut self, rate: f64) {
+        let k = self.n as f64;
+        self.n += 1;
+        let n = self.n as f64;
+        let dk = k - self.mean_k;
+        self.mean_k += dk / n;
+        let dr = rate - self.mean_r;
+        self.mean_r += dr / n;
+        self.m2_k += dk * (k - self.mean_k);
+        self.c_kr += dk * (rate - self.mean_r);
+    }
+    /// Samples seen.
+    pub fn count(&self) -> u64 {
+        self.n
+    }
+    /// Least-squares slope in rate units per sample.
+    pub fn slope_per_sample(&self) -> f64 {
+        if self.m2_k > 0.0 { self.c_kr / self.m2_k } else { 0.0 }
+    }
+    /// Mean rate.
+    pub fn mean(&self) -> f64 {
+        self.mean_r
+    }
+}
+
+/// One coefficient as reported: a value with its 95 % interval, or `null`
+/// with a 95 % upper bound when the data do not support the term.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Coefficient {
+    pub value: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub ci95: Option<[f64; 2]>,
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub upper95: Option<f64>,
+}
+
+/// The five IEEE 952 coefficients.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct NoiseEstimates {
+    pub quantization_arcsec: Coefficient,
+    pub arw_dpsh: Coefficient,
+    pub bias_instability_dph: Coefficient,
+    pub rrw_dphsh: Coefficient,
+    pub rate_ramp_dphh: Coefficient,
+}
+
+/// Everything the estimator needs.
+#[derive(Debug, Clone)]
+pub struct EstimatorInput<'a> {
+    pub tau0_s: f64,
+    /// Samples in the record.
+    pub n_samples: u64,
+    /// Wavelet analysis filters (orthonormal, PyWavelets convention).
+    pub dec_lo: &'a [f64],
+    pub dec_hi: &'a [f64],
+    /// Detail-coefficient variances of the raw rate, (arcsec/s)^2.
+    pub levels: &'a [LevelObs],
+    /// Detail-coefficient variances of the raw angle (cumulative counts x
+    /// pulse weight), arcsec^2, for the fine levels (the QN band).
+    pub angle_levels: &'a [LevelObs],
+    /// Raw-rate overlapping Allan variances; only those beyond the deepest
+    /// level are used.
+    pub allan: &'a [AllanObs],
+    pub ramp: Option<RampAccumulator>,
+}
+
+/// Full result: the coefficients plus the fit behind them.
+#[derive(Debug, Clone)]
+pub struct EstimatorOutput {
+    pub estimates: NoiseEstimates,
+    pub fit: LevelFit,
+    /// Squared coefficients in arcsec/s units, in the order Q, N, B, K.
+    pub theta: [f64; 4],
+    /// Rate slope (arcsec/s^2) and its standard deviation.
+    pub ramp_arcsec_s2: Option<(f64, f64)>,
+}
+
+/// Levels whose count of transient-free coefficients is at least this are used.
+pub const MIN_LEVEL_COEFS: f64 = 8.0;
+
+/// The terms fitted, in order: Q^2, N^2, B^2, K^2.
+pub fn standard_terms(n_samples: u64, tau0_s: f64) -> [SpectralTerm; 4] {
+    [
+        SpectralTerm::WhiteAngle,
+        SpectralTerm::WhiteRate,
+        SpectralTerm::Flicker { f_lo_hz: 1.0 / (n_samples.max(1) as f64 * tau0_s) },
+        SpectralTerm::RateRandomWalk,
+    ]
+}
+
+/// EDF of an overlapping Allan variance (NIST SP 1065, Table 5 approximations)
+/// for noise exponent `alpha`, averaging factor `m`, `n` phase points.
+pub fn oadev_edf_approx(alpha: i32, m: u64, n: u64) -> f64 {
+    let (m, n) = (m as f64, n as f64);
+    let e = match alpha {
+        2 => (n + 1.0) * (n - 2.0 * m) / (2.0 * (n - m)),
+        1 => (((n - 1.0) / (2.0 * m)).ln() * ((2.0 * m + 1.0) * (n - 1.0) / 4.0).ln()).sqrt().exp(),
+        0 => (3.0 * (n - 1.0) / (2.0 * m) - 2.0 * (n - 2.0) / n) * 4.0 * m * m / (4.0 * m * m + 5.0),
+        -1 => {
+            if m <= 1.0 {
+                2.0 * (n - 2.0) / (2.3 * n - 4.9)
+            } else {
+                5.0 * n * n / (4.0 * m * (n + 3.0 * m))
+            }
+        }
+        _ => (n - 2.0) / m * ((n - 1.0).powi(2) - 3.0 * m * (n - 1.0) + 4.0 * m * m) / (n - 3.0).powi(2),
+    };
+    if e.is_finite() { e.max(1.0) } else { 1.0 }
+}
+
+/// Run the estimator.
+///
+/// 1. Quantization, read from the noise component as the paper does, made
+///    exact: QN is white-or-periodic noise in *angle*, so its variance is the
+///    high-frequency energy of the angle signal, `Q^2 = sum_j 2^{-j} v_j` over
+///    the angle-domain detail levels (Parseval for an orthonormal DWT), minus
+///    the small contribution of the low-frequency terms. This holds whatever
+///    the shape of the readout error: white (a well-dithered counter) or the
+///    sawtooth of a slowly moving angle read by an integer counter, whose Allan
+///    variance oscillates around `3Q^2/tau^2` instead of following it.
+/// 2. The low-frequency terms (N, B, K) from the rate-domain levels where a
+///    white QN of that Q would carry at most half the variance, plus long-tau
+///    Allan points, with a free white-angle nuisance term so that QN leakage
+///    is absorbed when it is white and costs nothing when it is not.
+pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
+    let tau0 = input.tau0_s;
+    let terms = standard_terms(input.n_samples, tau0);
+    let usable = |l: &LevelObs| l.n_coef >= MIN_LEVEL_COEFS && l.mean_sq > 0.0;
+
+    // --- 1. quantization from the angle-domain levels (first pass without LF correction)
+    let angle: Vec<LevelObs> = input.angle_levels.iter().copied().filter(usable).collect();
+    let q_from_angle = |theta_lf: &[f64]| -> (f64, f64) {
+        if angle.is_empty() {
+            return (0.0, f64::INFINITY);
+        }
+        let ids: Vec<u32> = angle.iter().map(|l| l.level).collect();
+        let b = LevelBasis::new_in(input.dec_lo, input.dec_hi, tau0, &ids, &terms, Domain::Angle);
+        let jmax = ids.iter().copied().max().unwrap_or(1);
+        let (mut q2, mut var) = (0.0, 0.0);
+        for (j, l) in angle.iter().enumerate() {
+            let w = 2f64.powi(-(l.level as i32));
+            // low-frequency terms' share of this level (theta_lf[0], the white-angle nuisance, excluded)
+            let lf: f64 = (1..terms.len()).map(|k| theta_lf[k] * b.phi[j][k]).sum();
+            q2 += w * (l.mean_sq - lf);
+            var += w * w * 2.0 * l.mean_sq * l.mean_sq / l.n_coef;
+        }
+        let norm = 1.0 - 2f64.powi(-(jmax as i32));
+        (q2 / norm, var.sqrt() / norm)
+    };
+    let (mut q2, mut q2_sd) = q_from_angle(&[0.0; 4]);
+
+    // --- 2. low-frequency terms
+    let levels_all: Vec<LevelObs> = input.levels.iter().copied().filter(usable).collect();
+    let ids_all: Vec<u32> = levels_all.iter().map(|l| l.level).collect();
+    let basis_all = LevelBasis::new(input.dec_lo, input.dec_hi, tau0, &ids_all, &terms);
+    let mut fit_and_basis = None;
+    for _pass in 0..2 {
+        // levels where white QN of strength q2 would be at most half the variance
+        let keep: Vec<usize> = (0..levels_all.len())
+            .filter(|&j| q2.max(0.0) * basis_all.phi[j][0] <= 0.5 * levels_all[j].mean_sq)
+            .collect();
+        let levels: Vec<LevelObs> = keep.iter().map(|&j| levels_all[j]).collect();
+        let ids: Vec<u32> = levels.iter().map(|l| l.level).collect();
+        let basis = LevelBasis::new(input.dec_lo, input.dec_hi, tau0, &ids, &terms);
+        let deepest = ids_all.iter().copied().max().unwrap_or(0);
+        let m_min = 1u64 << (deepest + 1).min(62);
+        let allan: Vec<AllanObs> = input
+            .allan
+            .iter()
+            .copied()
+            .filter(|a| a.m >= m_min && a.avar > 0.0 && a.n_phase > 2 * a.m + 1)
+            .collect();
+        let mut phi: Vec<Vec<f64>> = basis.phi.clone();
+        let mut y: Vec<f64> = levels.iter().map(|l| l.mean_sq).collect();
+        let mut edf0: Vec<f64> = levels.iter().map(|l| l.n_coef).collect();
+        for a in &allan {
+            phi.push(terms.iter().map(|t| t.allan_var(a.m, tau0)).collect());
+            y.push(a.avar);
+            edf0.push(oadev_edf_approx(0, a.m, a.n_phase));
+        }
+        let nl = levels.len();
+        let edf = |j: usize, theta: &[f64]| -> f64 {
+            if j < nl {
+                basis.edf(j, theta, levels[j].n_coef)
+            } else {
+                let a = &allan[j - nl];
+                let tau = a.m as f64 * tau0;
+                let dom = (0..terms.len())
+                    .max_by(|&p, &q| {
+                        (theta[p] * phi[j][p]).partial_cmp(&(theta[q] * phi[j][q])).unwrap_or(std::cmp::Ordering::Equal)
+                    })
+                    .unwrap_or(1);
+                oadev_edf_approx(terms[dom].alpha_at(tau), a.m, a.n_phase)
+            }
+        };
+        let mut o = *opts;
+        o.always_keep |= 1; // the white-angle term is a nuisance here, never selected away
+        let fit = fit_rows(&phi, &y, &edf0, &edf, &o);
+        let theta_lf = [fit.terms[0].theta, fit.terms[1].theta, fit.terms[2].theta, fit.terms[3].theta];
+        let (a, b) = q_from_angle(&theta_lf);
+        q2 = a;
+        q2_sd = b;
+        fit_and_basis = Some(fit);
+    }
+    let fit = fit_and_basis.expect("two passes ran");
+    let theta = [q2.max(0.0), fit.terms[1].theta, fit.terms[2].theta, fit.terms[3].theta];
+
+    let conv: [fn(f64) -> f64; 4] = [
+        |t: f64| t.sqrt(),
+        |t: f64| units::arcsec_per_sqrt_s_to_dpsh(t.sqrt()),
+        |t: f64| units::arcsec_per_s_to_dph(t.sqrt()),
+        |t: f64| units::arcsec_per_s_sqrt_s_to_dphsh(t.sqrt()),
+    ];
+    let coef = |i: usize| -> Coefficient {
+        let t = &fit.terms[i];
+        if t.included {
+            let (lo, hi) = t.ci95.unwrap_or((t.theta, t.theta));
+            Coefficient { value: Some(conv[i](t.theta)), ci95: Some([conv[i](lo), conv[i](hi)]), upper95: None }
+        } else {
+            Coefficient { value: None, ci95: None, upper95: Some(conv[i](t.upper95.unwrap_or(0.0))) }
+        }
+    };
+    // QN is a variance estimate with a near-normal sampling law (thousands of coefficients)
+    let z = 1.959_964;
+    let quantization = if q2 > z * q2_sd {
+        Coefficient { value: Some(q2.sqrt()), ci95: Some([(q2 - z * q2_sd).max(0.0).sqrt(), (q2 + z * q2_sd).sqrt()]), upper95: None }
+    } else {
+        Coefficient { value: None, ci95: None, upper95: Some((q2.max(0.0) + 1.644_854 * q2_sd).sqrt()) }
+    };
+
+    // ramp: LS slope with its variance under the fitted spectrum
+    let ramp = input.ramp.filter(|r| r.count() > 2).map(|r| {
+        let n = r.count();
+        let slope = r.slope_per_sample() / tau0; // arcsec/s per s
+        let var: f64 = terms.iter().zip(&theta).map(|(t, th)| th * slope_var_per_theta(t, n, tau0)).sum();
+        (slope, var.max(0.0).sqrt())
+    });
+    let ramp_coef = match ramp {
+        Some((s, sd)) => {
+            let to = units::arcsec_per_s2_to_dphh;
+            // a signed parameter: include when the likelihood-ratio (z^2) test
+            // passes at 5 % (chi2_1 = 3.84)
+            if sd > 0.0 && (s / sd).powi(2) >= opts.ci_lr {
+                Coefficient { value: Some(to(s)), ci95: Some([to(s - z * sd), to(s + z * sd)]), upper95: None }
+            } else {
+                Coefficient { value: None, ci95: None, upper95: Some(to(s.abs() + z * sd)) }
+            }
+        }
+        None => Coefficient { value: None, ci95: None, upper95: None },
+    };
+    EstimatorOutput {
+        estimates: NoiseEstimates {
+            quantization_arcsec: quantization,
+            arw_dpsh: coef(1),
+            bias_instability_dph: coef(2),
+            rrw_dphsh: coef(3),
+            rate_ramp_dphh: ramp_coef,
+        },
+        fit,
+        theta,
+        ramp_arcsec_s2: ramp,
+    }
+}
+
+/// Variance of the least-squares slope (rate units per second) of `n` equally
+/// spaced samples, per unit theta of `term`: `int_0^{1/2} S(nu) |W(nu)|^2 dnu`
+/// with `W` the transfer function of the slope weights.
+pub fn slope_var_per_theta(term: &SpectralTerm, n: u64, tau0_s: f64) -> f64 {
+    let nf = n as f64;
+    let skk = nf * (nf * nf - 1.0) / 12.0; // sum (k - kbar)^2
+    let norm = 1.0 / (skk * tau0_s).powi(2);
+    let nu_lo = match *term {
+        SpectralTerm::Flicker { f_lo_hz } => f_lo_hz * tau0_s,
+        _ => 0.0,
+    };
+    // |sum (k - kbar) e^{-i 2 pi nu k}|^2 = (D'(nu) / 2 pi)^2, D = sin(pi nu n)/sin(pi nu)
+    let w2 = |nu: f64| {
+        let (s1, c1) = (PI * nu * nf).sin_cos();
+        let (s0, c0) = (PI * nu).sin_cos();
+        let dp = PI * (nf * c1 * s0 - s1 * c0) / (s0 * s0);
+        (dp / (2.0 * PI)).powi(2) * norm
+    };
+    let split = (64.0 / nf).min(0.5);
+    let mut total = 0.0;
+    let panels = ((split - nu_lo).max(0.0) * 4.0 * nf).ceil() as usize;
+    if panels > 0 {
+        let h = (split - nu_lo) / panels as f64;
+        for p in 0..panels {
+            let c = nu_lo + (p as f64 + 0.5) * h;
+            for &(x, w) in &GL8 {
+                let nu = c + 0.5 * h * x;
+                total += 0.5 * h * w * term.psd_cs(nu, tau0_s) * w2(nu);
+            }
+        }
+    }
+    if split < 0.5 {
+        let a = split.max(nu_lo).ln();
+        let b = 0.5f64.ln();
+        let panels = 256;
+        let h = (b - a) / panels as f64;
+        for p in 0..panels {
+            let c = a + (p as f64 + 0.5) * h;
+            for &(x, w) in &GL8 {
+                let nu = (c + 0.5 * h * x).exp();
+                let s0 = (PI * nu).sin();
+                // cos^2(pi nu n) averages to 1/2 beyond the resolved region
+                let env = nf * nf / (8.0 * s0 * s0) * norm;
+                total += 0.5 * h * w * nu * term.psd_cs(nu, tau0_s) * env;
+            }
+        }
+    }
+    total
+}
+
+const GL8: [(f64, f64); 8] = [
+    (-0.960_289_856_497_536_3, 0.101_228_536_290_376_26),
+    (-0.796_666_477_413_626_7, 0.222_381_034_453_374_47),
+    (-0.525_532_409_916_329, 0.313_706_645_877_887_3),
+    (-0.183_434_642_495_649_8, 0.362_683_783_378_362),
+    (0.183_434_642_495_649_8, 0.362_683_783_378_362),
+    (0.525_532_409_916_329, 0.313_706_645_877_887_3),
+    (0.796_666_477_413_626_7, 0.222_381_034_453_374_47),
+    (0.960_289_856_497_536_3, 0.101_228_536_290_376_26),
+];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn slope_variance_matches_closed_forms() {
+        let tau0 = 0.01;
+        let n = 20_000u64;
+        let nf = n as f64;
+        let skk = nf * (nf * nf - 1.0) / 12.0;
+        // white rate, variance 1/tau0 per sample: var = (1/tau0) / (skk tau0^2)
+        let v = slope_var_per_theta(&SpectralTerm::WhiteRate, n, tau0);
+        let want = (1.0 / tau0) / (skk * tau0 * tau0);
+        assert!((v - want).abs() / want < 2e-3, "white: {v} vs {want}");
+        // rate random walk: var = K^2 tau0 sum_m (sum_{k>=m} w_k)^2 with w the slope weights
+        let kbar = (nf - 1.0) / 2.0;
+        let mut suffix = 0.0;
+        let mut acc = 0.0;
+        for k in (1..n).rev() {
+            suffix += (k as f64 - kbar) / (skk * tau0);
+            acc += suffix * suffix;
+        }
+        let want = tau0 * acc;
+        let v = SpectralTerm::RateRandomWalk;
+        let got = slope_var_per_theta(&v, n, tau0);
+        assert!((got - want).abs() / want < 1e-2, "rrw: {got} vs {want}");
+    }
+
+    #[test]
+    fn ramp_accumulator_recovers_a_slope_exactly() {
+        let mut r = RampAccumulator::default();
+        for k in 0..100_000 {
+            r.push(3.0 + 2.5e-4 * k as f64);
+        }
+        assert!((r.slope_per_sample() - 2.5e-4).abs() < 1e-15 * 1e4);
+        assert!((r.mean() - (3.0 + 2.5e-4 * 99_999.0 / 2.0)).abs() < 1e-9);
+    }
+
+    #[test]
+    fn coefficient_json_shape() {
+        let c = Coefficient { value: None, ci95: None, upper95: Some(0.1) };
+        assert_eq!(serde_json::to_string(&c).unwrap(), r#"{"value":null,"upper95":0.1}"#);
+        let c = Coefficient { value: Some(1.0), ci95: Some([0.5, 2.0]), upper95: None };
+        assert_eq!(serde_json::to_string(&c).unwrap(), r#"{"value":1.0,"ci95":[0.5,2.0]}"#);
+    }
+}
