@@ -2,6 +2,8 @@
 
 use std::process::ExitCode;
 
+pub mod allan;
+
 use clap::{Parser, Subcommand};
 
 #[derive(Debug, Parser)]
@@ -12,7 +14,10 @@ pub struct Cli {
 }
 
 #[derive(Debug, Subcommand)]
-pub enum Command {}
+pub enum Command {
+    /// Allan-family deviations (OADEV, ADEV, MDEV, HDEV, OHDEV, TOTDEV) of a file, with confidence intervals.
+    Allan(allan::AllanArgs),
+}
 
 /// Parse the command line, run, print the error chain and exit 2 on failure.
 pub fn main() -> ExitCode {
@@ -30,5 +35,7 @@ pub fn main() -> ExitCode {
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
-    match cli.command {}
+    match cli.command {
+        Command::Allan(args) => allan::run(args),
+    }
 }
