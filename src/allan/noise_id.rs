@@ -8,8 +8,11 @@
 //!
 //! * Lag-1 autocorrelation (W. J. Riley and C. A. Greenhall, "Power law noise
 //!   identification using the lag 1 autocorrelation", EFTF 2004): used when at
-//!   least [`LAG1_MIN_POINTS`] decimated phase points remain. This reproduces
-//!   Stable32's Alpha column wherever it applies (see `tests/allan_stable32.rs`).
+//!   least [`LAG1_MIN_POINTS`] decimated phase points remain. The engine does not
+//!   detrend the decimated phase first: measured on the Stable32 files, that
+//!   reproduces their Alpha column on 3273 of 3309 rows (AllanTools' quadratic
+//!   detrend: 3007); the remaining rows sit on the rho = 0.25 or 2 rho = -0.5
+//!   decision boundaries. [`noise_id_lag1_series`] offers the detrended variant.
 //! * B1 ratio (Barnes; Howe 2000) and R(n) = MVAR/AVAR, as SP 1065 section 5.6
 //!   describes, for fewer points. Stable32's own choices there are not fully
 //!   documented; the agreement we reach is measured and reported by the tests.
@@ -64,7 +67,7 @@ pub fn noise_id(phase: &Phase, stat: Stat, m: u64) -> NoiseId {
     let mu = m.max(1) as usize;
     if n.div_ceil(mu) >= LAG1_MIN_POINTS {
         let z: Vec<f64> = (0..n).step_by(mu).map(|i| phase.get_f64(i)).collect();
-        if let Some(l) = noise_id_lag1_series(z, true, 0, dmax) {
+        if let Some(l) = noise_id_lag1_series(z, true, 0, dmax, None) {
             return NoiseId { alpha: clamp(l.alpha), method: NoiseIdMethod::Lag1Acf };
         }
     }
@@ -75,27 +78,30 @@ pub fn noise_id(phase: &Phase, stat: Stat, m: u64) -> NoiseId {
 }
 
 /// Lag-1 ACF noise identification on a real phase series decimated by `m`
-/// (every m-th point), with at most `dmax` differencing steps (2 for the
-/// Allan family, 3 for Hadamard). `None` when fewer than 30 points remain or
-/// the series is degenerate (constant after detrending).
+/// (every m-th point, not detrended, as the engine and Stable32 do), with at
+/// most `dmax` differencing steps (2 for the Allan family, 3 for Hadamard).
+/// `None` when fewer than 30 points remain or the series is degenerate.
 pub fn noise_id_lag1(phase: &[f64], m: usize, dmax: u32) -> Option<Lag1> {
     let m = m.max(1);
     if phase.len().div_ceil(m) < LAG1_MIN_POINTS {
         return None;
     }
     let z: Vec<f64> = phase.iter().step_by(m).copied().collect();
-    noise_id_lag1_series(z, true, 0, dmax)
+    noise_id_lag1_series(z, true, 0, dmax, None)
 }
 
 /// The lag-1 ACF algorithm on an already decimated (phase) or averaged
 /// (frequency, `is_phase = false`) series `z`, consumed as scratch space.
-/// Detrends (quadratic for phase, linear for frequency), then differences
-/// until `rho = r1 / (1 + r1) < 0.25` (at least `dmin`, at most `dmax` times).
-pub fn noise_id_lag1_series(mut z: Vec<f64>, is_phase: bool, dmin: u32, dmax: u32) -> Option<Lag1> {
+/// Optionally removes a least-squares polynomial of `detrend_degree` (1 or 2;
+/// AllanTools uses 2 for phase, 1 for frequency), then differences until
+/// `rho = r1 / (1 + r1) < 0.25` (at least `dmin`, at most `dmax` times).
+pub fn noise_id_lag1_series(mut z: Vec<f64>, is_phase: bool, dmin: u32, dmax: u32, detrend_degree: Option<u32>) -> Option<Lag1> {
     if z.len() < LAG1_MIN_POINTS {
         return None;
     }
-    detrend(&mut z, if is_phase { 2 } else { 1 });
+    if let Some(deg) = detrend_degree {
+        detrend(&mut z, deg.clamp(1, 2));
+    }
     let mut d = 0_u32;
     loop {
         let r1 = lag1_acf(&z)?;
