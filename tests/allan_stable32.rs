@@ -46,8 +46,17 @@ fn parse_stable32(path: &Path) -> Vec<Row> {
             continue;
         }
         let f: Vec<&str> = l.split_whitespace().collect();
-        assert_eq!(f.len(), 7, "{}:{}: expected 7 columns: {l:?}", path.display(), i + 1);
-        let num = |k: usize| -> f64 { f[k].parse().unwrap_or_else(|_| panic!("{}:{}: {:?}", path.display(), i + 1, f[k])) };
+        assert_eq!(
+            f.len(),
+            7,
+            "{}:{}: expected 7 columns: {l:?}",
+            path.display(),
+            i + 1
+        );
+        let num = |k: usize| -> f64 {
+            f[k].parse()
+                .unwrap_or_else(|_| panic!("{}:{}: {:?}", path.display(), i + 1, f[k]))
+        };
         rows.push(Row {
             af: num(0) as u64,
             tau_col: num(1),
@@ -73,7 +82,14 @@ struct Dataset {
 }
 
 impl Dataset {
-    fn load(root: &Path, sub: &str, file: &str, kind: DataKind, tau0: f64, hz_to_fractional: bool) -> Dataset {
+    fn load(
+        root: &Path,
+        sub: &str,
+        file: &str,
+        kind: DataKind,
+        tau0: f64,
+        hz_to_fractional: bool,
+    ) -> Dataset {
         let dir = root.join("allantools").join(sub);
         let path = dir.join(file);
         // our own reader: gz, CRLF, comment lines, `+2.7E-007` numbers
@@ -118,15 +134,30 @@ struct Report {
 /// Stable32 TOTDEV runs whose Alpha column is a user setting (constant 0 for
 /// "no bias correction"), not a noise identification: excluded from the
 /// noise-id comparison (their CIs still use that alpha and are still checked).
-const ALPHA_IS_A_SETTING: [&str; 3] = ["totdev_alpha0.txt", "totdev_decade.txt", "stable32_totdev_alltau.txt"];
+const ALPHA_IS_A_SETTING: [&str; 3] = [
+    "totdev_alpha0.txt",
+    "totdev_decade.txt",
+    "stable32_totdev_alltau.txt",
+];
 
 /// Check one Stable32 file; `exceptions` lists (AF, CI tolerance) overrides.
-fn check(ds: &Dataset, file: &str, stat: Stat, tau0: f64, dev_tol: f64, ci: Ci, exceptions: &[(u64, f64)]) -> Report {
+fn check(
+    ds: &Dataset,
+    file: &str,
+    stat: Stat,
+    tau0: f64,
+    dev_tol: f64,
+    ci: Ci,
+    exceptions: &[(u64, f64)],
+) -> Report {
     let alpha_fixed = ALPHA_IS_A_SETTING.contains(&file) && (stat == Stat::Totdev);
     let path = ds.dir.join(file);
     let rows = parse_stable32(&path);
     let n_phase = ds.n_phase();
-    let mut rep = Report { has_ci: !matches!(ci, Ci::None), ..Report::default() };
+    let mut rep = Report {
+        has_ci: !matches!(ci, Ci::None),
+        ..Report::default()
+    };
     // the engine's own pipeline (noise id -> EDF -> interval) on the same AFs
     let afs: Vec<u64> = rows.iter().map(|r| r.af).collect();
     let engine = allan::compute_at(&ds.phase, stat, tau0, &afs, &AllanOptions::default()).unwrap();
@@ -135,9 +166,17 @@ fn check(ds: &Dataset, file: &str, stat: Stat, tau0: f64, dev_tol: f64, ci: Ci, 
         let (dev, n) = (p.dev, p.n);
         assert_eq!((p.m, n), (r.af, r.n), "{what}: term count");
         assert_eq!(p.tau_s, r.af as f64 * tau0, "{what}: tau");
-        assert!(rel(r.af as f64 * tau0, r.tau_col) < 1e-4, "{what}: Tau column {} vs AF*tau0", r.tau_col); // 5 digits printed
+        assert!(
+            rel(r.af as f64 * tau0, r.tau_col) < 1e-4,
+            "{what}: Tau column {} vs AF*tau0",
+            r.tau_col
+        ); // 5 digits printed
         let e = rel(dev, r.dev);
-        assert!(e < dev_tol, "{what}: dev {dev:.6e} vs Stable32 {:.5e} (rel {e:.2e}, tol {dev_tol:e})", r.dev);
+        assert!(
+            e < dev_tol,
+            "{what}: dev {dev:.6e} vs Stable32 {:.5e} (rel {e:.2e}, tol {dev_tol:e})",
+            r.dev
+        );
         rep.worst_dev = rep.worst_dev.max(e);
         rep.rows += 1;
 
@@ -169,7 +208,10 @@ fn check(ds: &Dataset, file: &str, stat: Stat, tau0: f64, dev_tol: f64, ci: Ci, 
         let own = allan::noise_id(&ds.phase, stat, r.af);
         let agree = own.alpha == r.alpha;
         if !agree && std::env::var_os("SAGNAC_DEBUG_NOISE_ID").is_some() {
-            eprintln!("  mismatch {what}: file alpha {} own {} ({:?})", r.alpha, own.alpha, own.method);
+            eprintln!(
+                "  mismatch {what}: file alpha {} own {} ({:?})",
+                r.alpha, own.alpha, own.method
+            );
         }
         match own.method {
             NoiseIdMethod::Lag1Acf => {
@@ -192,7 +234,12 @@ fn check(ds: &Dataset, file: &str, stat: Stat, tau0: f64, dev_tol: f64, ci: Ci, 
             };
             if own.method == NoiseIdMethod::Lag1Acf {
                 // README: intervals from a noise identification agree within 1e-2
-                assert!(e2 < 1e-2, "{what}: engine CI ({lo2:.5e}, {hi2:.5e}) vs Stable32 ({:.5e}, {:.5e})", r.lo, r.hi);
+                assert!(
+                    e2 < 1e-2,
+                    "{what}: engine CI ({lo2:.5e}, {hi2:.5e}) vs Stable32 ({:.5e}, {:.5e})",
+                    r.lo,
+                    r.hi
+                );
             }
             rep.own_ci_within_1e2 += (e2 < 1e-2) as usize;
         }
@@ -214,7 +261,15 @@ fn finish(label: &str, reports: Vec<(String, Report)>, fallback_floor: f64) {
     for (file, r) in &reports {
         eprintln!(
             "{label:8} {file:34} rows {:3}  dev<= {:.1e}  ci<= {:.1e}  lag1 {}/{}  b1rn {}/{}  engine CI<1e-2 {}/{}",
-            r.rows, r.worst_dev, r.worst_ci, r.lag1_agree, r.lag1_rows, r.fb_agree, r.fb_rows, r.own_ci_within_1e2, r.own_ci_rows
+            r.rows,
+            r.worst_dev,
+            r.worst_ci,
+            r.lag1_agree,
+            r.lag1_rows,
+            r.fb_agree,
+            r.fb_rows,
+            r.own_ci_within_1e2,
+            r.own_ci_rows
         );
         let l = if r.has_ci { &mut ci_l } else { &mut all_l };
         l.0 += r.lag1_agree;
@@ -226,16 +281,30 @@ fn finish(label: &str, reports: Vec<(String, Report)>, fallback_floor: f64) {
         "{label:8} noise id vs Alpha column: lag-1 ACF {}/{} (CI files), {}/{} (all-tau files); B1/R(n) fallback {}/{}",
         ci_l.0, ci_l.1, all_l.0, all_l.1, fb.0, fb.1
     );
-    assert_eq!(ci_l.0, ci_l.1, "{label}: lag-1 ACF noise id must reproduce the Alpha column of the CI files");
-    assert!(all_l.0 as f64 >= 0.93 * all_l.1 as f64, "{label}: all-tau lag-1 agreement {}/{}", all_l.0, all_l.1);
+    assert_eq!(
+        ci_l.0, ci_l.1,
+        "{label}: lag-1 ACF noise id must reproduce the Alpha column of the CI files"
+    );
+    assert!(
+        all_l.0 as f64 >= 0.93 * all_l.1 as f64,
+        "{label}: all-tau lag-1 agreement {}/{}",
+        all_l.0,
+        all_l.1
+    );
     if fb.1 > 0 {
         let frac = fb.0 as f64 / fb.1 as f64;
-        assert!(frac >= fallback_floor, "{label}: B1/R(n) agreement {frac:.2} below floor {fallback_floor}");
+        assert!(
+            frac >= fallback_floor,
+            "{label}: B1/R(n) agreement {frac:.2} below floor {fallback_floor}"
+        );
     }
 }
 
 fn stat_files(prefix: &str, suffix: &str, stats: &[(&str, Stat)]) -> Vec<(String, Stat)> {
-    stats.iter().map(|(s, st)| (format!("{prefix}{s}{suffix}"), *st)).collect()
+    stats
+        .iter()
+        .map(|(s, st)| (format!("{prefix}{s}{suffix}"), *st))
+        .collect()
 }
 
 const SIX: [(&str, Stat); 6] = [
@@ -249,12 +318,17 @@ const SIX: [(&str, Stat); 6] = [
 
 #[test]
 fn phasedat() {
-    let Some(root) = common::shared_data() else { return };
+    let Some(root) = common::shared_data() else {
+        return;
+    };
     let ds = Dataset::load(&root, "phasedat", "PHASE.DAT", DataKind::Phase, 1.0, false);
     assert_eq!(ds.n_phase(), 1001);
     let mut reps = Vec::new();
     for (f, st) in stat_files("phase_dat_", "_octave.txt", &SIX) {
-        reps.push((f.clone(), check(&ds, &f, st, 1.0, 1e-4, Ci::Direct(1e-3), &[])));
+        reps.push((
+            f.clone(),
+            check(&ds, &f, st, 1.0, 1e-4, Ci::Direct(1e-3), &[]),
+        ));
     }
     for (f, st) in stat_files("phase_dat_", ".txt", &SIX) {
         reps.push((f.clone(), check(&ds, &f, st, 1.0, 1e-4, Ci::None, &[])));
@@ -264,9 +338,18 @@ fn phasedat() {
 
 #[test]
 fn pink_frequency() {
-    let Some(root) = common::shared_data() else { return };
+    let Some(root) = common::shared_data() else {
+        return;
+    };
     // tau0 = 42 s for every file except s32_oadev_octave.txt (run with 1 s)
-    let ds42 = Dataset::load(&root, "pink_frequency", "pink_frequency.txt", DataKind::Freq, 42.0, false);
+    let ds42 = Dataset::load(
+        &root,
+        "pink_frequency",
+        "pink_frequency.txt",
+        DataKind::Freq,
+        42.0,
+        false,
+    );
     assert_eq!(ds42.n_phase(), 10001);
     let mut reps = Vec::new();
     let files = [
@@ -278,30 +361,75 @@ fn pink_frequency() {
         ("totdev_alpha0.txt", Stat::Totdev),
     ];
     for (f, st) in files {
-        reps.push((f.to_string(), check(&ds42, f, st, ds42.tau0, 1e-4, Ci::None, &[])));
+        reps.push((
+            f.to_string(),
+            check(&ds42, f, st, ds42.tau0, 1e-4, Ci::None, &[]),
+        ));
     }
-    let ds1 = Dataset::load(&root, "pink_frequency", "pink_frequency.txt", DataKind::Freq, 1.0, false);
-    reps.push(("s32_oadev_octave.txt".into(), check(&ds1, "s32_oadev_octave.txt", Stat::Oadev, 1.0, 1e-4, Ci::Direct(1e-3), &[])));
+    let ds1 = Dataset::load(
+        &root,
+        "pink_frequency",
+        "pink_frequency.txt",
+        DataKind::Freq,
+        1.0,
+        false,
+    );
+    reps.push((
+        "s32_oadev_octave.txt".into(),
+        check(
+            &ds1,
+            "s32_oadev_octave.txt",
+            Stat::Oadev,
+            1.0,
+            1e-4,
+            Ci::Direct(1e-3),
+            &[],
+        ),
+    ));
     finish("pink", reps, 0.55);
 }
 
 #[test]
 fn keysight_counter_noise_floor() {
-    let Some(root) = common::shared_data() else { return };
-    let ds = Dataset::load(&root, "Keysight53230A_ti_noise_floor", "tic_phase.txt", DataKind::Phase, 1.0, false);
+    let Some(root) = common::shared_data() else {
+        return;
+    };
+    let ds = Dataset::load(
+        &root,
+        "Keysight53230A_ti_noise_floor",
+        "tic_phase.txt",
+        DataKind::Phase,
+        1.0,
+        false,
+    );
     assert_eq!(ds.n_phase(), 55688);
     let mut reps = Vec::new();
-    reps.push(("tic_adev.txt".into(), check(&ds, "tic_adev.txt", Stat::Adev, 1.0, 1e-4, Ci::None, &[])));
+    reps.push((
+        "tic_adev.txt".into(),
+        check(&ds, "tic_adev.txt", Stat::Adev, 1.0, 1e-4, Ci::None, &[]),
+    ));
     for (f, st) in stat_files("tic_", ".txt", &SIX[1..]) {
-        reps.push((f.clone(), check(&ds, &f, st, 1.0, 1e-4, Ci::Direct(1e-3), &[])));
+        reps.push((
+            f.clone(),
+            check(&ds, &f, st, 1.0, 1e-4, Ci::Direct(1e-3), &[]),
+        ));
     }
     finish("tic", reps, 0.55);
 }
 
 #[test]
 fn gps() {
-    let Some(root) = common::shared_data() else { return };
-    let ds = Dataset::load(&root, "gps", "gps_1pps_phase_data.txt.gz", DataKind::Phase, 1.0, false);
+    let Some(root) = common::shared_data() else {
+        return;
+    };
+    let ds = Dataset::load(
+        &root,
+        "gps",
+        "gps_1pps_phase_data.txt.gz",
+        DataKind::Phase,
+        1.0,
+        false,
+    );
     assert_eq!(ds.n_phase(), 241218);
     let mut reps = Vec::new();
     let files = [
@@ -316,20 +444,39 @@ fn gps() {
         // Exception: TOTDEV AF 65536 (3.7 averages, alpha 1): Stable32's TOTVAR EDF for
         // flicker PM is undocumented; SP 1065's simple AVAR formula is 4.8 % low in EDF,
         // 3.2e-3 in the bounds. Every other alpha-1/2 TOTDEV row agrees within 5.4e-4.
-        let exc: &[(u64, f64)] = if st == Stat::Totdev { &[(65536, 4e-3)] } else { &[] };
-        reps.push((f.to_string(), check(&ds, f, st, 1.0, 1e-4, Ci::Direct(1e-3), exc)));
+        let exc: &[(u64, f64)] = if st == Stat::Totdev {
+            &[(65536, 4e-3)]
+        } else {
+            &[]
+        };
+        reps.push((
+            f.to_string(),
+            check(&ds, f, st, 1.0, 1e-4, Ci::Direct(1e-3), exc),
+        ));
     }
     finish("gps", reps, 0.55);
 }
 
 #[test]
 fn cs5071a() {
-    let Some(root) = common::shared_data() else { return };
-    let ds = Dataset::load(&root, "Cs5071A", "5071A_phase.txt.gz", DataKind::Phase, 1.0, false);
+    let Some(root) = common::shared_data() else {
+        return;
+    };
+    let ds = Dataset::load(
+        &root,
+        "Cs5071A",
+        "5071A_phase.txt.gz",
+        DataKind::Phase,
+        1.0,
+        false,
+    );
     assert_eq!(ds.n_phase(), 556990);
     let mut reps = Vec::new();
     for (f, st) in stat_files("", "_decade.txt", &SIX) {
-        reps.push((f.clone(), check(&ds, &f, st, 1.0, 1e-4, Ci::Direct(1e-3), &[])));
+        reps.push((
+            f.clone(),
+            check(&ds, &f, st, 1.0, 1e-4, Ci::Direct(1e-3), &[]),
+        ));
     }
     for (f, st) in stat_files("", "_all.txt", &SIX) {
         reps.push((f.clone(), check(&ds, &f, st, 1.0, 1e-4, Ci::None, &[])));
@@ -339,9 +486,18 @@ fn cs5071a() {
 
 #[test]
 fn ocxo() {
-    let Some(root) = common::shared_data() else { return };
+    let Some(root) = common::shared_data() else {
+        return;
+    };
     // Hz -> fractional frequency (the README's recipe); freq_to_phase removes the mean
-    let ds = Dataset::load(&root, "ocxo", "ocxo_frequency.txt", DataKind::Freq, 1.0, true);
+    let ds = Dataset::load(
+        &root,
+        "ocxo",
+        "ocxo_frequency.txt",
+        DataKind::Freq,
+        1.0,
+        true,
+    );
     assert_eq!(ds.n_phase(), 19983);
     let mut reps = Vec::new();
     for (f, st) in stat_files("stable32_", "_alltau.txt", &SIX) {
@@ -357,7 +513,10 @@ fn ocxo() {
             Stat::Totdev => 1.5e-2,
             _ => 2e-3,
         };
-        reps.push((f.clone(), check(&ds, &f, st, 1.0, tol, Ci::Ratio(1e-3), &[])));
+        reps.push((
+            f.clone(),
+            check(&ds, &f, st, 1.0, tol, Ci::Ratio(1e-3), &[]),
+        ));
     }
     finish("ocxo", reps, 0.45);
 }
@@ -365,7 +524,9 @@ fn ocxo() {
 #[test]
 fn stable32_all_tau_lists_follow_the_progression_rule() {
     // AF lists of the "all tau" files: m += 1 + m / D (D per run), up to the stop ratio.
-    let Some(root) = common::shared_data() else { return };
+    let Some(root) = common::shared_data() else {
+        return;
+    };
     let a = root.join("allantools");
     let cases: [(&str, Stat, u64, bool); 8] = [
         ("phasedat/phase_dat_adev.txt", Stat::Adev, 1001, true),
@@ -379,7 +540,11 @@ fn stable32_all_tau_lists_follow_the_progression_rule() {
     ];
     for (f, stat, n, complete) in cases {
         let afs: Vec<u64> = parse_stable32(&a.join(f)).iter().map(|r| r.af).collect();
-        let dense = afs.windows(2).find(|w| w[1] - w[0] == 2).map(|w| w[0]).expect("a step of 2");
+        let dense = afs
+            .windows(2)
+            .find(|w| w[1] - w[0] == 2)
+            .map(|w| w[0])
+            .expect("a step of 2");
         let want = allan::batch::all_tau_progression(allan::max_m(stat, n), dense);
         assert_eq!(&want[..afs.len()], &afs[..], "{f}");
         if complete {
@@ -390,7 +555,9 @@ fn stable32_all_tau_lists_follow_the_progression_rule() {
 
 #[test]
 fn nbs14_reference_values() {
-    let Some(root) = common::shared_data() else { return };
+    let Some(root) = common::shared_data() else {
+        return;
+    };
     let a = root.join("allantools");
     let text = std::fs::read_to_string(a.join("nbs14/nbs14_reference_values.txt")).unwrap();
     let load = |p: &str, kind: DataKind| {
@@ -398,8 +565,20 @@ fn nbs14_reference_values() {
         Phase::from_samples(&v, kind, 1.0).unwrap()
     };
     let sets: BTreeMap<&str, Vec<Phase>> = BTreeMap::from([
-        ("10pt", vec![load("nbs14/nbs14_10point_phase.txt", DataKind::Phase), load("nbs14/nbs14_10point_frequency.txt", DataKind::Freq)]),
-        ("1000pt", vec![load("phasedat/PHASE.DAT", DataKind::Phase), load("nbs14/nbs14_1000point_frequency.txt", DataKind::Freq)]),
+        (
+            "10pt",
+            vec![
+                load("nbs14/nbs14_10point_phase.txt", DataKind::Phase),
+                load("nbs14/nbs14_10point_frequency.txt", DataKind::Freq),
+            ],
+        ),
+        (
+            "1000pt",
+            vec![
+                load("phasedat/PHASE.DAT", DataKind::Phase),
+                load("nbs14/nbs14_1000point_frequency.txt", DataKind::Freq),
+            ],
+        ),
     ]);
     let mut checked = 0;
     for line in text.lines() {
@@ -418,14 +597,30 @@ fn nbs14_reference_values() {
         };
         let m: u64 = f[2].parse().unwrap();
         let want: f64 = f[3].parse().unwrap();
-        let digits = f[3].split(['e', 'E']).next().unwrap().chars().filter(|c| c.is_ascii_digit()).count();
+        let digits = f[3]
+            .split(['e', 'E'])
+            .next()
+            .unwrap()
+            .chars()
+            .filter(|c| c.is_ascii_digit())
+            .count();
         // 7 significant digits: 1e-6 relative; 5-6 digits: 1e-4
         let tol = if digits >= 7 { 1e-6 } else { 1e-4 };
         for phase in &sets[f[0]] {
             let (dev, _) = allan::deviation(phase, stat, 1.0, m).unwrap();
-            assert!(rel(dev, want) < tol, "NBS14 {} {} m={m}: {dev} vs {want} (rel {:e})", f[0], f[1], rel(dev, want));
+            assert!(
+                rel(dev, want) < tol,
+                "NBS14 {} {} m={m}: {dev} vs {want} (rel {:e})",
+                f[0],
+                f[1],
+                rel(dev, want)
+            );
             checked += 1;
         }
     }
-    assert_eq!(checked, 2 * 30, "NBS14 TESTED entries for our statistics, phase and frequency input");
+    assert_eq!(
+        checked,
+        2 * 30,
+        "NBS14 TESTED entries for our statistics, phase and frequency input"
+    );
 }

@@ -32,7 +32,14 @@ const J_MAX: f64 = 100.0;
 ///
 /// Returns `f64::NAN` for arguments outside the model (alpha out of range,
 /// `d` not 1..=3, or fewer points than one estimator term needs).
-pub fn edf_greenhall(alpha: i32, d: u32, m: u64, n_phase: u64, overlapping: bool, modified: bool) -> f64 {
+pub fn edf_greenhall(
+    alpha: i32,
+    d: u32,
+    m: u64,
+    n_phase: u64,
+    overlapping: bool,
+    modified: bool,
+) -> f64 {
     if !(1..=3).contains(&d) || !(-4..=2).contains(&alpha) || alpha + 2 * d as i32 <= 1 || m == 0 {
         return f64::NAN;
     }
@@ -40,9 +47,17 @@ pub fn edf_greenhall(alpha: i32, d: u32, m: u64, n_phase: u64, overlapping: bool
     let mf = m as f64;
     let n = n_phase as f64;
     // F: filter factor (1 modified, m unmodified); S: stride factor (m overlapped, 1 not).
-    let f = if modified { Filter::Finite(1.0) } else { Filter::Finite(mf) };
+    let f = if modified {
+        Filter::Finite(1.0)
+    } else {
+        Filter::Finite(mf)
+    };
     let s = if overlapping { mf } else { 1.0 };
-    let l = if modified { mf + mf * df } else { 1.0 + mf * df };
+    let l = if modified {
+        mf + mf * df
+    } else {
+        1.0 + mf * df
+    };
     if n < l {
         return f64::NAN;
     }
@@ -65,7 +80,11 @@ pub fn edf_greenhall(alpha: i32, d: u32, m: u64, n_phase: u64, overlapping: bool
     } else if alpha <= 0 {
         // case 2: unmodified, alpha <= 0
         if j <= J_MAX {
-            let fp = if mf * (df + 1.0) <= J_MAX { f } else { Filter::Infinite };
+            let fp = if mf * (df + 1.0) <= J_MAX {
+                f
+            } else {
+                Filter::Infinite
+            };
             basic_sum(j, big_m, s, fp, alpha, d) / (sz(0.0, fp, alpha, d).powi(2) * big_m)
         } else if r > df + 1.0 {
             let (a0, a1) = table2(alpha, d);
@@ -86,7 +105,8 @@ pub fn edf_greenhall(alpha: i32, d: u32, m: u64, n_phase: u64, overlapping: bool
         } else {
             let mp = J_MAX / r;
             let (b0, b1) = table3(d);
-            basic_sum(J_MAX, J_MAX, mp, Filter::Finite(mp), 1, d) / ((b0 + b1 * mf.ln()).powi(2) * J_MAX)
+            basic_sum(J_MAX, J_MAX, mp, Filter::Finite(mp), 1, d)
+                / ((b0 + b1 * mf.ln()).powi(2) * J_MAX)
         }
     } else {
         // case 4: unmodified, white PM. Consecutive terms correlate only at
@@ -126,7 +146,11 @@ pub fn edf_totdev(alpha: i32, m: u64, n_phase: u64) -> f64 {
         -2 => 0.93 * n / mf - 0.36,
         _ => {
             let e = edf_simple(alpha, m, n_phase);
-            if e.is_finite() && e > 0.0 { e } else { edf_greenhall(alpha.clamp(-2, 2), 2, m, n_phase, true, false) }
+            if e.is_finite() && e > 0.0 {
+                e
+            } else {
+                edf_greenhall(alpha.clamp(-2, 2), 2, m, n_phase, true, false)
+            }
         }
     }
 }
@@ -143,7 +167,10 @@ pub fn edf_simple(alpha: i32, m: u64, n_phase: u64) -> f64 {
             let b = (2.0 * m + 1.0) * (n - 1.0) / 4.0;
             (a.ln() * b.ln()).sqrt().exp()
         }
-        0 => (3.0 * (n - 1.0) / (2.0 * m) - 2.0 * (n - 2.0) / n) * (4.0 * m * m / (4.0 * m * m + 5.0)),
+        0 => {
+            (3.0 * (n - 1.0) / (2.0 * m) - 2.0 * (n - 2.0) / n)
+                * (4.0 * m * m / (4.0 * m * m + 5.0))
+        }
         -1 => {
             if m == 1.0 {
                 2.0 * (n - 2.0) / (2.3 * n - 4.9)
@@ -151,7 +178,10 @@ pub fn edf_simple(alpha: i32, m: u64, n_phase: u64) -> f64 {
                 5.0 * n * n / (4.0 * m * (n + 3.0 * m))
             }
         }
-        -2 => (n - 2.0) / (m * (n - 3.0).powi(2)) * ((n - 1.0).powi(2) - 3.0 * m * (n - 1.0) + 4.0 * m * m),
+        -2 => {
+            (n - 2.0) / (m * (n - 3.0).powi(2))
+                * ((n - 1.0).powi(2) - 3.0 * m * (n - 1.0) + 4.0 * m * m)
+        }
         _ => n - 1.0,
     }
 }
@@ -177,7 +207,9 @@ pub fn edf_for_stat(stat: Stat, alpha: i32, m: u64, n_phase: u64) -> f64 {
 /// Returns `(NAN, NAN)` when `edf` is not a positive finite number or the
 /// confidence is outside (0, 1).
 pub fn chi2_interval(dev: f64, edf: f64, confidence: f64) -> (f64, f64) {
-    if !(edf.is_finite() && edf > 0.0) || !(confidence > 0.0 && confidence < 1.0) {
+    let edf_ok = edf.is_finite() && edf > 0.0;
+    let conf_ok = confidence > 0.0 && confidence < 1.0; // false for NaN
+    if !edf_ok || !conf_ok {
         return (f64::NAN, f64::NAN);
     }
     let Ok(chi2) = ChiSquared::new(edf) else {
@@ -215,7 +247,11 @@ fn sw(t: f64, alpha: i32) -> f64 {
 
 /// t^p ln|t| with the limit 0 at t = 0.
 fn xlnx(t: f64, p: i32) -> f64 {
-    if t == 0.0 { 0.0 } else { t.powi(p) * t.abs().ln() }
+    if t == 0.0 {
+        0.0
+    } else {
+        t.powi(p) * t.abs().ln()
+    }
 }
 
 /// sx(t, F): sw passed through the F-point phase-averaging filter (eq. 8).
@@ -281,7 +317,11 @@ fn binom(n: u32, k: u32) -> f64 {
 fn table1(alpha: i32, d: u32) -> (f64, f64) {
     const NA: (f64, f64) = (f64::NAN, f64::NAN);
     let rows: [[(f64, f64); 3]; 7] = [
-        [(2.0 / 3.0, 1.0 / 3.0), (7.0 / 9.0, 1.0 / 2.0), (22.0 / 25.0, 2.0 / 3.0)],
+        [
+            (2.0 / 3.0, 1.0 / 3.0),
+            (7.0 / 9.0, 1.0 / 2.0),
+            (22.0 / 25.0, 2.0 / 3.0),
+        ],
         [(0.840, 0.345), (0.997, 0.616), (1.141, 0.843)],
         [(1.079, 0.368), (1.033, 0.607), (1.184, 0.848)],
         [NA, (1.048, 0.534), (1.180, 0.816)],
@@ -296,9 +336,17 @@ fn table1(alpha: i32, d: u32) -> (f64, f64) {
 fn table2(alpha: i32, d: u32) -> (f64, f64) {
     const NA: (f64, f64) = (f64::NAN, f64::NAN);
     let rows: [[(f64, f64); 3]; 7] = [
-        [(3.0 / 2.0, 1.0 / 2.0), (35.0 / 18.0, 1.0), (231.0 / 100.0, 3.0 / 2.0)],
+        [
+            (3.0 / 2.0, 1.0 / 2.0),
+            (35.0 / 18.0, 1.0),
+            (231.0 / 100.0, 3.0 / 2.0),
+        ],
         [(78.6, 25.2), (790.0, 410.0), (9950.0, 6520.0)],
-        [(2.0 / 3.0, 1.0 / 6.0), (2.0 / 3.0, 1.0 / 3.0), (7.0 / 9.0, 1.0 / 2.0)],
+        [
+            (2.0 / 3.0, 1.0 / 6.0),
+            (2.0 / 3.0, 1.0 / 3.0),
+            (7.0 / 9.0, 1.0 / 2.0),
+        ],
         [NA, (0.852, 0.375), (0.997, 0.617)],
         [NA, (1.079, 0.368), (1.033, 0.607)],
         [NA, NA, (1.053, 0.553)],
@@ -346,7 +394,10 @@ mod tests {
             }
             let want = (big_m * big_m) as f64 / s;
             let got = edf_greenhall(2, d, m, n_phase, true, false);
-            assert!((got / want - 1.0).abs() < 1e-12, "N={n_phase} m={m}: {got} vs {want}");
+            assert!(
+                (got / want - 1.0).abs() < 1e-12,
+                "N={n_phase} m={m}: {got} vs {want}"
+            );
         }
     }
 
@@ -359,7 +410,10 @@ mod tests {
             let h = 1.0 / ff;
             let direct = ff * ff * (2.0 * sw(t, 1) - sw(t - h, 1) - sw(t + h, 1));
             let taylor = sx(t, Filter::Finite(ff), 1);
-            assert!((direct - taylor).abs() < 1e-9, "t={t}: {direct} vs {taylor}");
+            assert!(
+                (direct - taylor).abs() < 1e-9,
+                "t={t}: {direct} vs {taylor}"
+            );
         }
     }
 

@@ -190,17 +190,42 @@ impl Phase {
     /// * `Freq`: [`freq_to_phase`] (N samples give N+1 phase points).
     /// * `Counts`: [`counts_to_phase`] (N increments give N+1 points, exact).
     pub fn from_samples(samples: &[f64], kind: DataKind, tau0_s: f64) -> Result<Phase, AllanError> {
+        Phase::from_vec(samples.to_vec(), kind, tau0_s)
+    }
+
+    /// As [`Phase::from_samples`], taking ownership: phase samples are moved
+    /// and frequency samples integrated in place (no second copy of a large file).
+    pub fn from_vec(
+        mut samples: Vec<f64>,
+        kind: DataKind,
+        tau0_s: f64,
+    ) -> Result<Phase, AllanError> {
         if samples.is_empty() {
-            return Err(AllanError::TooFewPoints { n_phase: 0, need: 3 });
+            return Err(AllanError::TooFewPoints {
+                n_phase: 0,
+                need: 3,
+            });
         }
         if let Some(i) = samples.iter().position(|v| !v.is_finite()) {
-            return Err(AllanError::NonFinite { index: i as u64, value: samples[i] });
+            return Err(AllanError::NonFinite {
+                index: i as u64,
+                value: samples[i],
+            });
         }
         check_tau0(tau0_s)?;
         Ok(match kind {
-            DataKind::Phase => Phase::F64(samples.to_vec()),
-            DataKind::Freq => Phase::F64(freq_to_phase(samples, tau0_s)),
-            DataKind::Counts => Phase::Counts(counts_to_phase(samples)?),
+            DataKind::Phase => Phase::F64(samples),
+            DataKind::Freq => {
+                let mean = mean_f64(&samples);
+                let mut acc = 0.0_f64;
+                for v in samples.iter_mut() {
+                    acc += *v - mean;
+                    *v = acc * tau0_s;
+                }
+                samples.insert(0, 0.0);
+                Phase::F64(samples)
+            }
+            DataKind::Counts => Phase::Counts(counts_to_phase(&samples)?),
         })
     }
 }
@@ -240,7 +265,10 @@ pub fn counts_to_phase(increments: &[f64]) -> Result<Vec<i64>, AllanError> {
     let mut acc: i64 = 0;
     for (i, &v) in increments.iter().enumerate() {
         if !(v.is_finite() && v.fract() == 0.0 && v.abs() <= LIMIT) {
-            return Err(AllanError::NotInteger { index: i as u64, value: v });
+            return Err(AllanError::NotInteger {
+                index: i as u64,
+                value: v,
+            });
         }
         acc = acc
             .checked_add(v as i64)
@@ -329,6 +357,10 @@ mod tests {
         // mean 2.5; deviations -1.5, -0.5, 0.5, 1.5; tau0 = 2 s
         let y = [1.0, 2.0, 3.0, 4.0];
         let x = freq_to_phase(&y, 2.0);
+        assert_eq!(
+            Phase::from_samples(&y, DataKind::Freq, 2.0).unwrap(),
+            Phase::F64(x.clone())
+        ); // same arithmetic
         let want = [0.0, -3.0, -4.0, -3.0, 0.0];
         assert_eq!(x.len(), 5);
         for (a, b) in x.iter().zip(want) {
@@ -339,10 +371,16 @@ mod tests {
     #[test]
     fn freq_to_phase_removes_large_offset() {
         // a 1e7 offset must not eat the 1e-3 fluctuation's digits
-        let y: Vec<f64> = (0..1000).map(|i| 1e7 + if i % 2 == 0 { 1e-3 } else { -1e-3 }).collect();
+        let y: Vec<f64> = (0..1000)
+            .map(|i| 1e7 + if i % 2 == 0 { 1e-3 } else { -1e-3 })
+            .collect();
         let x = freq_to_phase(&y, 1.0);
-        assert!(x.iter().all(|v| v.abs() <= 1.0000001e-3), "phase stays within one step");
-        assert!((x[1] - 1e-3).abs() < 1e-9); // 1e-6 relative of the fluctuation
+        // inputs are only representable to ulp(1e7) = 1.9e-9, i.e. 2e-6 of the fluctuation
+        assert!(
+            x.iter().all(|v| v.abs() <= 1.00001e-3),
+            "phase stays within one step"
+        );
+        assert!((x[1] - 1e-3).abs() < 1e-8); // 1e-5 relative
     }
 
     #[test]
@@ -351,7 +389,10 @@ mod tests {
         assert_eq!(c, vec![0, 3, 2, 6, 6]);
         let big = counts_to_phase(&[4.0e15, 4.0e15, 1.0]).unwrap();
         assert_eq!(big[3], 8_000_000_000_000_001); // beyond f64's integer precision
-        assert!(matches!(counts_to_phase(&[1.0, 0.5]), Err(AllanError::NotInteger { index: 1, .. })));
+        assert!(matches!(
+            counts_to_phase(&[1.0, 0.5]),
+            Err(AllanError::NotInteger { index: 1, .. })
+        ));
     }
 
     #[test]
@@ -370,7 +411,10 @@ mod tests {
 
     #[test]
     fn phase_from_samples_validates() {
-        assert!(matches!(Phase::from_samples(&[1.0, 2.0], DataKind::Phase, 0.0), Err(AllanError::BadTau0 { .. })));
+        assert!(matches!(
+            Phase::from_samples(&[1.0, 2.0], DataKind::Phase, 0.0),
+            Err(AllanError::BadTau0 { .. })
+        ));
         assert!(matches!(
             Phase::from_samples(&[1.0, f64::NAN], DataKind::Phase, 1.0),
             Err(AllanError::NonFinite { index: 1, .. })

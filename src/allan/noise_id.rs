@@ -66,15 +66,28 @@ pub fn noise_id(phase: &Phase, stat: Stat, m: u64) -> NoiseId {
     let n = phase.len();
     let mu = m.max(1) as usize;
     if n.div_ceil(mu) >= LAG1_MIN_POINTS {
-        let z: Vec<f64> = (0..n).step_by(mu).map(|i| phase.get_f64(i)).collect();
-        if let Some(l) = noise_id_lag1_series(z, true, 0, dmax, None) {
-            return NoiseId { alpha: clamp(l.alpha), method: NoiseIdMethod::Lag1Acf };
+        let l = match phase {
+            Phase::F64(x) => lag1_strided(x, mu, dmax, |v| v),
+            // cumulative counts below 2^53 convert exactly, so their differences stay exact
+            Phase::Counts(c) => lag1_strided(c, mu, dmax, |v| v as f64),
+        };
+        if let Some(l) = l {
+            return NoiseId {
+                alpha: clamp(l.alpha),
+                method: NoiseIdMethod::Lag1Acf,
+            };
         }
     }
     if let Some(a) = noise_id_b1_rn(phase, m) {
-        return NoiseId { alpha: clamp(a), method: NoiseIdMethod::B1Rn };
+        return NoiseId {
+            alpha: clamp(a),
+            method: NoiseIdMethod::B1Rn,
+        };
     }
-    NoiseId { alpha: 0, method: NoiseIdMethod::Assumed }
+    NoiseId {
+        alpha: 0,
+        method: NoiseIdMethod::Assumed,
+    }
 }
 
 /// Lag-1 ACF noise identification on a real phase series decimated by `m`
@@ -86,8 +99,78 @@ pub fn noise_id_lag1(phase: &[f64], m: usize, dmax: u32) -> Option<Lag1> {
     if phase.len().div_ceil(m) < LAG1_MIN_POINTS {
         return None;
     }
-    let z: Vec<f64> = phase.iter().step_by(m).copied().collect();
-    noise_id_lag1_series(z, true, 0, dmax, None)
+    lag1_strided(phase, m, dmax, |v| v)
+}
+
+/// The undetrended lag-1 method on `x[::m]` without copying anything: the
+/// d-th differences of the strided series are formed on the fly (in the same
+/// order of operations as repeated differencing of a copy).
+fn lag1_strided<T: Copy>(
+    x: &[T],
+    m: usize,
+    dmax: u32,
+    to: impl Fn(T) -> f64 + Copy,
+) -> Option<Lag1> {
+    let len = x.len().div_ceil(m);
+    if len < LAG1_MIN_POINTS {
+        return None;
+    }
+    for d in 0..=dmax.min(3) {
+        let n = len - d as usize;
+        let r1 = lag1_acf_iter(
+            || StridedDiff {
+                x,
+                m,
+                d: d as usize,
+                pos: 0,
+                n,
+                to,
+            },
+            n,
+        )?;
+        let rho = r1 / (1.0 + r1);
+        if rho < 0.25 || d >= dmax.min(3) {
+            let alpha = -((2.0 * rho).round_ties_even() as i32) - 2 * d as i32 + 2;
+            return Some(Lag1 {
+                alpha,
+                alpha_f: -2.0 * (rho + d as f64) + 2.0,
+                d,
+                rho,
+            });
+        }
+    }
+    None
+}
+
+/// Iterator over the d-th differences (d <= 3) of `x[::m]`.
+struct StridedDiff<'a, T, F> {
+    x: &'a [T],
+    m: usize,
+    d: usize,
+    pos: usize,
+    n: usize,
+    to: F,
+}
+
+impl<T: Copy, F: Fn(T) -> f64> Iterator for StridedDiff<'_, T, F> {
+    type Item = f64;
+    #[inline]
+    fn next(&mut self) -> Option<f64> {
+        if self.pos >= self.n {
+            return None;
+        }
+        let mut w = [0.0_f64; 4];
+        for (k, slot) in w.iter_mut().enumerate().take(self.d + 1) {
+            *slot = (self.to)(self.x[(self.pos + k) * self.m]);
+        }
+        for level in 0..self.d {
+            for k in 0..self.d - level {
+                w[k] = w[k + 1] - w[k];
+            }
+        }
+        self.pos += 1;
+        Some(w[0])
+    }
 }
 
 /// The lag-1 ACF algorithm on an already decimated (phase) or averaged
@@ -95,7 +178,13 @@ pub fn noise_id_lag1(phase: &[f64], m: usize, dmax: u32) -> Option<Lag1> {
 /// Optionally removes a least-squares polynomial of `detrend_degree` (1 or 2;
 /// AllanTools uses 2 for phase, 1 for frequency), then differences until
 /// `rho = r1 / (1 + r1) < 0.25` (at least `dmin`, at most `dmax` times).
-pub fn noise_id_lag1_series(mut z: Vec<f64>, is_phase: bool, dmin: u32, dmax: u32, detrend_degree: Option<u32>) -> Option<Lag1> {
+pub fn noise_id_lag1_series(
+    mut z: Vec<f64>,
+    is_phase: bool,
+    dmin: u32,
+    dmax: u32,
+    detrend_degree: Option<u32>,
+) -> Option<Lag1> {
     if z.len() < LAG1_MIN_POINTS {
         return None;
     }
@@ -110,7 +199,12 @@ pub fn noise_id_lag1_series(mut z: Vec<f64>, is_phase: bool, dmin: u32, dmax: u3
             let add = if is_phase { 2 } else { 0 };
             let alpha_f = -2.0 * (rho + d as f64) + add as f64;
             let alpha = -((2.0 * rho).round_ties_even() as i32) - 2 * d as i32 + add;
-            return Some(Lag1 { alpha, alpha_f, d, rho });
+            return Some(Lag1 {
+                alpha,
+                alpha_f,
+                d,
+                rho,
+            });
         }
         // first difference in place
         for i in 0..z.len() - 1 {
@@ -126,16 +220,32 @@ pub fn noise_id_lag1_series(mut z: Vec<f64>, is_phase: bool, dmin: u32, dmax: u3
 
 /// Lag-1 autocorrelation `sum (z_i - zbar)(z_{i+1} - zbar) / sum (z_i - zbar)^2`.
 fn lag1_acf(z: &[f64]) -> Option<f64> {
-    let mean = super::mean_f64(z);
-    let mut num = 0.0;
-    let mut den = 0.0;
-    for w in z.windows(2) {
-        num += (w[0] - mean) * (w[1] - mean);
+    lag1_acf_iter(|| z.iter().copied(), z.len())
+}
+
+/// [`lag1_acf`] over a re-iterable sequence of `n` values (two passes).
+fn lag1_acf_iter<I: Iterator<Item = f64>>(seq: impl Fn() -> I, n: usize) -> Option<f64> {
+    if n < 2 {
+        return None;
     }
-    for &v in z {
-        den += (v - mean) * (v - mean);
-    }
+    let mean = sum4(seq()) / n as f64;
+    let num = sum4(
+        seq()
+            .zip(seq().skip(1))
+            .map(|(a, b)| (a - mean) * (b - mean)),
+    );
+    let den = sum4(seq().map(|v| (v - mean) * (v - mean)));
     (den > 0.0 && num.is_finite()).then_some(num / den)
+}
+
+/// Sum with four interleaved accumulators (faster, and no less accurate than
+/// a single running sum).
+fn sum4(it: impl Iterator<Item = f64>) -> f64 {
+    let mut s = [0.0_f64; 4];
+    for (i, v) in it.enumerate() {
+        s[i & 3] += v;
+    }
+    (s[0] + s[1]) + (s[2] + s[3])
 }
 
 /// Remove the least-squares polynomial of degree 1 or 2 in the sample index,
@@ -162,7 +272,11 @@ fn detrend(z: &mut [f64], degree: u32) {
     }
     let b0 = s0 / n;
     let b1 = if q1 > 0.0 { s1 / q1 } else { 0.0 };
-    let b2 = if degree >= 2 && q2 > 0.0 { s2 / q2 } else { 0.0 };
+    let b2 = if degree >= 2 && q2 > 0.0 {
+        s2 / q2
+    } else {
+        0.0
+    };
     for (i, v) in z.iter_mut().enumerate() {
         *v -= b0 + b1 * p1(i) + b2 * p2(i);
     }
@@ -189,8 +303,9 @@ pub fn noise_id_b1_rn(phase: &Phase, m: u64) -> Option<i32> {
         .collect();
     let mean = super::mean_f64(&ybar);
     let var = ybar.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / (nf - 1) as f64;
-    let avar = ybar.windows(2).map(|w| (w[1] - w[0]).powi(2)).sum::<f64>() / (2.0 * (nf - 1) as f64);
-    if !(avar > 0.0) {
+    let avar =
+        ybar.windows(2).map(|w| (w[1] - w[0]).powi(2)).sum::<f64>() / (2.0 * (nf - 1) as f64);
+    if avar.is_nan() || avar <= 0.0 {
         return None;
     }
     let b1 = var / avar;
@@ -207,8 +322,10 @@ pub fn noise_id_b1_rn(phase: &Phase, m: u64) -> Option<i32> {
     }
     if alpha == 2 {
         // R(n) needs MDEV and ADEV at m (tau0 cancels in the ratio)
-        if let (Some((md, _)), Some((ad, _))) = (deviation(phase, Stat::Mdev, 1.0, m), deviation(phase, Stat::Adev, 1.0, m))
-            && ad > 0.0
+        if let (Some((md, _)), Some((ad, _))) = (
+            deviation(phase, Stat::Mdev, 1.0, m),
+            deviation(phase, Stat::Adev, 1.0, m),
+        ) && ad > 0.0
         {
             let rn = (md / ad).powi(2);
             let bound = (rn_theory(m as f64, 2) * rn_theory(m as f64, 1)).sqrt();
@@ -250,9 +367,40 @@ mod tests {
 
     #[test]
     fn detrend_removes_exact_quadratic() {
-        let mut z: Vec<f64> = (0..50).map(|i| 3.0 + 0.5 * i as f64 - 0.01 * (i * i) as f64).collect();
+        let mut z: Vec<f64> = (0..50)
+            .map(|i| 3.0 + 0.5 * i as f64 - 0.01 * (i * i) as f64)
+            .collect();
         detrend(&mut z, 2);
-        assert!(z.iter().all(|v| v.abs() < 1e-10), "residual {:?}", z.iter().fold(0.0_f64, |a, v| a.max(v.abs())));
+        assert!(
+            z.iter().all(|v| v.abs() < 1e-10),
+            "residual {:?}",
+            z.iter().fold(0.0_f64, |a, v| a.max(v.abs()))
+        );
+    }
+
+    #[test]
+    fn strided_lag1_equals_copying_version() {
+        // random walk + white noise: needs differencing, exercises d = 0..2
+        let mut s = 7_u64;
+        let mut acc = 0.0;
+        let x: Vec<f64> = (0..5000)
+            .map(|i| {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let u = (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+                acc += u;
+                acc * (1.0 + (i % 7) as f64 * 1e-3) + 0.3 * u * u
+            })
+            .collect();
+        for m in [1, 2, 3, 10, 50, 166] {
+            for dmax in [1, 2, 3] {
+                let a = noise_id_lag1(&x, m, dmax).unwrap();
+                let z: Vec<f64> = x.iter().step_by(m).copied().collect();
+                let b = noise_id_lag1_series(z, true, 0, dmax, None).unwrap();
+                assert_eq!(a, b, "m={m} dmax={dmax}");
+            }
+        }
     }
 
     #[test]

@@ -140,11 +140,13 @@ pub fn run(args: AllanArgs) -> Result<()> {
     let samples = SampleReader::open(&args.input, args.format.into(), args.column.as_deref())
         .and_then(|r| r.require_integers(kind == DataKind::Counts).read_to_end())
         .with_context(|| format!("cannot read samples from {}", args.input.display()))?;
-    let phase = Phase::from_samples(&samples, kind, args.tau0)
+    let phase = Phase::from_vec(samples, kind, args.tau0)
         .with_context(|| format!("invalid samples in {}", args.input.display()))?;
-    drop(samples);
     let stat = Stat::from(args.stat);
-    let opts = AllanOptions { confidence: args.confidence, alpha: None };
+    let opts = AllanOptions {
+        confidence: args.confidence,
+        alpha: None,
+    };
     let result = allan::compute(&phase, stat, args.tau0, args.taus.into(), &opts)
         .with_context(|| format!("cannot compute {stat} of {}", args.input.display()))?;
 
@@ -154,7 +156,8 @@ pub fn run(args: AllanArgs) -> Result<()> {
             if out.as_os_str() == "-" {
                 println!("{text}");
             } else {
-                std::fs::write(out, text + "\n").with_context(|| format!("cannot write {}", out.display()))?;
+                std::fs::write(out, text + "\n")
+                    .with_context(|| format!("cannot write {}", out.display()))?;
             }
         }
         None => print_table(&result, &args, phase.len(), opts.confidence)?,

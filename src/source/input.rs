@@ -43,7 +43,9 @@ impl std::str::FromStr for InputFormat {
             "text" => Ok(InputFormat::Text),
             "csv" => Ok(InputFormat::Csv),
             "f64le" => Ok(InputFormat::F64le),
-            _ => Err(format!("unknown input format {s:?} (expected text, csv or f64le)")),
+            _ => Err(format!(
+                "unknown input format {s:?} (expected text, csv or f64le)"
+            )),
         }
     }
 }
@@ -72,21 +74,47 @@ pub enum InputError {
     #[error("{}: cannot open: {source}", path.display())]
     Open { path: PathBuf, source: io::Error },
     #[error("{}: read error at {at}: {source}", path.display())]
-    Read { path: PathBuf, at: Location, source: io::Error },
+    Read {
+        path: PathBuf,
+        at: Location,
+        source: io::Error,
+    },
     #[error("{}: no samples in the file (empty, or only comments and blank lines)", path.display())]
     Empty { path: PathBuf },
     #[error("{}: {at}: not a number: \"{text}\"", path.display())]
-    NotNumber { path: PathBuf, at: Location, text: String },
+    NotNumber {
+        path: PathBuf,
+        at: Location,
+        text: String,
+    },
     #[error("{}: {at}: value is not finite: \"{text}\"", path.display())]
-    NonFinite { path: PathBuf, at: Location, text: String },
+    NonFinite {
+        path: PathBuf,
+        at: Location,
+        text: String,
+    },
     #[error("{}: {at}: not an integer pulse count: \"{text}\"", path.display())]
-    NotInteger { path: PathBuf, at: Location, text: String },
+    NotInteger {
+        path: PathBuf,
+        at: Location,
+        text: String,
+    },
     #[error("{}: no CSV column named \"{name}\"; available columns: {available}", path.display())]
-    MissingColumn { path: PathBuf, name: String, available: String },
+    MissingColumn {
+        path: PathBuf,
+        name: String,
+        available: String,
+    },
     #[error("{}: the CSV file has several columns ({available}); choose one with --column", path.display())]
     ColumnNeeded { path: PathBuf, available: String },
     #[error("{}: line {line}: row has {fields} field(s), column \"{column}\" is field {index}", path.display())]
-    ShortRow { path: PathBuf, line: u64, fields: usize, column: String, index: usize },
+    ShortRow {
+        path: PathBuf,
+        line: u64,
+        fields: usize,
+        column: String,
+        index: usize,
+    },
     #[error("{}: f64le input is {bytes} bytes, not a multiple of 8", path.display())]
     BadLength { path: PathBuf, bytes: u64 },
     #[error("{}: the name ends in .gz but the content is not gzip data", path.display())]
@@ -106,6 +134,8 @@ pub enum InputError {
 /// ```
 pub struct SampleReader {
     path: PathBuf,
+    /// exact sample count when known up front (plain f64le files)
+    len_hint: Option<u64>,
     inner: Inner,
     total: u64,
     require_integers: bool,
@@ -139,33 +169,66 @@ impl SampleReader {
     /// Open `path` in `format`; `column` selects the CSV column (optional when
     /// the CSV has a single column; ignored for other formats). Gzip content
     /// is recognised by its magic bytes and decompressed on the fly.
-    pub fn open(path: &Path, format: InputFormat, column: Option<&str>) -> Result<SampleReader, InputError> {
+    pub fn open(
+        path: &Path,
+        format: InputFormat,
+        column: Option<&str>,
+    ) -> Result<SampleReader, InputError> {
         let p = path.to_path_buf();
-        let file = File::open(path).map_err(|source| InputError::Open { path: p.clone(), source })?;
+        let file = File::open(path).map_err(|source| InputError::Open {
+            path: p.clone(),
+            source,
+        })?;
         let mut raw = BufReader::with_capacity(BUF_BYTES, file);
-        let head = raw
-            .fill_buf()
-            .map_err(|source| InputError::Read { path: p.clone(), at: Location::Byte(0), source })?;
+        let head = raw.fill_buf().map_err(|source| InputError::Read {
+            path: p.clone(),
+            at: Location::Byte(0),
+            source,
+        })?;
         let gz = head.len() >= 2 && head[0] == 0x1f && head[1] == 0x8b;
-        let named_gz = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("gz"));
+        let named_gz = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("gz"));
         if named_gz && !gz && !head.is_empty() {
             return Err(InputError::NotGzip { path: p });
         }
+        let mut len_hint = None;
         if !gz && format == InputFormat::F64le {
             // plain file: check the length up front
             if let Ok(meta) = raw.get_ref().metadata()
                 && meta.is_file()
-                && meta.len() % 8 != 0
             {
-                return Err(InputError::BadLength { path: p, bytes: meta.len() });
+                if meta.len() % 8 != 0 {
+                    return Err(InputError::BadLength {
+                        path: p,
+                        bytes: meta.len(),
+                    });
+                }
+                len_hint = Some(meta.len() / 8);
             }
         }
-        let reader: Box<dyn BufRead + Send> =
-            if gz { Box::new(BufReader::with_capacity(BUF_BYTES, MultiGzDecoder::new(raw))) } else { Box::new(raw) };
+        let reader: Box<dyn BufRead + Send> = if gz {
+            Box::new(BufReader::with_capacity(
+                BUF_BYTES,
+                MultiGzDecoder::new(raw),
+            ))
+        } else {
+            Box::new(raw)
+        };
         let inner = match format {
-            InputFormat::Text => Inner::Lines(LineState { reader, line: 0, buf: Vec::with_capacity(128), csv: None }),
+            InputFormat::Text => Inner::Lines(LineState {
+                reader,
+                line: 0,
+                buf: Vec::with_capacity(128),
+                csv: None,
+            }),
             InputFormat::Csv => {
-                let mut st = LineState { reader, line: 0, buf: Vec::with_capacity(256), csv: None };
+                let mut st = LineState {
+                    reader,
+                    line: 0,
+                    buf: Vec::with_capacity(256),
+                    csv: None,
+                };
                 st.csv = Some(read_csv_header(&mut st, &p, column)?);
                 Inner::Lines(st)
             }
@@ -178,7 +241,14 @@ impl SampleReader {
                 eof: false,
             }),
         };
-        Ok(SampleReader { path: p, inner, total: 0, require_integers: false, finished: false })
+        Ok(SampleReader {
+            path: p,
+            len_hint,
+            inner,
+            total: 0,
+            require_integers: false,
+            finished: false,
+        })
     }
 
     /// Require every value to be an integer (pulse counts): a fractional value
@@ -191,6 +261,11 @@ impl SampleReader {
     /// The file being read.
     pub fn path(&self) -> &Path {
         &self.path
+    }
+
+    /// Total number of samples, when known without reading (plain `f64le` files).
+    pub fn len_hint(&self) -> Option<u64> {
+        self.len_hint
     }
 
     /// Samples delivered so far.
@@ -215,7 +290,9 @@ impl SampleReader {
         if n == 0 {
             self.finished = true;
             if self.total == 0 {
-                return Err(InputError::Empty { path: self.path.clone() });
+                return Err(InputError::Empty {
+                    path: self.path.clone(),
+                });
             }
         }
         self.total += n as u64;
@@ -225,6 +302,9 @@ impl SampleReader {
     /// Read everything that is left.
     pub fn read_to_end(&mut self) -> Result<Vec<f64>, InputError> {
         let mut all = Vec::new();
+        if let Some(n) = self.len_hint {
+            all.reserve_exact((n - self.total.min(n)) as usize);
+        }
         let mut block = Vec::with_capacity(1 << 16);
         while self.next_block(&mut block, 1 << 16)? > 0 {
             all.extend_from_slice(&block);
@@ -234,7 +314,11 @@ impl SampleReader {
 }
 
 /// Read a whole file (see [`SampleReader::open`]).
-pub fn read_all(path: &Path, format: InputFormat, column: Option<&str>) -> Result<Vec<f64>, InputError> {
+pub fn read_all(
+    path: &Path,
+    format: InputFormat,
+    column: Option<&str>,
+) -> Result<Vec<f64>, InputError> {
     SampleReader::open(path, format, column)?.read_to_end()
 }
 
@@ -255,11 +339,14 @@ fn quote(text: &[u8]) -> String {
 fn next_line(st: &mut LineState, path: &Path) -> Result<bool, InputError> {
     loop {
         st.buf.clear();
-        let n = st.reader.read_until(b'\n', &mut st.buf).map_err(|source| InputError::Read {
-            path: path.to_path_buf(),
-            at: Location::Line(st.line + 1),
-            source,
-        })?;
+        let n = st
+            .reader
+            .read_until(b'\n', &mut st.buf)
+            .map_err(|source| InputError::Read {
+                path: path.to_path_buf(),
+                at: Location::Line(st.line + 1),
+                source,
+            })?;
         if n == 0 {
             return Ok(false);
         }
@@ -267,9 +354,17 @@ fn next_line(st: &mut LineState, path: &Path) -> Result<bool, InputError> {
         if let Some(h) = st.buf.iter().position(|&b| b == b'#') {
             st.buf.truncate(h);
         }
-        let end = st.buf.iter().rposition(|b| !b.is_ascii_whitespace()).map_or(0, |i| i + 1);
+        let end = st
+            .buf
+            .iter()
+            .rposition(|b| !b.is_ascii_whitespace())
+            .map_or(0, |i| i + 1);
         st.buf.truncate(end);
-        let start = st.buf.iter().position(|b| !b.is_ascii_whitespace()).unwrap_or(st.buf.len());
+        let start = st
+            .buf
+            .iter()
+            .position(|b| !b.is_ascii_whitespace())
+            .unwrap_or(st.buf.len());
         if start > 0 {
             st.buf.drain(..start);
         }
@@ -288,25 +383,49 @@ fn split_fields(line: &[u8], delim: u8) -> Vec<String> {
         .collect()
 }
 
-fn read_csv_header(st: &mut LineState, path: &Path, column: Option<&str>) -> Result<(usize, u8, String), InputError> {
+fn read_csv_header(
+    st: &mut LineState,
+    path: &Path,
+    column: Option<&str>,
+) -> Result<(usize, u8, String), InputError> {
     if !next_line(st, path)? {
-        return Err(InputError::Empty { path: path.to_path_buf() });
+        return Err(InputError::Empty {
+            path: path.to_path_buf(),
+        });
     }
     let line = &st.buf;
-    let delim = [b',', b';', b'\t'].into_iter().find(|d| line.contains(d)).unwrap_or(b',');
+    let delim = [b',', b';', b'\t']
+        .into_iter()
+        .find(|d| line.contains(d))
+        .unwrap_or(b',');
     let names = split_fields(line, delim);
-    let available = names.iter().map(|n| format!("\"{n}\"")).collect::<Vec<_>>().join(", ");
+    let available = names
+        .iter()
+        .map(|n| format!("\"{n}\""))
+        .collect::<Vec<_>>()
+        .join(", ");
     let idx = match column {
         Some(want) => names
             .iter()
             .position(|n| n == want)
             .or_else(|| {
-                let ci: Vec<usize> = (0..names.len()).filter(|&i| names[i].eq_ignore_ascii_case(want)).collect();
+                let ci: Vec<usize> = (0..names.len())
+                    .filter(|&i| names[i].eq_ignore_ascii_case(want))
+                    .collect();
                 (ci.len() == 1).then(|| ci[0])
             })
-            .ok_or_else(|| InputError::MissingColumn { path: path.to_path_buf(), name: want.to_string(), available })?,
+            .ok_or_else(|| InputError::MissingColumn {
+                path: path.to_path_buf(),
+                name: want.to_string(),
+                available,
+            })?,
         None if names.len() == 1 => 0,
-        None => return Err(InputError::ColumnNeeded { path: path.to_path_buf(), available }),
+        None => {
+            return Err(InputError::ColumnNeeded {
+                path: path.to_path_buf(),
+                available,
+            });
+        }
     };
     Ok((idx, delim, names[idx].clone()))
 }
@@ -315,54 +434,90 @@ fn parse_value(text: &[u8], path: &Path, at: Location, ints: bool) -> Result<f64
     let v = std::str::from_utf8(text)
         .ok()
         .and_then(|s| s.parse::<f64>().ok())
-        .ok_or_else(|| InputError::NotNumber { path: path.to_path_buf(), at, text: quote(text) })?;
+        .ok_or_else(|| InputError::NotNumber {
+            path: path.to_path_buf(),
+            at,
+            text: quote(text),
+        })?;
     check_value(v, path, at, ints, || quote(text))
 }
 
-fn check_value(v: f64, path: &Path, at: Location, ints: bool, text: impl Fn() -> String) -> Result<f64, InputError> {
+fn check_value(
+    v: f64,
+    path: &Path,
+    at: Location,
+    ints: bool,
+    text: impl Fn() -> String,
+) -> Result<f64, InputError> {
     if !v.is_finite() {
-        return Err(InputError::NonFinite { path: path.to_path_buf(), at, text: text() });
+        return Err(InputError::NonFinite {
+            path: path.to_path_buf(),
+            at,
+            text: text(),
+        });
     }
     if ints && (v.fract() != 0.0 || v.abs() > 9_007_199_254_740_992.0) {
-        return Err(InputError::NotInteger { path: path.to_path_buf(), at, text: text() });
+        return Err(InputError::NotInteger {
+            path: path.to_path_buf(),
+            at,
+            text: text(),
+        });
     }
     Ok(v)
 }
 
-fn read_lines(st: &mut LineState, path: &Path, out: &mut Vec<f64>, max: usize, ints: bool) -> Result<(), InputError> {
+fn read_lines(
+    st: &mut LineState,
+    path: &Path,
+    out: &mut Vec<f64>,
+    max: usize,
+    ints: bool,
+) -> Result<(), InputError> {
     while out.len() < max {
         if !next_line(st, path)? {
             break;
         }
         let at = Location::Line(st.line);
-        let v = match &st.csv {
-            None => parse_value(&st.buf, path, at, ints)?,
-            Some((idx, delim, name)) => {
-                let field = st.buf.split(|b| b == delim).nth(*idx).ok_or_else(|| InputError::ShortRow {
-                    path: path.to_path_buf(),
-                    line: st.line,
-                    fields: st.buf.split(|b| b == delim).count(),
-                    column: name.clone(),
-                    index: idx + 1,
-                })?;
-                let f = field.trim_ascii();
-                let f = f.strip_prefix(b"\"").unwrap_or(f);
-                let f = f.strip_suffix(b"\"").unwrap_or(f);
-                parse_value(f.trim_ascii(), path, at, ints)?
-            }
-        };
+        let v =
+            match &st.csv {
+                None => parse_value(&st.buf, path, at, ints)?,
+                Some((idx, delim, name)) => {
+                    let field = st.buf.split(|b| b == delim).nth(*idx).ok_or_else(|| {
+                        InputError::ShortRow {
+                            path: path.to_path_buf(),
+                            line: st.line,
+                            fields: st.buf.split(|b| b == delim).count(),
+                            column: name.clone(),
+                            index: idx + 1,
+                        }
+                    })?;
+                    let f = field.trim_ascii();
+                    let f = f.strip_prefix(b"\"").unwrap_or(f);
+                    let f = f.strip_suffix(b"\"").unwrap_or(f);
+                    parse_value(f.trim_ascii(), path, at, ints)?
+                }
+            };
         out.push(v);
     }
     Ok(())
 }
 
-fn read_binary(st: &mut BinState, path: &Path, out: &mut Vec<f64>, max: usize, ints: bool) -> Result<(), InputError> {
+fn read_binary(
+    st: &mut BinState,
+    path: &Path,
+    out: &mut Vec<f64>,
+    max: usize,
+    ints: bool,
+) -> Result<(), InputError> {
     out.reserve(max.min(BUF_BYTES / 8));
     while out.len() < max {
         if st.end - st.start < 8 {
             if st.eof {
                 if st.end > st.start {
-                    return Err(InputError::BadLength { path: path.to_path_buf(), bytes: st.offset + (st.end - st.start) as u64 });
+                    return Err(InputError::BadLength {
+                        path: path.to_path_buf(),
+                        bytes: st.offset + (st.end - st.start) as u64,
+                    });
                 }
                 break;
             }
@@ -375,7 +530,11 @@ fn read_binary(st: &mut BinState, path: &Path, out: &mut Vec<f64>, max: usize, i
                     Ok(n) => n,
                     Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
                     Err(source) => {
-                        return Err(InputError::Read { path: path.to_path_buf(), at: Location::Byte(st.offset), source });
+                        return Err(InputError::Read {
+                            path: path.to_path_buf(),
+                            at: Location::Byte(st.offset),
+                            source,
+                        });
                     }
                 };
                 if n == 0 {
@@ -393,11 +552,17 @@ fn read_binary(st: &mut BinState, path: &Path, out: &mut Vec<f64>, max: usize, i
         let take = avail.min(max - out.len());
         let bytes = &st.buf[st.start..st.start + 8 * take];
         let base = out.len();
-        out.extend(bytes.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().expect("8-byte chunk"))));
+        out.extend(
+            bytes
+                .chunks_exact(8)
+                .map(|c| f64::from_le_bytes(c.try_into().expect("8-byte chunk"))),
+        );
         // validate the new values (rare failure path reports the exact offset)
         let new = &out[base..];
         let bad = if ints {
-            new.iter().position(|v| !v.is_finite() || v.fract() != 0.0 || v.abs() > 9_007_199_254_740_992.0)
+            new.iter().position(|v| {
+                !v.is_finite() || v.fract() != 0.0 || v.abs() > 9_007_199_254_740_992.0
+            })
         } else {
             new.iter().position(|v| !v.is_finite())
         };
@@ -426,24 +591,42 @@ mod tests {
 
     #[test]
     fn text_with_comments_blank_lines_crlf_and_exponents() {
-        let (_d, p) = tmp("a.txt", b"# header\r\n\r\n+2.76845904000198E-007\r\n  -1.5  \r\n3 # trailing comment\n\n4e2");
+        let (_d, p) = tmp(
+            "a.txt",
+            b"# header\r\n\r\n+2.76845904000198E-007\r\n  -1.5  \r\n3 # trailing comment\n\n4e2",
+        );
         let v = read_all(&p, InputFormat::Text, None).unwrap();
         assert_eq!(v, vec![2.76845904000198e-7, -1.5, 3.0, 400.0]);
     }
 
     #[test]
     fn text_errors_name_file_and_line() {
-        let (_d, p) = tmp("bad.txt", b"1\n2\n# c\nabc def ghi jkl mno pqr stu vwx yz0 123 456 789\n");
-        let e = read_all(&p, InputFormat::Text, None).unwrap_err().to_string();
-        assert!(e.contains("bad.txt") && e.contains("line 4") && e.contains("\"abc def"), "{e}");
+        let (_d, p) = tmp(
+            "bad.txt",
+            b"1\n2\n# c\nabc def ghi jkl mno pqr stu vwx yz0 123 456 789\n",
+        );
+        let e = read_all(&p, InputFormat::Text, None)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("bad.txt") && e.contains("line 4") && e.contains("\"abc def"),
+            "{e}"
+        );
         assert!(e.contains("..."), "long text is truncated: {e}");
         let (_d, p) = tmp("nan.txt", b"1\nNaN\n");
-        let e = read_all(&p, InputFormat::Text, None).unwrap_err().to_string();
+        let e = read_all(&p, InputFormat::Text, None)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("line 2") && e.contains("not finite"), "{e}");
         let (_d, p) = tmp("empty.txt", b"# nothing\n\n");
-        assert!(matches!(read_all(&p, InputFormat::Text, None), Err(InputError::Empty { .. })));
+        assert!(matches!(
+            read_all(&p, InputFormat::Text, None),
+            Err(InputError::Empty { .. })
+        ));
         let (_d, p) = tmp("frac.txt", b"1\n2.5\n");
-        let mut r = SampleReader::open(&p, InputFormat::Text, None).unwrap().require_integers(true);
+        let mut r = SampleReader::open(&p, InputFormat::Text, None)
+            .unwrap()
+            .require_integers(true);
         let e = r.read_to_end().unwrap_err().to_string();
         assert!(e.contains("line 2") && e.contains("integer"), "{e}");
     }
@@ -451,14 +634,29 @@ mod tests {
     #[test]
     fn csv_column_selection() {
         let (_d, p) = tmp("a.csv", b"t,rate,\"counts\"\n0,1.5,3\n1,2.5,4\r\n");
-        assert_eq!(read_all(&p, InputFormat::Csv, Some("rate")).unwrap(), vec![1.5, 2.5]);
-        assert_eq!(read_all(&p, InputFormat::Csv, Some("counts")).unwrap(), vec![3.0, 4.0]);
-        let e = read_all(&p, InputFormat::Csv, Some("nope")).unwrap_err().to_string();
-        assert!(e.contains("a.csv") && e.contains("\"t\", \"rate\", \"counts\""), "{e}");
-        let e = read_all(&p, InputFormat::Csv, None).unwrap_err().to_string();
+        assert_eq!(
+            read_all(&p, InputFormat::Csv, Some("rate")).unwrap(),
+            vec![1.5, 2.5]
+        );
+        assert_eq!(
+            read_all(&p, InputFormat::Csv, Some("counts")).unwrap(),
+            vec![3.0, 4.0]
+        );
+        let e = read_all(&p, InputFormat::Csv, Some("nope"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("a.csv") && e.contains("\"t\", \"rate\", \"counts\""),
+            "{e}"
+        );
+        let e = read_all(&p, InputFormat::Csv, None)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("--column"), "{e}");
         let (_d, p) = tmp("short.csv", b"a,b\n1,2\n3\n");
-        let e = read_all(&p, InputFormat::Csv, Some("b")).unwrap_err().to_string();
+        let e = read_all(&p, InputFormat::Csv, Some("b"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("line 3"), "{e}");
     }
 
@@ -478,12 +676,16 @@ mod tests {
         assert_eq!(got, vals);
         assert_eq!(sizes, vec![3333, 3333, 3333, 1]);
         let (_d, p) = tmp("odd.f64", &bytes[..8 * 5 + 3]);
-        let e = read_all(&p, InputFormat::F64le, None).unwrap_err().to_string();
+        let e = read_all(&p, InputFormat::F64le, None)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("43 bytes"), "{e}");
         let mut b2 = bytes.clone();
         b2[8 * 7..8 * 8].copy_from_slice(&f64::INFINITY.to_le_bytes());
         let (_d, p) = tmp("inf.f64", &b2);
-        let e = read_all(&p, InputFormat::F64le, None).unwrap_err().to_string();
+        let e = read_all(&p, InputFormat::F64le, None)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("byte offset 56"), "{e}");
     }
 
@@ -493,10 +695,19 @@ mod tests {
         enc.write_all(b"# gz\n1\n2\n3\n").unwrap();
         let gz = enc.finish().unwrap();
         let (_d, p) = tmp("data.txt.gz", &gz);
-        assert_eq!(read_all(&p, InputFormat::Text, None).unwrap(), vec![1.0, 2.0, 3.0]);
+        assert_eq!(
+            read_all(&p, InputFormat::Text, None).unwrap(),
+            vec![1.0, 2.0, 3.0]
+        );
         let (_d, p) = tmp("nogz.bin", &gz); // magic bytes, no .gz name
-        assert_eq!(read_all(&p, InputFormat::Text, None).unwrap(), vec![1.0, 2.0, 3.0]);
+        assert_eq!(
+            read_all(&p, InputFormat::Text, None).unwrap(),
+            vec![1.0, 2.0, 3.0]
+        );
         let (_d, p) = tmp("fake.gz", b"1\n2\n");
-        assert!(matches!(read_all(&p, InputFormat::Text, None), Err(InputError::NotGzip { .. })));
+        assert!(matches!(
+            read_all(&p, InputFormat::Text, None),
+            Err(InputError::NotGzip { .. })
+        ));
     }
 }
