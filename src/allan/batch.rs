@@ -149,20 +149,18 @@ pub fn compute_at(
         });
     }
     let n_phase = phase.len() as u64;
-    let mut points = Vec::with_capacity(ms.len());
-    for &m in ms {
-        let (dev, n) = deviation(phase, stat, tau0_s, m).ok_or(AllanError::TauTooLarge {
-            stat,
-            m,
-            n_phase,
-        })?;
+    if let Some(&m) = ms.iter().find(|&&m| stat.n_terms(n_phase, m).is_none()) {
+        return Err(AllanError::TauTooLarge { stat, m, n_phase });
+    }
+    let point = |m: u64| -> AllanPoint {
+        let (dev, n) = deviation(phase, stat, tau0_s, m).expect("m validated above");
         let alpha = match opts.alpha {
             Some(a) => a.clamp(stat.min_alpha(), 2),
             None => noise_id(phase, stat, m).alpha,
         };
         let edf = edf_for_stat(stat, alpha, m, n_phase);
         let (ci_lo, ci_hi) = chi2_interval(dev, edf, opts.confidence);
-        points.push(AllanPoint {
+        AllanPoint {
             tau_s: m as f64 * tau0_s,
             m,
             n,
@@ -171,8 +169,46 @@ pub fn compute_at(
             ci_hi,
             edf,
             alpha,
+        }
+    };
+    // Each tau is independent: spread them over the cores for large inputs
+    // (results do not depend on the split).
+    let threads = if n_phase < 1 << 16 {
+        1
+    } else {
+        std::thread::available_parallelism()
+            .map_or(1, |n| n.get())
+            .min(ms.len())
+            .min(8)
+    };
+    let points: Vec<AllanPoint> = if threads <= 1 {
+        ms.iter().map(|&m| point(m)).collect()
+    } else {
+        let mut slots: Vec<Option<AllanPoint>> = vec![None; ms.len()];
+        std::thread::scope(|sc| {
+            let handles: Vec<_> = (0..threads)
+                .map(|t| {
+                    let point = &point;
+                    // interleave so that small and large m mix in every thread
+                    sc.spawn(move || {
+                        (t..ms.len())
+                            .step_by(threads)
+                            .map(|i| (i, point(ms[i])))
+                            .collect::<Vec<_>>()
+                    })
+                })
+                .collect();
+            for h in handles {
+                for (i, p) in h.join().expect("Allan worker thread panicked") {
+                    slots[i] = Some(p);
+                }
+            }
         });
-    }
+        slots
+            .into_iter()
+            .map(|p| p.expect("every tau computed"))
+            .collect()
+    };
     Ok(AllanResult {
         stat,
         tau0_s,
@@ -614,6 +650,24 @@ mod tests {
         assert_eq!((p.len(), p.last()), (338, Some(&273162)));
         let p = all_tau_progression(max_m(Stat::Adev, 556990), 35);
         assert_eq!((p.len(), p.last()), (306, Some(&110887)));
+    }
+
+    #[test]
+    fn threaded_compute_equals_the_plain_loop() {
+        // >= 65536 points takes the multi-threaded path
+        let p = Phase::F64(series(70_000));
+        let opts = AllanOptions::default();
+        for stat in [Stat::Oadev, Stat::Mdev, Stat::Totdev] {
+            let r = compute(&p, stat, 0.1, TauSet::Octave, &opts).unwrap();
+            let ms = tau_ms(TauSet::Octave, stat, 70_000);
+            assert_eq!(r.points.iter().map(|q| q.m).collect::<Vec<_>>(), ms);
+            for q in &r.points {
+                let (dev, n) = deviation(&p, stat, 0.1, q.m).unwrap();
+                let alpha = noise_id(&p, stat, q.m).alpha;
+                assert_eq!((q.dev, q.n, q.alpha), (dev, n, alpha), "{stat} m={}", q.m);
+                assert_eq!(q.edf, edf_for_stat(stat, alpha, q.m, 70_000));
+            }
+        }
     }
 
     #[test]

@@ -25,9 +25,11 @@ pub mod edf;
 pub mod noise_id;
 // `pub mod streaming;` (the octave accumulators) is added when that engine is merged.
 
-pub use batch::{AllanOptions, compute, compute_at, deviation, max_m, tau_ms};
+pub use batch::{AllanOptions, all_tau_progression, compute, compute_at, deviation, max_m, tau_ms};
 pub use edf::{chi2_interval, edf_for_stat, edf_greenhall, edf_simple, edf_totdev};
-pub use noise_id::{NoiseId, NoiseIdMethod, noise_id, noise_id_lag1, noise_id_lag1_series};
+pub use noise_id::{
+    Lag1, NoiseId, NoiseIdMethod, noise_id, noise_id_b1_rn, noise_id_lag1, noise_id_lag1_series,
+};
 
 use serde::{Deserialize, Serialize};
 

@@ -690,6 +690,42 @@ mod tests {
     }
 
     #[test]
+    fn block_size_does_not_change_the_samples() {
+        // the same samples whatever the block size, for every format and gzip
+        let vals: Vec<f64> = (0..2500).map(|i| ((i * 7919) % 1000) as f64 / 8.0 - 60.0).collect();
+        let text: String = vals.iter().map(|v| format!("{v}\n")).collect();
+        let csv: String = std::iter::once("k,v\n".to_string()).chain(vals.iter().map(|v| format!("1,{v}\n"))).collect();
+        let bin: Vec<u8> = vals.iter().flat_map(|v| v.to_le_bytes()).collect();
+        let gz = |b: &[u8]| {
+            let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+            e.write_all(b).unwrap();
+            e.finish().unwrap()
+        };
+        let cases = [
+            ("t.txt", text.as_bytes().to_vec(), InputFormat::Text),
+            ("t.txt.gz", gz(text.as_bytes()), InputFormat::Text),
+            ("c.csv", csv.as_bytes().to_vec(), InputFormat::Csv),
+            ("b.f64", bin.clone(), InputFormat::F64le),
+            ("b.f64.gz", gz(&bin), InputFormat::F64le),
+        ];
+        for (name, bytes, fmt) in cases {
+            let (_d, p) = tmp(name, &bytes);
+            for block in [1, 7, 64, 1000, 4096] {
+                let mut r = SampleReader::open(&p, fmt, Some("v")).unwrap();
+                let mut got = Vec::new();
+                let mut buf = Vec::new();
+                while r.next_block(&mut buf, block).unwrap() > 0 {
+                    assert!(buf.len() <= block);
+                    got.extend_from_slice(&buf);
+                }
+                assert_eq!(got, vals, "{name} block {block}");
+                assert_eq!(r.samples_read(), vals.len() as u64);
+                assert_eq!(r.next_block(&mut buf, block).unwrap(), 0, "stays at the end");
+            }
+        }
+    }
+
+    #[test]
     fn gzip_detected_by_magic() {
         let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
         enc.write_all(b"# gz\n1\n2\n3\n").unwrap();
