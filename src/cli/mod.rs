@@ -4,6 +4,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+pub mod allan;
 pub mod simulate;
 
 #[derive(Debug, Parser)]
@@ -15,6 +16,8 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    /// Allan-family deviations (OADEV, ADEV, MDEV, HDEV, OHDEV, TOTDEV) of a file, with confidence intervals.
+    Allan(allan::AllanArgs),
     /// Simulate a gyro from a model file and write its pulse stream.
     Simulate(simulate::SimulateArgs),
 }
@@ -36,6 +39,7 @@ pub fn main() -> ExitCode {
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Allan(args) => allan::run(args),
         Command::Simulate(args) => simulate::run(args),
     }
 }

@@ -1,0 +1,192 @@
+//! `sagnac allan`: Allan-family deviations of a recorded file, with confidence
+//! intervals, as JSON (`--json OUT`) or an aligned table on stdout.
+//!
+//! Thin: reading is `source::input`, the numerics are `allan`.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, ValueEnum};
+
+use crate::allan::{self, AllanOptions, AllanResult, DataKind, Phase, Stat, TauSet};
+use crate::source::input::{InputFormat, SampleReader};
+
+/// Arguments of `sagnac allan`.
+#[derive(Debug, Args)]
+pub struct AllanArgs {
+    /// Input file (text, csv or f64le; .gz content is detected and decompressed).
+    #[arg(long, value_name = "FILE")]
+    pub input: PathBuf,
+    /// What the samples are: phase/angle, frequency/rate, or integer pulse-count increments.
+    #[arg(long, value_enum)]
+    pub data: DataArg,
+    /// Sample interval in seconds.
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    pub tau0: f64,
+    /// Statistic.
+    #[arg(long, value_enum, default_value = "oadev")]
+    pub stat: StatArg,
+    /// Averaging factors: octave (1,2,4,..), decade (1,2,4,10,20,40,..) or all.
+    #[arg(long, value_enum, default_value = "octave")]
+    pub taus: TausArg,
+    /// Engine: whole-file batch estimators, or the streaming octave accumulators.
+    #[arg(long, value_enum, default_value = "batch")]
+    pub engine: EngineArg,
+    /// Input format.
+    #[arg(long, value_enum, default_value = "text")]
+    pub format: FormatArg,
+    /// CSV column to read.
+    #[arg(long, value_name = "NAME")]
+    pub column: Option<String>,
+    /// Write the result as JSON to this file ("-" for stdout) instead of printing a table.
+    #[arg(long, value_name = "OUT")]
+    pub json: Option<PathBuf>,
+    /// Two-sided confidence level of the intervals (Stable32's default 0.683; e.g. 0.95).
+    #[arg(long, default_value_t = allan::DEFAULT_CONFIDENCE)]
+    pub confidence: f64,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum DataArg {
+    Phase,
+    Freq,
+    Counts,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum StatArg {
+    Oadev,
+    Adev,
+    Mdev,
+    Hdev,
+    Ohdev,
+    Totdev,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum TausArg {
+    Octave,
+    Decade,
+    All,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum EngineArg {
+    Batch,
+    Streaming,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum FormatArg {
+    Text,
+    Csv,
+    F64le,
+}
+
+impl From<DataArg> for DataKind {
+    fn from(d: DataArg) -> DataKind {
+        match d {
+            DataArg::Phase => DataKind::Phase,
+            DataArg::Freq => DataKind::Freq,
+            DataArg::Counts => DataKind::Counts,
+        }
+    }
+}
+
+impl From<StatArg> for Stat {
+    fn from(s: StatArg) -> Stat {
+        match s {
+            StatArg::Oadev => Stat::Oadev,
+            StatArg::Adev => Stat::Adev,
+            StatArg::Mdev => Stat::Mdev,
+            StatArg::Hdev => Stat::Hdev,
+            StatArg::Ohdev => Stat::Ohdev,
+            StatArg::Totdev => Stat::Totdev,
+        }
+    }
+}
+
+impl From<TausArg> for TauSet {
+    fn from(t: TausArg) -> TauSet {
+        match t {
+            TausArg::Octave => TauSet::Octave,
+            TausArg::Decade => TauSet::Decade,
+            TausArg::All => TauSet::All,
+        }
+    }
+}
+
+impl From<FormatArg> for InputFormat {
+    fn from(f: FormatArg) -> InputFormat {
+        match f {
+            FormatArg::Text => InputFormat::Text,
+            FormatArg::Csv => InputFormat::Csv,
+            FormatArg::F64le => InputFormat::F64le,
+        }
+    }
+}
+
+/// Run `sagnac allan`.
+pub fn run(args: AllanArgs) -> Result<()> {
+    allan::check_tau0(args.tau0).context("invalid --tau0")?;
+    if !(args.confidence > 0.0 && args.confidence < 1.0) {
+        bail!("--confidence must be in (0, 1) (got {})", args.confidence);
+    }
+    if args.engine == EngineArg::Streaming {
+        bail!("streaming engine not wired yet (use --engine batch)");
+    }
+    let kind = DataKind::from(args.data);
+    let samples = SampleReader::open(&args.input, args.format.into(), args.column.as_deref())
+        .and_then(|r| r.require_integers(kind == DataKind::Counts).read_to_end())
+        .with_context(|| format!("cannot read samples from {}", args.input.display()))?;
+    let phase = Phase::from_vec(samples, kind, args.tau0)
+        .with_context(|| format!("invalid samples in {}", args.input.display()))?;
+    let stat = Stat::from(args.stat);
+    let opts = AllanOptions {
+        confidence: args.confidence,
+        alpha: None,
+    };
+    let result = allan::compute(&phase, stat, args.tau0, args.taus.into(), &opts)
+        .with_context(|| format!("cannot compute {stat} of {}", args.input.display()))?;
+
+    match &args.json {
+        Some(out) => {
+            let text = serde_json::to_string_pretty(&result).context("serialising the result")?;
+            if out.as_os_str() == "-" {
+                println!("{text}");
+            } else {
+                std::fs::write(out, text + "\n")
+                    .with_context(|| format!("cannot write {}", out.display()))?;
+            }
+        }
+        None => print_table(&result, &args, phase.len(), opts.confidence)?,
+    }
+    Ok(())
+}
+
+fn print_table(r: &AllanResult, args: &AllanArgs, n_phase: usize, confidence: f64) -> Result<()> {
+    let mut out = std::io::stdout().lock();
+    writeln!(
+        out,
+        "# {} of {} ({} phase points, tau0 = {} s, {:.1} % confidence)",
+        r.stat,
+        args.input.display(),
+        n_phase,
+        r.tau0_s,
+        100.0 * confidence
+    )?;
+    writeln!(
+        out,
+        "{:>12} {:>9} {:>10} {:>5} {:>12} {:>12} {:>12} {:>10}",
+        "tau_s", "m", "n", "alpha", "ci_lo", "dev", "ci_hi", "edf"
+    )?;
+    for p in &r.points {
+        writeln!(
+            out,
+            "{:>12.5e} {:>9} {:>10} {:>5} {:>12.5e} {:>12.5e} {:>12.5e} {:>10.4}",
+            p.tau_s, p.m, p.n, p.alpha, p.ci_lo, p.dev, p.ci_hi, p.edf
+        )?;
+    }
+    Ok(())
+}
