@@ -1,2 +1,4 @@
 //! The acquisition daemon: tokio tasks that move bytes from a source through
 //! the synchronous numerics into the sinks.
+
+pub mod http;

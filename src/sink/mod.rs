@@ -4,8 +4,10 @@
 //! - [`mcap`]: the [`mcap::Recorder`], one zstd-chunked MCAP file per run, written on
 //!   its own thread with a bounded-loss flush policy;
 //! - [`reader`]: reading recordings back (replay, `analyze --format mcap`) and
-//!   recovering truncated ones.
+//!   recovering truncated ones;
+//! - [`metrics`]: the Prometheus metrics served by [`crate::daemon::http`].
 
 pub mod mcap;
 pub mod messages;
+pub mod metrics;
 pub mod reader;
