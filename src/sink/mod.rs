@@ -1,1 +1,13 @@
-//! Sinks: MCAP recording and Prometheus metrics.
+//! Sinks: where the daemon's results leave the process.
+//!
+//! - [`messages`]: the typed messages of the six MCAP channels and their JSON Schemas;
+//! - [`mcap`]: the [`mcap::Recorder`], one zstd-chunked MCAP file per run, written on
+//!   its own thread with a bounded-loss flush policy;
+//! - [`reader`]: reading recordings back (replay, `analyze --format mcap`) and
+//!   recovering truncated ones;
+//! - [`metrics`]: the Prometheus metrics served by [`crate::daemon::http`].
+
+pub mod mcap;
+pub mod messages;
+pub mod metrics;
+pub mod reader;

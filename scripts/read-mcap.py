@@ -1,0 +1,118 @@
+#!/usr/bin/env python3
+"""Independent reader of a sagnac MCAP recording (the Python `mcap` package, zstd
+via `zstandard`); prints a JSON summary that tests/sink_mcap.rs compares with what
+the Rust recorder wrote.
+
+Usage: scripts/read-mcap.py RECORDING.mcap
+
+Summary keys:
+  messages              total messages (indexed read, file order)
+  channels              topic -> message count
+  encodings             topic -> [message_encoding, schema_name, schema_encoding]
+  statistics_messages   message count of the Statistics record (summary section)
+  raw_samples           number of counts on /gyro/raw
+  raw_counts_total      sum of all counts on /gyro/raw
+  raw_lost_total        sum of gap "lost" on /gyro/raw
+  values_total          topic -> number of values on /gyro/clean and /gyro/noise
+  events_by_kind        kind -> count on /gyro/events
+  time_mismatches       messages whose log_time or publish_time differs from the
+                        payload time (t0_ns or t_ns)
+  schema_valid          messages valid against their channel's JSON Schema, checked
+                        with the `jsonschema` package, or null when it is missing
+  schema_invalid        list of the first validation errors (empty when valid)
+"""
+
+import json
+import sys
+
+from mcap.reader import make_reader
+
+try:
+    import jsonschema  # optional: validation is reported as null without it
+except ImportError:  # pragma: no cover
+    jsonschema = None
+
+
+def main() -> int:
+    if len(sys.argv) != 2:
+        print(__doc__, file=sys.stderr)
+        return 2
+    path = sys.argv[1]
+    channels: dict[str, int] = {}
+    encodings: dict[str, list] = {}
+    values_total: dict[str, int] = {}
+    events_by_kind: dict[str, int] = {}
+    raw_samples = raw_counts_total = raw_lost_total = 0
+    time_mismatches = 0
+    messages = 0
+    schema_valid = 0 if jsonschema is not None else None
+    schema_invalid: list[str] = []
+    validators: dict[int, object] = {}
+
+    with open(path, "rb") as f:
+        reader = make_reader(f, validate_crcs=True)
+        summary = reader.get_summary()
+        statistics_messages = (
+            summary.statistics.message_count
+            if summary is not None and summary.statistics is not None
+            else None
+        )
+        for schema, channel, message in reader.iter_messages(log_time_order=False):
+            messages += 1
+            topic = channel.topic
+            channels[topic] = channels.get(topic, 0) + 1
+            encodings[topic] = [
+                channel.message_encoding,
+                schema.name if schema else None,
+                schema.encoding if schema else None,
+            ]
+            payload = json.loads(message.data)
+            t = payload.get("t0_ns", payload.get("t_ns"))
+            if message.log_time != t or message.publish_time != t:
+                time_mismatches += 1
+            if topic == "/gyro/raw":
+                raw_samples += len(payload["counts"])
+                raw_counts_total += sum(payload["counts"])
+                raw_lost_total += sum(g["lost"] for g in payload["gaps"])
+            elif topic in ("/gyro/clean", "/gyro/noise"):
+                values_total[topic] = values_total.get(topic, 0) + len(payload["values"])
+            elif topic == "/gyro/events":
+                kind = payload["kind"]
+                events_by_kind[kind] = events_by_kind.get(kind, 0) + 1
+            if jsonschema is not None and schema is not None:
+                if schema.id not in validators:
+                    doc = json.loads(schema.data)
+                    cls = jsonschema.validators.validator_for(doc)
+                    cls.check_schema(doc)
+                    validators[schema.id] = cls(doc)
+                errors = list(validators[schema.id].iter_errors(payload))
+                if errors:
+                    if len(schema_invalid) < 10:
+                        schema_invalid.append(f"{topic}: {errors[0].message}")
+                else:
+                    schema_valid += 1
+
+    print(
+        json.dumps(
+            {
+                "messages": messages,
+                "channels": channels,
+                "encodings": encodings,
+                "statistics_messages": statistics_messages,
+                "raw_samples": raw_samples,
+                "raw_counts_total": raw_counts_total,
+                "raw_lost_total": raw_lost_total,
+                "values_total": values_total,
+                "events_by_kind": events_by_kind,
+                "time_mismatches": time_mismatches,
+                "schema_valid": schema_valid,
+                "schema_invalid": schema_invalid,
+            },
+            sort_keys=True,
+        )
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,637 @@
+//! MCAP recording: one zstd-chunked file per run, written by a dedicated std thread.
+//!
+//! The `mcap` crate's writer is synchronous (`Write + Seek`), so the [`Recorder`]
+//! owns a std thread that holds the writer and is fed [`SinkMessage`]s through a
+//! bounded std channel; the async daemon only ever calls the non-blocking
+//! [`RecordSender::try_send`] (and counts what a full queue refuses). No tokio here.
+//!
+//! Flush policy: the thread closes the open chunk (`mcap::Writer::flush`, which also
+//! flushes the file buffer to the OS) once the oldest unflushed message has waited
+//! `flush_interval_s`, whether or not more messages arrive, and whenever the chunk
+//! reaches `chunk_size` bytes. A crash (even `kill -9`) therefore loses at most the
+//! last `flush_interval_s` of recorded messages plus what was still queued; the
+//! truncated file is readable up to its last complete chunk with
+//! [`crate::sink::reader::recover_recording`]. The data is not `fsync`ed: a power
+//! loss may lose what the OS had not yet written.
+//!
+//! The schemas and channels go into a first chunk that is closed before
+//! [`Recorder::start`] returns, so every recording is readable from its start.
+//! (`start` does that small amount of file I/O on the calling thread; from async
+//! code, call it in `spawn_blocking`.) Messages keep their sample time as MCAP log
+//! time and publish time, so a replay reproduces the run exactly. A message with
+//! a value JSON cannot carry (NaN, infinity) is refused by `send`/`try_send`.
+//! The thread finishes the file on [`Recorder::finish`], or when every sender is
+//! dropped; messages queued by other senders after `finish` are lost.
+//!
+//! Files are named by the UTC start time of the run, `sagnac-YYYYMMDDTHHMMSSZ.mcap`
+//! (a `-1`, `-2`, ... suffix when that name is taken), in the record directory.
+//! [`Recorder::finish`] writes the summary through `mcap::Writer::finish` and
+//! reports its error; the writer's `Drop` would swallow it.
+
+use std::collections::BTreeMap;
+use std::fs::{File, OpenOptions};
+use std::io::{self, BufWriter, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError, SyncSender, TrySendError};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant, SystemTime};
+
+use serde::{Deserialize, Serialize};
+
+use crate::sink::messages::{MESSAGE_ENCODING, MessageError, SCHEMA_ENCODING, SinkMessage, Topic};
+
+/// Errors of the recorder.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    /// A configuration value is out of range.
+    #[error("recorder config: `{key}` = {value}: {reason}")]
+    Config {
+        key: &'static str,
+        value: String,
+        reason: &'static str,
+    },
+    /// The system clock is before 1970, so the file cannot be named.
+    #[error("system clock is before the Unix epoch: cannot name the recording")]
+    ClockBeforeEpoch,
+    /// The record directory cannot be created.
+    #[error("cannot create record directory {}: {source}", path.display())]
+    CreateDir { path: PathBuf, source: io::Error },
+    /// The recording file cannot be created.
+    #[error("cannot create recording {}: {source}", path.display())]
+    CreateFile { path: PathBuf, source: io::Error },
+    /// The recorder thread cannot be started.
+    #[error("cannot start the recorder thread for {}: {source}", path.display())]
+    Spawn { path: PathBuf, source: io::Error },
+    /// The MCAP writer failed.
+    #[error("MCAP writer failed on {} while {action} (file at {bytes} bytes): {source}", path.display())]
+    Mcap {
+        path: PathBuf,
+        action: &'static str,
+        bytes: u64,
+        source: ::mcap::McapError,
+    },
+    /// A message was refused before being queued.
+    #[error("message refused for {}: {source}", path.display())]
+    Invalid { path: PathBuf, source: MessageError },
+    /// A message could not be serialized.
+    #[error("cannot serialize a {topic} message for {}: {source}", path.display())]
+    Serialize {
+        path: PathBuf,
+        topic: &'static str,
+        source: serde_json::Error,
+    },
+    /// The queue is full (`try_send`); the message was dropped.
+    #[error("recorder queue for {} is full ({capacity} messages): message dropped", path.display())]
+    QueueFull { path: PathBuf, capacity: usize },
+    /// The writer thread failed; `finish` returns the error itself.
+    #[error("recorder for {} failed: {message}", path.display())]
+    Failed { path: PathBuf, message: String },
+    /// The recorder thread has stopped (after `finish` or an error that `finish` reports).
+    #[error("recorder for {} has stopped", path.display())]
+    Stopped { path: PathBuf },
+    /// The recorder thread panicked.
+    #[error("recorder thread for {} panicked", path.display())]
+    Panicked { path: PathBuf },
+}
+
+/// Recorder settings (the `[record]` table of the daemon config).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RecorderConfig {
+    /// Directory receiving one file per run.
+    pub record_dir: PathBuf,
+    /// Longest time a recorded message waits before its chunk is closed, s.
+    pub flush_interval_s: f64,
+    /// Capacity of the queue between the daemon and the writer thread, messages.
+    pub queue_capacity: usize,
+    /// Uncompressed chunk size at which a chunk is closed early, bytes.
+    pub chunk_size: u64,
+    /// zstd level (0: the library default, 3).
+    pub zstd_level: u32,
+}
+
+impl Default for RecorderConfig {
+    fn default() -> Self {
+        RecorderConfig {
+            record_dir: PathBuf::from("recordings"),
+            flush_interval_s: 2.0,
+            queue_capacity: 1024,
+            chunk_size: 1024 * 1024,
+            zstd_level: 0,
+        }
+    }
+}
+
+impl RecorderConfig {
+    /// Check ranges: `0 < flush_interval_s <= 3600`, `queue_capacity >= 1`,
+    /// `4096 <= chunk_size <= 256 MiB`, `zstd_level <= 19`.
+    pub fn validate(&self) -> Result<(), RecordError> {
+        let bad = |key, value: String, reason| Err(RecordError::Config { key, value, reason });
+        if !(self.flush_interval_s > 0.0 && self.flush_interval_s <= 3600.0) {
+            return bad(
+                "flush_interval_s",
+                self.flush_interval_s.to_string(),
+                "must be in (0, 3600] seconds",
+            );
+        }
+        if self.queue_capacity == 0 {
+            return bad("queue_capacity", "0".into(), "must be at least 1");
+        }
+        if !(4096..=256 * 1024 * 1024).contains(&self.chunk_size) {
+            return bad(
+                "chunk_size",
+                self.chunk_size.to_string(),
+                "must be in [4096, 268435456] bytes",
+            );
+        }
+        if self.zstd_level > 19 {
+            return bad(
+                "zstd_level",
+                self.zstd_level.to_string(),
+                "must be at most 19",
+            );
+        }
+        Ok(())
+    }
+
+    fn flush_interval(&self) -> Duration {
+        Duration::from_secs_f64(self.flush_interval_s)
+    }
+}
+
+/// What a finished recording holds.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RecordingSummary {
+    /// The file.
+    pub path: PathBuf,
+    /// Messages written, per topic name.
+    pub messages_per_topic: BTreeMap<&'static str, u64>,
+    /// File size, bytes.
+    pub bytes: u64,
+    /// Chunks closed by the flush policy, by `Recorder::flush` or by `finish`
+    /// (chunks closed because they reached `chunk_size` are not counted).
+    pub flushes: u64,
+}
+
+impl RecordingSummary {
+    /// Total messages written.
+    pub fn messages(&self) -> u64 {
+        self.messages_per_topic.values().sum()
+    }
+}
+
+/// Format a time as compact ISO 8601 UTC, `YYYYMMDDTHHMMSSZ` (whole seconds, truncated).
+pub fn format_utc_compact(time: SystemTime) -> Result<String, RecordError> {
+    let secs = time
+        .duration_since(SystemTime::UNIX_EPOCH)
+        .map_err(|_| RecordError::ClockBeforeEpoch)?
+        .as_secs();
+    let (days, rem) = (secs / 86_400, secs % 86_400);
+    let (year, month, day) = civil_from_days(days);
+    Ok(format!(
+        "{year:04}{month:02}{day:02}T{:02}{:02}{:02}Z",
+        rem / 3600,
+        rem % 3600 / 60,
+        rem % 60
+    ))
+}
+
+/// The file name of a run started at `start`: `sagnac-YYYYMMDDTHHMMSSZ.mcap`.
+pub fn recording_file_name(start: SystemTime) -> Result<String, RecordError> {
+    Ok(format!("sagnac-{}.mcap", format_utc_compact(start)?))
+}
+
+/// Gregorian (year, month 1-12, day 1-31) of a day count since 1970-01-01.
+/// Proleptic calendar in 400-year eras (146 097 days), years starting in March.
+fn civil_from_days(days: u64) -> (u64, u64, u64) {
+    // Shift the origin to 0000-03-01, an era boundary.
+    let z = days + 719_468;
+    let era = z / 146_097;
+    let doe = z % 146_097; // day of era, 0..146096
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365; // year of era, 0..399
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100); // day of the March-based year, 0..365
+    let mp = (5 * doy + 2) / 153; // month from March, 0..11
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + u64::from(month <= 2);
+    (year, month, day)
+}
+
+/// A `File` that publishes its size (the highest position written) to a shared counter.
+struct CountingFile {
+    file: File,
+    pos: u64,
+    len: u64,
+    shared: Arc<AtomicU64>,
+}
+
+impl Write for CountingFile {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        let n = self.file.write(buf)?;
+        self.pos += n as u64;
+        if self.pos > self.len {
+            self.len = self.pos;
+            self.shared.store(self.len, Ordering::Relaxed);
+        }
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.file.flush()
+    }
+}
+
+impl Seek for CountingFile {
+    fn seek(&mut self, to: SeekFrom) -> io::Result<u64> {
+        self.pos = self.file.seek(to)?;
+        Ok(self.pos)
+    }
+}
+
+enum Command {
+    Message(SinkMessage),
+    Flush(SyncSender<Result<u64, RecordError>>),
+    Finish,
+}
+
+/// A cloneable handle that queues messages for a [`Recorder`].
+#[derive(Clone)]
+pub struct RecordSender {
+    tx: SyncSender<Command>,
+    path: Arc<PathBuf>,
+    capacity: usize,
+    bytes: Arc<AtomicU64>,
+    dropped: Arc<AtomicU64>,
+}
+
+impl RecordSender {
+    /// Queue a message, blocking while the queue is full (offline tools, tests).
+    pub fn send(&self, msg: SinkMessage) -> Result<(), RecordError> {
+        self.check(&msg)?;
+        self.tx
+            .send(Command::Message(msg))
+            .map_err(|_| self.stopped())
+    }
+
+    /// Queue a message without blocking (the daemon). A full queue drops the message,
+    /// counts it in [`RecordSender::dropped`] and returns [`RecordError::QueueFull`].
+    pub fn try_send(&self, msg: SinkMessage) -> Result<(), RecordError> {
+        self.check(&msg)?;
+        match self.tx.try_send(Command::Message(msg)) {
+            Ok(()) => Ok(()),
+            Err(TrySendError::Full(_)) => {
+                self.dropped.fetch_add(1, Ordering::Relaxed);
+                Err(RecordError::QueueFull {
+                    path: self.path.to_path_buf(),
+                    capacity: self.capacity,
+                })
+            }
+            Err(TrySendError::Disconnected(_)) => Err(self.stopped()),
+        }
+    }
+
+    /// Bytes of the recording written to the OS so far (the `sagnac_recording_bytes` gauge).
+    pub fn bytes_written(&self) -> u64 {
+        self.bytes.load(Ordering::Relaxed)
+    }
+
+    /// Messages dropped by [`RecordSender::try_send`] because the queue was full.
+    pub fn dropped(&self) -> u64 {
+        self.dropped.load(Ordering::Relaxed)
+    }
+
+    fn check(&self, msg: &SinkMessage) -> Result<(), RecordError> {
+        msg.validate().map_err(|source| RecordError::Invalid {
+            path: self.path.to_path_buf(),
+            source,
+        })
+    }
+
+    fn stopped(&self) -> RecordError {
+        RecordError::Stopped {
+            path: self.path.to_path_buf(),
+        }
+    }
+}
+
+/// An MCAP recording in progress.
+pub struct Recorder {
+    sender: RecordSender,
+    thread: JoinHandle<Result<RecordingSummary, RecordError>>,
+}
+
+impl Recorder {
+    /// Start a recording named by the current time in `config.record_dir`.
+    pub fn start(config: &RecorderConfig) -> Result<Recorder, RecordError> {
+        Recorder::start_at(config, SystemTime::now())
+    }
+
+    /// Start a recording named by `start` (tests, replays of old runs).
+    pub fn start_at(config: &RecorderConfig, start: SystemTime) -> Result<Recorder, RecordError> {
+        config.validate()?;
+        let dir = &config.record_dir;
+        std::fs::create_dir_all(dir).map_err(|source| RecordError::CreateDir {
+            path: dir.clone(),
+            source,
+        })?;
+        let (path, file) = create_unique(dir, &recording_file_name(start)?)?;
+        let bytes = Arc::new(AtomicU64::new(0));
+        let counting = CountingFile {
+            file,
+            pos: 0,
+            len: 0,
+            shared: Arc::clone(&bytes),
+        };
+        let options = ::mcap::WriteOptions::new()
+            .compression(Some(::mcap::Compression::Zstd))
+            .compression_level(config.zstd_level)
+            .compression_threads(0)
+            .chunk_size(Some(config.chunk_size))
+            .profile("");
+        let mcap_err = |action, source| RecordError::Mcap {
+            path: path.clone(),
+            action,
+            bytes: bytes.load(Ordering::Relaxed),
+            source,
+        };
+        let mut writer = options
+            .create(BufWriter::new(counting))
+            .map_err(|e| mcap_err("writing the header", e))?;
+        let mut channels = BTreeMap::new();
+        for topic in Topic::ALL {
+            let schema = serde_json::to_vec_pretty(&topic.json_schema()).map_err(|source| {
+                RecordError::Serialize {
+                    path: path.clone(),
+                    topic: topic.name(),
+                    source,
+                }
+            })?;
+            let schema_id = writer
+                .add_schema(topic.schema_name(), SCHEMA_ENCODING, &schema)
+                .map_err(|e| mcap_err("adding a schema", e))?;
+            let id = writer
+                .add_channel(schema_id, topic.name(), MESSAGE_ENCODING, &BTreeMap::new())
+                .map_err(|e| mcap_err("adding a channel", e))?;
+            channels.insert(topic, id);
+        }
+        // Close the first chunk (schemas and channels) at once: from now on the
+        // file is readable, and recovery always finds the channel records.
+        writer
+            .flush()
+            .map_err(|e| mcap_err("closing the first chunk", e))?;
+        let (tx, rx) = mpsc::sync_channel(config.queue_capacity);
+        let path = Arc::new(path);
+        let mut worker = Worker {
+            writer,
+            channels,
+            path: Arc::clone(&path),
+            bytes: Arc::clone(&bytes),
+            flush_interval: config.flush_interval(),
+            sequences: BTreeMap::new(),
+            counts: Topic::ALL.iter().map(|t| (t.name(), 0)).collect(),
+            flushes: 1,
+        };
+        let thread = std::thread::Builder::new()
+            .name("sagnac-mcap".into())
+            .spawn(move || {
+                let result = worker.run(&rx);
+                match result {
+                    Ok(()) => worker.finish(),
+                    Err(e) => Err(e),
+                }
+            })
+            .map_err(|source| RecordError::Spawn {
+                path: path.to_path_buf(),
+                source,
+            })?;
+        Ok(Recorder {
+            sender: RecordSender {
+                tx,
+                path,
+                capacity: config.queue_capacity,
+                bytes,
+                dropped: Arc::new(AtomicU64::new(0)),
+            },
+            thread,
+        })
+    }
+
+    /// The recording file.
+    pub fn path(&self) -> &Path {
+        &self.sender.path
+    }
+
+    /// A handle for other tasks to queue messages.
+    pub fn sender(&self) -> RecordSender {
+        self.sender.clone()
+    }
+
+    /// See [`RecordSender::send`].
+    pub fn send(&self, msg: SinkMessage) -> Result<(), RecordError> {
+        self.sender.send(msg)
+    }
+
+    /// See [`RecordSender::try_send`].
+    pub fn try_send(&self, msg: SinkMessage) -> Result<(), RecordError> {
+        self.sender.try_send(msg)
+    }
+
+    /// See [`RecordSender::bytes_written`].
+    pub fn bytes_written(&self) -> u64 {
+        self.sender.bytes_written()
+    }
+
+    /// See [`RecordSender::dropped`].
+    pub fn dropped(&self) -> u64 {
+        self.sender.dropped()
+    }
+
+    /// Close the open chunk now, after every message queued before this call, and
+    /// return the file size, which is then a chunk boundary. Blocks until done.
+    pub fn flush(&self) -> Result<u64, RecordError> {
+        let (ack_tx, ack_rx) = mpsc::sync_channel(1);
+        self.sender
+            .tx
+            .send(Command::Flush(ack_tx))
+            .map_err(|_| self.sender.stopped())?;
+        ack_rx.recv().map_err(|_| self.sender.stopped())?
+    }
+
+    /// Write every queued message, the summary and the end magic, and close the file.
+    /// Returns the first error the writer thread met, if any. Senders still held
+    /// elsewhere get [`RecordError::Stopped`] afterwards.
+    pub fn finish(self) -> Result<RecordingSummary, RecordError> {
+        // If the thread already stopped on an error, the send fails and join reports it.
+        let _ = self.sender.tx.send(Command::Finish);
+        let path = self.sender.path.to_path_buf();
+        drop(self.sender);
+        self.thread
+            .join()
+            .map_err(|_| RecordError::Panicked { path })?
+    }
+}
+
+/// Create `dir/name`, or `dir/<stem>-1.mcap`, `-2`, ... when taken (never overwrite).
+fn create_unique(dir: &Path, name: &str) -> Result<(PathBuf, File), RecordError> {
+    let stem = name.strip_suffix(".mcap").unwrap_or(name);
+    for i in 0..1000u32 {
+        let candidate = if i == 0 {
+            dir.join(name)
+        } else {
+            dir.join(format!("{stem}-{i}.mcap"))
+        };
+        match OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&candidate)
+        {
+            Ok(file) => return Ok((candidate, file)),
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists => continue,
+            Err(source) => {
+                return Err(RecordError::CreateFile {
+                    path: candidate,
+                    source,
+                });
+            }
+        }
+    }
+    Err(RecordError::CreateFile {
+        path: dir.join(name),
+        source: io::Error::new(io::ErrorKind::AlreadyExists, "1000 runs named alike"),
+    })
+}
+
+struct Worker {
+    writer: ::mcap::Writer<BufWriter<CountingFile>>,
+    channels: BTreeMap<Topic, u16>,
+    path: Arc<PathBuf>,
+    bytes: Arc<AtomicU64>,
+    flush_interval: Duration,
+    sequences: BTreeMap<Topic, u32>,
+    counts: BTreeMap<&'static str, u64>,
+    flushes: u64,
+}
+
+impl Worker {
+    /// Write until told to finish (or every sender is gone). An error stops the thread.
+    fn run(&mut self, rx: &Receiver<Command>) -> Result<(), RecordError> {
+        // When the oldest message not yet in a closed chunk arrived.
+        let mut pending_since: Option<Instant> = None;
+        loop {
+            let command = match pending_since {
+                None => rx.recv().ok(),
+                Some(since) => {
+                    match rx.recv_timeout(self.flush_interval.saturating_sub(since.elapsed())) {
+                        Ok(c) => Some(c),
+                        Err(RecvTimeoutError::Timeout) => {
+                            self.flush()?;
+                            pending_since = None;
+                            continue;
+                        }
+                        Err(RecvTimeoutError::Disconnected) => None,
+                    }
+                }
+            };
+            match command {
+                Some(Command::Message(msg)) => {
+                    self.write(&msg)?;
+                    let since = *pending_since.get_or_insert_with(Instant::now);
+                    if since.elapsed() >= self.flush_interval {
+                        self.flush()?;
+                        pending_since = None;
+                    }
+                }
+                Some(Command::Flush(ack)) => {
+                    pending_since = None;
+                    match self.flush() {
+                        Ok(()) => {
+                            let _ = ack.send(Ok(self.bytes.load(Ordering::Relaxed)));
+                        }
+                        Err(e) => {
+                            // The flush caller gets the message; finish() gets the error.
+                            let _ = ack.send(Err(RecordError::Failed {
+                                path: self.path.to_path_buf(),
+                                message: e.to_string(),
+                            }));
+                            return Err(e);
+                        }
+                    }
+                }
+                // Finish on request, and also when every sender is gone.
+                Some(Command::Finish) | None => return Ok(()),
+            }
+        }
+    }
+
+    fn mcap_err(&self, action: &'static str, source: ::mcap::McapError) -> RecordError {
+        RecordError::Mcap {
+            path: self.path.to_path_buf(),
+            action,
+            bytes: self.bytes.load(Ordering::Relaxed),
+            source,
+        }
+    }
+
+    fn write(&mut self, msg: &SinkMessage) -> Result<(), RecordError> {
+        let topic = msg.topic();
+        let data = msg.to_json().map_err(|source| RecordError::Serialize {
+            path: self.path.to_path_buf(),
+            topic: topic.name(),
+            source,
+        })?;
+        let channel_id = self.channels[&topic];
+        let sequence = self.sequences.entry(topic).or_insert(0);
+        let header = ::mcap::records::MessageHeader {
+            channel_id,
+            sequence: *sequence,
+            log_time: msg.time_ns(),
+            publish_time: msg.time_ns(),
+        };
+        *sequence = sequence.wrapping_add(1);
+        self.writer
+            .write_to_known_channel(&header, &data)
+            .map_err(|e| self.mcap_err("writing a message", e))?;
+        *self.counts.entry(topic.name()).or_insert(0) += 1;
+        Ok(())
+    }
+
+    fn flush(&mut self) -> Result<(), RecordError> {
+        self.writer
+            .flush()
+            .map_err(|e| self.mcap_err("closing a chunk", e))?;
+        self.flushes += 1;
+        Ok(())
+    }
+
+    fn finish(mut self) -> Result<RecordingSummary, RecordError> {
+        self.writer
+            .finish()
+            .map_err(|e| self.mcap_err("writing the summary (finish)", e))?;
+        self.flushes += 1;
+        // finish() leaves the summary and end magic in the BufWriter: push them to
+        // the OS and to the disk, and surface any error here (Drop would swallow it).
+        let io_err = |e: io::Error, action| RecordError::Mcap {
+            path: self.path.to_path_buf(),
+            action,
+            bytes: self.bytes.load(Ordering::Relaxed),
+            source: e.into(),
+        };
+        let counting = self
+            .writer
+            .into_inner()
+            .into_inner()
+            .map_err(|e| io_err(e.into_error(), "flushing the file after finish"))?;
+        counting
+            .file
+            .sync_all()
+            .map_err(|e| io_err(e, "syncing the file after finish"))?;
+        Ok(RecordingSummary {
+            path: self.path.to_path_buf(),
+            messages_per_topic: self.counts,
+            bytes: counting.len,
+            flushes: self.flushes,
+        })
+    }
+}

@@ -1,0 +1,651 @@
+//! The messages the daemon records: one serde struct per MCAP channel, their JSON
+//! Schemas, and the checks that keep them representable in JSON.
+//!
+//! Every channel is JSON-encoded (MCAP message encoding `json`) and carries a
+//! hand-written JSON Schema (schema encoding `jsonschema`), so Foxglove and any
+//! other MCAP tool can open a recording without our code. The recorder
+//! ([`crate::sink::mcap`]) writes [`SinkMessage`]s; the reader
+//! ([`crate::sink::reader`]) gives them back, equal field for field.
+//!
+//! | topic | message | log time |
+//! |---|---|---|
+//! | `/gyro/raw` | [`RawBatch`]: per-sample pulse increments with gaps | `t0_ns` |
+//! | `/gyro/clean` | [`RateBatch`]: wavelet-cleaned rate, deg/h | `t0_ns` |
+//! | `/gyro/noise` | [`RateBatch`]: quantization-noise component, deg/h | `t0_ns` |
+//! | `/gyro/estimates` | [`EstimateUpdate`]: noise coefficients with 95 % CIs | `t_ns` |
+//! | `/gyro/allan` | [`AllanUpdate`]: octave Allan curves with CIs | `t_ns` |
+//! | `/gyro/events` | [`Event`]: gaps, resyncs, CRC errors, device changes, drops | `t_ns` |
+//!
+//! Times are nanoseconds; the daemon uses nanoseconds since the Unix epoch (host
+//! clock) so Foxglove shows wall time. JSON has no NaN or infinity: a message
+//! holding a non-finite number is refused by [`SinkMessage::validate`] rather than
+//! silently recorded as `null`. Quantities that may be absent are `Option`s
+//! (`null` in JSON).
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+use serde_json::{Value, json};
+
+/// Schema encoding written in the MCAP Schema records.
+pub const SCHEMA_ENCODING: &str = "jsonschema";
+/// Message encoding written in the MCAP Channel records.
+pub const MESSAGE_ENCODING: &str = "json";
+
+/// Suggested keys of [`EstimateUpdate::terms`]; the unit is part of the name.
+pub mod terms {
+    /// Quantization noise Q, arcsec.
+    pub const QN_ARCSEC: &str = "qn_arcsec";
+    /// Angle random walk N, deg/sqrt(h).
+    pub const ARW_DPSH: &str = "arw_dpsh";
+    /// Bias instability B, deg/h.
+    pub const BIAS_INSTABILITY_DPH: &str = "bias_instability_dph";
+    /// Rate random walk K, deg/h/sqrt(h).
+    pub const RRW_DPHSH: &str = "rrw_dphsh";
+    /// Rate ramp R, deg/h/h.
+    pub const RAMP_DPHH: &str = "ramp_dphh";
+}
+
+/// Errors of message validation: what cannot be recorded faithfully.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum MessageError {
+    /// A float is NaN or infinite (JSON cannot carry it).
+    #[error("{topic}: field `{field}` holds a non-finite number ({value})")]
+    NonFinite {
+        topic: &'static str,
+        field: String,
+        value: f64,
+    },
+    /// Gap indices must be strictly increasing and within `0..=counts.len()`.
+    #[error(
+        "{topic}: gap #{gap} has index {index} (previous {previous:?}, {len} samples): gap indices must increase strictly and not exceed the sample count"
+    )]
+    BadGapIndex {
+        topic: &'static str,
+        gap: usize,
+        index: u64,
+        previous: Option<u64>,
+        len: usize,
+    },
+    /// A gap must lose at least one sample.
+    #[error("{topic}: gap #{gap} at index {index} loses 0 samples")]
+    EmptyGap {
+        topic: &'static str,
+        gap: usize,
+        index: u64,
+    },
+    /// A batch with samples needs a positive sample period.
+    #[error("{topic}: dt_ns is 0 for a batch of {len} samples")]
+    ZeroPeriod { topic: &'static str, len: usize },
+    /// The columns of an Allan curve must have equal lengths.
+    #[error(
+        "{topic}: Allan curve `{curve}` has columns of unequal length (tau_s {tau}, dev {dev}, ci_lo {ci_lo}, ci_hi {ci_hi}, n {n})"
+    )]
+    RaggedCurve {
+        topic: &'static str,
+        curve: String,
+        tau: usize,
+        dev: usize,
+        ci_lo: usize,
+        ci_hi: usize,
+        n: usize,
+    },
+    /// The payload does not decode as the message type of its topic.
+    #[error("{topic}: payload is not a valid message: {reason}")]
+    Decode { topic: &'static str, reason: String },
+}
+
+/// A gap inside a [`RawBatch`]: `lost` samples are missing just before `counts[index]`
+/// (`index == counts.len()` means at the end of the batch).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Gap {
+    pub index: u64,
+    pub lost: u64,
+}
+
+/// `/gyro/raw`: a batch of per-sample pulse increments as decoded from the device.
+///
+/// Sample `i` has sequence number `seq0 + i + (lost samples of gaps with index <= i)`
+/// and time `t0_ns + (seq - seq0) * dt_ns`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawBatch {
+    /// Time of the first sample, ns.
+    pub t0_ns: u64,
+    /// Sample period, ns.
+    pub dt_ns: u64,
+    /// Device sequence number of the first sample.
+    pub seq0: u64,
+    /// Pulse increments, one per sample (signed: up/down counter).
+    pub counts: Vec<i64>,
+    /// Missing samples inside the batch.
+    pub gaps: Vec<Gap>,
+    /// Device temperature, deg C, when the frames carry one.
+    pub temp_c: Option<f64>,
+    /// Device status word of the last frame in the batch.
+    pub status: u32,
+}
+
+/// `/gyro/clean` and `/gyro/noise`: a batch of rate values, deg/h, uniformly spaced.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RateBatch {
+    /// Time of the first value, ns.
+    pub t0_ns: u64,
+    /// Spacing of the values, ns.
+    pub dt_ns: u64,
+    /// Rates, deg/h.
+    pub values: Vec<f64>,
+}
+
+/// One noise coefficient with its 95 % confidence interval, in the unit its key names.
+///
+/// `value: None, hi95: Some(u)` means "not resolved, below the upper bound u".
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TermEstimate {
+    /// Point estimate.
+    pub value: Option<f64>,
+    /// Lower end of the 95 % interval.
+    pub lo95: Option<f64>,
+    /// Upper end of the 95 % interval (or the 95 % upper bound).
+    pub hi95: Option<f64>,
+}
+
+/// `/gyro/estimates`: one estimator update.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EstimateUpdate {
+    /// Time of the update (time of the last sample used), ns.
+    pub t_ns: u64,
+    /// Samples used.
+    pub n_samples: u64,
+    /// Span of data used, s.
+    pub duration_s: f64,
+    /// Coefficient name (unit in the name, see [`terms`]) -> estimate.
+    pub terms: BTreeMap<String, TermEstimate>,
+}
+
+/// An octave Allan-deviation curve in columns of equal length.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AllanCurve {
+    /// Averaging times, s.
+    pub tau_s: Vec<f64>,
+    /// Allan deviation, deg/h.
+    pub dev: Vec<f64>,
+    /// Lower end of the confidence interval of `dev`, deg/h.
+    pub ci_lo: Vec<f64>,
+    /// Upper end of the confidence interval of `dev`, deg/h.
+    pub ci_hi: Vec<f64>,
+    /// Number of terms averaged at each tau.
+    pub n: Vec<u64>,
+}
+
+/// `/gyro/allan`: the Allan curves at one update.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AllanUpdate {
+    /// Time of the update, ns.
+    pub t_ns: u64,
+    /// Channel (`raw`, `clean`) -> curve.
+    pub curves: BTreeMap<String, AllanCurve>,
+}
+
+/// `/gyro/events`: something noteworthy happened at `t_ns`.
+///
+/// JSON: `{"t_ns": .., "kind": "<snake_case kind>", <fields of the kind>}`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Event {
+    /// Time of the event, ns.
+    pub t_ns: u64,
+    #[serde(flatten)]
+    pub kind: EventKind,
+}
+
+/// The kinds of [`Event`].
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum EventKind {
+    /// `lost` samples are missing, starting at sequence number `seq`.
+    Gap { seq: u64, lost: u64 },
+    /// The frame decoder lost sync and found it again `skipped_bytes` later.
+    Resync {
+        byte_offset: u64,
+        skipped_bytes: u64,
+    },
+    /// A frame at `byte_offset` failed its CRC.
+    CrcError { byte_offset: u64 },
+    /// The device status word changed.
+    StatusChange { from: u32, to: u32 },
+    /// The device went away.
+    DeviceDisconnected { device: String, reason: String },
+    /// The device is back.
+    DeviceReconnected { device: String },
+    /// `dropped` messages for `sink` were dropped because its queue was full.
+    BackpressureDrop { sink: String, dropped: u64 },
+}
+
+/// The six channels of a recording.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Topic {
+    Raw,
+    Clean,
+    Noise,
+    Estimates,
+    Allan,
+    Events,
+}
+
+impl Topic {
+    /// All topics, in channel-id order of a recording.
+    pub const ALL: [Topic; 6] = [
+        Topic::Raw,
+        Topic::Clean,
+        Topic::Noise,
+        Topic::Estimates,
+        Topic::Allan,
+        Topic::Events,
+    ];
+
+    /// The MCAP topic name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Topic::Raw => "/gyro/raw",
+            Topic::Clean => "/gyro/clean",
+            Topic::Noise => "/gyro/noise",
+            Topic::Estimates => "/gyro/estimates",
+            Topic::Allan => "/gyro/allan",
+            Topic::Events => "/gyro/events",
+        }
+    }
+
+    /// The topic with this MCAP name.
+    pub fn from_name(name: &str) -> Option<Topic> {
+        Topic::ALL.into_iter().find(|t| t.name() == name)
+    }
+
+    /// The MCAP schema name.
+    pub fn schema_name(self) -> &'static str {
+        match self {
+            Topic::Raw => "sagnac.RawBatch",
+            Topic::Clean | Topic::Noise => "sagnac.RateBatch",
+            Topic::Estimates => "sagnac.EstimateUpdate",
+            Topic::Allan => "sagnac.AllanUpdate",
+            Topic::Events => "sagnac.Event",
+        }
+    }
+
+    /// The JSON Schema of the topic's messages.
+    pub fn json_schema(self) -> Value {
+        match self {
+            Topic::Raw => raw_batch_schema(),
+            Topic::Clean => rate_batch_schema("wavelet-cleaned rate"),
+            Topic::Noise => rate_batch_schema("quantization-noise component of the rate"),
+            Topic::Estimates => estimate_update_schema(),
+            Topic::Allan => allan_update_schema(),
+            Topic::Events => event_schema(),
+        }
+    }
+}
+
+/// A message on one of the six channels.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SinkMessage {
+    Raw(RawBatch),
+    Clean(RateBatch),
+    Noise(RateBatch),
+    Estimates(EstimateUpdate),
+    Allan(AllanUpdate),
+    Event(Event),
+}
+
+impl SinkMessage {
+    /// The channel the message goes to.
+    pub fn topic(&self) -> Topic {
+        match self {
+            SinkMessage::Raw(_) => Topic::Raw,
+            SinkMessage::Clean(_) => Topic::Clean,
+            SinkMessage::Noise(_) => Topic::Noise,
+            SinkMessage::Estimates(_) => Topic::Estimates,
+            SinkMessage::Allan(_) => Topic::Allan,
+            SinkMessage::Event(_) => Topic::Events,
+        }
+    }
+
+    /// Sample time of the message, ns: its MCAP log time and publish time.
+    pub fn time_ns(&self) -> u64 {
+        match self {
+            SinkMessage::Raw(m) => m.t0_ns,
+            SinkMessage::Clean(m) | SinkMessage::Noise(m) => m.t0_ns,
+            SinkMessage::Estimates(m) => m.t_ns,
+            SinkMessage::Allan(m) => m.t_ns,
+            SinkMessage::Event(m) => m.t_ns,
+        }
+    }
+
+    /// JSON payload (after [`SinkMessage::validate`], this round-trips exactly).
+    pub fn to_json(&self) -> Result<Vec<u8>, serde_json::Error> {
+        match self {
+            SinkMessage::Raw(m) => serde_json::to_vec(m),
+            SinkMessage::Clean(m) | SinkMessage::Noise(m) => serde_json::to_vec(m),
+            SinkMessage::Estimates(m) => serde_json::to_vec(m),
+            SinkMessage::Allan(m) => serde_json::to_vec(m),
+            SinkMessage::Event(m) => serde_json::to_vec(m),
+        }
+    }
+
+    /// Decode a JSON payload of `topic`, and validate it.
+    pub fn from_json(topic: Topic, payload: &[u8]) -> Result<SinkMessage, MessageError> {
+        let decode_err = |e: serde_json::Error| MessageError::Decode {
+            topic: topic.name(),
+            reason: e.to_string(),
+        };
+        let msg = match topic {
+            Topic::Raw => SinkMessage::Raw(serde_json::from_slice(payload).map_err(decode_err)?),
+            Topic::Clean => {
+                SinkMessage::Clean(serde_json::from_slice(payload).map_err(decode_err)?)
+            }
+            Topic::Noise => {
+                SinkMessage::Noise(serde_json::from_slice(payload).map_err(decode_err)?)
+            }
+            Topic::Estimates => {
+                SinkMessage::Estimates(serde_json::from_slice(payload).map_err(decode_err)?)
+            }
+            Topic::Allan => {
+                SinkMessage::Allan(serde_json::from_slice(payload).map_err(decode_err)?)
+            }
+            Topic::Events => {
+                SinkMessage::Event(serde_json::from_slice(payload).map_err(decode_err)?)
+            }
+        };
+        msg.validate()?;
+        Ok(msg)
+    }
+
+    /// Check that the message can be recorded faithfully: finite floats, ordered
+    /// gaps, equal-length Allan columns, a sample period for non-empty batches.
+    pub fn validate(&self) -> Result<(), MessageError> {
+        let topic = self.topic().name();
+        match self {
+            SinkMessage::Raw(m) => {
+                if m.dt_ns == 0 && !m.counts.is_empty() {
+                    return Err(MessageError::ZeroPeriod {
+                        topic,
+                        len: m.counts.len(),
+                    });
+                }
+                finite_opt(topic, "temp_c", m.temp_c)?;
+                let mut previous: Option<u64> = None;
+                for (gap, g) in m.gaps.iter().enumerate() {
+                    let in_order = previous.is_none_or(|p| g.index > p);
+                    if !in_order || g.index > m.counts.len() as u64 {
+                        return Err(MessageError::BadGapIndex {
+                            topic,
+                            gap,
+                            index: g.index,
+                            previous,
+                            len: m.counts.len(),
+                        });
+                    }
+                    if g.lost == 0 {
+                        return Err(MessageError::EmptyGap {
+                            topic,
+                            gap,
+                            index: g.index,
+                        });
+                    }
+                    previous = Some(g.index);
+                }
+                Ok(())
+            }
+            SinkMessage::Clean(m) | SinkMessage::Noise(m) => {
+                if m.dt_ns == 0 && !m.values.is_empty() {
+                    return Err(MessageError::ZeroPeriod {
+                        topic,
+                        len: m.values.len(),
+                    });
+                }
+                finite_slice(topic, "values", &m.values)
+            }
+            SinkMessage::Estimates(m) => {
+                finite(topic, "duration_s", m.duration_s)?;
+                for (name, t) in &m.terms {
+                    finite_opt(topic, &format!("terms.{name}.value"), t.value)?;
+                    finite_opt(topic, &format!("terms.{name}.lo95"), t.lo95)?;
+                    finite_opt(topic, &format!("terms.{name}.hi95"), t.hi95)?;
+                }
+                Ok(())
+            }
+            SinkMessage::Allan(m) => {
+                for (name, c) in &m.curves {
+                    let len = c.tau_s.len();
+                    if [c.dev.len(), c.ci_lo.len(), c.ci_hi.len(), c.n.len()]
+                        .iter()
+                        .any(|&l| l != len)
+                    {
+                        return Err(MessageError::RaggedCurve {
+                            topic,
+                            curve: name.clone(),
+                            tau: len,
+                            dev: c.dev.len(),
+                            ci_lo: c.ci_lo.len(),
+                            ci_hi: c.ci_hi.len(),
+                            n: c.n.len(),
+                        });
+                    }
+                    finite_slice(topic, &format!("curves.{name}.tau_s"), &c.tau_s)?;
+                    finite_slice(topic, &format!("curves.{name}.dev"), &c.dev)?;
+                    finite_slice(topic, &format!("curves.{name}.ci_lo"), &c.ci_lo)?;
+                    finite_slice(topic, &format!("curves.{name}.ci_hi"), &c.ci_hi)?;
+                }
+                Ok(())
+            }
+            SinkMessage::Event(_) => Ok(()),
+        }
+    }
+}
+
+fn finite(topic: &'static str, field: &str, value: f64) -> Result<(), MessageError> {
+    if value.is_finite() {
+        Ok(())
+    } else {
+        Err(MessageError::NonFinite {
+            topic,
+            field: field.to_string(),
+            value,
+        })
+    }
+}
+
+fn finite_opt(topic: &'static str, field: &str, value: Option<f64>) -> Result<(), MessageError> {
+    value.map_or(Ok(()), |v| finite(topic, field, v))
+}
+
+fn finite_slice(topic: &'static str, field: &str, values: &[f64]) -> Result<(), MessageError> {
+    match values.iter().position(|v| !v.is_finite()) {
+        None => Ok(()),
+        Some(i) => finite(topic, &format!("{field}[{i}]"), values[i]),
+    }
+}
+
+// ---- JSON Schemas (hand-written; tests/sink_messages.rs checks them against the structs) ----
+
+fn uint(description: &str) -> Value {
+    json!({"type": "integer", "minimum": 0, "description": description})
+}
+
+fn number(description: &str) -> Value {
+    json!({"type": "number", "description": description})
+}
+
+fn nullable_number(description: &str) -> Value {
+    json!({"type": ["number", "null"], "description": description})
+}
+
+fn object(title: &str, description: &str, properties: Value) -> Value {
+    let required: Vec<String> = properties
+        .as_object()
+        .map(|p| p.keys().cloned().collect())
+        .unwrap_or_default();
+    json!({
+        "title": title,
+        "description": description,
+        "type": "object",
+        "properties": properties,
+        "required": required,
+        "additionalProperties": false,
+    })
+}
+
+fn raw_batch_schema() -> Value {
+    let gap = object(
+        "sagnac.Gap",
+        "lost samples missing just before counts[index]",
+        json!({
+            "index": uint("position in counts the gap precedes"),
+            "lost": {"type": "integer", "minimum": 1, "description": "number of missing samples"},
+        }),
+    );
+    object(
+        "sagnac.RawBatch",
+        "a batch of per-sample pulse increments from the gyro",
+        json!({
+            "t0_ns": uint("time of the first sample, ns since the Unix epoch"),
+            "dt_ns": uint("sample period, ns"),
+            "seq0": uint("device sequence number of the first sample"),
+            "counts": {"type": "array", "items": {"type": "integer"}, "description": "pulse increments per sample"},
+            "gaps": {"type": "array", "items": gap, "description": "missing samples"},
+            "temp_c": nullable_number("device temperature, deg C"),
+            "status": uint("device status word of the last frame"),
+        }),
+    )
+}
+
+fn rate_batch_schema(what: &str) -> Value {
+    object(
+        "sagnac.RateBatch",
+        &format!("a batch of uniformly spaced rate values: {what}, deg/h"),
+        json!({
+            "t0_ns": uint("time of the first value, ns since the Unix epoch"),
+            "dt_ns": uint("spacing of the values, ns"),
+            "values": {"type": "array", "items": {"type": "number"}, "description": "rate, deg/h"},
+        }),
+    )
+}
+
+fn estimate_update_schema() -> Value {
+    let term = object(
+        "sagnac.TermEstimate",
+        "a noise coefficient with its 95 % interval, in the unit its name carries",
+        json!({
+            "value": nullable_number("point estimate (null: only an upper bound)"),
+            "lo95": nullable_number("lower end of the 95 % interval"),
+            "hi95": nullable_number("upper end of the 95 % interval, or the 95 % upper bound"),
+        }),
+    );
+    object(
+        "sagnac.EstimateUpdate",
+        "noise-coefficient estimates (qn_arcsec, arw_dpsh, bias_instability_dph, rrw_dphsh, ramp_dphh)",
+        json!({
+            "t_ns": uint("time of the update, ns since the Unix epoch"),
+            "n_samples": uint("samples used"),
+            "duration_s": number("span of data used, s"),
+            "terms": {"type": "object", "additionalProperties": term, "description": "coefficient name -> estimate"},
+        }),
+    )
+}
+
+fn allan_update_schema() -> Value {
+    let numbers = |d: &str| json!({"type": "array", "items": {"type": "number"}, "description": d});
+    let curve = object(
+        "sagnac.AllanCurve",
+        "an octave Allan-deviation curve, columns of equal length",
+        json!({
+            "tau_s": numbers("averaging time, s"),
+            "dev": numbers("Allan deviation, deg/h"),
+            "ci_lo": numbers("lower end of the confidence interval, deg/h"),
+            "ci_hi": numbers("upper end of the confidence interval, deg/h"),
+            "n": {"type": "array", "items": {"type": "integer", "minimum": 0}, "description": "terms averaged"},
+        }),
+    );
+    object(
+        "sagnac.AllanUpdate",
+        "Allan-deviation curves per channel (raw, clean)",
+        json!({
+            "t_ns": uint("time of the update, ns since the Unix epoch"),
+            "curves": {"type": "object", "additionalProperties": curve, "description": "channel -> curve"},
+        }),
+    )
+}
+
+/// The event kinds and their fields, in the order of [`EventKind`].
+fn event_kinds() -> Vec<(&'static str, &'static str, Value)> {
+    vec![
+        (
+            "gap",
+            "samples missing",
+            json!({"seq": uint("first missing sequence number"), "lost": uint("samples missing")}),
+        ),
+        (
+            "resync",
+            "frame sync lost and found again",
+            json!({"byte_offset": uint("input byte offset where sync was found"), "skipped_bytes": uint("bytes skipped")}),
+        ),
+        (
+            "crc_error",
+            "a frame failed its CRC",
+            json!({"byte_offset": uint("input byte offset of the frame")}),
+        ),
+        (
+            "status_change",
+            "the device status word changed",
+            json!({"from": uint("previous status word"), "to": uint("new status word")}),
+        ),
+        (
+            "device_disconnected",
+            "the device went away",
+            json!({"device": {"type": "string"}, "reason": {"type": "string"}}),
+        ),
+        (
+            "device_reconnected",
+            "the device is back",
+            json!({"device": {"type": "string"}}),
+        ),
+        (
+            "backpressure_drop",
+            "messages dropped because a sink's queue was full",
+            json!({"sink": {"type": "string"}, "dropped": uint("messages dropped")}),
+        ),
+    ]
+}
+
+fn event_schema() -> Value {
+    let kinds = event_kinds();
+    let names: Vec<&str> = kinds.iter().map(|(k, _, _)| *k).collect();
+    let branches: Vec<Value> = kinds
+        .into_iter()
+        .map(|(kind, description, fields)| {
+            let mut props = json!({
+                "t_ns": uint("time of the event, ns since the Unix epoch"),
+                "kind": {"const": kind},
+            });
+            if let (Some(p), Some(f)) = (props.as_object_mut(), fields.as_object()) {
+                p.extend(f.clone());
+            }
+            object(&format!("sagnac.Event.{kind}"), description, props)
+        })
+        .collect();
+    json!({
+        "title": "sagnac.Event",
+        "description": "an acquisition event; the fields depend on kind",
+        "type": "object",
+        "properties": {
+            "t_ns": uint("time of the event, ns since the Unix epoch"),
+            "kind": {"type": "string", "enum": names},
+        },
+        "required": ["t_ns", "kind"],
+        "oneOf": branches,
+    })
+}

@@ -1,0 +1,167 @@
+//! Seeded sample messages for the sink tests (every channel, every event kind).
+#![allow(dead_code)]
+
+use std::collections::BTreeMap;
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use sagnac::sink::messages::{
+    AllanCurve, AllanUpdate, EstimateUpdate, Event, EventKind, Gap, RateBatch, RawBatch,
+    SinkMessage, TermEstimate, terms,
+};
+
+/// 2026-11-21T20:03:01Z, ns since the epoch.
+pub const T0_NS: u64 = 1_795_291_381_000_000_000;
+/// 1 kHz.
+pub const DT_NS: u64 = 1_000_000;
+
+/// A float with a random sign, mantissa and decimal exponent in [-12, 12]: the
+/// kind of value that a lossy JSON float parser gets wrong in the last bit.
+pub fn awkward_f64(rng: &mut ChaCha8Rng) -> f64 {
+    let m: f64 = rng.random::<f64>() + 0.1;
+    let e = rng.random_range(-12..=12);
+    let s = if rng.random_bool(0.5) { -1.0 } else { 1.0 };
+    s * m * 10f64.powi(e)
+}
+
+pub fn raw_batch(rng: &mut ChaCha8Rng, i: u64, len: usize) -> RawBatch {
+    let counts: Vec<i64> = (0..len).map(|_| rng.random_range(-40..=40)).collect();
+    let mut gaps = Vec::new();
+    let mut next = 0u64;
+    while rng.random_bool(0.3) && next <= len as u64 {
+        let index = rng.random_range(next..=len as u64);
+        gaps.push(Gap {
+            index,
+            lost: rng.random_range(1..5),
+        });
+        next = index + 1;
+    }
+    RawBatch {
+        t0_ns: T0_NS + i * len as u64 * DT_NS,
+        dt_ns: DT_NS,
+        seq0: 1000 + i * len as u64,
+        counts,
+        gaps,
+        temp_c: if rng.random_bool(0.8) {
+            Some(25.0 + awkward_f64(rng).fract())
+        } else {
+            None
+        },
+        status: rng.random_range(0..4),
+    }
+}
+
+pub fn rate_batch(rng: &mut ChaCha8Rng, i: u64, len: usize) -> RateBatch {
+    RateBatch {
+        t0_ns: T0_NS + i * len as u64 * DT_NS,
+        dt_ns: DT_NS,
+        values: (0..len).map(|_| awkward_f64(rng)).collect(),
+    }
+}
+
+pub fn estimate(rng: &mut ChaCha8Rng, i: u64) -> EstimateUpdate {
+    let mut t = BTreeMap::new();
+    for name in [
+        terms::QN_ARCSEC,
+        terms::ARW_DPSH,
+        terms::BIAS_INSTABILITY_DPH,
+        terms::RRW_DPHSH,
+        terms::RAMP_DPHH,
+    ] {
+        let v = awkward_f64(rng).abs();
+        let e = if rng.random_bool(0.7) {
+            TermEstimate {
+                value: Some(v),
+                lo95: Some(v * 0.9),
+                hi95: Some(v * 1.1),
+            }
+        } else {
+            TermEstimate {
+                value: None,
+                lo95: None,
+                hi95: Some(v),
+            }
+        };
+        t.insert(name.to_string(), e);
+    }
+    EstimateUpdate {
+        t_ns: T0_NS + i * 1_000_000_000,
+        n_samples: 1000 * (i + 1),
+        duration_s: (i + 1) as f64,
+        terms: t,
+    }
+}
+
+pub fn allan(rng: &mut ChaCha8Rng, i: u64) -> AllanUpdate {
+    let mut curves = BTreeMap::new();
+    for ch in ["raw", "clean"] {
+        let k = rng.random_range(0..12);
+        let tau_s: Vec<f64> = (0..k).map(|j| 0.001 * 2f64.powi(j)).collect();
+        let dev: Vec<f64> = (0..k).map(|_| awkward_f64(rng).abs()).collect();
+        curves.insert(
+            ch.to_string(),
+            AllanCurve {
+                ci_lo: dev.iter().map(|d| d * 0.8).collect(),
+                ci_hi: dev.iter().map(|d| d * 1.25).collect(),
+                n: (0..k).map(|j| 100_000 >> j).collect(),
+                tau_s,
+                dev,
+            },
+        );
+    }
+    AllanUpdate {
+        t_ns: T0_NS + i * 1_000_000_000,
+        curves,
+    }
+}
+
+/// One event of each kind, in order, then random ones.
+pub fn event(rng: &mut ChaCha8Rng, i: u64) -> Event {
+    let kind = match i % 7 {
+        0 => EventKind::Gap {
+            seq: rng.random(),
+            lost: rng.random_range(1..100),
+        },
+        1 => EventKind::Resync {
+            byte_offset: rng.random(),
+            skipped_bytes: rng.random_range(1..50),
+        },
+        2 => EventKind::CrcError {
+            byte_offset: rng.random(),
+        },
+        3 => EventKind::StatusChange {
+            from: rng.random(),
+            to: rng.random(),
+        },
+        4 => EventKind::DeviceDisconnected {
+            device: "/dev/ttyUSB0".into(),
+            reason: "EOF \"quoted\" \u{e9}".into(),
+        },
+        5 => EventKind::DeviceReconnected {
+            device: "/dev/ttyUSB0".into(),
+        },
+        _ => EventKind::BackpressureDrop {
+            sink: "mcap".into(),
+            dropped: rng.random_range(1..1000),
+        },
+    };
+    Event {
+        t_ns: T0_NS + i * 10_000_000,
+        kind,
+    }
+}
+
+/// A deterministic stream of `n` messages cycling over all six channels.
+pub fn stream(seed: u64, n: usize) -> Vec<SinkMessage> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    (0..n as u64)
+        .map(|i| match i % 6 {
+            0 => SinkMessage::Raw(raw_batch(&mut rng, i, 64)),
+            1 => SinkMessage::Clean(rate_batch(&mut rng, i, 64)),
+            2 => SinkMessage::Noise(rate_batch(&mut rng, i, 64)),
+            3 => SinkMessage::Estimates(estimate(&mut rng, i)),
+            4 => SinkMessage::Allan(allan(&mut rng, i)),
+            _ => SinkMessage::Event(event(&mut rng, i / 6)),
+        })
+        .collect()
+}

@@ -1,0 +1,424 @@
+//! The MCAP message structs and their JSON Schemas: every message validates against
+//! its channel's schema (checked by a small structural validator written here, and
+//! also by the Python `jsonschema` package in tests/sink_mcap.rs when installed),
+//! the validator rejects broken messages, JSON round-trips exactly, and messages
+//! JSON cannot carry are refused.
+
+mod sink_common;
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use sagnac::sink::messages::{
+    AllanCurve, AllanUpdate, Event, EventKind, Gap, MessageError, RateBatch, RawBatch, SinkMessage,
+    Topic,
+};
+use serde_json::{Value, json};
+
+/// Structural JSON Schema check: type, properties, required, additionalProperties
+/// (bool or schema), items, oneOf (exactly one), enum, const, minimum. Returns the
+/// first violation with its JSON path.
+fn check(schema: &Value, v: &Value, path: &str) -> Result<(), String> {
+    let fail = |what: String| Err(format!("{path}: {what}"));
+    if let Some(t) = schema.get("type") {
+        let types: Vec<&str> = match t {
+            Value::String(s) => vec![s.as_str()],
+            Value::Array(a) => a.iter().filter_map(Value::as_str).collect(),
+            _ => return fail(format!("bad type keyword {t}")),
+        };
+        let ok = types.iter().any(|t| match *t {
+            "object" => v.is_object(),
+            "array" => v.is_array(),
+            "string" => v.is_string(),
+            "boolean" => v.is_boolean(),
+            "null" => v.is_null(),
+            "number" => v.is_number(),
+            "integer" => v.is_i64() || v.is_u64(),
+            _ => false,
+        });
+        if !ok {
+            return fail(format!("{v} is not of type {types:?}"));
+        }
+    }
+    if let Some(c) = schema.get("const")
+        && c != v
+    {
+        return fail(format!("{v} != const {c}"));
+    }
+    if let Some(Value::Array(options)) = schema.get("enum")
+        && !options.contains(v)
+    {
+        return fail(format!("{v} not in enum {options:?}"));
+    }
+    if let (Some(min), Some(x)) = (schema.get("minimum").and_then(Value::as_f64), v.as_f64())
+        && x < min
+    {
+        return fail(format!("{x} < minimum {min}"));
+    }
+    if let Some(obj) = v.as_object() {
+        let props = schema.get("properties").and_then(Value::as_object);
+        if let Some(Value::Array(req)) = schema.get("required") {
+            for r in req.iter().filter_map(Value::as_str) {
+                if !obj.contains_key(r) {
+                    return fail(format!("missing required `{r}`"));
+                }
+            }
+        }
+        for (k, x) in obj {
+            let sub = format!("{path}.{k}");
+            match props.and_then(|p| p.get(k)) {
+                Some(s) => check(s, x, &sub)?,
+                None => match schema.get("additionalProperties") {
+                    Some(Value::Bool(false)) => return fail(format!("unexpected property `{k}`")),
+                    Some(s @ Value::Object(_)) => check(s, x, &sub)?,
+                    _ => {}
+                },
+            }
+        }
+    }
+    if let (Some(items), Some(arr)) = (schema.get("items"), v.as_array()) {
+        for (i, x) in arr.iter().enumerate() {
+            check(items, x, &format!("{path}[{i}]"))?;
+        }
+    }
+    if let Some(Value::Array(branches)) = schema.get("oneOf") {
+        let passing = branches
+            .iter()
+            .filter(|b| check(b, v, path).is_ok())
+            .count();
+        if passing != 1 {
+            return fail(format!(
+                "{passing} oneOf branches match, expected exactly 1"
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn json_of(m: &SinkMessage) -> Value {
+    serde_json::from_slice(&m.to_json().expect("serialize")).expect("valid JSON")
+}
+
+#[test]
+fn every_message_validates_against_its_schema() {
+    let messages = sink_common::stream(11, 600);
+    for topic in Topic::ALL {
+        assert!(
+            messages.iter().any(|m| m.topic() == topic),
+            "sample covers {topic:?}"
+        );
+    }
+    for (i, m) in messages.iter().enumerate() {
+        let schema = m.topic().json_schema();
+        check(&schema, &json_of(m), "$").unwrap_or_else(|e| panic!("message {i}: {e}"));
+    }
+    // Every event kind is covered, and the schema's kind list is exactly serde's.
+    let schema = Topic::Events.json_schema();
+    let enum_kinds: Vec<&str> = schema["properties"]["kind"]["enum"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|k| k.as_str().unwrap())
+        .collect();
+    let mut seen: Vec<String> = messages
+        .iter()
+        .filter_map(|m| match m {
+            SinkMessage::Event(_) => Some(json_of(m)["kind"].as_str().unwrap().to_string()),
+            _ => None,
+        })
+        .collect();
+    seen.sort();
+    seen.dedup();
+    let mut expected: Vec<String> = enum_kinds.iter().map(|s| s.to_string()).collect();
+    expected.sort();
+    assert_eq!(seen, expected);
+}
+
+#[test]
+fn schema_properties_are_exactly_the_serialized_fields() {
+    // additionalProperties:false + all-required on every object means the schema and
+    // the struct agree both ways; check the flag is there for the fixed structs.
+    for topic in [Topic::Raw, Topic::Clean, Topic::Estimates, Topic::Allan] {
+        let s = topic.json_schema();
+        assert_eq!(s["additionalProperties"], json!(false), "{topic:?}");
+        let props: Vec<&String> = s["properties"].as_object().unwrap().keys().collect();
+        let req: Vec<&str> = s["required"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| r.as_str().unwrap())
+            .collect();
+        assert_eq!(
+            props.len(),
+            req.len(),
+            "{topic:?}: every property is required"
+        );
+    }
+    assert_eq!(
+        Topic::Clean.json_schema()["title"],
+        Topic::Noise.json_schema()["title"]
+    );
+}
+
+#[test]
+fn validator_rejects_broken_messages() {
+    // The checker above must be able to fail: remove each required field, change types.
+    let m = SinkMessage::Raw(RawBatch {
+        t0_ns: 1,
+        dt_ns: 2,
+        seq0: 3,
+        counts: vec![1, -2],
+        gaps: vec![Gap { index: 1, lost: 2 }],
+        temp_c: None,
+        status: 0,
+    });
+    let schema = Topic::Raw.json_schema();
+    let good = json_of(&m);
+    check(&schema, &good, "$").expect("good message");
+    for key in good.as_object().unwrap().keys() {
+        let mut bad = good.clone();
+        bad.as_object_mut().unwrap().remove(key);
+        assert!(check(&schema, &bad, "$").is_err(), "missing {key} accepted");
+    }
+    for (key, value) in [
+        ("counts", json!("1,2")),
+        ("counts", json!([1.5])),
+        ("t0_ns", json!(-1)),
+        ("temp_c", json!("hot")),
+        ("gaps", json!([{"index": 0}])),
+        ("gaps", json!([{"index": 0, "lost": 0}])),
+        ("extra", json!(1)),
+    ] {
+        let mut bad = good.clone();
+        bad[key] = value.clone();
+        assert!(
+            check(&schema, &bad, "$").is_err(),
+            "{key} = {value} accepted"
+        );
+    }
+    let ev = Topic::Events.json_schema();
+    assert!(
+        check(
+            &ev,
+            &json!({"t_ns": 1, "kind": "crc_error", "byte_offset": 3}),
+            "$"
+        )
+        .is_ok()
+    );
+    assert!(check(&ev, &json!({"t_ns": 1, "kind": "crc_error"}), "$").is_err());
+    assert!(
+        check(
+            &ev,
+            &json!({"t_ns": 1, "kind": "meteor", "byte_offset": 3}),
+            "$"
+        )
+        .is_err()
+    );
+    assert!(
+        check(
+            &ev,
+            &json!({"t_ns": 1, "kind": "gap", "byte_offset": 3}),
+            "$"
+        )
+        .is_err()
+    );
+    let est = Topic::Estimates.json_schema();
+    let e = json!({"t_ns": 1, "n_samples": 2, "duration_s": 0.5,
+                   "terms": {"qn_arcsec": {"value": 1.0, "lo95": null, "hi95": 2.0}}});
+    assert!(check(&est, &e, "$").is_ok());
+    let mut bad = e.clone();
+    bad["terms"]["qn_arcsec"]["value"] = json!("1");
+    assert!(check(&est, &bad, "$").is_err());
+}
+
+#[test]
+fn json_round_trip_is_exact() {
+    // float_roundtrip: every f64 (random mantissas, exponents 1e-12..1e12) survives.
+    for m in sink_common::stream(12, 3000) {
+        let back = SinkMessage::from_json(m.topic(), &m.to_json().unwrap()).expect("decode");
+        assert_eq!(back, m);
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(13);
+    let mut values: Vec<f64> = (0..20_000)
+        .map(|_| sink_common::awkward_f64(&mut rng))
+        .collect();
+    values.extend([f64::MIN_POSITIVE, 5e-324, f64::MAX, -0.0, 0.1 + 0.2, 1e-300]);
+    let m = SinkMessage::Clean(RateBatch {
+        t0_ns: u64::MAX,
+        dt_ns: 1,
+        values,
+    });
+    let back = SinkMessage::from_json(Topic::Clean, &m.to_json().unwrap()).unwrap();
+    match (&back, &m) {
+        (SinkMessage::Clean(a), SinkMessage::Clean(b)) => {
+            for (x, y) in a.values.iter().zip(&b.values) {
+                assert_eq!(x.to_bits(), y.to_bits(), "{x} vs {y}");
+            }
+        }
+        _ => unreachable!(),
+    }
+}
+
+#[test]
+fn event_json_shape() {
+    let e = SinkMessage::Event(Event {
+        t_ns: 5,
+        kind: EventKind::CrcError { byte_offset: 7 },
+    });
+    assert_eq!(
+        String::from_utf8(e.to_json().unwrap()).unwrap(),
+        r#"{"t_ns":5,"kind":"crc_error","byte_offset":7}"#
+    );
+    let d = SinkMessage::Event(Event {
+        t_ns: 1,
+        kind: EventKind::BackpressureDrop {
+            sink: "mcap".into(),
+            dropped: 3,
+        },
+    });
+    assert_eq!(
+        String::from_utf8(d.to_json().unwrap()).unwrap(),
+        r#"{"t_ns":1,"kind":"backpressure_drop","sink":"mcap","dropped":3}"#
+    );
+    // Unknown kinds and fields are decode errors naming the topic, not panics.
+    for bad in [
+        r#"{"t_ns":5,"kind":"meteor"}"#,
+        r#"{"t_ns":5,"kind":"crc_error"}"#,
+        r#"{"kind":"crc_error","byte_offset":7}"#,
+        r#"[1,2]"#,
+        r#"{"t_ns":5,"kind":"crc_error","byte_offset":-7}"#,
+        r#"{"t_ns":5,"kind":"crc_error","byte_offset":7,"extra":1}"#,
+    ] {
+        let err = SinkMessage::from_json(Topic::Events, bad.as_bytes()).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                MessageError::Decode {
+                    topic: "/gyro/events",
+                    ..
+                }
+            ),
+            "{bad}: {err}"
+        );
+    }
+    let err = SinkMessage::from_json(Topic::Raw, br#"{"t0_ns":1}"#).unwrap_err();
+    assert!(err.to_string().contains("/gyro/raw"), "{err}");
+    // RawBatch refuses unknown fields (deny_unknown_fields).
+    let err = SinkMessage::from_json(
+        Topic::Clean,
+        br#"{"t0_ns":1,"dt_ns":1,"values":[],"unit":"dph"}"#,
+    )
+    .unwrap_err();
+    assert!(err.to_string().contains("unit"), "{err}");
+}
+
+#[test]
+fn unrecordable_messages_are_refused() {
+    let raw = |gaps: Vec<Gap>, dt_ns, temp_c| {
+        SinkMessage::Raw(RawBatch {
+            t0_ns: 0,
+            dt_ns,
+            seq0: 0,
+            counts: vec![1, 2, 3],
+            gaps,
+            temp_c,
+            status: 0,
+        })
+    };
+    assert_eq!(
+        raw(vec![Gap { index: 3, lost: 1 }], 1, Some(20.0)).validate(),
+        Ok(())
+    );
+    assert!(matches!(
+        raw(vec![], 1, Some(f64::NAN)).validate(),
+        Err(MessageError::NonFinite { .. })
+    ));
+    assert!(matches!(
+        raw(vec![Gap { index: 4, lost: 1 }], 1, None).validate(),
+        Err(MessageError::BadGapIndex {
+            index: 4,
+            len: 3,
+            ..
+        })
+    ));
+    assert!(matches!(
+        raw(
+            vec![Gap { index: 2, lost: 1 }, Gap { index: 2, lost: 1 }],
+            1,
+            None
+        )
+        .validate(),
+        Err(MessageError::BadGapIndex {
+            gap: 1,
+            previous: Some(2),
+            ..
+        })
+    ));
+    assert!(matches!(
+        raw(vec![Gap { index: 0, lost: 0 }], 1, None).validate(),
+        Err(MessageError::EmptyGap { .. })
+    ));
+    assert!(matches!(
+        raw(vec![], 0, None).validate(),
+        Err(MessageError::ZeroPeriod { .. })
+    ));
+    let rate = SinkMessage::Noise(RateBatch {
+        t0_ns: 0,
+        dt_ns: 1,
+        values: vec![1.0, f64::INFINITY],
+    });
+    let err = rate.validate().unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "/gyro/noise: field `values[1]` holds a non-finite number (inf)"
+    );
+    let ragged = SinkMessage::Allan(AllanUpdate {
+        t_ns: 0,
+        curves: [(
+            "raw".to_string(),
+            AllanCurve {
+                tau_s: vec![1.0, 2.0],
+                dev: vec![1.0, 2.0],
+                ci_lo: vec![1.0],
+                ci_hi: vec![1.0, 2.0],
+                n: vec![1, 2],
+            },
+        )]
+        .into(),
+    });
+    assert!(matches!(
+        ragged.validate(),
+        Err(MessageError::RaggedCurve { ci_lo: 1, .. })
+    ));
+    // The reader applies the same checks: a gap past the end does not decode.
+    let bad = br#"{"t0_ns":1,"dt_ns":1,"seq0":0,"counts":[1],"gaps":[{"index":2,"lost":1}],"temp_c":null,"status":0}"#;
+    assert!(SinkMessage::from_json(Topic::Raw, bad).is_err());
+}
+
+#[test]
+fn topics_and_times() {
+    let names: Vec<&str> = Topic::ALL.iter().map(|t| t.name()).collect();
+    assert_eq!(
+        names,
+        [
+            "/gyro/raw",
+            "/gyro/clean",
+            "/gyro/noise",
+            "/gyro/estimates",
+            "/gyro/allan",
+            "/gyro/events"
+        ]
+    );
+    for t in Topic::ALL {
+        assert_eq!(Topic::from_name(t.name()), Some(t));
+    }
+    assert_eq!(Topic::from_name("/gyro/other"), None);
+    for m in sink_common::stream(14, 12) {
+        let j = json_of(&m);
+        let t = j
+            .get("t0_ns")
+            .or(j.get("t_ns"))
+            .and_then(Value::as_u64)
+            .unwrap();
+        assert_eq!(m.time_ns(), t);
+    }
+}

@@ -1,0 +1,246 @@
+//! Prometheus metrics: exact names, HELP/TYPE lines, values after updates, and
+//! `promtool check metrics` (the Prometheus project's own linter) on the exposition.
+
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::process::{Command, Stdio};
+
+use sagnac::sink::metrics::{AllanChannel, Bounds95, FrameErrorKind, Metrics, tau_label};
+
+/// Parse the sample lines of a text exposition: "name{labels}" -> value.
+pub fn samples(text: &str) -> BTreeMap<String, f64> {
+    text.lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .map(|l| {
+            let (k, v) = l.rsplit_once(' ').expect("sample line");
+            let v = if v == "NaN" {
+                f64::NAN
+            } else {
+                v.parse().expect("value")
+            };
+            (k.to_string(), v)
+        })
+        .collect()
+}
+
+fn promtool(exposition: &str) -> (bool, String) {
+    let mut child = Command::new("promtool")
+        .args(["check", "metrics"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap_or_else(|e| {
+            panic!("promtool is required (apt-get install prometheus; scripts/install-peers): {e}")
+        });
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(exposition.as_bytes())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (out.status.success() && text.trim().is_empty(), text)
+}
+
+fn filled() -> Metrics {
+    let m = Metrics::new().unwrap();
+    m.add_samples(1000);
+    m.add_samples(24);
+    m.add_frames_decoded(1020);
+    m.add_frame_errors(FrameErrorKind::Crc, 3);
+    m.add_frame_errors(FrameErrorKind::FalseSync, 1);
+    m.add_lost_samples(4);
+    m.add_bytes_read(16_384);
+    m.set_qn_arcsec(Bounds95 {
+        estimate: Some(0.35),
+        lower95: Some(0.3),
+        upper95: Some(0.41),
+    });
+    m.set_arw_dpsh(Bounds95 {
+        estimate: Some(0.002),
+        lower95: Some(0.0018),
+        upper95: Some(0.0023),
+    });
+    m.set_bias_instability_dph(Bounds95 {
+        estimate: None,
+        lower95: None,
+        upper95: Some(0.01),
+    });
+    let taus: Vec<f64> = (0..8).map(|k| 0.001 * 2f64.powi(k)).collect();
+    let devs: Vec<f64> = taus.iter().map(|t| 0.5 / t).collect();
+    m.set_allan_curve(AllanChannel::Raw, &taus, &devs).unwrap();
+    m.set_allan_curve(AllanChannel::Clean, &taus[..4], &devs[..4])
+        .unwrap();
+    m.set_temperature_c(Some(31.5));
+    m.set_processing_lag_s(0.125);
+    m.set_recording_bytes(123_456);
+    m
+}
+
+#[test]
+fn exposition_passes_promtool() {
+    let text = filled().encode();
+    let (ok, out) = promtool(&text);
+    assert!(ok, "promtool check metrics:\n{out}\n---\n{text}");
+    // A fresh (empty) registry too.
+    let (ok, out) = promtool(&Metrics::new().unwrap().encode());
+    assert!(ok, "fresh metrics: {out}");
+}
+
+#[test]
+fn promtool_catches_bad_names() {
+    // The check above can fail: promtool rejects a counter without `_total` and a
+    // gauge named `*_count`.
+    let bad = "# HELP sagnac_frames counter\n# TYPE sagnac_frames counter\nsagnac_frames 1\n\
+               # HELP sagnac_x_count gauge\n# TYPE sagnac_x_count gauge\nsagnac_x_count 1\n";
+    let (ok, out) = promtool(bad);
+    assert!(!ok, "promtool accepted bad names: {out}");
+}
+
+#[test]
+fn names_help_and_values() {
+    let text = filled().encode();
+    for (name, kind) in [
+        ("sagnac_samples_total", "counter"),
+        ("sagnac_frames_decoded_total", "counter"),
+        ("sagnac_frame_errors_total", "counter"),
+        ("sagnac_lost_samples_total", "counter"),
+        ("sagnac_bytes_read_total", "counter"),
+        ("sagnac_qn_arcseconds", "gauge"),
+        ("sagnac_arw_degrees_per_root_hour", "gauge"),
+        ("sagnac_bias_instability_degrees_per_hour", "gauge"),
+        ("sagnac_allan_deviation_degrees_per_hour", "gauge"),
+        ("sagnac_temperature_celsius", "gauge"),
+        ("sagnac_processing_lag_seconds", "gauge"),
+        ("sagnac_recording_bytes", "gauge"),
+    ] {
+        assert!(text.contains(&format!("# HELP {name} ")), "HELP {name}");
+        assert!(
+            text.contains(&format!("# TYPE {name} {kind}\n")),
+            "TYPE {name} {kind}"
+        );
+    }
+    let families = text.lines().filter(|l| l.starts_with("# TYPE ")).count();
+    assert_eq!(families, 12, "exactly the twelve metrics:\n{text}");
+
+    let s = samples(&text);
+    let get = |k: &str| *s.get(k).unwrap_or_else(|| panic!("{k} missing in\n{text}"));
+    assert_eq!(get("sagnac_samples_total"), 1024.0);
+    assert_eq!(get("sagnac_frames_decoded_total"), 1020.0);
+    assert_eq!(get("sagnac_frame_errors_total{kind=\"crc\"}"), 3.0);
+    assert_eq!(get("sagnac_frame_errors_total{kind=\"false_sync\"}"), 1.0);
+    assert_eq!(get("sagnac_frame_errors_total{kind=\"truncated\"}"), 0.0);
+    assert_eq!(get("sagnac_lost_samples_total"), 4.0);
+    assert_eq!(get("sagnac_bytes_read_total"), 16_384.0);
+    assert_eq!(get("sagnac_qn_arcseconds{bound=\"estimate\"}"), 0.35);
+    assert_eq!(get("sagnac_qn_arcseconds{bound=\"lower95\"}"), 0.3);
+    assert_eq!(get("sagnac_qn_arcseconds{bound=\"upper95\"}"), 0.41);
+    assert_eq!(
+        get("sagnac_arw_degrees_per_root_hour{bound=\"upper95\"}"),
+        0.0023
+    );
+    // Unknown bounds are absent, not zero.
+    assert_eq!(
+        get("sagnac_bias_instability_degrees_per_hour{bound=\"upper95\"}"),
+        0.01
+    );
+    assert!(!s.contains_key("sagnac_bias_instability_degrees_per_hour{bound=\"estimate\"}"));
+    assert_eq!(
+        get("sagnac_allan_deviation_degrees_per_hour{channel=\"raw\",tau_seconds=\"0.128\"}"),
+        0.5 / 0.128
+    );
+    assert_eq!(
+        get("sagnac_allan_deviation_degrees_per_hour{channel=\"clean\",tau_seconds=\"0.008\"}"),
+        0.5 / 0.008
+    );
+    let allan = |ch: &str| {
+        s.keys()
+            .filter(|k| {
+                k.starts_with(&format!(
+                    "sagnac_allan_deviation_degrees_per_hour{{channel=\"{ch}\""
+                ))
+            })
+            .count()
+    };
+    assert_eq!((allan("raw"), allan("clean")), (8, 4));
+    assert_eq!(get("sagnac_temperature_celsius"), 31.5);
+    assert_eq!(get("sagnac_processing_lag_seconds"), 0.125);
+    assert_eq!(get("sagnac_recording_bytes"), 123_456.0);
+}
+
+#[test]
+fn updates_replace_old_series() {
+    let m = filled();
+    // A new curve replaces the channel's series entirely; the other channel stays.
+    m.set_allan_curve(AllanChannel::Raw, &[1.0, 2.0], &[0.1, 0.2])
+        .unwrap();
+    // An estimate that becomes unknown disappears.
+    m.set_qn_arcsec(Bounds95 {
+        estimate: Some(0.4),
+        ..Default::default()
+    });
+    m.set_temperature_c(None);
+    let text = m.encode();
+    let s = samples(&text);
+    let raw: Vec<&String> = s.keys().filter(|k| k.contains("channel=\"raw\"")).collect();
+    assert_eq!(raw.len(), 2, "{raw:?}");
+    assert_eq!(
+        s["sagnac_allan_deviation_degrees_per_hour{channel=\"raw\",tau_seconds=\"2\"}"],
+        0.2
+    );
+    assert_eq!(
+        s.keys().filter(|k| k.contains("channel=\"clean\"")).count(),
+        4
+    );
+    assert_eq!(s["sagnac_qn_arcseconds{bound=\"estimate\"}"], 0.4);
+    assert!(!s.contains_key("sagnac_qn_arcseconds{bound=\"lower95\"}"));
+    assert!(s["sagnac_temperature_celsius"].is_nan());
+    // Bad curves are refused and change nothing.
+    assert!(m.set_allan_curve(AllanChannel::Raw, &[1.0], &[]).is_err());
+    assert!(
+        m.set_allan_curve(AllanChannel::Raw, &[0.0], &[1.0])
+            .is_err()
+    );
+    assert!(
+        m.set_allan_curve(AllanChannel::Raw, &[f64::NAN], &[1.0])
+            .is_err()
+    );
+    let sorted = |t: &str| {
+        let mut l: Vec<String> = t.lines().map(str::to_string).collect();
+        l.sort();
+        l
+    };
+    assert_eq!(sorted(&m.encode()), sorted(&text));
+    let (ok, out) = promtool(&text);
+    assert!(ok, "{out}");
+}
+
+#[test]
+fn tau_labels_are_short_and_faithful() {
+    assert_eq!(tau_label(0.001 * 2f64.powi(7)), "0.128");
+    assert_eq!(tau_label(0.1 + 0.2), "0.3");
+    assert_eq!(tau_label(1.0), "1");
+    assert_eq!(tau_label(1024.0 * 0.001), "1.024");
+    assert_eq!(tau_label(0.005 * 2f64.powi(20)), "5242.88");
+    for k in 0..40 {
+        for dt in [0.001, 0.0025, 0.01, 1.0 / 3.0] {
+            let tau = dt * 2f64.powi(k);
+            let label = tau_label(tau);
+            let back: f64 = label.parse().unwrap();
+            // 9 significant digits: relative error below 5e-9.
+            assert!(((back - tau) / tau).abs() < 5e-9, "{tau} -> {label}");
+            let digits: String = label.chars().filter(|c| c.is_ascii_digit()).collect();
+            let significant = digits.trim_start_matches('0').trim_end_matches('0');
+            assert!(
+                significant.len() <= 9,
+                "{label}: more than 9 significant digits"
+            );
+        }
+    }
+}
