@@ -158,7 +158,7 @@ fn sync_pattern_inside_garbage_is_a_false_sync() {
 #[test]
 fn garbage_starting_with_sync_where_a_frame_was_due_is_a_crc_error() {
     // The decoder cannot tell it from a corrupted frame: a sync with a bad CRC
-    // at a frame boundary counts as a CRC error (documented).
+    // on the frame grid counts as a CRC error (documented).
     let frames = encode_increments(&mut FrameEncoder::new(0, 0), &[1]).unwrap();
     let mut bytes = frames[0].to_vec();
     bytes.extend_from_slice(&[0xA5, 0x5A, 0x00, 0x00]);
@@ -167,6 +167,58 @@ fn garbage_starting_with_sync_where_a_frame_was_due_is_a_crc_error() {
     assert_eq!(
         (st.crc_errors, st.false_syncs, st.bytes_skipped, st.resyncs),
         (1, 0, 4, 1)
+    );
+}
+
+#[test]
+fn burst_of_corrupted_frames_counts_one_crc_error_each() {
+    // Frames 2, 3, 4 corrupted back to back: their sync bytes stay on the grid
+    // of frame 1, so each is a CRC error. Counter 0x0101_0101 + small steps and
+    // seq < 256 keep 0xA5 0x5A out of the frame interiors (checked below).
+    let frames =
+        encode_increments(&mut FrameEncoder::new(1, 0x0101_0101), &[1, 1, 1, 1, 1]).unwrap();
+    let mut bytes = concat(&frames);
+    for k in 2..5 {
+        bytes[k * 16 + 8] ^= 0x40; // temperature byte
+    }
+    let interior_syncs = (0..bytes.len() - 1)
+        .filter(|&p| p % 16 != 0 && bytes[p] == 0xA5 && bytes[p + 1] == 0x5A)
+        .count();
+    assert_eq!(interior_syncs, 0);
+    let (items, st) = decode(&bytes);
+    assert_eq!(
+        events(&items)
+            .iter()
+            .filter_map(|e| match e {
+                DecodeEvent::CrcError { offset, .. } => Some(*offset),
+                _ => None,
+            })
+            .collect::<Vec<_>>(),
+        [32, 48, 64]
+    );
+    assert_eq!(
+        (st.crc_errors, st.false_syncs, st.resyncs, st.bytes_skipped),
+        (3, 0, 1, 48)
+    );
+    assert_eq!((st.gaps, st.lost_samples), (1, 3));
+    assert_eq!(samples(&items).iter().map(|s| s.increment).sum::<i64>(), 5);
+}
+
+#[test]
+fn sync_off_the_grid_after_a_corrupted_frame_is_a_false_sync() {
+    // One garbage byte shifts the next (corrupted) frame off the grid.
+    let frames = encode_increments(&mut FrameEncoder::new(1, 0x0101_0101), &[1, 1, 1]).unwrap();
+    let mut bytes = frames[0].to_vec();
+    bytes.push(0x00);
+    let mut bad = frames[1];
+    bad[9] ^= 0x01;
+    bytes.extend_from_slice(&bad);
+    bytes.extend(concat(&frames[2..]));
+    let (items, st) = decode(&bytes);
+    assert!(events(&items).contains(&DecodeEvent::FalseSync { offset: 17 }));
+    assert_eq!(
+        (st.crc_errors, st.false_syncs, st.bytes_skipped),
+        (0, 1, 17)
     );
 }
 

@@ -34,11 +34,15 @@
 //!   `bytes_skipped`);
 //! * a sync pattern followed by a bad CRC costs a ONE-byte slide, then the hunt
 //!   for the next sync continues. It is counted as a **CRC error** when the
-//!   decoder was *in lock* (the candidate sits exactly where the previous valid
-//!   frame ended, or at stream offset 0, i.e. a frame was expected there: a frame
-//!   corrupted on the wire), otherwise as a **false sync** (a sync pattern met
-//!   while hunting through skipped bytes: garbage or the inside of a corrupted
-//!   frame);
+//!   candidate sits on the 16-byte grid of the last valid frame (a whole number
+//!   of frame lengths after its end, or after stream offset 0 before any valid
+//!   frame): a frame was expected there, so it is taken for a frame corrupted on
+//!   the wire, and a burst of consecutive corrupted frames counts one CRC error
+//!   each. Off the grid it is counted as a **false sync** (a sync pattern met
+//!   while hunting: in garbage or inside a corrupted frame). The two counts
+//!   together are all rejected sync candidates; the split is the decoder's best
+//!   reading of an inherently ambiguous situation (garbage that happens to start
+//!   with the sync pattern on the grid counts as a CRC error);
 //! * when a valid frame ends a run of skipped bytes, one [`DecodeEvent::Resync`]
 //!   reports the run length; a run still open at end of stream is reported by
 //!   [`DecodeEvent::EndOfStream`] from [`FrameDecoder::decode_eof`], which also

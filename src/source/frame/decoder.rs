@@ -79,7 +79,8 @@ pub enum DecodeEvent {
         /// `at_offset - skipped_bytes`).
         at_offset: u64,
     },
-    /// Sync found where a frame was expected, but the CRC failed.
+    /// Sync found on the frame grid (where a frame was expected), but the CRC
+    /// failed.
     CrcError {
         /// Offset of the rejected candidate.
         offset: u64,
@@ -88,7 +89,7 @@ pub enum DecodeEvent {
         /// CRC it carried.
         received: u16,
     },
-    /// A sync pattern met while hunting, with a bad CRC.
+    /// A sync pattern off the frame grid (met while hunting), with a bad CRC.
     FalseSync {
         /// Offset of the rejected candidate.
         offset: u64,
@@ -173,9 +174,9 @@ pub struct DecoderStats {
     pub bytes_skipped: u64,
     /// Runs of skipped bytes ended by a valid frame.
     pub resyncs: u64,
-    /// Bad-CRC candidates where a frame was expected.
+    /// Bad-CRC candidates on the frame grid (where a frame was expected).
     pub crc_errors: u64,
-    /// Bad-CRC candidates met while hunting.
+    /// Bad-CRC candidates off the frame grid (met while hunting).
     pub false_syncs: u64,
     /// Gap events.
     pub gaps: u64,
@@ -226,7 +227,7 @@ pub struct FrameDecoder {
     offset: u64,
     /// Buffer length when the last call returned (to count new bytes).
     buffered: usize,
-    /// Bytes skipped since the last valid frame (0 = in lock).
+    /// Bytes skipped since the last valid frame (a multiple of 16 = on its grid).
     skip_run: u64,
     /// Last accepted frame.
     last: Option<Anchor>,
@@ -393,7 +394,7 @@ impl FrameDecoder {
                 }
                 Err(NotAFrame::BadCrc { computed, received }) => {
                     let offset = self.offset;
-                    if self.skip_run == 0 {
+                    if self.skip_run % FRAME_LEN as u64 == 0 {
                         self.stats.crc_errors += 1;
                         self.push(DecodeEvent::CrcError {
                             offset,

@@ -22,9 +22,9 @@
 //! outside intact frames is skipped; each maximal run of skipped bytes ended by
 //! an intact frame is one resync; inside a run, every position holding the sync
 //! pattern with 16 bytes of stream left is one bad-CRC candidate, a CRC error
-//! when it is the first byte of the run (where a frame was expected), a false
-//! sync otherwise; seq steps between intact frames give gaps, lost samples and
-//! duplicates. It holds when `max_seq_step <= max_gap + 1` and no candidate
+//! when its distance from the start of the run is a multiple of 16 (on the
+//! frame grid, where a frame was expected), a false sync otherwise; seq steps
+//! between intact frames give gaps, lost samples and duplicates. It holds when `max_seq_step <= max_gap + 1` and no candidate
 //! window happens to carry a valid CRC (`spurious_windows == 0`); both are
 //! recorded so callers can check.
 
@@ -201,7 +201,7 @@ pub struct Expected {
     pub bytes_skipped: u64,
     /// Skipped runs ended by an intact frame.
     pub resyncs: u64,
-    /// Bad-CRC candidates at the start of a skipped run.
+    /// Bad-CRC candidates a multiple of 16 bytes into a skipped run.
     pub crc_errors: u64,
     /// Bad-CRC candidates elsewhere in skipped runs.
     pub false_syncs: u64,
@@ -345,7 +345,7 @@ fn derive_expected(bytes: &[u8], intact: &[(usize, u16, usize)]) -> Expected {
     let scan = |e: &mut Expected, start: usize, end: usize| {
         for p in start..end {
             if p + FRAME_LEN <= len && bytes[p] == SYNC[0] && bytes[p + 1] == SYNC[1] {
-                if p == start {
+                if (p - start) % FRAME_LEN == 0 {
                     e.crc_errors += 1;
                 } else {
                     e.false_syncs += 1;
