@@ -5,6 +5,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 pub mod allan;
+pub mod run;
 pub mod simulate;
 
 #[derive(Debug, Parser)]
@@ -18,6 +19,9 @@ pub struct Cli {
 pub enum Command {
     /// Allan-family deviations (OADEV, ADEV, MDEV, HDEV, OHDEV, TOTDEV) of a file, with confidence intervals.
     Allan(allan::AllanArgs),
+    /// The acquisition daemon: serial gyro, replayed capture or simulated bench -> QN removal,
+    /// Allan variance, live estimates -> MCAP recording and Prometheus metrics.
+    Run(run::RunArgs),
     /// Simulate a gyro from a model file and write its pulse stream.
     Simulate(simulate::SimulateArgs),
 }
@@ -40,6 +44,7 @@ pub fn main() -> ExitCode {
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Allan(args) => allan::run(args),
+        Command::Run(args) => run::run(args),
         Command::Simulate(args) => simulate::run(args),
     }
 }

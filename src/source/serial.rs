@@ -88,9 +88,18 @@ pub struct SerialConfig {
 }
 
 /// A validated serial source, ready to run.
-#[derive(Debug)]
 pub struct SerialSource {
     config: SerialConfig,
+    port: Option<tokio_serial::SerialStream>,
+}
+
+impl std::fmt::Debug for SerialSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SerialSource")
+            .field("config", &self.config)
+            .field("open", &self.port.is_some())
+            .finish()
+    }
 }
 
 impl SerialConfig {
@@ -113,7 +122,10 @@ impl SerialConfig {
                 "must be >= reconnect_initial > 0",
             ));
         }
-        Ok(SerialSource { config: self })
+        Ok(SerialSource {
+            config: self,
+            port: None,
+        })
     }
 }
 
@@ -121,23 +133,36 @@ impl SerialConfig {
 const READ_RESERVE: usize = 4096;
 
 impl SerialSource {
-    /// Open the port (once, to fail early), then read until shut down, the
-    /// period limit, or the pipeline closing.
+    /// Open the port now (inside a tokio runtime), so that a wrong path fails
+    /// before anything else starts. [`SerialSource::run`] opens it otherwise.
+    pub fn open(&mut self) -> Result<(), SerialError> {
+        if self.port.is_none() {
+            let cfg = &self.config;
+            let port = tokio_serial::new(cfg.path.display().to_string(), cfg.baud)
+                .open_native_async()
+                .map_err(|source| SerialError::Open {
+                    path: cfg.path.clone(),
+                    baud: cfg.baud,
+                    source,
+                })?;
+            tracing::info!(device = %cfg.path.display(), baud = cfg.baud, "serial port open");
+            self.port = Some(port);
+        }
+        Ok(())
+    }
+
+    /// Read until shut down, the period limit, or the pipeline closing.
     pub async fn run(
-        self,
+        mut self,
         mut out: BatchSender,
         telemetry: Telemetry,
         mut shutdown: Shutdown,
     ) -> Result<SourceReport, SerialError> {
+        self.open()?;
+        let mut port = self.port.take();
         let cfg = self.config;
         let device = cfg.path.display().to_string();
         let open = || tokio_serial::new(device.clone(), cfg.baud).open_native_async();
-        let mut port = Some(open().map_err(|source| SerialError::Open {
-            path: cfg.path.clone(),
-            baud: cfg.baud,
-            source,
-        })?);
-        tracing::info!(device, baud = cfg.baud, "serial port open");
         telemetry.device_connected.set(1);
         let pipeline_err = |source| SerialError::Pipeline {
             path: cfg.path.clone(),
