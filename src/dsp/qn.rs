@@ -291,9 +291,10 @@ struct QnHook {
     /// Per slot: first coefficient index whose support lies in real data.
     first_real: Vec<u64>,
     // per-frame accumulators, per slot
-    frame_sq: Vec<f64>,
-    frame_sum: Vec<f64>,
-    frame_n: Vec<f64>,
+    /// This frame's coefficients per slot (unmodified, statistics-eligible only):
+    /// sums are formed at the frame's end in a fixed order, so they do not depend
+    /// on how the caller cut the stream into blocks.
+    frame_buf: Vec<Vec<f64>>,
     // running (exponentially weighted) sums
     ew_sq: Vec<f64>,
     ew_sum: Vec<f64>,
@@ -307,7 +308,6 @@ struct QnHook {
     gain: Vec<f64>,
     thresh: Vec<f64>,
     // threshold rules: measured clean/raw power per level
-    frame_clean_sq: Vec<f64>,
     ew_clean_sq: Vec<f64>,
 }
 
@@ -320,15 +320,24 @@ impl QnHook {
         let jj = self.levels;
         let nd = self.nd;
         for j in 0..=nd {
-            self.ew_sq[j] = self.lambda * self.ew_sq[j] + self.frame_sq[j];
-            self.ew_sum[j] = self.lambda * self.ew_sum[j] + self.frame_sum[j];
-            self.ew_n[j] = self.lambda * self.ew_n[j] + self.frame_n[j];
-            self.ew_clean_sq[j] = self.lambda * self.ew_clean_sq[j] + self.frame_clean_sq[j];
-            self.seen[j] += self.frame_n[j] as u64;
-            self.frame_sq[j] = 0.0;
-            self.frame_sum[j] = 0.0;
-            self.frame_n[j] = 0.0;
-            self.frame_clean_sq[j] = 0.0;
+            let buf = &self.frame_buf[j];
+            let (sq, sum, n) = (sum_sq(buf), sum_plain(buf), buf.len() as f64);
+            let clean_sq = if j < jj {
+                let t = self.thresh[j];
+                match self.rule {
+                    QnRule::SoftThreshold => sum_sq_map(buf, |c| (c.abs() - t).max(0.0)),
+                    QnRule::HardThreshold => sum_sq_map(buf, |c| if c.abs() <= t { 0.0 } else { c }),
+                    _ => 0.0,
+                }
+            } else {
+                0.0
+            };
+            self.frame_buf[j].clear();
+            self.ew_sq[j] = self.lambda * self.ew_sq[j] + sq;
+            self.ew_sum[j] = self.lambda * self.ew_sum[j] + sum;
+            self.ew_n[j] = self.lambda * self.ew_n[j] + n;
+            self.ew_clean_sq[j] = self.lambda * self.ew_clean_sq[j] + clean_sq;
+            self.seen[j] += n as u64;
             if self.ew_n[j] > 0.0 {
                 let m = self.ew_sq[j] / self.ew_n[j];
                 self.var_total[j] = if j < nd {
@@ -433,13 +442,9 @@ impl CoeffHook for QnHook {
     fn details(&mut self, level: u32, first: u64, d: &mut [f64]) {
         let j = level as usize - 1;
         let skip = self.first_real[j].saturating_sub(first).min(d.len() as u64) as usize;
-        let stats_from = if self.collecting { skip } else { d.len() };
-        let mut sq = 0.0;
-        for &c in &d[stats_from..] {
-            sq += c * c;
+        if self.collecting {
+            self.frame_buf[j].extend_from_slice(&d[skip..]);
         }
-        self.frame_sq[j] += sq;
-        self.frame_n[j] += (d.len() - stats_from) as f64;
         match self.rule {
             QnRule::PowerSubtraction | QnRule::Wiener => {
                 let g = self.gain[j];
@@ -447,28 +452,15 @@ impl CoeffHook for QnHook {
             }
             QnRule::SoftThreshold => {
                 let t = self.thresh[j];
-                let mut csq = 0.0;
-                for (i, c) in d.iter_mut().enumerate() {
-                    let m = (c.abs() - t).max(0.0);
-                    *c = m.copysign(*c);
-                    if i >= stats_from {
-                        csq += *c * *c;
-                    }
-                }
-                self.frame_clean_sq[j] += csq;
+                d.iter_mut().for_each(|c| *c = (c.abs() - t).max(0.0).copysign(*c));
             }
             QnRule::HardThreshold => {
                 let t = self.thresh[j];
-                let mut csq = 0.0;
-                for (i, c) in d.iter_mut().enumerate() {
+                d.iter_mut().for_each(|c| {
                     if c.abs() <= t {
-                        *c = 0.0;
+                        *c = 0.0
                     }
-                    if i >= stats_from {
-                        csq += *c * *c;
-                    }
-                }
-                self.frame_clean_sq[j] += csq;
+                });
             }
         }
     }
@@ -489,15 +481,10 @@ impl CoeffHook for QnHook {
             for (x, d) in out.details.iter().enumerate() {
                 let slot = jj + x;
                 let skip = self.first_real[slot].saturating_sub(before[x]).min(d.len() as u64) as usize;
-                self.frame_sq[slot] += d[skip..].iter().map(|c| c * c).sum::<f64>();
-                self.frame_n[slot] += (d.len() - skip) as f64;
+                self.frame_buf[slot].extend_from_slice(&d[skip..]);
             }
             let skip = self.first_real[nd].saturating_sub(first).min(a.len() as u64) as usize;
-            for &c in &a[skip..] {
-                self.frame_sq[nd] += c * c;
-                self.frame_sum[nd] += c;
-            }
-            self.frame_n[nd] += (a.len() - skip) as f64;
+            self.frame_buf[nd].extend_from_slice(&a[skip..]);
         }
         self.extra_out = out;
     }
@@ -507,6 +494,43 @@ impl CoeffHook for QnHook {
             self.update();
         }
     }
+}
+
+/// Sum of squares in a fixed order (four interleaved partial sums).
+fn sum_sq(x: &[f64]) -> f64 {
+    sum_sq_map(x, |c| c)
+}
+
+fn sum_sq_map(x: &[f64], f: impl Fn(f64) -> f64) -> f64 {
+    let mut acc = [0.0; 4];
+    let chunks = x.chunks_exact(4);
+    let rem = chunks.remainder();
+    for c in chunks {
+        for i in 0..4 {
+            let v = f(c[i]);
+            acc[i] += v * v;
+        }
+    }
+    for (i, &c) in rem.iter().enumerate() {
+        let v = f(c);
+        acc[i] += v * v;
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3])
+}
+
+fn sum_plain(x: &[f64]) -> f64 {
+    let mut acc = [0.0; 4];
+    let chunks = x.chunks_exact(4);
+    let rem = chunks.remainder();
+    for c in chunks {
+        for i in 0..4 {
+            acc[i] += c[i];
+        }
+    }
+    for (i, &c) in rem.iter().enumerate() {
+        acc[i] += c;
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3])
 }
 
 /// The noise integral is sampled every this many output samples.
@@ -613,9 +637,7 @@ impl QnSplitter {
             kappa,
             collecting: false,
             first_real,
-            frame_sq: vec![0.0; nd + 1],
-            frame_sum: vec![0.0; nd + 1],
-            frame_n: vec![0.0; nd + 1],
+            frame_buf: vec![Vec::new(); nd + 1],
             ew_sq: vec![0.0; nd + 1],
             ew_sum: vec![0.0; nd + 1],
             ew_n: vec![0.0; nd + 1],
@@ -625,7 +647,6 @@ impl QnSplitter {
             arw_floor: None,
             gain: vec![0.0; jj],
             thresh: vec![f64::INFINITY; jj],
-            frame_clean_sq: vec![0.0; nd + 1],
             ew_clean_sq: vec![0.0; nd + 1],
         };
         Ok(QnSplitter {
