@@ -96,7 +96,10 @@ fn output_is_aligned_with_input() {
         .collect();
     let (clean, noise, _) = split(&raw, &QnConfig::new(1000.0), &even_blocks(n, 1000));
     let interior = 150_000..n - 40_000;
-    let err = clean[interior.clone()].iter().zip(&raw[interior.clone()]).fold(0.0f64, |m, (c, r)| m.max((c - r).abs()));
+    let err = clean[interior.clone()]
+        .iter()
+        .zip(&raw[interior.clone()])
+        .fold(0.0f64, |m, (c, r)| m.max((c - r).abs()));
     // Tolerance 1e-6 arcsec/s: the detail content of a 0.005 Hz sine is ~1e-9 of it.
     assert!(err < 1e-6, "max |clean - raw| = {err:e}");
     assert!(noise[interior].iter().all(|z| z.abs() < 1e-6));
@@ -126,15 +129,49 @@ fn chunking_invariance_is_bit_exact() {
 fn short_and_empty_streams() {
     let cfg = QnConfig::new(1000.0);
     for n in [0usize, 1, 5, 2047, 2048, 2049, 40_000] {
-        let raw: Vec<f64> = (0..n).map(|k| 12.3 + ((k * 7919) % 13) as f64 - 6.0).collect();
+        let raw: Vec<f64> = (0..n)
+            .map(|k| 12.3 + ((k * 7919) % 13) as f64 - 6.0)
+            .collect();
         let (c, z, sp) = split(&raw, &cfg, &even_blocks(n, 333));
         assert_eq!(c.len(), n, "n = {n}");
         assert_eq!(z.len(), n);
         for k in 0..n {
-            assert!((c[k] + z[k] - raw[k]).abs() <= 1e-12 * raw[k].abs().max(1.0), "n = {n}, k = {k}");
+            assert!(
+                (c[k] + z[k] - raw[k]).abs() <= 1e-12 * raw[k].abs().max(1.0),
+                "n = {n}, k = {k}"
+            );
         }
         assert_eq!(sp.samples_out(), n as u64);
     }
+}
+
+/// Non-finite samples do not poison the splitter: the bank sees the last finite
+/// sample in their place, they appear in `noise` at their own index only.
+#[test]
+fn non_finite_samples_are_contained() {
+    let g = paper(0.5, 0.001, 0.002, 91);
+    let mut raw = g.simulate(200_000).raw;
+    let bad = [60_000usize, 60_001, 123_456];
+    let mut held = raw.clone();
+    for (k, &i) in bad.iter().enumerate() {
+        raw[i] = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY][k];
+    }
+    // Ascending order: a run of bad samples all take the last good value.
+    for &i in &bad {
+        held[i] = held[i - 1];
+    }
+    let cfg = QnConfig::new(1000.0);
+    let (c_bad, z_bad, sp) = split(&raw, &cfg, &even_blocks(raw.len(), 4096));
+    let (c_ref, _, sp_ref) = split(&held, &cfg, &even_blocks(held.len(), 4096));
+    assert!(c_bad.iter().all(|c| c.is_finite()));
+    assert!(
+        c_bad == c_ref,
+        "clean must equal the run with held samples, bit for bit"
+    );
+    for (k, z) in z_bad.iter().enumerate() {
+        assert_eq!(z.is_finite(), !bad.contains(&k), "sample {k}");
+    }
+    assert_eq!(sp.level_stats(), sp_ref.level_stats());
 }
 
 struct RunResult {
@@ -176,14 +213,22 @@ fn run_case(name: &str, g: &GyroSim, hours: f64) -> RunResult {
 #[test]
 fn clean_allan_deviation_follows_arw_bi() {
     let cases = [
-        ("Q 0.35 (weak dither) N 0.001 B 0.002", paper(0.35, 0.001, 0.002, 41)),
+        (
+            "Q 0.35 (weak dither) N 0.001 B 0.002",
+            paper(0.35, 0.001, 0.002, 41),
+        ),
         ("Q 0.50 N 0.0012 B 0.003", paper(0.5, 0.0012, 0.003, 42)),
         ("Q 0.60 N 0.0010 B 0.002", paper(0.6, 0.001, 0.002, 43)),
     ];
     let results: Vec<RunResult> = cases.iter().map(|(n, g)| run_case(n, g, 4.0)).collect();
     println!("ADEV ratios at tau = {TAUS:?} s");
     for r in &results {
-        let f = |v: &[f64]| v.iter().map(|x| format!("{x:6.3}")).collect::<Vec<_>>().join(" ");
+        let f = |v: &[f64]| {
+            v.iter()
+                .map(|x| format!("{x:6.3}"))
+                .collect::<Vec<_>>()
+                .join(" ")
+        };
         println!("{:<40} clean/model {}", r.name, f(&r.clean_vs_model));
         println!("{:<40} clean/truth {}", "", f(&r.clean_vs_truth));
         println!("{:<40} raw/model   {}", "", f(&r.raw_vs_model));
@@ -193,18 +238,38 @@ fn clean_allan_deviation_follows_arw_bi() {
             if tau >= 2.0 {
                 // Requirement: within 10 % of the true ARW+BI curve.
                 let e = (r.clean_vs_model[i] - 1.0).abs();
-                assert!(e <= 0.10, "{}: clean/model at {tau} s = {:.3}", r.name, r.clean_vs_model[i]);
+                assert!(
+                    e <= 0.10,
+                    "{}: clean/model at {tau} s = {:.3}",
+                    r.name,
+                    r.clean_vs_model[i]
+                );
                 // Ours: within 5 % of this realisation's non-QN ADEV.
                 let e = (r.clean_vs_truth[i] - 1.0).abs();
-                assert!(e <= 0.05, "{}: clean/truth at {tau} s = {:.3}", r.name, r.clean_vs_truth[i]);
+                assert!(
+                    e <= 0.05,
+                    "{}: clean/truth at {tau} s = {:.3}",
+                    r.name,
+                    r.clean_vs_truth[i]
+                );
             }
             if tau == 1.0 {
                 let e = (r.clean_vs_truth[i] - 1.0).abs();
-                assert!(e <= 0.10, "{}: clean/truth at 1 s = {:.3}", r.name, r.clean_vs_truth[i]);
+                assert!(
+                    e <= 0.10,
+                    "{}: clean/truth at 1 s = {:.3}",
+                    r.name,
+                    r.clean_vs_truth[i]
+                );
             }
             if tau == 2.0 || tau == 8.0 {
                 // Requirement: raw buried under QN, > 3x the ARW+BI curve.
-                assert!(r.raw_vs_model[i] > 3.0, "{}: raw/model at {tau} s = {:.3}", r.name, r.raw_vs_model[i]);
+                assert!(
+                    r.raw_vs_model[i] > 3.0,
+                    "{}: raw/model at {tau} s = {:.3}",
+                    r.name,
+                    r.raw_vs_model[i]
+                );
             }
         }
     }
@@ -223,7 +288,11 @@ fn integral(x: &[f64], mean: f64) -> Vec<f64> {
 
 /// Standard deviation of I(t + lag) - I(t) over t.
 fn increment_sd(i: &[f64], lag: usize) -> f64 {
-    let d: Vec<f64> = i.windows(lag + 1).step_by(97).map(|w| w[lag] - w[0]).collect();
+    let d: Vec<f64> = i
+        .windows(lag + 1)
+        .step_by(97)
+        .map(|w| w[lag] - w[0])
+        .collect();
     let m = d.iter().sum::<f64>() / d.len() as f64;
     (d.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / d.len() as f64).sqrt()
 }
@@ -287,9 +356,15 @@ fn noise_integral_is_bounded() {
             }
         }
         // Bounded: no growth with lag (white angle error: sqrt(2) Q at every lag).
-        assert!((grow_noise - 1.0).abs() <= 0.15, "Q = {q}: noise integral grows x{grow_noise}");
+        assert!(
+            (grow_noise - 1.0).abs() <= 0.15,
+            "Q = {q}: noise integral grows x{grow_noise}"
+        );
         // Wanders: ARW makes the raw integral's increments grow (model x2.8-x3.8).
-        assert!(grow_raw > 2.0, "Q = {q}: raw integral grows only x{grow_raw}");
+        assert!(
+            grow_raw > 2.0,
+            "Q = {q}: raw integral grows only x{grow_raw}"
+        );
     }
 }
 
@@ -299,14 +374,24 @@ fn estimates_and_level_stats() {
     for (q, n_arw, seed) in [(0.35, 0.001, 61u64), (0.6, 0.0015, 62)] {
         let g = paper(q, n_arw, 0.002, seed);
         let run = g.simulate(1_800_000);
-        let (_, _, sp) = split(&run.raw, &QnConfig::new(1000.0), &even_blocks(run.raw.len(), 5000));
+        let (_, _, sp) = split(
+            &run.raw,
+            &QnConfig::new(1000.0),
+            &even_blocks(run.raw.len(), 5000),
+        );
         let e = sp.estimates();
         let (qi, arw) = (e.q_integral_arcsec.unwrap(), e.arw_floor_dpsh.unwrap());
-        println!("Q {q} N {n_arw}: q_integral {qi:.4}, q_white {:.4}, arw_floor {arw:.5}", e.q_white_arcsec.unwrap());
+        println!(
+            "Q {q} N {n_arw}: q_integral {qi:.4}, q_white {:.4}, arw_floor {arw:.5}",
+            e.q_white_arcsec.unwrap()
+        );
         // Q from the noise integral: 5 %.
         assert!((qi / q - 1.0).abs() <= 0.05, "q_integral {qi} vs {q}");
         // ARW from the fitted floor: 10 % (statistical scatter over 30 min ~ 4 %).
-        assert!((arw / n_arw - 1.0).abs() <= 0.10, "arw_floor {arw} vs {n_arw}");
+        assert!(
+            (arw / n_arw - 1.0).abs() <= 0.10,
+            "arw_floor {arw} vs {n_arw}"
+        );
         if q > 0.5 {
             // White-model Q from the finest level holds when the dither whitens QN.
             let qw = e.q_white_arcsec.unwrap();
@@ -325,9 +410,17 @@ fn estimates_and_level_stats() {
                 assert!((s.gain * s.gain - g2).abs() < 1e-12, "{s:?}");
             }
         }
-        assert_eq!(stats[j + EXTRA_LEVELS as usize].level, 0, "approximation last");
+        assert_eq!(
+            stats[j + EXTRA_LEVELS as usize].level,
+            0,
+            "approximation last"
+        );
         // The finest level is all QN, the deepest detail mostly ARW.
-        assert!(stats[0].gain < 0.01 && stats[j - 1].gain > 0.7, "{:?}", (stats[0], stats[j - 1]));
+        assert!(
+            stats[0].gain < 0.01 && stats[j - 1].gain > 0.7,
+            "{:?}",
+            (stats[0], stats[j - 1])
+        );
     }
 }
 
@@ -340,7 +433,9 @@ fn qn_energy_factors_are_right() {
         let k = qn_energy_factors(&w, levels);
         // Energy of a differenced unit white sequence is 2 per sample; the bank is
         // orthonormal: sum_j kappa_j / 2^j + kappa_A / 2^J = 2.
-        let total: f64 = (0..levels as usize).map(|j| k[j] / (1u64 << (j + 1)) as f64).sum::<f64>()
+        let total: f64 = (0..levels as usize)
+            .map(|j| k[j] / (1u64 << (j + 1)) as f64)
+            .sum::<f64>()
             + k[levels as usize] / (1u64 << levels) as f64;
         assert!((total - 2.0).abs() < 1e-12, "{name}: {total}");
     }
@@ -352,15 +447,18 @@ fn qn_energy_factors_are_right() {
     let e: Vec<f64> = (0..2_000_001).map(|_| rng.random::<f64>() - 0.5).collect(); // var 1/12
     let r: Vec<f64> = e.windows(2).map(|p| p[1] - p[0]).collect();
     let mut ana = StreamingAnalysis::new(&w, levels).unwrap();
-    let mut out = Default::default();
+    let mut out = sagnac::dsp::bank::AnalysisOutput::default();
     ana.push(&r, &mut out);
-    let out: sagnac::dsp::bank::AnalysisOutput = out;
-    for j in 0..levels as usize {
-        let d = &out.details[j][20..];
+    for (j, (det, kappa)) in out.details.iter().zip(&k).enumerate() {
+        let d = &det[20..];
         let v = d.iter().map(|c| c * c).sum::<f64>() / d.len() as f64;
-        let want = k[j] / 12.0;
+        let want = kappa / 12.0;
         // 2 % (level 6 has 31 k coefficients: sampling sd ~0.8 %).
-        assert!((v / want - 1.0).abs() < 0.02, "level {}: {v} vs {want}", j + 1);
+        assert!(
+            (v / want - 1.0).abs() < 0.02,
+            "level {}: {v} vs {want}",
+            j + 1
+        );
     }
 }
 
@@ -372,7 +470,10 @@ fn config_defaults_validation_and_serde() {
     assert_eq!(default_levels(100.0), 8);
     let c = QnConfig::new(1000.0);
     assert_eq!(c.resolved_levels(), 11);
-    assert_eq!((c.rule, c.qn_estimate, c.wavelet.as_str()), (QnRule::PowerSubtraction, QnEstimate::ArwFloor, "sym8"));
+    assert_eq!(
+        (c.rule, c.qn_estimate, c.wavelet.as_str()),
+        (QnRule::PowerSubtraction, QnEstimate::ArwFloor, "sym8")
+    );
     c.validate().unwrap();
 
     let bad = |f: &dyn Fn(&mut QnConfig)| {
@@ -380,18 +481,51 @@ fn config_defaults_validation_and_serde() {
         f(&mut c);
         c.validate().unwrap_err()
     };
-    assert!(matches!(bad(&|c| c.wavelet = "sym5".into()), DspError::UnknownWavelet { .. }));
+    assert!(matches!(
+        bad(&|c| c.wavelet = "sym5".into()),
+        DspError::UnknownWavelet { .. }
+    ));
     let e = bad(&|c| c.sample_rate_hz = 0.0);
     assert!(e.to_string().contains("sample_rate_hz"), "{e}");
-    assert!(matches!(bad(&|c| c.levels = Some(1)), DspError::InvalidLevels { levels: 1, .. }));
-    assert!(matches!(bad(&|c| c.levels = Some(40)), DspError::InvalidLevels { levels: 40, .. }));
-    assert!(bad(&|c| c.stats_window_s = -1.0).to_string().contains("stats_window_s"));
-    assert!(bad(&|c| c.threshold_k = f64::NAN).to_string().contains("threshold_k"));
-    assert!(bad(&|c| c.min_coeffs = 0).to_string().contains("min_coeffs"));
-    assert!(QnSplitter::new(&QnConfig { wavelet: "nope".into(), ..QnConfig::new(1000.0) }).is_err());
+    assert!(matches!(
+        bad(&|c| c.levels = Some(1)),
+        DspError::InvalidLevels { levels: 1, .. }
+    ));
+    assert!(matches!(
+        bad(&|c| c.levels = Some(40)),
+        DspError::InvalidLevels { levels: 40, .. }
+    ));
+    assert!(
+        bad(&|c| c.stats_window_s = -1.0)
+            .to_string()
+            .contains("stats_window_s")
+    );
+    assert!(
+        bad(&|c| c.threshold_k = f64::NAN)
+            .to_string()
+            .contains("threshold_k")
+    );
+    assert!(
+        bad(&|c| c.min_coeffs = 0)
+            .to_string()
+            .contains("min_coeffs")
+    );
+    assert!(
+        QnSplitter::new(&QnConfig {
+            wavelet: "nope".into(),
+            ..QnConfig::new(1000.0)
+        })
+        .is_err()
+    );
 
-    let t: QnConfig = toml::from_str("wavelet = \"db8\"\nlevels = 9\nsample_rate_hz = 400.0\nrule = \"wiener\"\n").unwrap();
-    assert_eq!((t.wavelet.as_str(), t.levels, t.rule), ("db8", Some(9), QnRule::Wiener));
+    let t: QnConfig = toml::from_str(
+        "wavelet = \"db8\"\nlevels = 9\nsample_rate_hz = 400.0\nrule = \"wiener\"\n",
+    )
+    .unwrap();
+    assert_eq!(
+        (t.wavelet.as_str(), t.levels, t.rule),
+        ("db8", Some(9), QnRule::Wiener)
+    );
     assert_eq!(t.stats_window_s, QnConfig::default().stats_window_s);
     let e = toml::from_str::<QnConfig>("wavelets = \"sym8\"\n").unwrap_err();
     assert!(e.to_string().contains("wavelets"), "{e}");
