@@ -92,7 +92,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::bank::{AnalysisOutput, CoeffHook, Fifo, MAX_LEVELS, StreamingAnalysis, StreamingBank};
+use super::bank::{AnalysisOutput, CoeffHook, Fifo, StreamingAnalysis, StreamingBank};
 use super::wavelet::Wavelet;
 use super::{DspError, Result};
 
@@ -161,13 +161,13 @@ impl Default for QnConfig {
 
 /// Default depth: the smallest J whose deepest detail band
 /// `[fs/2^(J+1), fs/2^J]` lies below about 0.5 Hz (`fs/2^J <= 0.5 Hz`, with 3 %
-/// slack), clamped to `1..=MAX_LEVELS`. 1 kHz -> 11 (0.24-0.49 Hz).
+/// slack), clamped to `2..=MAX_QN_LEVELS`. 1 kHz -> 11 (0.24-0.49 Hz).
 pub fn default_levels(sample_rate_hz: f64) -> u32 {
     let j = ((sample_rate_hz / 0.5).log2() - 0.04).ceil();
     if j.is_finite() {
-        (j.max(1.0) as u32).min(MAX_LEVELS)
+        (j.max(2.0) as u32).min(MAX_QN_LEVELS)
     } else {
-        1
+        2
     }
 }
 
@@ -197,11 +197,11 @@ impl QnConfig {
             });
         }
         let j = self.resolved_levels();
-        if !(2..=MAX_LEVELS).contains(&j) {
+        if !(2..=MAX_QN_LEVELS).contains(&j) {
             return Err(DspError::InvalidLevels {
                 levels: j,
-                max: MAX_LEVELS,
-                why: "QN splitting needs at least 2 levels (the ARW floor is fitted on the deepest ones)",
+                max: MAX_QN_LEVELS,
+                why: "QN splitting needs at least 2 levels; beyond 16 the latency and the energy-factor setup grow as 2^levels",
             });
         }
         if !(self.stats_window_s.is_finite() && self.stats_window_s > 0.0) {
@@ -485,6 +485,9 @@ impl QnHook {
 /// Largest chi^2 per degree of freedom accepted for the ARW-floor fit (generous:
 /// the weights assume Gaussian coefficients and independent frames).
 pub const FLOOR_MAX_CHI2_DOF: f64 = 6.0;
+
+/// Deepest bank the splitter accepts (at 1 kHz: deepest band 7.6 mHz, latency 16 min).
+pub const MAX_QN_LEVELS: u32 = 16;
 
 /// Levels analysed below the bank's depth J, for the ARW-floor fit only.
 pub const EXTRA_LEVELS: u32 = 2;
