@@ -1,0 +1,416 @@
+//! The streaming multi-level orthogonal wavelet filter bank.
+//!
+//! Role in the whole: [`StreamingBank`] is the engine under the QN splitter
+//! ([`super::qn`]); [`StreamingAnalysis`] is its analysis half on its own (used by
+//! tests against PyWavelets, and available to anything that wants coefficients).
+//!
+//! # Definitions, alignment, latency
+//!
+//! Level `j` (1 = finest, `J` = deepest) turns its input `a_{j-1}` (`a_0` = the
+//! signal) into `a_j[i] = sum_k dec_lo[k] a_{j-1}[2i+1-k]` and
+//! `d_j[i] = sum_k dec_hi[k] a_{j-1}[2i+1-k]`, with everything before the first
+//! sample taken as zero. This is PyWavelets' `mode='zero'` exactly, **with index
+//! offset 0**: the streaming coefficient `d_j[i]` equals
+//! `pywt.wavedec(x, w, mode='zero', level=J)[-j][i]` for every `i` pywt returns
+//! (the tail ones once the stream has been flushed with zeros), and `a_J[i]` equals
+//! `[0][i]`. Coefficient `i` of level `j` is emitted as soon as input sample
+//! `2^j (i+1) - 1` has been pushed. (`tests/dsp_pywt_golden.rs`.)
+//!
+//! Synthesis inverts each level with `rec_lo`/`rec_hi`. It runs once per *frame* of
+//! `2^J` input samples (one deepest coefficient). The detail coefficients of level
+//! `j` wait in a delay line of `S_{J-j}` coefficients, `S_k = (L-2)(2^k - 1)`, so
+//! they meet the approximation synthesised from the deeper levels. Output sample
+//! `n` (counting from 0) is the reconstruction of input sample `n`, and it is
+//! released exactly when input sample `n + latency` has been pushed:
+//!
+//! ```text
+//! latency = (L - 1) (2^J - 1) samples      (sym8, J = 10: 15345; J = 11: 30705)
+//! ```
+//!
+//! i.e. after `N` pushed samples the bank has released exactly `max(0, N - latency)`
+//! outputs, whatever the block sizes. [`StreamingBank::flush`] pushes `latency`
+//! zeros so every input sample comes out. With unmodified coefficients the output
+//! equals the input to rounding (perfect reconstruction). With coefficients
+//! modified through a [`CoeffHook`], output sample `n` equals
+//! `pywt.waverec(modified, w, mode='zero')[n]` (`tests/dsp_pywt_golden.rs`).
+//!
+//! # Cost
+//! Per input sample, about `2L` multiply-adds for analysis and `2L` for synthesis
+//! (levels shrink geometrically), no allocation after warm-up; memory is
+//! `O(L 2^J)`, independent of the record length. Blocks are processed whole per
+//! level by the vectorised kernels of `kernel`; each output value is the same
+//! sequence of floating-point operations whatever the block split, so results are
+//! bit-identical for any way of cutting the stream (tested).
+
+use super::kernel::{Isa, Taps};
+use super::wavelet::Wavelet;
+use super::{DspError, Result};
+
+/// Deepest decomposition the bank accepts (latency and memory grow as `2^J`).
+pub const MAX_LEVELS: u32 = 18;
+
+/// Receives coefficients between analysis and synthesis, and may modify them.
+///
+/// Calls come in stream order. Within one input block the bank calls `details`
+/// for levels `1..=J`, then `approx`; whenever input sample `2^J (f+1) - 1` has
+/// been analysed it calls `frame_end(f)` before synthesising that frame. A hook
+/// that derives per-level gains from statistics and updates them only in
+/// `frame_end` therefore gives results independent of the caller's block sizes.
+pub trait CoeffHook {
+    /// Detail coefficients `d_level[first .. first + d.len()]`, to inspect or modify.
+    fn details(&mut self, level: u32, first: u64, d: &mut [f64]);
+    /// Deepest approximation coefficients `a_J[first ..]`; default: untouched.
+    fn approx(&mut self, _first: u64, _a: &mut [f64]) {}
+    /// Frame `frame` (input samples `frame*2^J .. (frame+1)*2^J`) is fully analysed.
+    fn frame_end(&mut self, _frame: u64) {}
+}
+
+/// The identity hook: coefficients pass unchanged.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct NoHook;
+impl CoeffHook for NoHook {
+    fn details(&mut self, _level: u32, _first: u64, _d: &mut [f64]) {}
+}
+
+fn check_levels(levels: u32) -> Result<()> {
+    if levels == 0 || levels > MAX_LEVELS {
+        return Err(DspError::InvalidLevels {
+            levels,
+            max: MAX_LEVELS,
+            why: "latency and memory grow as 2^levels",
+        });
+    }
+    Ok(())
+}
+
+/// Coefficients produced by [`StreamingAnalysis::push`], appended per call.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct AnalysisOutput {
+    /// Deepest approximation `a_J`.
+    pub approx: Vec<f64>,
+    /// `details[j-1]` holds level `j` (index 0 = finest).
+    pub details: Vec<Vec<f64>>,
+}
+
+/// Streaming multi-level analysis (`mode='zero'` semantics; see module docs).
+#[derive(Debug, Clone)]
+pub struct StreamingAnalysis {
+    wavelet: Wavelet,
+    taps: Taps,
+    isa: Isa,
+    levels: u32,
+    /// Per level: inputs not yet consumed, starting `L-2` samples before the next
+    /// output's newest input (history included).
+    bufs: Vec<Vec<f64>>,
+    e: Vec<f64>,
+    o: Vec<f64>,
+    /// Per level: outputs of the last processed block.
+    lo: Vec<Vec<f64>>,
+    hi: Vec<Vec<f64>>,
+    /// Per level: coefficients emitted so far.
+    produced: Vec<u64>,
+    n_in: u64,
+}
+
+impl StreamingAnalysis {
+    /// A bank of `levels` analysis stages of `wavelet`, zero pre-history.
+    pub fn new(wavelet: &Wavelet, levels: u32) -> Result<Self> {
+        check_levels(levels)?;
+        let taps = Taps::new(wavelet.dec_lo(), wavelet.dec_hi(), wavelet.rec_lo(), wavelet.rec_hi());
+        let hist = wavelet.len() - 2;
+        let j = levels as usize;
+        Ok(StreamingAnalysis {
+            wavelet: wavelet.clone(),
+            taps,
+            isa: Isa::detect(),
+            levels,
+            bufs: (0..j).map(|_| vec![0.0; hist]).collect(),
+            e: Vec::new(),
+            o: Vec::new(),
+            lo: vec![Vec::new(); j],
+            hi: vec![Vec::new(); j],
+            produced: vec![0; j],
+            n_in: 0,
+        })
+    }
+
+    /// Decomposition depth J.
+    pub fn levels(&self) -> u32 {
+        self.levels
+    }
+    /// The wavelet.
+    pub fn wavelet(&self) -> &Wavelet {
+        &self.wavelet
+    }
+    /// Input samples pushed so far.
+    pub fn samples_in(&self) -> u64 {
+        self.n_in
+    }
+
+    /// Push samples; append every coefficient they complete to `out`.
+    pub fn push(&mut self, x: &[f64], out: &mut AnalysisOutput) {
+        out.details.resize(self.levels as usize, Vec::new());
+        self.process(x);
+        for j in 0..self.levels as usize {
+            out.details[j].extend_from_slice(&self.hi[j]);
+        }
+        out.approx.extend_from_slice(&self.lo[self.levels as usize - 1]);
+    }
+
+    /// Run one block through every level, leaving this block's outputs in
+    /// `self.lo[j]` / `self.hi[j]`.
+    pub(crate) fn process(&mut self, x: &[f64]) {
+        self.n_in += x.len() as u64;
+        let p = self.taps.p;
+        for j in 0..self.levels as usize {
+            let (prev, rest) = self.lo.split_at_mut(j);
+            let input: &[f64] = if j == 0 { x } else { &prev[j - 1] };
+            let buf = &mut self.bufs[j];
+            buf.extend_from_slice(input);
+            let r = (buf.len() - 2 * (p - 1)) / 2;
+            let lo = &mut rest[0];
+            let hi = &mut self.hi[j];
+            lo.clear();
+            hi.clear();
+            if r == 0 {
+                continue;
+            }
+            lo.resize(r, 0.0);
+            hi.resize(r, 0.0);
+            let q = r + p - 1;
+            self.e.clear();
+            self.o.clear();
+            self.e.extend(buf[..2 * q].chunks_exact(2).map(|c| c[0]));
+            self.o.extend(buf[..2 * q].chunks_exact(2).map(|c| c[1]));
+            self.isa.analysis(&self.taps, &self.e, &self.o, lo, hi);
+            buf.drain(..2 * r);
+            self.produced[j] += r as u64;
+        }
+    }
+
+    pub(crate) fn force_baseline(&mut self) {
+        self.isa = Isa::Baseline;
+    }
+}
+
+/// A first-in first-out queue of samples with contiguous reads.
+#[derive(Debug, Clone, Default)]
+struct Fifo {
+    buf: Vec<f64>,
+    head: usize,
+}
+
+impl Fifo {
+    fn with_zeros(n: usize) -> Fifo {
+        Fifo {
+            buf: vec![0.0; n],
+            head: 0,
+        }
+    }
+    fn len(&self) -> usize {
+        self.buf.len() - self.head
+    }
+    fn push(&mut self, x: &[f64]) {
+        if self.head > 0 && self.head >= self.buf.len() / 2 {
+            // Amortised O(1): each element is moved at most once per doubling.
+            self.buf.drain(..self.head);
+            self.head = 0;
+        }
+        self.buf.extend_from_slice(x);
+    }
+    /// Append the `n` oldest samples to `dst` and remove them.
+    fn pop_into(&mut self, n: usize, dst: &mut Vec<f64>) {
+        debug_assert!(n <= self.len());
+        dst.extend_from_slice(&self.buf[self.head..self.head + n]);
+        self.head += n;
+    }
+}
+
+#[derive(Debug, Clone)]
+struct SynLevel {
+    /// Last `P-1` approximation / detail inputs (synthesis history).
+    hu: Vec<f64>,
+    hv: Vec<f64>,
+}
+
+/// Streaming analysis + synthesis with a fixed latency (see module docs).
+#[derive(Debug, Clone)]
+pub struct StreamingBank {
+    ana: StreamingAnalysis,
+    syn: Vec<SynLevel>,
+    /// Per level `j` (index `j-1`): delayed detail coefficients.
+    delay: Vec<Fifo>,
+    /// Deepest approximation coefficients not yet synthesised.
+    apx: Fifo,
+    /// Synthesised output samples not yet released.
+    out: Fifo,
+    /// Synthesised samples that precede input sample 0 (still to drop).
+    discard: usize,
+    latency: usize,
+    frame: u64,
+    n_out: u64,
+    // scratch
+    ubuf: Vec<f64>,
+    vbuf: Vec<f64>,
+    even: Vec<f64>,
+    odd: Vec<f64>,
+    cur: Vec<f64>,
+}
+
+impl StreamingBank {
+    /// A bank of depth `levels` for `wavelet`, zero pre-history.
+    pub fn new(wavelet: &Wavelet, levels: u32) -> Result<Self> {
+        let ana = StreamingAnalysis::new(wavelet, levels)?;
+        let l = wavelet.len();
+        let p = l / 2;
+        let jj = levels as usize;
+        let s = |k: usize| (l - 2) * ((1usize << k) - 1);
+        let delay = (1..=jj).map(|j| Fifo::with_zeros(s(jj - j))).collect();
+        Ok(StreamingBank {
+            ana,
+            syn: (0..jj)
+                .map(|_| SynLevel {
+                    hu: vec![0.0; p - 1],
+                    hv: vec![0.0; p - 1],
+                })
+                .collect(),
+            delay,
+            apx: Fifo::default(),
+            out: Fifo::default(),
+            discard: s(jj),
+            latency: (l - 1) * ((1usize << jj) - 1),
+            frame: 1u64 << jj,
+            n_out: 0,
+            ubuf: Vec::new(),
+            vbuf: Vec::new(),
+            even: Vec::new(),
+            odd: Vec::new(),
+            cur: Vec::new(),
+        })
+    }
+
+    /// Fixed latency in samples: `(L-1)(2^J-1)`.
+    pub fn latency(&self) -> usize {
+        self.latency
+    }
+    /// Frame length `2^J` (synthesis granularity).
+    pub fn frame_len(&self) -> usize {
+        self.frame as usize
+    }
+    /// Decomposition depth J.
+    pub fn levels(&self) -> u32 {
+        self.ana.levels
+    }
+    /// The wavelet.
+    pub fn wavelet(&self) -> &Wavelet {
+        &self.ana.wavelet
+    }
+    /// Input samples pushed so far (including any flush zeros).
+    pub fn samples_in(&self) -> u64 {
+        self.ana.n_in
+    }
+    /// Output samples released so far.
+    pub fn samples_out(&self) -> u64 {
+        self.n_out
+    }
+
+    /// Force the portable (non-AVX2) kernels; results are bit-identical, only slower.
+    #[doc(hidden)]
+    pub fn force_baseline_kernels(&mut self) {
+        self.ana.force_baseline();
+    }
+
+    /// Push samples; append released outputs (perfect reconstruction, delayed).
+    pub fn push(&mut self, x: &[f64], out: &mut Vec<f64>) {
+        self.push_with(x, out, &mut NoHook);
+    }
+
+    /// Push samples, letting `hook` see and modify every coefficient.
+    pub fn push_with<H: CoeffHook + ?Sized>(&mut self, mut x: &[f64], out: &mut Vec<f64>, hook: &mut H) {
+        let jj = self.ana.levels as usize;
+        while !x.is_empty() {
+            let room = (self.frame - self.ana.n_in % self.frame) as usize;
+            let take = room.min(x.len());
+            let first: [u64; MAX_LEVELS as usize] = {
+                let mut f = [0u64; MAX_LEVELS as usize];
+                f[..jj].copy_from_slice(&self.ana.produced);
+                f
+            };
+            self.ana.process(&x[..take]);
+            for j in 0..jj {
+                let d = &mut self.ana.hi[j];
+                if !d.is_empty() {
+                    hook.details(j as u32 + 1, first[j], d);
+                    self.delay[j].push(d);
+                }
+            }
+            let a = &mut self.ana.lo[jj - 1];
+            if !a.is_empty() {
+                hook.approx(first[jj - 1], a);
+                self.apx.push(a);
+            }
+            if self.ana.n_in % self.frame == 0 {
+                hook.frame_end(self.ana.n_in / self.frame - 1);
+                self.synthesize_frame();
+            }
+            x = &x[take..];
+        }
+        self.release(out);
+    }
+
+    /// Push `latency()` zeros so that every real input sample is released.
+    pub fn flush(&mut self, out: &mut Vec<f64>) {
+        self.flush_with(out, &mut NoHook);
+    }
+
+    /// [`StreamingBank::flush`] with a hook.
+    pub fn flush_with<H: CoeffHook + ?Sized>(&mut self, out: &mut Vec<f64>, hook: &mut H) {
+        let zeros = vec![0.0; self.frame as usize];
+        let mut left = self.latency;
+        while left > 0 {
+            let n = left.min(zeros.len());
+            self.push_with(&zeros[..n], out, hook);
+            left -= n;
+        }
+    }
+
+    fn synthesize_frame(&mut self) {
+        let jj = self.ana.levels as usize;
+        let taps = &self.ana.taps;
+        let isa = self.ana.isa;
+        let h = taps.p - 1;
+        self.cur.clear();
+        self.apx.pop_into(1, &mut self.cur);
+        for j in (0..jj).rev() {
+            let m = self.cur.len();
+            let st = &mut self.syn[j];
+            self.ubuf.clear();
+            self.ubuf.extend_from_slice(&st.hu);
+            self.ubuf.extend_from_slice(&self.cur);
+            self.vbuf.clear();
+            self.vbuf.extend_from_slice(&st.hv);
+            self.delay[j].pop_into(m, &mut self.vbuf);
+            self.even.resize(m, 0.0);
+            self.odd.resize(m, 0.0);
+            isa.synthesis(taps, &self.ubuf, &self.vbuf, &mut self.even, &mut self.odd);
+            st.hu.copy_from_slice(&self.ubuf[m..m + h]);
+            st.hv.copy_from_slice(&self.vbuf[m..m + h]);
+            self.cur.clear();
+            for (&a, &b) in self.even.iter().zip(&self.odd) {
+                self.cur.push(a);
+                self.cur.push(b);
+            }
+        }
+        let skip = self.discard.min(self.cur.len());
+        self.discard -= skip;
+        self.out.push(&self.cur[skip..]);
+    }
+
+    fn release(&mut self, out: &mut Vec<f64>) {
+        let target = self.ana.n_in.saturating_sub(self.latency as u64);
+        let n = (target - self.n_out) as usize;
+        debug_assert!(n <= self.out.len(), "bank released {n} > {} available", self.out.len());
+        self.out.pop_into(n, out);
+        self.n_out = target;
+    }
+}

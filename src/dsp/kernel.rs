@@ -1,0 +1,191 @@
+//! Block kernels of the streaming bank: one analysis step (filter + decimate, both
+//! channels) and one synthesis step (upsample + filter, both channels), written
+//! polyphase so the loops run over output index with unit stride and a fixed,
+//! compile-time number of taps per phase (P = L/2: 1, 4 or 8), which LLVM unrolls
+//! and vectorises across outputs.
+//!
+//! Role in the whole: the hot path of [`super::bank`]. The same Rust source is
+//! compiled twice, once for the baseline target and once with AVX2 enabled, and
+//! picked at run time. Floating-point results are bit-identical between the two:
+//! each output is the same sequence of IEEE multiplies and adds in the same order
+//! (Rust never contracts `a * b + c` into an FMA), only more lanes run at once.
+//! That also makes every output independent of how the stream was cut into blocks.
+
+/// Filter taps rearranged by phase for the kernels. For analysis,
+/// `c[r] = sum_u (ao[u] * O[r+u] + ae[u] * E[r+u])` where `E[q] = x[2q]`,
+/// `O[q] = x[2q+1]` of the level's input buffer; for synthesis,
+/// `z[2i] = sum_u (se_lo[u] U[i+u] + se_hi[u] V[i+u])` and
+/// `z[2i+1] = sum_u (so_lo[u] U[i+u] + so_hi[u] V[i+u])`.
+#[derive(Debug, Clone)]
+pub(crate) struct Taps {
+    pub p: usize,
+    pub ao_lo: [f64; 8],
+    pub ae_lo: [f64; 8],
+    pub ao_hi: [f64; 8],
+    pub ae_hi: [f64; 8],
+    pub se_lo: [f64; 8],
+    pub so_lo: [f64; 8],
+    pub se_hi: [f64; 8],
+    pub so_hi: [f64; 8],
+}
+
+impl Taps {
+    pub fn new(dec_lo: &[f64], dec_hi: &[f64], rec_lo: &[f64], rec_hi: &[f64]) -> Taps {
+        let l = dec_lo.len();
+        assert!(l % 2 == 0 && l <= 16, "filter length {l} not supported");
+        let p = l / 2;
+        let h = p - 1;
+        let mut t = Taps {
+            p,
+            ao_lo: [0.0; 8],
+            ae_lo: [0.0; 8],
+            ao_hi: [0.0; 8],
+            ae_hi: [0.0; 8],
+            se_lo: [0.0; 8],
+            so_lo: [0.0; 8],
+            se_hi: [0.0; 8],
+            so_hi: [0.0; 8],
+        };
+        for u in 0..p {
+            // c[r] = sum_k h[k] x[2r + L-1 - k] over the buffer: k = 2(H-u) hits
+            // O[r+u], k = 2(H-u)+1 hits E[r+u].
+            t.ao_lo[u] = dec_lo[2 * (h - u)];
+            t.ae_lo[u] = dec_lo[2 * (h - u) + 1];
+            t.ao_hi[u] = dec_hi[2 * (h - u)];
+            t.ae_hi[u] = dec_hi[2 * (h - u) + 1];
+            // z[2i] = sum_t g[2t] u[i-t]; with H history samples in front, u[i-t] =
+            // U[i + H - t] = U[i + u] for t = H - u.
+            t.se_lo[u] = rec_lo[2 * (h - u)];
+            t.so_lo[u] = rec_lo[2 * (h - u) + 1];
+            t.se_hi[u] = rec_hi[2 * (h - u)];
+            t.so_hi[u] = rec_hi[2 * (h - u) + 1];
+        }
+        t
+    }
+}
+
+#[inline(always)]
+fn arr<const P: usize>(a: &[f64; 8]) -> [f64; P] {
+    let mut o = [0.0; P];
+    o.copy_from_slice(&a[..P]);
+    o
+}
+
+/// Analysis over deinterleaved input: `e`, `o` have `n + P - 1` samples each;
+/// writes `n` low-pass and `n` high-pass outputs.
+#[inline(always)]
+fn analysis_impl<const P: usize>(t: &Taps, e: &[f64], o: &[f64], lo: &mut [f64], hi: &mut [f64]) {
+    let n = lo.len();
+    let (ao_lo, ae_lo, ao_hi, ae_hi) = (arr::<P>(&t.ao_lo), arr::<P>(&t.ae_lo), arr::<P>(&t.ao_hi), arr::<P>(&t.ae_hi));
+    let e = &e[..n + P - 1];
+    let o = &o[..n + P - 1];
+    let hi = &mut hi[..n];
+    for r in 0..n {
+        let (mut a0, mut a1, mut b0, mut b1) = (0.0, 0.0, 0.0, 0.0);
+        for u in 0..P {
+            let (ou, eu) = (o[r + u], e[r + u]);
+            a0 += ao_lo[u] * ou;
+            a1 += ae_lo[u] * eu;
+            b0 += ao_hi[u] * ou;
+            b1 += ae_hi[u] * eu;
+        }
+        lo[r] = a0 + a1;
+        hi[r] = b0 + b1;
+    }
+}
+
+/// Synthesis: `u`, `v` have `n + P - 1` samples (P-1 history first); writes `2n`
+/// samples to `even`/`odd` halves (`even[i] = z[2i]`, `odd[i] = z[2i+1]`).
+#[inline(always)]
+fn synthesis_impl<const P: usize>(t: &Taps, u: &[f64], v: &[f64], even: &mut [f64], odd: &mut [f64]) {
+    let n = even.len();
+    let (se_lo, so_lo, se_hi, so_hi) = (arr::<P>(&t.se_lo), arr::<P>(&t.so_lo), arr::<P>(&t.se_hi), arr::<P>(&t.so_hi));
+    let u = &u[..n + P - 1];
+    let v = &v[..n + P - 1];
+    let odd = &mut odd[..n];
+    for i in 0..n {
+        let (mut a0, mut a1, mut b0, mut b1) = (0.0, 0.0, 0.0, 0.0);
+        for k in 0..P {
+            let (uk, vk) = (u[i + k], v[i + k]);
+            a0 += se_lo[k] * uk;
+            a1 += se_hi[k] * vk;
+            b0 += so_lo[k] * uk;
+            b1 += so_hi[k] * vk;
+        }
+        even[i] = a0 + a1;
+        odd[i] = b0 + b1;
+    }
+}
+
+macro_rules! dispatch_p {
+    ($p:expr, $f:ident, $($args:expr),*) => {
+        match $p {
+            1 => $f::<1>($($args),*),
+            2 => $f::<2>($($args),*),
+            3 => $f::<3>($($args),*),
+            4 => $f::<4>($($args),*),
+            5 => $f::<5>($($args),*),
+            6 => $f::<6>($($args),*),
+            7 => $f::<7>($($args),*),
+            8 => $f::<8>($($args),*),
+            _ => unreachable!("taps per phase {} not supported", $p),
+        }
+    };
+}
+
+fn analysis_base(t: &Taps, e: &[f64], o: &[f64], lo: &mut [f64], hi: &mut [f64]) {
+    dispatch_p!(t.p, analysis_impl, t, e, o, lo, hi)
+}
+fn synthesis_base(t: &Taps, u: &[f64], v: &[f64], even: &mut [f64], odd: &mut [f64]) {
+    dispatch_p!(t.p, synthesis_impl, t, u, v, even, odd)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn analysis_avx2(t: &Taps, e: &[f64], o: &[f64], lo: &mut [f64], hi: &mut [f64]) {
+    dispatch_p!(t.p, analysis_impl, t, e, o, lo, hi)
+}
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn synthesis_avx2(t: &Taps, u: &[f64], v: &[f64], even: &mut [f64], odd: &mut [f64]) {
+    dispatch_p!(t.p, synthesis_impl, t, u, v, even, odd)
+}
+
+/// Which compiled variant of the kernels to run (chosen once per bank).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Isa {
+    Baseline,
+    #[cfg(target_arch = "x86_64")]
+    Avx2,
+}
+
+impl Isa {
+    /// The best variant this CPU runs.
+    pub fn detect() -> Isa {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            return Isa::Avx2;
+        }
+        Isa::Baseline
+    }
+
+    #[inline]
+    pub fn analysis(self, t: &Taps, e: &[f64], o: &[f64], lo: &mut [f64], hi: &mut [f64]) {
+        match self {
+            Isa::Baseline => analysis_base(t, e, o, lo, hi),
+            // SAFETY: `Avx2` is only constructed after `is_x86_feature_detected!("avx2")`.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 => unsafe { analysis_avx2(t, e, o, lo, hi) },
+        }
+    }
+
+    #[inline]
+    pub fn synthesis(self, t: &Taps, u: &[f64], v: &[f64], even: &mut [f64], odd: &mut [f64]) {
+        match self {
+            Isa::Baseline => synthesis_base(t, u, v, even, odd),
+            // SAFETY: as above.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 => unsafe { synthesis_avx2(t, u, v, even, odd) },
+        }
+    }
+}
