@@ -26,7 +26,6 @@ pub mod batch;
 pub mod edf;
 pub mod noise_id;
 pub mod streaming;
-// `pub mod streaming;` (the octave accumulators) is added when that engine is merged.
 
 pub use batch::{AllanOptions, all_tau_progression, compute, compute_at, deviation, max_m, tau_ms};
 pub use edf::{chi2_interval, edf_for_stat, edf_greenhall, edf_simple, edf_totdev};

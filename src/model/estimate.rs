@@ -40,6 +40,24 @@ pub struct AllanObs {
     pub n_phase: u64,
     /// Allan variance, (arcsec/s)^2.
     pub avar: f64,
+    /// Distance between the starts of successive terms (1 = full overlap).
+    pub stride: u64,
+    /// Number of second-difference terms.
+    pub n_terms: u64,
+}
+
+impl AllanObs {
+    /// EDF of this point for noise exponent `alpha`: Greenhall's algorithm for
+    /// full overlap, the strided-estimator EDF otherwise.
+    pub fn edf(&self, alpha: i32) -> f64 {
+        let e = if self.stride <= 1 {
+            crate::allan::edf_greenhall(alpha, 2, self.m, self.n_phase, true, false)
+        } else {
+            crate::allan::streaming::edf_strided(alpha, self.m, self.stride, self.n_terms)
+                .unwrap_or_else(|_| crate::allan::edf_simple(alpha, self.m, self.n_phase))
+        };
+        if e.is_finite() { e.max(1.0) } else { 1.0 }
+    }
 }
 
 /// Streaming least-squares slope of the rate against time (Welford updates).
@@ -145,26 +163,6 @@ pub fn standard_terms(n_samples: u64, tau0_s: f64) -> [SpectralTerm; 4] {
     ]
 }
 
-/// EDF of an overlapping Allan variance (NIST SP 1065, Table 5 approximations)
-/// for noise exponent `alpha`, averaging factor `m`, `n` phase points.
-pub fn oadev_edf_approx(alpha: i32, m: u64, n: u64) -> f64 {
-    let (m, n) = (m as f64, n as f64);
-    let e = match alpha {
-        2 => (n + 1.0) * (n - 2.0 * m) / (2.0 * (n - m)),
-        1 => (((n - 1.0) / (2.0 * m)).ln() * ((2.0 * m + 1.0) * (n - 1.0) / 4.0).ln()).sqrt().exp(),
-        0 => (3.0 * (n - 1.0) / (2.0 * m) - 2.0 * (n - 2.0) / n) * 4.0 * m * m / (4.0 * m * m + 5.0),
-        -1 => {
-            if m <= 1.0 {
-                2.0 * (n - 2.0) / (2.3 * n - 4.9)
-            } else {
-                5.0 * n * n / (4.0 * m * (n + 3.0 * m))
-            }
-        }
-        _ => (n - 2.0) / m * ((n - 1.0).powi(2) - 3.0 * m * (n - 1.0) + 4.0 * m * m) / (n - 3.0).powi(2),
-    };
-    if e.is_finite() { e.max(1.0) } else { 1.0 }
-}
-
 /// Run the estimator.
 ///
 /// 1. Quantization, read from the noise component as the paper does, made
@@ -233,7 +231,7 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         for a in &allan {
             phi.push(terms.iter().map(|t| t.allan_var(a.m, tau0)).collect());
             y.push(a.avar);
-            edf0.push(oadev_edf_approx(0, a.m, a.n_phase));
+            edf0.push(a.edf(0));
         }
         let nl = levels.len();
         let edf = |j: usize, theta: &[f64]| -> f64 {
@@ -247,7 +245,7 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
                         (theta[p] * phi[j][p]).partial_cmp(&(theta[q] * phi[j][q])).unwrap_or(std::cmp::Ordering::Equal)
                     })
                     .unwrap_or(1);
-                oadev_edf_approx(terms[dom].alpha_at(tau), a.m, a.n_phase)
+                a.edf(terms[dom].alpha_at(tau))
             }
         };
         let mut o = *opts;
