@@ -92,6 +92,13 @@ pub struct AnalysisOutput {
     pub details: Vec<Vec<f64>>,
 }
 
+#[derive(Debug, Clone)]
+struct AnaLevel {
+    e: Vec<f64>,
+    o: Vec<f64>,
+    pending: Option<f64>,
+}
+
 /// Streaming multi-level analysis (`mode='zero'` semantics; see module docs).
 #[derive(Debug, Clone)]
 pub struct StreamingAnalysis {
@@ -99,11 +106,9 @@ pub struct StreamingAnalysis {
     taps: Taps,
     isa: Isa,
     levels: u32,
-    /// Per level: inputs not yet consumed, starting `L-2` samples before the next
-    /// output's newest input (history included).
-    bufs: Vec<Vec<f64>>,
-    e: Vec<f64>,
-    o: Vec<f64>,
+    /// Per level: the input deinterleaved (`e[q] = x[2q]`, `o[q] = x[2q+1]`), the
+    /// first `P-1` entries being history, plus an unpaired trailing sample.
+    st: Vec<AnaLevel>,
     /// Per level: outputs of the last processed block.
     lo: Vec<Vec<f64>>,
     hi: Vec<Vec<f64>>,
@@ -117,16 +122,20 @@ impl StreamingAnalysis {
     pub fn new(wavelet: &Wavelet, levels: u32) -> Result<Self> {
         check_levels(levels)?;
         let taps = Taps::new(wavelet.dec_lo(), wavelet.dec_hi(), wavelet.rec_lo(), wavelet.rec_hi());
-        let hist = wavelet.len() - 2;
+        let hist = wavelet.len() / 2 - 1;
         let j = levels as usize;
         Ok(StreamingAnalysis {
             wavelet: wavelet.clone(),
             taps,
             isa: Isa::detect(),
             levels,
-            bufs: (0..j).map(|_| vec![0.0; hist]).collect(),
-            e: Vec::new(),
-            o: Vec::new(),
+            st: (0..j)
+                .map(|_| AnaLevel {
+                    e: vec![0.0; hist],
+                    o: vec![0.0; hist],
+                    pending: None,
+                })
+                .collect(),
             lo: vec![Vec::new(); j],
             hi: vec![Vec::new(); j],
             produced: vec![0; j],
@@ -146,6 +155,10 @@ impl StreamingAnalysis {
     pub fn samples_in(&self) -> u64 {
         self.n_in
     }
+    /// Coefficients emitted so far by level `j` (0-based: 0 = finest level).
+    pub fn produced(&self, j: usize) -> u64 {
+        self.produced[j]
+    }
 
     /// Push samples; append every coefficient they complete to `out`.
     pub fn push(&mut self, x: &[f64], out: &mut AnalysisOutput) {
@@ -161,13 +174,32 @@ impl StreamingAnalysis {
     /// `self.lo[j]` / `self.hi[j]`.
     pub(crate) fn process(&mut self, x: &[f64]) {
         self.n_in += x.len() as u64;
-        let p = self.taps.p;
+        let h = self.taps.p - 1;
         for j in 0..self.levels as usize {
             let (prev, rest) = self.lo.split_at_mut(j);
-            let input: &[f64] = if j == 0 { x } else { &prev[j - 1] };
-            let buf = &mut self.bufs[j];
-            buf.extend_from_slice(input);
-            let r = (buf.len() - 2 * (p - 1)) / 2;
+            let mut input: &[f64] = if j == 0 { x } else { &prev[j - 1] };
+            let st = &mut self.st[j];
+            if let Some(first) = st.pending {
+                if let Some((&x1, tail)) = input.split_first() {
+                    st.e.push(first);
+                    st.o.push(x1);
+                    st.pending = None;
+                    input = tail;
+                }
+            }
+            let np = input.len() / 2;
+            if input.len() % 2 == 1 {
+                st.pending = Some(input[input.len() - 1]);
+            }
+            let base = st.e.len();
+            st.e.resize(base + np, 0.0);
+            st.o.resize(base + np, 0.0);
+            let (e, o) = (&mut st.e[base..base + np], &mut st.o[base..base + np]);
+            for (i, pair) in input[..2 * np].chunks_exact(2).enumerate() {
+                e[i] = pair[0];
+                o[i] = pair[1];
+            }
+            let r = st.e.len() - h;
             let lo = &mut rest[0];
             let hi = &mut self.hi[j];
             lo.clear();
@@ -177,13 +209,11 @@ impl StreamingAnalysis {
             }
             lo.resize(r, 0.0);
             hi.resize(r, 0.0);
-            let q = r + p - 1;
-            self.e.clear();
-            self.o.clear();
-            self.e.extend(buf[..2 * q].chunks_exact(2).map(|c| c[0]));
-            self.o.extend(buf[..2 * q].chunks_exact(2).map(|c| c[1]));
-            self.isa.analysis(&self.taps, &self.e, &self.o, lo, hi);
-            buf.drain(..2 * r);
+            self.isa.analysis(&self.taps, &st.e, &st.o, lo, hi);
+            st.e.copy_within(r.., 0);
+            st.e.truncate(h);
+            st.o.copy_within(r.., 0);
+            st.o.truncate(h);
             self.produced[j] += r as u64;
         }
     }
@@ -195,27 +225,38 @@ impl StreamingAnalysis {
 
 /// A first-in first-out queue of samples with contiguous reads.
 #[derive(Debug, Clone, Default)]
-struct Fifo {
+pub(crate) struct Fifo {
     buf: Vec<f64>,
     head: usize,
 }
 
 impl Fifo {
-    fn with_zeros(n: usize) -> Fifo {
-        Fifo {
-            buf: vec![0.0; n],
-            head: 0,
-        }
-    }
-    fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         self.buf.len() - self.head
     }
-    fn push(&mut self, x: &[f64]) {
+    /// The live samples, oldest first.
+    pub(crate) fn as_slice(&self) -> &[f64] {
+        &self.buf[self.head..]
+    }
+    /// Remove the `n` oldest samples.
+    pub(crate) fn advance(&mut self, n: usize) {
+        assert!(n <= self.len(), "Fifo::advance past the end");
+        self.head += n;
+    }
+    pub(crate) fn capacity(&self) -> usize {
+        self.buf.capacity()
+    }
+    /// Drop the consumed front once it is at least half the buffer: amortised O(1)
+    /// per element, and the buffer stays within twice the live length.
+    fn compact(&mut self) {
         if self.head > 0 && self.head >= self.buf.len() / 2 {
-            // Amortised O(1): each element is moved at most once per doubling.
-            self.buf.drain(..self.head);
+            self.buf.copy_within(self.head.., 0);
+            self.buf.truncate(self.buf.len() - self.head);
             self.head = 0;
         }
+    }
+    pub(crate) fn push(&mut self, x: &[f64]) {
+        self.compact();
         self.buf.extend_from_slice(x);
     }
     /// Append the `n` oldest samples to `dst` and remove them.
@@ -226,20 +267,52 @@ impl Fifo {
     }
 }
 
+/// A delay line that keeps the `h` samples read last in front of the read
+/// position, so a synthesis window `[h history | m new]` is one contiguous slice.
 #[derive(Debug, Clone)]
-struct SynLevel {
-    /// Last `P-1` approximation / detail inputs (synthesis history).
-    hu: Vec<f64>,
-    hv: Vec<f64>,
+struct DelayLine {
+    buf: Vec<f64>,
+    head: usize,
+    h: usize,
+}
+
+impl DelayLine {
+    fn new(h: usize, delay: usize) -> DelayLine {
+        DelayLine {
+            buf: vec![0.0; h + delay],
+            head: h,
+            h,
+        }
+    }
+    fn push(&mut self, x: &[f64]) {
+        let dead = self.head - self.h;
+        if dead > 0 && dead >= self.buf.len() / 2 {
+            self.buf.copy_within(dead.., 0);
+            self.buf.truncate(self.buf.len() - dead);
+            self.head = self.h;
+        }
+        self.buf.extend_from_slice(x);
+    }
+    /// `[h samples read last | next m]`; advances the read position by `m`.
+    fn window(&mut self, m: usize) -> &[f64] {
+        let w = &self.buf[self.head - self.h..self.head + m];
+        self.head += m;
+        w
+    }
+    fn capacity(&self) -> usize {
+        self.buf.capacity()
+    }
 }
 
 /// Streaming analysis + synthesis with a fixed latency (see module docs).
 #[derive(Debug, Clone)]
 pub struct StreamingBank {
     ana: StreamingAnalysis,
-    syn: Vec<SynLevel>,
+    /// Per level `j` (index `j-1`): synthesis approximation input,
+    /// `[P-1 history | this frame's 2^(J-j) samples]`.
+    ubuf: Vec<Vec<f64>>,
     /// Per level `j` (index `j-1`): delayed detail coefficients.
-    delay: Vec<Fifo>,
+    delay: Vec<DelayLine>,
     /// Deepest approximation coefficients not yet synthesised.
     apx: Fifo,
     /// Synthesised output samples not yet released.
@@ -249,12 +322,6 @@ pub struct StreamingBank {
     latency: usize,
     frame: u64,
     n_out: u64,
-    // scratch
-    ubuf: Vec<f64>,
-    vbuf: Vec<f64>,
-    even: Vec<f64>,
-    odd: Vec<f64>,
-    cur: Vec<f64>,
 }
 
 impl StreamingBank {
@@ -265,15 +332,10 @@ impl StreamingBank {
         let p = l / 2;
         let jj = levels as usize;
         let s = |k: usize| (l - 2) * ((1usize << k) - 1);
-        let delay = (1..=jj).map(|j| Fifo::with_zeros(s(jj - j))).collect();
+        let delay = (1..=jj).map(|j| DelayLine::new(p - 1, s(jj - j))).collect();
         Ok(StreamingBank {
             ana,
-            syn: (0..jj)
-                .map(|_| SynLevel {
-                    hu: vec![0.0; p - 1],
-                    hv: vec![0.0; p - 1],
-                })
-                .collect(),
+            ubuf: (0..jj).map(|_| vec![0.0; p - 1]).collect(),
             delay,
             apx: Fifo::default(),
             out: Fifo::default(),
@@ -281,11 +343,6 @@ impl StreamingBank {
             latency: (l - 1) * ((1usize << jj) - 1),
             frame: 1u64 << jj,
             n_out: 0,
-            ubuf: Vec::new(),
-            vbuf: Vec::new(),
-            even: Vec::new(),
-            odd: Vec::new(),
-            cur: Vec::new(),
         })
     }
 
@@ -312,6 +369,19 @@ impl StreamingBank {
     /// Output samples released so far.
     pub fn samples_out(&self) -> u64 {
         self.n_out
+    }
+
+    /// Total capacity, in f64 values, of every internal buffer: the bank's memory.
+    /// Bounded by `O(L 2^J)` whatever the record length (tested).
+    #[doc(hidden)]
+    pub fn state_capacity(&self) -> usize {
+        let a = &self.ana;
+        let ana: usize = a.st.iter().map(|s| s.e.capacity() + s.o.capacity()).sum::<usize>()
+            + a.lo.iter().chain(&a.hi).map(Vec::capacity).sum::<usize>();
+        ana + self.ubuf.iter().map(Vec::capacity).sum::<usize>()
+            + self.delay.iter().map(DelayLine::capacity).sum::<usize>()
+            + self.apx.capacity()
+            + self.out.capacity()
     }
 
     /// Force the portable (non-AVX2) kernels; results are bit-identical, only slower.
@@ -379,31 +449,25 @@ impl StreamingBank {
         let taps = &self.ana.taps;
         let isa = self.ana.isa;
         let h = taps.p - 1;
-        self.cur.clear();
-        self.apx.pop_into(1, &mut self.cur);
+        self.out.compact();
+        self.apx.pop_into(1, &mut self.ubuf[jj - 1]);
         for j in (0..jj).rev() {
-            let m = self.cur.len();
-            let st = &mut self.syn[j];
-            self.ubuf.clear();
-            self.ubuf.extend_from_slice(&st.hu);
-            self.ubuf.extend_from_slice(&self.cur);
-            self.vbuf.clear();
-            self.vbuf.extend_from_slice(&st.hv);
-            self.delay[j].pop_into(m, &mut self.vbuf);
-            self.even.resize(m, 0.0);
-            self.odd.resize(m, 0.0);
-            isa.synthesis(taps, &self.ubuf, &self.vbuf, &mut self.even, &mut self.odd);
-            st.hu.copy_from_slice(&self.ubuf[m..m + h]);
-            st.hv.copy_from_slice(&self.vbuf[m..m + h]);
-            self.cur.clear();
-            for (&a, &b) in self.even.iter().zip(&self.odd) {
-                self.cur.push(a);
-                self.cur.push(b);
-            }
+            let (lower, upper) = self.ubuf.split_at_mut(j);
+            let u = &mut upper[0];
+            let m = u.len() - h;
+            let v = self.delay[j].window(m);
+            // Level j+1 reconstructs 2m samples of a_j: into the next finer level's
+            // input buffer, or, for level 1, straight into the output queue.
+            let dst: &mut Vec<f64> = if j > 0 { &mut lower[j - 1] } else { &mut self.out.buf };
+            let start = dst.len();
+            dst.resize(start + 2 * m, 0.0);
+            isa.synthesis(taps, u, v, &mut dst[start..]);
+            u.copy_within(m.., 0);
+            u.truncate(h);
         }
-        let skip = self.discard.min(self.cur.len());
+        let skip = self.discard.min(self.out.len());
         self.discard -= skip;
-        self.out.push(&self.cur[skip..]);
+        self.out.head += skip;
     }
 
     fn release(&mut self, out: &mut Vec<f64>) {

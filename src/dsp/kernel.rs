@@ -72,7 +72,9 @@ fn arr<const P: usize>(a: &[f64; 8]) -> [f64; P] {
 }
 
 /// Analysis over deinterleaved input: `e`, `o` have `n + P - 1` samples each;
-/// writes `n` low-pass and `n` high-pass outputs.
+/// writes `n` low-pass and `n` high-pass outputs. Per output:
+/// `lo = (ao[0] o[r] (+) ao[u] o[r+u] ...) + (ae[0] e[r] (+) ae[u] e[r+u] ...)`,
+/// where `(+)` is a fused multiply-add, taken in `u` order.
 #[inline(always)]
 fn analysis_impl<const P: usize>(t: &Taps, e: &[f64], o: &[f64], lo: &mut [f64], hi: &mut [f64]) {
     let n = lo.len();
@@ -81,39 +83,42 @@ fn analysis_impl<const P: usize>(t: &Taps, e: &[f64], o: &[f64], lo: &mut [f64],
     let o = &o[..n + P - 1];
     let hi = &mut hi[..n];
     for r in 0..n {
-        let (mut a0, mut a1, mut b0, mut b1) = (0.0, 0.0, 0.0, 0.0);
-        for u in 0..P {
+        let (o0, e0) = (o[r], e[r]);
+        let (mut a0, mut a1, mut b0, mut b1) = (ao_lo[0] * o0, ae_lo[0] * e0, ao_hi[0] * o0, ae_hi[0] * e0);
+        for u in 1..P {
             let (ou, eu) = (o[r + u], e[r + u]);
-            a0 += ao_lo[u] * ou;
-            a1 += ae_lo[u] * eu;
-            b0 += ao_hi[u] * ou;
-            b1 += ae_hi[u] * eu;
+            a0 = ao_lo[u].mul_add(ou, a0);
+            a1 = ae_lo[u].mul_add(eu, a1);
+            b0 = ao_hi[u].mul_add(ou, b0);
+            b1 = ae_hi[u].mul_add(eu, b1);
         }
         lo[r] = a0 + a1;
         hi[r] = b0 + b1;
     }
 }
 
-/// Synthesis: `u`, `v` have `n + P - 1` samples (P-1 history first); writes `2n`
-/// samples to `even`/`odd` halves (`even[i] = z[2i]`, `odd[i] = z[2i+1]`).
+/// Synthesis: `u`, `v` have `n + P - 1` samples (P-1 history first); writes the
+/// `2n` samples `out[2i] = z[2i]`, `out[2i+1] = z[2i+1]`, with
+/// `z[2i] = (se_lo[0] u[i] (+) se_lo[k] u[i+k] ...) + (se_hi[0] v[i] (+) ...)`,
+/// fused multiply-adds in `k` order (odd outputs likewise with `so_*`).
 #[inline(always)]
-fn synthesis_impl<const P: usize>(t: &Taps, u: &[f64], v: &[f64], even: &mut [f64], odd: &mut [f64]) {
-    let n = even.len();
+fn synthesis_impl<const P: usize>(t: &Taps, u: &[f64], v: &[f64], out: &mut [f64]) {
+    let n = out.len() / 2;
     let (se_lo, so_lo, se_hi, so_hi) = (arr::<P>(&t.se_lo), arr::<P>(&t.so_lo), arr::<P>(&t.se_hi), arr::<P>(&t.so_hi));
     let u = &u[..n + P - 1];
     let v = &v[..n + P - 1];
-    let odd = &mut odd[..n];
-    for i in 0..n {
-        let (mut a0, mut a1, mut b0, mut b1) = (0.0, 0.0, 0.0, 0.0);
-        for k in 0..P {
+    for (i, pair) in out.chunks_exact_mut(2).enumerate() {
+        let (u0, v0) = (u[i], v[i]);
+        let (mut a0, mut a1, mut b0, mut b1) = (se_lo[0] * u0, se_hi[0] * v0, so_lo[0] * u0, so_hi[0] * v0);
+        for k in 1..P {
             let (uk, vk) = (u[i + k], v[i + k]);
-            a0 += se_lo[k] * uk;
-            a1 += se_hi[k] * vk;
-            b0 += so_lo[k] * uk;
-            b1 += so_hi[k] * vk;
+            a0 = se_lo[k].mul_add(uk, a0);
+            a1 = se_hi[k].mul_add(vk, a1);
+            b0 = so_lo[k].mul_add(uk, b0);
+            b1 = so_hi[k].mul_add(vk, b1);
         }
-        even[i] = a0 + a1;
-        odd[i] = b0 + b1;
+        pair[0] = a0 + a1;
+        pair[1] = b0 + b1;
     }
 }
 
@@ -136,19 +141,19 @@ macro_rules! dispatch_p {
 fn analysis_base(t: &Taps, e: &[f64], o: &[f64], lo: &mut [f64], hi: &mut [f64]) {
     dispatch_p!(t.p, analysis_impl, t, e, o, lo, hi)
 }
-fn synthesis_base(t: &Taps, u: &[f64], v: &[f64], even: &mut [f64], odd: &mut [f64]) {
-    dispatch_p!(t.p, synthesis_impl, t, u, v, even, odd)
+fn synthesis_base(t: &Taps, u: &[f64], v: &[f64], out: &mut [f64]) {
+    dispatch_p!(t.p, synthesis_impl, t, u, v, out)
 }
 
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 fn analysis_avx2(t: &Taps, e: &[f64], o: &[f64], lo: &mut [f64], hi: &mut [f64]) {
     dispatch_p!(t.p, analysis_impl, t, e, o, lo, hi)
 }
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn synthesis_avx2(t: &Taps, u: &[f64], v: &[f64], even: &mut [f64], odd: &mut [f64]) {
-    dispatch_p!(t.p, synthesis_impl, t, u, v, even, odd)
+#[target_feature(enable = "avx2,fma")]
+fn synthesis_avx2(t: &Taps, u: &[f64], v: &[f64], out: &mut [f64]) {
+    dispatch_p!(t.p, synthesis_impl, t, u, v, out)
 }
 
 /// Which compiled variant of the kernels to run (chosen once per bank).
@@ -163,7 +168,7 @@ impl Isa {
     /// The best variant this CPU runs.
     pub fn detect() -> Isa {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
             return Isa::Avx2;
         }
         Isa::Baseline
@@ -180,12 +185,12 @@ impl Isa {
     }
 
     #[inline]
-    pub fn synthesis(self, t: &Taps, u: &[f64], v: &[f64], even: &mut [f64], odd: &mut [f64]) {
+    pub fn synthesis(self, t: &Taps, u: &[f64], v: &[f64], out: &mut [f64]) {
         match self {
-            Isa::Baseline => synthesis_base(t, u, v, even, odd),
+            Isa::Baseline => synthesis_base(t, u, v, out),
             // SAFETY: as above.
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx2 => unsafe { synthesis_avx2(t, u, v, even, odd) },
+            Isa::Avx2 => unsafe { synthesis_avx2(t, u, v, out) },
         }
     }
 }

@@ -19,11 +19,11 @@
 pub mod bank;
 pub mod dwt;
 mod kernel;
-//QN pub mod qn;
+pub mod qn;
 pub mod wavelet;
 
 pub use bank::{CoeffHook, StreamingAnalysis, StreamingBank};
-//QN pub use qn::{LevelStats, QnConfig, QnRule, QnSplitter};
+pub use qn::{LevelStats, QnConfig, QnEstimate, QnEstimates, QnRule, QnSplitter};
 pub use wavelet::Wavelet;
 
 /// Errors of the `dsp` layer. Messages name the offending key and value.
