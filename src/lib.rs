@@ -20,6 +20,7 @@ pub mod cli;
 pub mod daemon;
 pub mod dsp;
 pub mod model;
+pub mod offline;
 pub mod pipeline;
 pub mod sink;
 pub mod source;

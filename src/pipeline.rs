@@ -197,7 +197,7 @@ impl LevelAccumulator {
 }
 
 /// The chain.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct Pipeline {
     cfg: PipelineConfig,
     tau0_s: f64,
@@ -316,6 +316,16 @@ impl Pipeline {
         let n0 = out.clean_dph.len();
         self.splitter.flush(&mut out.clean_dph, &mut out.noise_dph);
         self.feed_channels(n0, out);
+    }
+
+    /// Print the level observations (development aid).
+    #[doc(hidden)]
+    pub fn debug_levels(&self) {
+        for (r, a) in [("rate", self.rate_levels.observations()), ("angle", self.angle_levels.observations())] {
+            for l in a {
+                eprintln!("{r} level {:>2} n {:>9} mean_sq {:.6e}", l.level, l.n_coef, l.mean_sq);
+            }
+        }
     }
 
     /// Estimates and curves from everything pushed so far.

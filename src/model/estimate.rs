@@ -196,47 +196,46 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
             let w = 2f64.powi(-(l.level as i32));
             // low-frequency terms' share of this level (theta_lf[0], the white-angle nuisance, excluded)
             let lf: f64 = (1..terms.len()).map(|k| theta_lf[k] * b.phi[j][k]).sum();
+            if lf > 0.5 * l.mean_sq && l.level > 1 {
+                // beyond the QN band: the angle here is mostly random walk
+                break;
+            }
             q2 += w * (l.mean_sq - lf);
             var += w * w * 2.0 * l.mean_sq * l.mean_sq / l.n_coef;
         }
         let norm = 1.0 - 2f64.powi(-(jmax as i32));
         (q2 / norm, var.sqrt() / norm)
     };
-    let (mut q2, mut q2_sd) = q_from_angle(&[0.0; 4]);
+    let (q2, q2_sd);
 
     // --- 2. low-frequency terms
     let levels_all: Vec<LevelObs> = input.levels.iter().copied().filter(usable).collect();
     let ids_all: Vec<u32> = levels_all.iter().map(|l| l.level).collect();
     let basis_all = LevelBasis::new(input.dec_lo, input.dec_hi, tau0, &ids_all, &terms);
-    let mut fit_and_basis = None;
-    for _pass in 0..2 {
-        // levels where white QN of strength q2 would be at most half the variance
-        let keep: Vec<usize> = (0..levels_all.len())
-            .filter(|&j| q2.max(0.0) * basis_all.phi[j][0] <= 0.5 * levels_all[j].mean_sq)
-            .collect();
-        let levels: Vec<LevelObs> = keep.iter().map(|&j| levels_all[j]).collect();
-        let ids: Vec<u32> = levels.iter().map(|l| l.level).collect();
-        let basis = LevelBasis::new(input.dec_lo, input.dec_hi, tau0, &ids, &terms);
-        let deepest = ids_all.iter().copied().max().unwrap_or(0);
-        let m_min = 1u64 << (deepest + 1).min(62);
-        let allan: Vec<AllanObs> = input
-            .allan
-            .iter()
-            .copied()
-            .filter(|a| a.m >= m_min && a.avar > 0.0 && a.n_phase > 2 * a.m + 1)
-            .collect();
-        let mut phi: Vec<Vec<f64>> = basis.phi.clone();
-        let mut y: Vec<f64> = levels.iter().map(|l| l.mean_sq).collect();
-        let mut edf0: Vec<f64> = levels.iter().map(|l| l.n_coef).collect();
+    let deepest = ids_all.iter().copied().max().unwrap_or(0);
+    let m_min = 1u64 << (deepest + 1).min(62);
+    let allan: Vec<AllanObs> =
+        input.allan.iter().copied().filter(|a| a.m >= m_min && a.avar > 0.0 && a.n_terms > 0).collect();
+    // rows: levels[from..] then the Allan points
+    let rows = |from: usize| -> (Vec<Vec<f64>>, Vec<f64>, Vec<f64>) {
+        let mut phi: Vec<Vec<f64>> = basis_all.phi[from..].to_vec();
+        let mut y: Vec<f64> = levels_all[from..].iter().map(|l| l.mean_sq).collect();
+        let mut edf0: Vec<f64> = levels_all[from..].iter().map(|l| l.n_coef).collect();
         for a in &allan {
             phi.push(terms.iter().map(|t| t.allan_var(a.m, tau0)).collect());
             y.push(a.avar);
             edf0.push(a.edf(0));
         }
-        let nl = levels.len();
-        let edf = |j: usize, theta: &[f64]| -> f64 {
+        (phi, y, edf0)
+    };
+    let (levels_ref, basis_ref, allan_ref, terms_ref) = (&levels_all, &basis_all, &allan, &terms);
+    let edf_for = |from: usize, phi: &[Vec<f64>]| {
+        let (levels_all, basis_all, allan, terms) = (levels_ref, basis_ref, allan_ref, terms_ref);
+        let nl = levels_all.len() - from;
+        let phi = phi.to_vec();
+        move |j: usize, theta: &[f64]| -> f64 {
             if j < nl {
-                basis.edf(j, theta, levels[j].n_coef)
+                basis_all.edf(from + j, theta, levels_all[from + j].n_coef)
             } else {
                 let a = &allan[j - nl];
                 let tau = a.m as f64 * tau0;
@@ -247,16 +246,34 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
                     .unwrap_or(1);
                 a.edf(terms[dom].alpha_at(tau))
             }
-        };
-        let mut o = *opts;
-        o.always_keep |= 1; // the white-angle term is a nuisance here, never selected away
-        let fit = fit_rows(&phi, &y, &edf0, &edf, &o);
-        let theta_lf = [fit.terms[0].theta, fit.terms[1].theta, fit.terms[2].theta, fit.terms[3].theta];
-        let (a, b) = q_from_angle(&theta_lf);
-        q2 = a;
-        q2_sd = b;
-        fit_and_basis = Some(fit);
+        }
+    };
+    // Which levels carry only low-frequency noise? Start from the deepest few
+    // and move towards the fine levels while each new level agrees (|z| < 3)
+    // with the low-frequency model fitted to the deeper ones; stop at the first
+    // level where quantization noise (of whatever shape) shows up.
+    let mut from = levels_all.len().saturating_sub(4);
+    while from > 0 {
+        let (phi, y, edf0) = rows(from);
+        let theta = super::fit::ml_theta(&phi, &y, &edf0, &edf_for(from, &phi));
+        let j = from - 1;
+        let mu = basis_all.mean(j, &theta);
+        let nu = basis_all.edf(j, &theta, levels_all[j].n_coef);
+        let z = (levels_all[j].mean_sq / mu - 1.0) * (nu / 2.0).sqrt();
+        if !(mu > 0.0 && z.abs() < 3.0) {
+            break;
+        }
+        from = j;
     }
+    let (phi, y, edf0) = rows(from);
+    let mut o = *opts;
+    o.always_keep |= 1; // the white-angle term is a nuisance here, never selected away
+    let fit = fit_rows(&phi, &y, &edf0, &edf_for(from, &phi), &o);
+    let theta_lf = [fit.terms[0].theta, fit.terms[1].theta, fit.terms[2].theta, fit.terms[3].theta];
+    let (a, b) = q_from_angle(&theta_lf);
+    q2 = a;
+    q2_sd = b;
+    let fit_and_basis = Some(fit);
     let fit = fit_and_basis.expect("two passes ran");
     let theta = [q2.max(0.0), fit.terms[1].theta, fit.terms[2].theta, fit.terms[3].theta];
 
