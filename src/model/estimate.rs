@@ -158,7 +158,9 @@ pub fn standard_terms(n_samples: u64, tau0_s: f64) -> [SpectralTerm; 4] {
     [
         SpectralTerm::WhiteAngle,
         SpectralTerm::WhiteRate,
-        SpectralTerm::Flicker { f_lo_hz: 1.0 / (n_samples.max(1) as f64 * tau0_s) },
+        // flicker with no visible low-frequency corner: put it three decades
+        // below the record's lowest frequency
+        SpectralTerm::Flicker { f_lo_hz: 1e-3 / (n_samples.max(1) as f64 * tau0_s) },
         SpectralTerm::RateRandomWalk,
     ]
 }
@@ -190,7 +192,7 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         }
         let ids: Vec<u32> = angle.iter().map(|l| l.level).collect();
         let b = LevelBasis::new_in(input.dec_lo, input.dec_hi, tau0, &ids, &terms, Domain::Angle);
-        let jmax = ids.iter().copied().max().unwrap_or(1);
+        let mut jmax = 1u32;
         let (mut q2, mut var) = (0.0, 0.0);
         for (j, l) in angle.iter().enumerate() {
             let w = 2f64.powi(-(l.level as i32));
@@ -201,6 +203,7 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
                 break;
             }
             q2 += w * (l.mean_sq - lf);
+            jmax = l.level;
             var += w * w * 2.0 * l.mean_sq * l.mean_sq / l.n_coef;
         }
         let norm = 1.0 - 2f64.powi(-(jmax as i32));
