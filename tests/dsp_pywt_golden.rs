@@ -11,7 +11,9 @@ use sagnac::dsp::{CoeffHook, StreamingAnalysis, StreamingBank, Wavelet};
 use serde_json::Value;
 
 fn load(name: &str) -> Value {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(name);
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data")
+        .join(name);
     let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
@@ -21,7 +23,12 @@ fn floats(v: &Value) -> Vec<f64> {
     v.as_array()
         .expect("array")
         .iter()
-        .map(|s| s.as_str().expect("float string").parse::<f64>().expect("float"))
+        .map(|s| {
+            s.as_str()
+                .expect("float string")
+                .parse::<f64>()
+                .expect("float")
+        })
         .collect()
 }
 
@@ -33,8 +40,14 @@ fn max_abs(v: &[f64]) -> f64 {
 fn assert_close(a: &[f64], b: &[f64], rel: f64, what: &str) {
     assert_eq!(a.len(), b.len(), "{what}: lengths");
     let scale = max_abs(b).max(1e-300);
-    let err = a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
-    assert!(err <= rel * scale, "{what}: max abs error {err:e} > {rel:e} * {scale:e}");
+    let err = a
+        .iter()
+        .zip(b)
+        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+    assert!(
+        err <= rel * scale,
+        "{what}: max abs error {err:e} > {rel:e} * {scale:e}"
+    );
 }
 
 /// Our tables are the derived doubles bit for bit; PyWavelets' tables agree bit for
@@ -47,7 +60,11 @@ fn filters_equal_derivation_and_pywt() {
         let w = Wavelet::by_name(name).unwrap();
         let p = &g["wavelets"][name];
         // Tolerance: none. The table must be the derived doubles.
-        assert_eq!(w.dec_lo(), floats(&p["dec_lo_derived"]).as_slice(), "{name} vs derivation");
+        assert_eq!(
+            w.dec_lo(),
+            floats(&p["dec_lo_derived"]).as_slice(),
+            "{name} vs derivation"
+        );
         let tol = if name.starts_with("sym") { 1e-12 } else { 0.0 };
         for (key, ours) in [
             ("dec_lo", w.dec_lo()),
@@ -57,14 +74,24 @@ fn filters_equal_derivation_and_pywt() {
         ] {
             let theirs = floats(&p[key]);
             assert_eq!(ours.len(), theirs.len(), "{name} {key}");
-            let err = ours.iter().zip(&theirs).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
-            assert!(err <= tol, "{name} {key}: max |ours - pywt| = {err:e} > {tol:e}");
+            let err = ours
+                .iter()
+                .zip(&theirs)
+                .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            assert!(
+                err <= tol,
+                "{name} {key}: max |ours - pywt| = {err:e} > {tol:e}"
+            );
             if name.starts_with("sym") {
                 // The difference is real (not a transcription slip): > 1e-14.
                 assert!(err > 1e-14, "{name} {key}: pywt table unexpectedly exact");
             }
         }
-        assert_eq!(w.vanishing_moments() as u64, p["vanishing_moments_psi"].as_u64().unwrap(), "{name}");
+        assert_eq!(
+            w.vanishing_moments() as u64,
+            p["vanishing_moments_psi"].as_u64().unwrap(),
+            "{name}"
+        );
         assert!(p["orthogonal"].as_bool().unwrap());
     }
 }
@@ -78,16 +105,31 @@ fn streaming_analysis_close_to_pywt_builtin_symlets() {
     for case in g["builtin_cases"].as_array().unwrap() {
         let w = Wavelet::by_name(case["wavelet"].as_str().unwrap()).unwrap();
         let level = case["level"].as_u64().unwrap() as u32;
-        let theirs: Vec<Vec<f64>> = case["wavedec"].as_array().unwrap().iter().map(floats).collect();
+        let theirs: Vec<Vec<f64>> = case["wavedec"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(floats)
+            .collect();
         let mut ana = StreamingAnalysis::new(&w, level).unwrap();
         let mut out = AnalysisOutput::default();
         ana.push(&x, &mut out);
         ana.push(&vec![0.0; (w.len() + 2) << level], &mut out);
         for j in 1..=level as usize {
             let t = &theirs[theirs.len() - j];
-            assert_close(&out.details[j - 1][..t.len()], t, 1e-11, &format!("{} builtin cD{j}", w.name()));
+            assert_close(
+                &out.details[j - 1][..t.len()],
+                t,
+                1e-11,
+                &format!("{} builtin cD{j}", w.name()),
+            );
         }
-        assert_close(&out.approx[..theirs[0].len()], &theirs[0], 1e-11, &format!("{} builtin cA", w.name()));
+        assert_close(
+            &out.approx[..theirs[0].len()],
+            &theirs[0],
+            1e-11,
+            &format!("{} builtin cA", w.name()),
+        );
     }
 }
 
@@ -108,7 +150,12 @@ fn batch_reference_equals_pywt() {
         let mode = mode_of(case["mode"].as_str().unwrap());
         let level = case["level"].as_u64().unwrap() as u32;
         let what = format!("{} {:?}", w.name(), mode);
-        let theirs: Vec<Vec<f64>> = case["wavedec"].as_array().unwrap().iter().map(floats).collect();
+        let theirs: Vec<Vec<f64>> = case["wavedec"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(floats)
+            .collect();
         let ours = dwt::wavedec(&x, &w, level, mode);
         assert_eq!(ours.len(), theirs.len());
         for (k, (a, b)) in ours.iter().zip(&theirs).enumerate() {
@@ -123,9 +170,20 @@ fn batch_reference_equals_pywt() {
             scaled[idx].iter_mut().for_each(|c| *c *= gains[j - 1]);
         }
         let rec = dwt::waverec(&scaled, &w, mode).unwrap();
-        assert_close(&rec, &floats(&case["waverec_scaled"]), 1e-13, &format!("{what} waverec"));
+        assert_close(
+            &rec,
+            &floats(&case["waverec_scaled"]),
+            1e-13,
+            &format!("{what} waverec"),
+        );
         // one-level idwt of independent random arrays.
-        let y = dwt::idwt(&floats(&case["idwt_ca"]), &floats(&case["idwt_cd"]), &w, mode).unwrap();
+        let y = dwt::idwt(
+            &floats(&case["idwt_ca"]),
+            &floats(&case["idwt_cd"]),
+            &w,
+            mode,
+        )
+        .unwrap();
         assert_close(&y, &floats(&case["idwt"]), 1e-13, &format!("{what} idwt"));
     }
 }
@@ -143,7 +201,12 @@ fn streaming_analysis_equals_pywt_zero_mode_offset_0() {
         }
         let w = Wavelet::by_name(case["wavelet"].as_str().unwrap()).unwrap();
         let level = case["level"].as_u64().unwrap() as u32;
-        let theirs: Vec<Vec<f64>> = case["wavedec"].as_array().unwrap().iter().map(floats).collect();
+        let theirs: Vec<Vec<f64>> = case["wavedec"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(floats)
+            .collect();
         let mut ana = StreamingAnalysis::new(&w, level).unwrap();
         let mut out = AnalysisOutput::default();
         // uneven blocks
@@ -152,13 +215,23 @@ fn streaming_analysis_equals_pywt_zero_mode_offset_0() {
         }
         ana.push(&vec![0.0; (w.len() + 2) << level], &mut out);
         let check = |ours: &[f64], theirs: &[f64], what: String| {
-            assert!(ours.len() > theirs.len(), "{what}: too few streaming coefficients");
+            assert!(
+                ours.len() > theirs.len(),
+                "{what}: too few streaming coefficients"
+            );
             // 1e-13 relative: the streaming kernel sums in polyphase order.
             assert_close(&ours[..theirs.len()], theirs, 1e-13, &what);
-            assert!(ours[theirs.len()..].iter().all(|&c| c == 0.0), "{what}: tail not zero");
+            assert!(
+                ours[theirs.len()..].iter().all(|&c| c == 0.0),
+                "{what}: tail not zero"
+            );
         };
         for j in 1..=level as usize {
-            check(&out.details[j - 1], &theirs[theirs.len() - j], format!("{} cD{j}", w.name()));
+            check(
+                &out.details[j - 1],
+                &theirs[theirs.len() - j],
+                format!("{} cD{j}", w.name()),
+            );
         }
         check(&out.approx, &theirs[0], format!("{} cA{level}", w.name()));
     }
@@ -195,6 +268,11 @@ fn streaming_synthesis_equals_pywt_waverec_zero_mode() {
         let theirs = floats(&case["waverec_scaled"]);
         // pywt returns at least len(x) samples for mode 'zero'.
         assert!(theirs.len() >= x.len());
-        assert_close(&out, &theirs[..x.len()], 1e-13, &format!("{} waverec", w.name()));
+        assert_close(
+            &out,
+            &theirs[..x.len()],
+            1e-13,
+            &format!("{} waverec", w.name()),
+        );
     }
 }

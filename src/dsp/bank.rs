@@ -121,7 +121,12 @@ impl StreamingAnalysis {
     /// A bank of `levels` analysis stages of `wavelet`, zero pre-history.
     pub fn new(wavelet: &Wavelet, levels: u32) -> Result<Self> {
         check_levels(levels)?;
-        let taps = Taps::new(wavelet.dec_lo(), wavelet.dec_hi(), wavelet.rec_lo(), wavelet.rec_hi());
+        let taps = Taps::new(
+            wavelet.dec_lo(),
+            wavelet.dec_hi(),
+            wavelet.rec_lo(),
+            wavelet.rec_hi(),
+        );
         let hist = wavelet.len() / 2 - 1;
         let j = levels as usize;
         Ok(StreamingAnalysis {
@@ -167,7 +172,8 @@ impl StreamingAnalysis {
         for j in 0..self.levels as usize {
             out.details[j].extend_from_slice(&self.hi[j]);
         }
-        out.approx.extend_from_slice(&self.lo[self.levels as usize - 1]);
+        out.approx
+            .extend_from_slice(&self.lo[self.levels as usize - 1]);
     }
 
     /// Run one block through every level, leaving this block's outputs in
@@ -218,8 +224,8 @@ impl StreamingAnalysis {
         }
     }
 
-    pub(crate) fn force_baseline(&mut self) {
-        self.isa = Isa::Baseline;
+    pub(crate) fn set_isa(&mut self, isa: Isa) {
+        self.isa = isa;
     }
 }
 
@@ -376,18 +382,29 @@ impl StreamingBank {
     #[doc(hidden)]
     pub fn state_capacity(&self) -> usize {
         let a = &self.ana;
-        let ana: usize = a.st.iter().map(|s| s.e.capacity() + s.o.capacity()).sum::<usize>()
-            + a.lo.iter().chain(&a.hi).map(Vec::capacity).sum::<usize>();
+        let ana: usize =
+            a.st.iter()
+                .map(|s| s.e.capacity() + s.o.capacity())
+                .sum::<usize>()
+                + a.lo.iter().chain(&a.hi).map(Vec::capacity).sum::<usize>();
         ana + self.ubuf.iter().map(Vec::capacity).sum::<usize>()
             + self.delay.iter().map(DelayLine::capacity).sum::<usize>()
             + self.apx.capacity()
             + self.out.capacity()
     }
 
-    /// Force the portable (non-AVX2) kernels; results are bit-identical, only slower.
+    /// Run the kernel variant `name` (`baseline`, `avx2`, `avx512`) instead of the
+    /// detected best; false (and no change) if this CPU cannot. Results are
+    /// bit-identical across variants (tested); this exists for that test.
     #[doc(hidden)]
-    pub fn force_baseline_kernels(&mut self) {
-        self.ana.force_baseline();
+    pub fn force_kernels(&mut self, name: &str) -> bool {
+        match Isa::by_name(name) {
+            Some(isa) => {
+                self.ana.set_isa(isa);
+                true
+            }
+            None => false,
+        }
     }
 
     /// Push samples; append released outputs (perfect reconstruction, delayed).
@@ -396,27 +413,29 @@ impl StreamingBank {
     }
 
     /// Push samples, letting `hook` see and modify every coefficient.
-    pub fn push_with<H: CoeffHook + ?Sized>(&mut self, mut x: &[f64], out: &mut Vec<f64>, hook: &mut H) {
+    pub fn push_with<H: CoeffHook + ?Sized>(
+        &mut self,
+        mut x: &[f64],
+        out: &mut Vec<f64>,
+        hook: &mut H,
+    ) {
         let jj = self.ana.levels as usize;
         while !x.is_empty() {
             let room = (self.frame - self.ana.n_in % self.frame) as usize;
             let take = room.min(x.len());
-            let first: [u64; MAX_LEVELS as usize] = {
-                let mut f = [0u64; MAX_LEVELS as usize];
-                f[..jj].copy_from_slice(&self.ana.produced);
-                f
-            };
             self.ana.process(&x[..take]);
-            for j in 0..jj {
-                let d = &mut self.ana.hi[j];
+            // Index of the first coefficient this block produced, per level.
+            for (j, (d, delay)) in self.ana.hi.iter_mut().zip(&mut self.delay).enumerate() {
                 if !d.is_empty() {
-                    hook.details(j as u32 + 1, first[j], d);
-                    self.delay[j].push(d);
+                    let first = self.ana.produced[j] - d.len() as u64;
+                    hook.details(j as u32 + 1, first, d);
+                    delay.push(d);
                 }
             }
             let a = &mut self.ana.lo[jj - 1];
             if !a.is_empty() {
-                hook.approx(first[jj - 1], a);
+                let first = self.ana.produced[jj - 1] - a.len() as u64;
+                hook.approx(first, a);
                 self.apx.push(a);
             }
             if self.ana.n_in % self.frame == 0 {
@@ -458,7 +477,11 @@ impl StreamingBank {
             let v = self.delay[j].window(m);
             // Level j+1 reconstructs 2m samples of a_j: into the next finer level's
             // input buffer, or, for level 1, straight into the output queue.
-            let dst: &mut Vec<f64> = if j > 0 { &mut lower[j - 1] } else { &mut self.out.buf };
+            let dst: &mut Vec<f64> = if j > 0 {
+                &mut lower[j - 1]
+            } else {
+                &mut self.out.buf
+            };
             let start = dst.len();
             dst.resize(start + 2 * m, 0.0);
             isa.synthesis(taps, u, v, &mut dst[start..]);
@@ -473,7 +496,11 @@ impl StreamingBank {
     fn release(&mut self, out: &mut Vec<f64>) {
         let target = self.ana.n_in.saturating_sub(self.latency as u64);
         let n = (target - self.n_out) as usize;
-        debug_assert!(n <= self.out.len(), "bank released {n} > {} available", self.out.len());
+        debug_assert!(
+            n <= self.out.len(),
+            "bank released {n} > {} available",
+            self.out.len()
+        );
         self.out.pop_into(n, out);
         self.n_out = target;
     }

@@ -80,7 +80,10 @@ fn analysis_filter(x: &[f64], h: &[f64], mode: Mode) -> Vec<f64> {
 
 /// One-level analysis: `(cA, cD)`.
 pub fn dwt(x: &[f64], w: &Wavelet, mode: Mode) -> (Vec<f64>, Vec<f64>) {
-    (analysis_filter(x, w.dec_lo(), mode), analysis_filter(x, w.dec_hi(), mode))
+    (
+        analysis_filter(x, w.dec_lo(), mode),
+        analysis_filter(x, w.dec_hi(), mode),
+    )
 }
 
 /// One-level synthesis from `cA` and `cD` of equal length.

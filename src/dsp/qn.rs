@@ -24,25 +24,56 @@
 //!
 //! - **ARW floor** ([`QnEstimate::ArwFloor`], default): angle random walk is white
 //!   in rate, so in an orthonormal bank it has the *same* per-coefficient variance
-//!   `A = N^2 / tau0` at every level. QN rises as f^2 (white in angle), so it
-//!   dominates the fine levels and fades towards the deep ones. `A` is fitted
-//!   (weighted least squares) to `var_total_j = A + c kappa_j` over the four
-//!   deepest levels, `kappa_j` being the exact energy factor of white angle noise
-//!   in level j ([`qn_energy_factors`]); then `var_qn_j = max(0, var_total_j - A)`.
-//!   This needs the f^2 shape only on the deepest levels, so it also holds when the
-//!   quantization error is not white at high frequency (weak dither: the error is a
-//!   sawtooth with lines at the pulse frequency, see the measurement).
+//!   `A = N^2 / tau0` at every level, while QN fades towards the deep levels. `A`
+//!   is fitted (weighted least squares) to `var_total_j = A + c kappa_j` on the
+//!   deepest levels (`kappa_j`: the exact energy factor of white angle noise in
+//!   level j, [`qn_energy_factors`]); levels `J+1`, `J+2` are analysed for this fit
+//!   only; 4, 3, then 2 consecutive levels ending at the deepest ready one are
+//!   tried and the first fit with chi^2/dof <= [`FLOOR_MAX_CHI2_DOF`] and c >= 0
+//!   is kept. Then `var_qn_j = max(0, var_total_j - A)`. This needs the f^2 shape
+//!   of QN only on the deepest levels.
 //! - **Power-preserving spectral subtraction** ([`QnRule::PowerSubtraction`],
 //!   default): `g_j = sqrt(max(0, 1 - var_qn_j / var_total_j))`, so each level of
 //!   `clean` carries, in expectation, the power of the non-QN part, and the Allan
-//!   variance of `clean` follows ARW + BI down to small tau. (Wiener gains
-//!   `1 - var_qn/var_total` shrink that power and bias the clean Allan variance low;
-//!   soft/hard thresholds at `k sqrt(var_qn_j)` cannot separate two Gaussian-like
-//!   noises of comparable size.)
+//!   variance of `clean` follows ARW + BI down to about 1 s.
 //!
-//! The alternatives stay selectable for comparison; `tests/dsp_qn_rules.rs` runs
-//! them all on simulated runs of the paper's gyro and prints the table that
-//! justifies the defaults (numbers in the report and in that test's docs).
+//! Why not the white model ([`QnEstimate::WhiteModel`]: `var_qn_j = Q^2 kappa_j /
+//! tau0^2` with Q from the finest level)? A pulse counter's error is white only if
+//! the dither residual exceeds about d/2. The paper's Q = 0.35" = d/sqrt(12) means
+//! almost no dither residual: the error is then a sawtooth of the angle, with
+//! lines at the pulse frequency `rate/d` (10 Hz at 12.3 deg/h) and harmonics, and
+//! 8x less power at the finest level than white QN of the same Q. Extrapolating
+//! from the finest level then predicts far too little QN in the mid levels. Even
+//! at Q = 0.5" (dither residual 0.3 d) the residual lines defeat it.
+//!
+//! Measured by `tests/dsp_qn_rules.rs` (1-hour runs of the paper's gyro, 1 kHz,
+//! d = 1.21"; ratio of the clean ADEV to the ADEV of the run's own non-QN part;
+//! worst case over four runs: Q 0.35" at 12.3 and at 3 deg/h, Q 0.5", Q 0.6"):
+//!
+//! | QN estimate / rule | worst, tau 1..32 s | worst, tau 2..32 s | note |
+//! |---|---|---|---|
+//! | ArwFloor / PowerSubtraction (default) | 8.1 % | 5.2 % | low by 3-8 % at 1 s |
+//! | ArwFloor / Wiener | 28 % | 11 % | shrinks ARW: low at small tau |
+//! | ArwFloor / SoftThreshold (3 sigma) | 97 % | 56 % | |
+//! | ArwFloor / HardThreshold (3 sigma) | 294 % | 183 % | |
+//! | WhiteModel / PowerSubtraction | 1244 % | 696 % | fails on sawtooth QN |
+//! | WhiteModel / Wiener, Soft, Hard | > 1100 % | > 500 % | |
+//!
+//! Thresholds cannot separate two Gaussian-like noises of comparable size: there
+//! is no sparsity to exploit. On 4-hour runs (`tests/dsp_qn.rs`) the default's
+//! clean ADEV lies within 4 % of the true ARW + BI curve at 2, 8 and 32 s and
+//! within 2 % of the run's own non-QN ADEV, while the raw ADEV is 4-12x above.
+//! The running integral of `noise` has sd = Q (the angle error) and does not grow
+//! with time; with the paper's weak dither its largest excursion over 1 h (and
+//! 4 h) was 0.60 d, with a Gaussian dither residual (Q 0.6") 2.6 d = 5.3 sd.
+//!
+//! **Limits.** With weak dither and a slow input (pulse frequency `rate/d` below
+//! about 1 Hz, i.e. below ~4 deg/h for d = 1.21"), the sawtooth lines fall into the
+//! ARW band itself and no per-level rule separates them. Measured (1 h, N 0.001,
+//! ratio clean ADEV / true at tau = 1, 2, 8, 32 s): 1 deg/h, Q 0.35": 0.86, 0.99,
+//! 1.01, 1.00; 0.3 deg/h, Q 0.35": 4.3, 6.2, 1.5, 1.4 (fails), Q 0.5": 0.95, 1.41,
+//! 0.99, 1.01 (fails at 2 s), Q 0.6": within 8 %; 0 deg/h, Q 0.35": 2.5x (the
+//! counter error there is not QN-like at all), Q >= 0.5": within 5 %.
 //!
 //! ## Streaming, latency, edges
 //! Output sample k (clean and noise) is emitted when raw sample
@@ -61,7 +92,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::bank::{AnalysisOutput, CoeffHook, Fifo, MAX_LEVELS, StreamingAnalysis, StreamingBank};
+use super::bank::{AnalysisOutput, CoeffHook, Fifo, StreamingAnalysis, StreamingBank};
 use super::wavelet::Wavelet;
 use super::{DspError, Result};
 
@@ -130,10 +161,14 @@ impl Default for QnConfig {
 
 /// Default depth: the smallest J whose deepest detail band
 /// `[fs/2^(J+1), fs/2^J]` lies below about 0.5 Hz (`fs/2^J <= 0.5 Hz`, with 3 %
-/// slack), clamped to `1..=MAX_LEVELS`. 1 kHz -> 11 (0.24-0.49 Hz).
+/// slack), clamped to `2..=MAX_QN_LEVELS`. 1 kHz -> 11 (0.24-0.49 Hz).
 pub fn default_levels(sample_rate_hz: f64) -> u32 {
     let j = ((sample_rate_hz / 0.5).log2() - 0.04).ceil();
-    if j.is_finite() { (j.max(1.0) as u32).min(MAX_LEVELS) } else { 1 }
+    if j.is_finite() {
+        (j.max(2.0) as u32).min(MAX_QN_LEVELS)
+    } else {
+        2
+    }
 }
 
 impl QnConfig {
@@ -147,7 +182,8 @@ impl QnConfig {
 
     /// The depth actually used.
     pub fn resolved_levels(&self) -> u32 {
-        self.levels.unwrap_or_else(|| default_levels(self.sample_rate_hz))
+        self.levels
+            .unwrap_or_else(|| default_levels(self.sample_rate_hz))
     }
 
     /// Check every field; errors name the key and value.
@@ -161,11 +197,11 @@ impl QnConfig {
             });
         }
         let j = self.resolved_levels();
-        if j < 2 || j > MAX_LEVELS {
+        if !(2..=MAX_QN_LEVELS).contains(&j) {
             return Err(DspError::InvalidLevels {
                 levels: j,
-                max: MAX_LEVELS,
-                why: "QN splitting needs at least 2 levels (the ARW floor is fitted on the deepest ones)",
+                max: MAX_QN_LEVELS,
+                why: "QN splitting needs at least 2 levels; beyond 16 the latency and the energy-factor setup grow as 2^levels",
             });
         }
         if !(self.stats_window_s.is_finite() && self.stats_window_s > 0.0) {
@@ -291,9 +327,10 @@ struct QnHook {
     /// Per slot: first coefficient index whose support lies in real data.
     first_real: Vec<u64>,
     // per-frame accumulators, per slot
-    frame_sq: Vec<f64>,
-    frame_sum: Vec<f64>,
-    frame_n: Vec<f64>,
+    /// This frame's coefficients per slot (unmodified, statistics-eligible only):
+    /// sums are formed at the frame's end in a fixed order, so they do not depend
+    /// on how the caller cut the stream into blocks.
+    frame_buf: Vec<Vec<f64>>,
     // running (exponentially weighted) sums
     ew_sq: Vec<f64>,
     ew_sum: Vec<f64>,
@@ -307,7 +344,6 @@ struct QnHook {
     gain: Vec<f64>,
     thresh: Vec<f64>,
     // threshold rules: measured clean/raw power per level
-    frame_clean_sq: Vec<f64>,
     ew_clean_sq: Vec<f64>,
 }
 
@@ -320,15 +356,26 @@ impl QnHook {
         let jj = self.levels;
         let nd = self.nd;
         for j in 0..=nd {
-            self.ew_sq[j] = self.lambda * self.ew_sq[j] + self.frame_sq[j];
-            self.ew_sum[j] = self.lambda * self.ew_sum[j] + self.frame_sum[j];
-            self.ew_n[j] = self.lambda * self.ew_n[j] + self.frame_n[j];
-            self.ew_clean_sq[j] = self.lambda * self.ew_clean_sq[j] + self.frame_clean_sq[j];
-            self.seen[j] += self.frame_n[j] as u64;
-            self.frame_sq[j] = 0.0;
-            self.frame_sum[j] = 0.0;
-            self.frame_n[j] = 0.0;
-            self.frame_clean_sq[j] = 0.0;
+            let buf = &self.frame_buf[j];
+            let (sq, sum, n) = (sum_sq(buf), sum_plain(buf), buf.len() as f64);
+            let clean_sq = if j < jj {
+                let t = self.thresh[j];
+                match self.rule {
+                    QnRule::SoftThreshold => sum_sq_map(buf, |c| (c.abs() - t).max(0.0)),
+                    QnRule::HardThreshold => {
+                        sum_sq_map(buf, |c| if c.abs() <= t { 0.0 } else { c })
+                    }
+                    _ => 0.0,
+                }
+            } else {
+                0.0
+            };
+            self.frame_buf[j].clear();
+            self.ew_sq[j] = self.lambda * self.ew_sq[j] + sq;
+            self.ew_sum[j] = self.lambda * self.ew_sum[j] + sum;
+            self.ew_n[j] = self.lambda * self.ew_n[j] + n;
+            self.ew_clean_sq[j] = self.lambda * self.ew_clean_sq[j] + clean_sq;
+            self.seen[j] += n as u64;
             if self.ew_n[j] > 0.0 {
                 let m = self.ew_sq[j] / self.ew_n[j];
                 self.var_total[j] = if j < nd {
@@ -356,12 +403,20 @@ impl QnHook {
                 }
             };
             self.var_qn[j] = qn.min(tot);
-            let frac = if tot > 0.0 { (1.0 - qn / tot).clamp(0.0, 1.0) } else { 0.0 };
+            let frac = if tot > 0.0 {
+                (1.0 - qn / tot).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
             self.gain[j] = match self.rule {
                 QnRule::PowerSubtraction => frac.sqrt(),
                 QnRule::Wiener => frac,
                 QnRule::SoftThreshold | QnRule::HardThreshold => {
-                    if self.ew_sq[j] > 0.0 { (self.ew_clean_sq[j] / self.ew_sq[j]).sqrt() } else { 0.0 }
+                    if self.ew_sq[j] > 0.0 {
+                        (self.ew_clean_sq[j] / self.ew_sq[j]).sqrt()
+                    } else {
+                        0.0
+                    }
                 }
             };
             self.thresh[j] = self.threshold_k * qn.sqrt();
@@ -386,7 +441,9 @@ impl QnHook {
     /// that carries more QN than the f^2 shape allows (sawtooth lines of a weakly
     /// dithered counter) fails the test and is dropped instead of dragging A down.
     fn fit_floor(&self) -> Option<f64> {
-        let deepest = (0..self.nd).rev().find(|&j| self.ready(j) && self.var_total[j] > 0.0)?;
+        let deepest = (0..self.nd)
+            .rev()
+            .find(|&j| self.ready(j) && self.var_total[j] > 0.0)?;
         for k in (2..=4usize.min(deepest + 1)).rev() {
             let lo = deepest + 1 - k;
             if !(lo..=deepest).all(|j| self.ready(j) && self.var_total[j] > 0.0) {
@@ -412,7 +469,10 @@ impl QnHook {
             }
             let a = (sxx * sy - sx * sxy) / det;
             let c = (sw * sxy - sx * sy) / det;
-            let chi2: f64 = pts.iter().map(|&(x, y, w)| w * (y - a - c * x).powi(2)).sum();
+            let chi2: f64 = pts
+                .iter()
+                .map(|&(x, y, w)| w * (y - a - c * x).powi(2))
+                .sum();
             let dof = (k - 2) as f64;
             if c >= 0.0 && (k == 2 || chi2 / dof <= FLOOR_MAX_CHI2_DOF) {
                 return Some(a.max(0.0));
@@ -426,6 +486,9 @@ impl QnHook {
 /// the weights assume Gaussian coefficients and independent frames).
 pub const FLOOR_MAX_CHI2_DOF: f64 = 6.0;
 
+/// Deepest bank the splitter accepts (at 1 kHz: deepest band 7.6 mHz, latency 16 min).
+pub const MAX_QN_LEVELS: u32 = 16;
+
 /// Levels analysed below the bank's depth J, for the ARW-floor fit only.
 pub const EXTRA_LEVELS: u32 = 2;
 
@@ -433,13 +496,9 @@ impl CoeffHook for QnHook {
     fn details(&mut self, level: u32, first: u64, d: &mut [f64]) {
         let j = level as usize - 1;
         let skip = self.first_real[j].saturating_sub(first).min(d.len() as u64) as usize;
-        let stats_from = if self.collecting { skip } else { d.len() };
-        let mut sq = 0.0;
-        for &c in &d[stats_from..] {
-            sq += c * c;
+        if self.collecting {
+            self.frame_buf[j].extend_from_slice(&d[skip..]);
         }
-        self.frame_sq[j] += sq;
-        self.frame_n[j] += (d.len() - stats_from) as f64;
         match self.rule {
             QnRule::PowerSubtraction | QnRule::Wiener => {
                 let g = self.gain[j];
@@ -447,28 +506,16 @@ impl CoeffHook for QnHook {
             }
             QnRule::SoftThreshold => {
                 let t = self.thresh[j];
-                let mut csq = 0.0;
-                for (i, c) in d.iter_mut().enumerate() {
-                    let m = (c.abs() - t).max(0.0);
-                    *c = m.copysign(*c);
-                    if i >= stats_from {
-                        csq += *c * *c;
-                    }
-                }
-                self.frame_clean_sq[j] += csq;
+                d.iter_mut()
+                    .for_each(|c| *c = (c.abs() - t).max(0.0).copysign(*c));
             }
             QnRule::HardThreshold => {
                 let t = self.thresh[j];
-                let mut csq = 0.0;
-                for (i, c) in d.iter_mut().enumerate() {
+                d.iter_mut().for_each(|c| {
                     if c.abs() <= t {
-                        *c = 0.0;
+                        *c = 0.0
                     }
-                    if i >= stats_from {
-                        csq += *c * *c;
-                    }
-                }
-                self.frame_clean_sq[j] += csq;
+                });
             }
         }
     }
@@ -488,16 +535,15 @@ impl CoeffHook for QnHook {
         if self.collecting {
             for (x, d) in out.details.iter().enumerate() {
                 let slot = jj + x;
-                let skip = self.first_real[slot].saturating_sub(before[x]).min(d.len() as u64) as usize;
-                self.frame_sq[slot] += d[skip..].iter().map(|c| c * c).sum::<f64>();
-                self.frame_n[slot] += (d.len() - skip) as f64;
+                let skip = self.first_real[slot]
+                    .saturating_sub(before[x])
+                    .min(d.len() as u64) as usize;
+                self.frame_buf[slot].extend_from_slice(&d[skip..]);
             }
-            let skip = self.first_real[nd].saturating_sub(first).min(a.len() as u64) as usize;
-            for &c in &a[skip..] {
-                self.frame_sq[nd] += c * c;
-                self.frame_sum[nd] += c;
-            }
-            self.frame_n[nd] += (a.len() - skip) as f64;
+            let skip = self.first_real[nd]
+                .saturating_sub(first)
+                .min(a.len() as u64) as usize;
+            self.frame_buf[nd].extend_from_slice(&a[skip..]);
         }
         self.extra_out = out;
     }
@@ -507,6 +553,43 @@ impl CoeffHook for QnHook {
             self.update();
         }
     }
+}
+
+/// Sum of squares in a fixed order (four interleaved partial sums).
+fn sum_sq(x: &[f64]) -> f64 {
+    sum_sq_map(x, |c| c)
+}
+
+fn sum_sq_map(x: &[f64], f: impl Fn(f64) -> f64) -> f64 {
+    let mut acc = [0.0; 4];
+    let chunks = x.chunks_exact(4);
+    let rem = chunks.remainder();
+    for c in chunks {
+        for i in 0..4 {
+            let v = f(c[i]);
+            acc[i] += v * v;
+        }
+    }
+    for (i, &c) in rem.iter().enumerate() {
+        let v = f(c);
+        acc[i] += v * v;
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3])
+}
+
+fn sum_plain(x: &[f64]) -> f64 {
+    let mut acc = [0.0; 4];
+    let chunks = x.chunks_exact(4);
+    let rem = chunks.remainder();
+    for c in chunks {
+        for i in 0..4 {
+            acc[i] += c[i];
+        }
+    }
+    for (i, &c) in rem.iter().enumerate() {
+        acc[i] += c;
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3])
 }
 
 /// The noise integral is sampled every this many output samples.
@@ -546,6 +629,8 @@ pub struct QnSplitter {
     /// Raw samples pushed to the bank and not yet emitted (at least the last
     /// `min(pushed, latency)`, which also gives the end extension).
     raw: Fifo,
+    /// Last finite raw sample (stands in for non-finite ones inside the bank).
+    last_finite: f64,
     n_in: u64,
     n_out: u64,
     // running integral of noise (angle, arcsec) and its EW moments
@@ -613,9 +698,7 @@ impl QnSplitter {
             kappa,
             collecting: false,
             first_real,
-            frame_sq: vec![0.0; nd + 1],
-            frame_sum: vec![0.0; nd + 1],
-            frame_n: vec![0.0; nd + 1],
+            frame_buf: vec![Vec::new(); nd + 1],
             ew_sq: vec![0.0; nd + 1],
             ew_sum: vec![0.0; nd + 1],
             ew_n: vec![0.0; nd + 1],
@@ -625,7 +708,6 @@ impl QnSplitter {
             arw_floor: None,
             gain: vec![0.0; jj],
             thresh: vec![f64::INFINITY; jj],
-            frame_clean_sq: vec![0.0; nd + 1],
             ew_clean_sq: vec![0.0; nd + 1],
         };
         Ok(QnSplitter {
@@ -637,6 +719,7 @@ impl QnSplitter {
             warmup,
             drop_out: warmup,
             raw: Fifo::default(),
+            last_finite: 0.0,
             n_in: 0,
             n_out: 0,
             integral: 0.0,
@@ -675,8 +758,9 @@ impl QnSplitter {
 
     /// Push raw rate samples (arcsec/s); append every completed output sample to
     /// `clean` and `noise` (same count to each, aligned with the raw input delayed
-    /// by [`QnSplitter::latency`]). Non-finite input is a caller bug: it propagates
-    /// to the outputs within the bank's support and poisons the statistics.
+    /// by [`QnSplitter::latency`]). A non-finite input sample is replaced inside the
+    /// bank by the last finite one (so it cannot poison the statistics); it comes
+    /// out unchanged in `noise` (`raw - clean`) at that sample only.
     pub fn push(&mut self, raw: &[f64], clean: &mut Vec<f64>, noise: &mut Vec<f64>) {
         assert!(!self.flushed, "QnSplitter::push after flush");
         self.n_in += raw.len() as u64;
@@ -698,7 +782,12 @@ impl QnSplitter {
     }
 
     fn start(&mut self, first: &[f64], clean: &mut Vec<f64>, noise: &mut Vec<f64>) {
-        let c = first.iter().sum::<f64>() / first.len().max(1) as f64;
+        let (sum, k) = first
+            .iter()
+            .filter(|v| v.is_finite())
+            .fold((0.0, 0usize), |(s, k), v| (s + v, k + 1));
+        let c = if k > 0 { sum / k as f64 } else { 0.0 };
+        self.last_finite = c;
         let pad = vec![c; self.frame];
         self.hook.collecting = false;
         self.scratch.clear();
@@ -711,7 +800,25 @@ impl QnSplitter {
 
     fn feed(&mut self, x: &[f64], clean: &mut Vec<f64>, noise: &mut Vec<f64>) {
         self.raw.push(x);
-        self.bank.push_with(x, &mut self.scratch, &mut self.hook);
+        if x.iter().all(|v| v.is_finite()) {
+            if let Some(&v) = x.last() {
+                self.last_finite = v;
+            }
+            self.bank.push_with(x, &mut self.scratch, &mut self.hook);
+        } else {
+            // A non-finite sample would poison the running statistics for good: the
+            // bank sees the last finite sample instead; `noise = raw - clean` then
+            // carries the non-finite value at that sample only.
+            let mut held = Vec::with_capacity(x.len());
+            for &v in x {
+                if v.is_finite() {
+                    self.last_finite = v;
+                }
+                held.push(self.last_finite);
+            }
+            self.bank
+                .push_with(&held, &mut self.scratch, &mut self.hook);
+        }
         self.emit(clean, noise);
     }
 
@@ -739,7 +846,8 @@ impl QnSplitter {
         let mut z = z;
         if self.int_carry_len > 0 {
             let take = (INTEGRAL_STEP - self.int_carry_len).min(z.len());
-            self.int_carry[self.int_carry_len..self.int_carry_len + take].copy_from_slice(&z[..take]);
+            self.int_carry[self.int_carry_len..self.int_carry_len + take]
+                .copy_from_slice(&z[..take]);
             self.int_carry_len += take;
             z = &z[take..];
             if self.int_carry_len < INTEGRAL_STEP {
@@ -789,7 +897,15 @@ impl QnSplitter {
         // Mean of the last frame (or of every sample still buffered, if fewer).
         let k = self.raw.len().min(self.frame);
         let live = self.raw.as_slice();
-        let c = if k == 0 { 0.0 } else { live[live.len() - k..].iter().sum::<f64>() / k as f64 };
+        let (sum, m) = live[live.len() - k..]
+            .iter()
+            .filter(|v| v.is_finite())
+            .fold((0.0, 0usize), |(s, m), v| (s + v, m + 1));
+        let c = if m == 0 {
+            self.last_finite
+        } else {
+            sum / m as f64
+        };
         let pad = vec![c; self.frame];
         while self.n_out < self.n_in {
             self.bank.push_with(&pad, &mut self.scratch, &mut self.hook);
@@ -808,7 +924,11 @@ impl QnSplitter {
         (0..=h.nd)
             .map(|j| {
                 let approx = j == h.nd;
-                let hi = if approx { fs / (1u64 << (h.levels + 1)) as f64 } else { fs / (1u64 << (j + 1)) as f64 };
+                let hi = if approx {
+                    fs / (1u64 << (h.levels + 1)) as f64
+                } else {
+                    fs / (1u64 << (j + 1)) as f64
+                };
                 let lo = if approx { 0.0 } else { hi / 2.0 };
                 LevelStats {
                     level: if approx { 0 } else { j as u32 + 1 },

@@ -30,7 +30,10 @@ use super::{DspError, Result};
 /// Longest filter supported (sym8 / db8: 16 taps).
 pub const MAX_TAPS: usize = 16;
 
-const HAAR: [f64; 2] = [0.7071067811865476, 0.7071067811865476];
+const HAAR: [f64; 2] = [
+    std::f64::consts::FRAC_1_SQRT_2,
+    std::f64::consts::FRAC_1_SQRT_2,
+];
 
 const DB4: [f64; 8] = [
     -0.010597401785069032,
@@ -192,7 +195,10 @@ mod tests {
             let l = h.len();
             let sum: f64 = h.iter().sum();
             // tolerance: a few ulps of sqrt 2 (16 terms summed).
-            assert!((sum - std::f64::consts::SQRT_2).abs() < 1e-15, "{name}: sum {sum}");
+            assert!(
+                (sum - std::f64::consts::SQRT_2).abs() < 1e-15,
+                "{name}: sum {sum}"
+            );
             for m in 0..l / 2 {
                 let c: f64 = (0..l - 2 * m).map(|k| h[k] * h[k + 2 * m]).sum();
                 let want = if m == 0 { 1.0 } else { 0.0 };
@@ -207,7 +213,10 @@ mod tests {
                     scale += t.abs();
                 }
                 // tolerance: relative to the sum of |terms| (cancellation), 1e-13.
-                assert!(s.abs() <= 1e-13 * scale, "{name}: moment {q}: {s} (scale {scale})");
+                assert!(
+                    s.abs() <= 1e-13 * scale,
+                    "{name}: moment {q}: {s} (scale {scale})"
+                );
             }
             // dec_hi is orthogonal to dec_lo at every even shift.
             let g = w.dec_hi();
@@ -215,7 +224,9 @@ mod tests {
                 let c: f64 = (0..l as i64)
                     .filter_map(|k| {
                         let j = k + 2 * m;
-                        (0..l as i64).contains(&j).then(|| h[k as usize] * g[j as usize])
+                        (0..l as i64)
+                            .contains(&j)
+                            .then(|| h[k as usize] * g[j as usize])
                     })
                     .sum();
                 assert!(c.abs() < 1e-15, "{name}: lo/hi shift {m}: {c}");

@@ -53,7 +53,9 @@ const BI_STEP: usize = 10;
 fn bi_components(bi: f64) -> Vec<(f64, f64)> {
     let r = 10f64.sqrt();
     let var = bi * bi * r.ln() / (2.0 * std::f64::consts::PI);
-    (0..BI_COMPONENTS).map(|k| (BI_T_MIN_S * r.powi(k as i32), var)).collect()
+    (0..BI_COMPONENTS)
+        .map(|k| (BI_T_MIN_S * r.powi(k as i32), var))
+        .collect()
 }
 
 /// Exact Allan variance of a continuous first-order Gauss-Markov process of
@@ -87,7 +89,10 @@ impl GyroSim {
     /// The true Allan variance of the non-QN part (ARW + BI), (arcsec/s)^2.
     pub fn true_avar_arw_bi(&self, tau_s: f64) -> f64 {
         let n = self.arw_dpsh * 60.0;
-        let bi: f64 = bi_components(self.bi_dph).iter().map(|&(t, v)| gm_avar(v, t, tau_s)).sum();
+        let bi: f64 = bi_components(self.bi_dph)
+            .iter()
+            .map(|&(t, v)| gm_avar(v, t, tau_s))
+            .sum();
         n * n / tau_s + bi
     }
 
@@ -113,7 +118,11 @@ impl GyroSim {
         let mut bi_rate: f64 = bi_state.iter().sum();
         let mut theta = rng.random::<f64>() * d; // random initial fringe phase
         let angle_meas = |theta: f64, rng: &mut ChaCha8Rng| {
-            let dn: f64 = if sig_d > 0.0 { sig_d * rng.sample::<f64, _>(StandardNormal) } else { 0.0 };
+            let dn: f64 = if sig_d > 0.0 {
+                sig_d * rng.sample::<f64, _>(StandardNormal)
+            } else {
+                0.0
+            };
             ((theta + dn) / d).floor() as i64
         };
         let mut c_prev = angle_meas(theta, &mut rng);
@@ -127,7 +136,8 @@ impl GyroSim {
                 bi_rate = 0.0;
                 for (i, &(_, v)) in comps.iter().enumerate() {
                     let w: f64 = rng.sample(StandardNormal);
-                    bi_state[i] = phis[i] * bi_state[i] + (v * (1.0 - phis[i] * phis[i])).sqrt() * w;
+                    bi_state[i] =
+                        phis[i] * bi_state[i] + (v * (1.0 - phis[i] * phis[i])).sqrt() * w;
                     bi_rate += bi_state[i];
                 }
             }
