@@ -5,6 +5,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 pub mod allan;
+pub mod analyze;
 pub mod simulate;
 
 #[derive(Debug, Parser)]
@@ -18,6 +19,8 @@ pub struct Cli {
 pub enum Command {
     /// Allan-family deviations (OADEV, ADEV, MDEV, HDEV, OHDEV, TOTDEV) of a file, with confidence intervals.
     Allan(allan::AllanArgs),
+    /// Estimate QN, ARW, bias instability, RRW and rate ramp with 95 % intervals.
+    Analyze(analyze::AnalyzeArgs),
     /// Simulate a gyro from a model file and write its pulse stream.
     Simulate(simulate::SimulateArgs),
 }
@@ -40,6 +43,7 @@ pub fn main() -> ExitCode {
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Allan(args) => allan::run(args),
+        Command::Analyze(args) => analyze::run(args),
         Command::Simulate(args) => simulate::run(args),
     }
 }
