@@ -259,6 +259,22 @@ pub fn fit_levels(basis: &LevelBasis, obs: &[LevelObs], opts: &FitOptions) -> Le
     fit_rows(&basis.phi, &y, &n0, &|j, theta| basis.edf(j, theta, obs[j].n_coef), opts)
 }
 
+/// Maximum-likelihood strengths only (no selection, no intervals): the quick
+/// fit used while choosing which observations to trust.
+pub fn ml_theta(phi: &[Vec<f64>], y: &[f64], edf0: &[f64], edf: &dyn Fn(usize, &[f64]) -> f64) -> Vec<f64> {
+    let k = phi.first().map_or(0, |r| r.len());
+    let n = y.len();
+    let mut prob = Problem { phi, y: y.to_vec(), half_edf: edf0.iter().map(|e| e / 2.0).collect(), k };
+    let all = vec![true; k];
+    let zero = vec![0.0; k];
+    let mut theta = prob.maximise(&all, &zero, None);
+    for _ in 0..2 {
+        prob.half_edf = (0..n).map(|j| edf(j, &theta) / 2.0).collect();
+        theta = prob.maximise(&all, &zero, Some(&theta));
+    }
+    theta
+}
+
 /// Generic fit: rows `phi[j][k]` (expected value of observation `j` per unit
 /// theta_k), observations `y[j]`, starting EDFs `edf0[j]`, and `edf(j, theta)`
 /// giving the EDF of observation `j` under a spectrum.
