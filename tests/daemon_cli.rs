@@ -70,14 +70,14 @@ fn default_run_is_the_simulated_bench_promtool_clean_and_drains_on_sigterm() {
     let addr = free_addr();
     let cfg = dir.path().join("c.toml");
     std::fs::write(&cfg, "[estimator]\ninterval_s = 2.0\n").unwrap();
-    // No source flag: the built-in paper gyro, here at 20x real time.
+    // No source flag: the built-in paper gyro, here at 40x real time.
     let mut d = DaemonProc::start(
         &[
             "run",
             "--config",
             cfg.to_str().unwrap(),
             "--speed",
-            "20",
+            "40",
             "--metrics-addr",
             &addr.to_string(),
             "--record-dir",
@@ -85,9 +85,12 @@ fn default_run_is_the_simulated_bench_promtool_clean_and_drains_on_sigterm() {
         ],
         &dir.path().join("log"),
     );
-    let text = wait_for("two estimator updates", Duration::from_secs(30), || {
+    // The clean channel lags the input by the wavelet bank's latency (about 31 s
+    // of samples with the automatic depth at 1 kHz): wait for its Allan curve.
+    let clean = "sagnac_allan_deviation_degrees_per_hour{channel=\"clean\",tau_seconds=\"0.001\"}";
+    let text = wait_for("the clean Allan curve", Duration::from_secs(40), || {
         let t = scrape(addr)?;
-        (metric(&t, "sagnac_estimator_updates_total")? >= 2.0).then_some(t)
+        (metric(&t, "sagnac_estimator_updates_total")? >= 2.0 && metric(&t, clean).is_some()).then_some(t)
     });
     let (ok, out) = promtool(&text);
     assert!(ok, "promtool check metrics:\n{out}\n---\n{text}");
@@ -98,7 +101,8 @@ fn default_run_is_the_simulated_bench_promtool_clean_and_drains_on_sigterm() {
     assert_eq!(metric(&text, "sagnac_frame_errors_total{kind=\"crc\"}"), Some(0.0));
     for series in [
         "sagnac_qn_arcseconds{bound=\"estimate\"}",
-        "sagnac_arw_degrees_per_root_hour{bound=\"estimate\"}",
+        // ARW is not resolved in a few seconds of data: its 95 % upper bound is exported
+        "sagnac_arw_degrees_per_root_hour{bound=\"upper95\"}",
         "sagnac_allan_deviation_degrees_per_hour{channel=\"raw\",tau_seconds=\"0.001\"}",
         "sagnac_allan_deviation_degrees_per_hour{channel=\"clean\",tau_seconds=\"0.001\"}",
         "sagnac_processing_lag_seconds",

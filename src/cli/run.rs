@@ -57,7 +57,7 @@ pub struct RunArgs {
     pub metrics_addr: Option<String>,
     /// Directory for the MCAP recording, one file per run ("" disables recording).
     #[arg(long, value_name = "DIR")]
-    pub record_dir: Option<PathBuf>,
+    pub record_dir: Option<String>,
     /// Wavelet of the QN-removal bank (sym8, haar, db4, sym4, db8).
     #[arg(long, value_name = "NAME")]
     pub wavelet: Option<String>,
@@ -126,7 +126,7 @@ pub fn resolve(args: &RunArgs) -> Result<(Config, Explicit), ConfigError> {
         cfg.metrics.addr = a.clone();
     }
     if let Some(d) = &args.record_dir {
-        cfg.record.dir = d.display().to_string();
+        cfg.record.dir = d.clone();
     }
     if let Some(w) = &args.wavelet {
         cfg.dsp.wavelet = w.clone();

@@ -12,15 +12,25 @@
 //!   (with the gaps), `/gyro/clean` and `/gyro/noise` the uniform series.
 //! * Estimator updates happen every `interval_s` seconds *of samples*, at exact
 //!   sample counts (the input is split there), so they do not depend on how the
-//!   input was batched. When not paced (fast replays), an update is skipped if
-//!   the previous one is less than `min_update_wall` of wall time old (the
-//!   estimator is far slower per call than the per-sample work); the final
-//!   update after the end of the stream is always made.
+//!   input was batched. One update (the ML fit with profile intervals) costs
+//!   0.03-0.3 s of CPU, so a source that runs faster than real time could spend
+//!   all its time estimating: with an `update_budget` (replays and the simulated
+//!   bench: 10 %), an update is skipped while less than `cost / budget` of wall
+//!   time has passed since the previous one started. At real-time pace (1 kHz,
+//!   5 s interval) no update is skipped; a live serial source never skips. The
+//!   final update after the end of the stream is always made, so final
+//!   estimates are deterministic.
 //! * Recording: lossless sources use the recorder's blocking `send`
 //!   (backpressure all the way to the source); live sources use `try_send`, and
 //!   what a full queue refuses is counted (`sagnac_dropped_messages_total
 //!   {sink="mcap"}`) and reported by a `backpressure_drop` event once the queue
 //!   takes messages again.
+//! * Canonical pushes: the pipeline's floating-point sums depend (in the last
+//!   bits) on how its input is split into calls, so samples are pushed in pieces
+//!   cut at absolute sample indices (every [`PUSH_CHUNK`] samples and at every
+//!   estimator boundary), whatever the source's batching: a live run, a replay
+//!   of its raw capture and a replay of its recording give bit-identical
+//!   estimates (with the same configuration).
 //! * Time: each segment of contiguous samples has a time anchor (from its first
 //!   batch); uniform sample `u` of the segment is at `t0 + u / rate`.
 
@@ -68,8 +78,9 @@ pub struct ProcessConfig {
     pub batch_samples: usize,
     /// How to hand messages to the recorder.
     pub delivery: Delivery,
-    /// Least wall time between two estimator updates (0 = no limit).
-    pub min_update_wall: Duration,
+    /// Largest share of wall time the estimator updates may take, in (0, 1];
+    /// `None`: never skip an update.
+    pub update_budget: Option<f64>,
 }
 
 /// A built numeric stage, ready to run.
@@ -91,6 +102,11 @@ impl ProcessConfig {
         }
         if self.batch_samples == 0 {
             return Err(bad("batch_samples", "0".into(), "must be > 0"));
+        }
+        if let Some(b) = self.update_budget
+            && !(b > 0.0 && b <= 1.0)
+        {
+            return Err(bad("update_budget", b.to_string(), "must be in (0, 1]"));
         }
         let pipeline = Pipeline::new(&self.pipeline)?;
         let rate: f64 = self.pipeline.rate_hz;
@@ -142,6 +158,10 @@ pub struct ProcessReport {
     pub recorder_dropped: u64,
 }
 
+/// Samples per pipeline call (plus cuts at estimator boundaries), aligned on
+/// absolute sample indices.
+pub const PUSH_CHUNK: u64 = 1024;
+
 /// A time segment: uniform sample `u_start` is period `seq_start` at `t_start_ns`.
 #[derive(Debug, Clone, Copy)]
 struct Segment {
@@ -182,10 +202,14 @@ struct Run<'a> {
     rates: RateAcc,
     temp_c: Option<f64>,
     status: u32,
-    uniform: Vec<i64>,
+    /// Gap-filled samples not yet pushed into the pipeline.
+    pending: Vec<i64>,
+    /// (uniform index one past a batch's last sample, its arrival), oldest first.
+    arrivals: VecDeque<(u64, Instant)>,
     pout: PipelineOutput,
     next_update_at: u64,
-    last_update_wall: Option<Instant>,
+    /// Start and cost of the last estimator update.
+    last_update: Option<(Instant, Duration)>,
     updates: u64,
     max_latency_s: f64,
     recorder_dropped: u64,
@@ -219,10 +243,11 @@ impl Processor {
             rates: RateAcc::default(),
             temp_c: None,
             status: 0,
-            uniform: Vec::new(),
+            pending: Vec::new(),
+            arrivals: VecDeque::new(),
             pout: PipelineOutput::default(),
             next_update_at: first_update,
-            last_update_wall: None,
+            last_update: None,
             updates: 0,
             max_latency_s: 0.0,
             recorder_dropped: 0,
@@ -455,16 +480,16 @@ impl Run<'_> {
         if b.counts.is_empty() {
             return;
         }
+        let u_next = self.pushed + self.pending.len() as u64;
         if b.new_segment || self.segments.is_empty() {
             self.flush_raw();
             self.segments.push_back(Segment {
-                u_start: self.pushed,
+                u_start: u_next,
                 seq_start: b.seq0,
                 t_start_ns: b.t0_ns,
             });
         }
         // Gap-fill into the uniform series; assemble /gyro/raw on the way.
-        self.uniform.clear();
         let bs = self.p.cfg.batch_samples;
         let mut gi = 0;
         for (i, &c) in b.counts.iter().enumerate() {
@@ -473,9 +498,8 @@ impl Run<'_> {
                 lost += b.gaps[gi].lost;
                 gi += 1;
             }
-            let u_first = self.pushed + self.uniform.len() as u64;
             if self.raw.counts.is_empty() {
-                self.raw.u0 = u_first;
+                self.raw.u0 = self.pushed + self.pending.len() as u64;
             }
             if lost > 0 {
                 self.raw.gaps.push(Gap {
@@ -483,10 +507,10 @@ impl Run<'_> {
                     lost,
                 });
                 let n = u32::try_from(lost + 1).unwrap_or(u32::MAX);
-                self.uniform.extend(spread_increment(c, n));
+                self.pending.extend(spread_increment(c, n));
                 self.lost += lost;
             } else {
-                self.uniform.push(c);
+                self.pending.push(c);
             }
             self.raw.counts.push(c);
             if self.raw.counts.len() >= bs {
@@ -494,42 +518,90 @@ impl Run<'_> {
             }
         }
         self.samples += b.counts.len() as u64;
-        // Push at estimator boundaries.
+        self.arrivals
+            .push_back((self.pushed + self.pending.len() as u64, b.arrived));
+        self.push_ready(false);
+        self.prune_segments();
+        if let Some(rec) = &self.out.recorder {
+            self.out
+                .telemetry
+                .metrics
+                .set_recording_bytes(rec.bytes_written());
+        }
+    }
+
+    /// Push the pending uniform samples into the pipeline in canonical pieces:
+    /// cut at every multiple of [`PUSH_CHUNK`] and at every estimator boundary
+    /// (absolute sample indices), so the pipeline sees the same calls whatever
+    /// the source's batching (a live run and the replay of its recording give
+    /// bit-identical results). `all`: push the remainder too (end of stream).
+    fn push_ready(&mut self, all: bool) {
         let mut start = 0usize;
-        let uniform = std::mem::take(&mut self.uniform);
-        while start < uniform.len() {
-            let to_boundary = (self.next_update_at - self.pushed) as usize;
-            let end = (start + to_boundary).min(uniform.len());
+        loop {
+            let avail = self.pending.len() - start;
+            if avail == 0 {
+                break;
+            }
+            let to_chunk = PUSH_CHUNK - self.pushed % PUSH_CHUNK;
+            let to_update = self.next_update_at - self.pushed;
+            let cut = to_chunk.min(to_update) as usize;
+            let n = if avail >= cut {
+                cut
+            } else if all {
+                avail
+            } else {
+                break;
+            };
             self.p
                 .pipeline
-                .push_counts(&uniform[start..end], &mut self.pout);
-            self.pushed += (end - start) as u64;
-            start = end;
+                .push_counts(&self.pending[start..start + n], &mut self.pout);
+            self.pushed += n as u64;
+            start += n;
             self.take_output();
             if self.pushed == self.next_update_at {
                 self.next_update_at += self.p.interval_samples;
-                let throttle = self.p.cfg.min_update_wall;
-                let due = self
-                    .last_update_wall
-                    .is_none_or(|t| t.elapsed() >= throttle);
+                let due = match (self.p.cfg.update_budget, self.last_update) {
+                    (Some(budget), Some((t, cost))) => {
+                        t.elapsed().as_secs_f64() * budget >= cost.as_secs_f64()
+                    }
+                    _ => true,
+                };
                 if due {
-                    self.update(b.arrived, false);
+                    // when the sample that closed the interval arrived
+                    let pushed = self.pushed;
+                    let arrived = self
+                        .arrivals
+                        .iter()
+                        .find(|(end, _)| *end >= pushed)
+                        .map_or_else(Instant::now, |(_, a)| *a);
+                    self.update(arrived, false);
                 }
             }
         }
-        self.uniform = uniform;
-        self.prune_segments();
-        let m = &self.out.telemetry.metrics;
-        m.set_processing_lag_s(b.arrived.elapsed().as_secs_f64());
-        if let Some(rec) = &self.out.recorder {
-            m.set_recording_bytes(rec.bytes_written());
+        self.pending.drain(..start);
+        // Processing lag: the newest batch whose samples are all in the pipeline.
+        let mut newest = None;
+        while let Some(&(end, arrived)) = self.arrivals.front() {
+            if end > self.pushed {
+                break;
+            }
+            newest = Some(arrived);
+            self.arrivals.pop_front();
+        }
+        if let Some(a) = newest {
+            self.out
+                .telemetry
+                .metrics
+                .set_processing_lag_s(a.elapsed().as_secs_f64());
         }
     }
 
     /// Publish an estimator update from everything pushed so far.
     fn update(&mut self, arrived: Instant, last: bool) {
+        let start = Instant::now();
         let a = self.p.pipeline.analysis();
         self.publish(&a, arrived, last);
+        self.last_update = Some((start, start.elapsed()));
     }
 
     fn publish(&mut self, a: &Analysis, arrived: Instant, last: bool) {
@@ -554,7 +626,6 @@ impl Run<'_> {
             tel.estimate_latency.set(latency);
             self.max_latency_s = self.max_latency_s.max(latency);
         }
-        self.last_update_wall = Some(Instant::now());
         self.updates += 1;
         let t_ns = self.time_of(self.pushed.saturating_sub(1));
         let mut terms_map = BTreeMap::new();
@@ -592,6 +663,7 @@ impl Run<'_> {
     }
 
     fn finish(mut self) -> ProcessReport {
+        self.push_ready(true);
         self.p.pipeline.finish(&mut self.pout);
         self.take_output();
         self.flush_raw();

@@ -47,8 +47,9 @@ use crate::source::serial::{SerialConfig, SerialError, SerialSource};
 /// The built-in gyro model of the simulated bench (the founding paper's RLG).
 pub const PAPER_GYRO_TOML: &str = include_str!("../../config/paper_gyro.toml");
 
-/// Least wall time between estimator updates in fast (unpaced) replays.
-pub const FAST_UPDATE_WALL: Duration = Duration::from_millis(250);
+/// Share of wall time estimator updates may take with a replay or the simulated
+/// bench (see [`crate::daemon::process`]).
+pub const UPDATE_BUDGET: f64 = 0.1;
 
 /// Errors of the daemon.
 #[derive(Debug, thiserror::Error)]
@@ -230,11 +231,7 @@ impl Daemon {
             interval_s: config.estimator.interval_s,
             batch_samples: config.record.batch_samples,
             delivery: if live { Delivery::Live } else { Delivery::Lossless },
-            min_update_wall: if !live && speed == 0.0 {
-                FAST_UPDATE_WALL
-            } else {
-                Duration::ZERO
-            },
+            update_budget: (!live).then_some(UPDATE_BUDGET),
         }
         .build()?;
         let metrics_addr = if config.metrics.addr.is_empty() {
