@@ -61,6 +61,14 @@ fn bad_values_exit_2_naming_the_key_and_the_flag() {
         }
     }
     assert!(!rec.is_empty() && !std::path::Path::new(rec).exists(), "nothing recorded on errors");
+
+    // A capture without a single valid frame is an error too (found while reading).
+    let garbage = dir.path().join("garbage.bin");
+    std::fs::write(&garbage, (0..5000u32).map(|i| (i * 7 % 251) as u8).collect::<Vec<u8>>()).unwrap();
+    let r = run(&["--replay", garbage.to_str().unwrap(), "--record-dir", rec, "--metrics-addr", ""]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert!(err.contains("garbage.bin: no samples in this capture (5000 bytes read)"), "{err}");
 }
 
 #[test]

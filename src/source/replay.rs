@@ -76,6 +76,12 @@ pub enum ReplayError {
         rate_hz: f64,
         recorded_hz: f64,
     },
+    /// The capture holds no sample at all (no valid frame, or no `/gyro/raw`).
+    #[error(
+        "{}: no samples in this capture ({bytes_read} bytes read): is it a raw frame \
+         capture (.bin) or an MCAP recording made by `sagnac run`?", path.display()
+    )]
+    NoSamples { path: PathBuf, bytes_read: u64 },
     /// The pipeline stopped during the replay.
     #[error("replay of {}: {source}", path.display())]
     Pipeline {
@@ -234,8 +240,14 @@ impl ReplaySource {
             CaptureKind::Frames => self.replay_frames(&mut out, telemetry, &shutdown),
             CaptureKind::Mcap => self.replay_mcap(&mut out, telemetry, &shutdown),
         }?;
-        // Nothing is held by a lossless sender; close for symmetry.
+        // Nothing is held by a lossless sender.
         drop(out);
+        if report.samples == 0 && !shutdown.is_requested() {
+            return Err(ReplayError::NoSamples {
+                path,
+                bytes_read: report.bytes_read,
+            });
+        }
         tracing::info!(
             path = %path.display(),
             samples = report.samples,
