@@ -318,16 +318,6 @@ impl Pipeline {
         self.feed_channels(n0, out);
     }
 
-    /// Print the level observations (development aid).
-    #[doc(hidden)]
-    pub fn debug_levels(&self) {
-        for (r, a) in [("rate", self.rate_levels.observations()), ("angle", self.angle_levels.observations())] {
-            for l in a {
-                eprintln!("{r} level {:>2} n {:>9} mean_sq {:.6e}", l.level, l.n_coef, l.mean_sq);
-            }
-        }
-    }
-
     /// Estimates and curves from everything pushed so far.
     pub fn analysis(&self) -> Analysis {
         let conf = allan::DEFAULT_CONFIDENCE;

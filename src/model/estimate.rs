@@ -210,6 +210,7 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         (q2 / norm, var.sqrt() / norm)
     };
     let (q2, q2_sd);
+    let q2_first = q_from_angle(&[0.0; 4]).0;
 
     // --- 2. low-frequency terms
     let levels_all: Vec<LevelObs> = input.levels.iter().copied().filter(usable).collect();
@@ -221,12 +222,18 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         input.allan.iter().copied().filter(|a| a.m >= m_min && a.avar > 0.0 && a.n_terms > 0).collect();
     // rows: levels[from..] then the Allan points
     let rows = |from: usize| -> (Vec<Vec<f64>>, Vec<f64>, Vec<f64>) {
-        let mut phi: Vec<Vec<f64>> = basis_all.phi[from..].to_vec();
+        // quantization is measured in the angle domain; the levels used here
+        // are chosen free of it, so its column is zero (no nuisance trade-off with ARW)
+        let mut phi: Vec<Vec<f64>> = basis_all.phi[from..].iter().map(|r| { let mut r = r.clone(); r[0] = 0.0; r }).collect();
         let mut y: Vec<f64> = levels_all[from..].iter().map(|l| l.mean_sq).collect();
         let mut edf0: Vec<f64> = levels_all[from..].iter().map(|l| l.n_coef).collect();
         for a in &allan {
-            phi.push(terms.iter().map(|t| t.allan_var(a.m, tau0)).collect());
-            y.push(a.avar);
+            // long-tau Allan points do see QN (3 Q^2 / tau^2): use the angle-domain Q
+            let mut row: Vec<f64> = terms.iter().map(|t| t.allan_var(a.m, tau0)).collect();
+            let qn = q2_first.max(0.0) * row[0];
+            row[0] = 0.0;
+            phi.push(row);
+            y.push((a.avar - qn).max(1e-300));
             edf0.push(a.edf(0));
         }
         (phi, y, edf0)
@@ -251,26 +258,33 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
             }
         }
     };
-    // Which levels carry only low-frequency noise? Start from the deepest few
-    // and move towards the fine levels while each new level agrees (|z| < 3)
-    // with the low-frequency model fitted to the deeper ones; stop at the first
-    // level where quantization noise (of whatever shape) shows up.
-    let mut from = levels_all.len().saturating_sub(4);
+    // Which levels carry only low-frequency noise? Every term of the low-
+    // frequency model gives detail variances that are flat (ARW) or fall
+    // towards the fine levels (flicker, RRW, Gauss-Markov); quantization noise,
+    // white (rate PSD ~ f^2) or periodic (a sawtooth's lines), makes them rise.
+    // Walk from the deepest level towards the fine ones and stop at the first
+    // level that is significantly (2 sigma) above its deeper neighbour: it and
+    // every finer level belong to QN. Model-free, so a Gauss-Markov hump the
+    // model lacks does not push real ARW levels out.
+    let mut from = levels_all.len();
     while from > 0 {
-        let (phi, y, edf0) = rows(from);
-        let theta = super::fit::ml_theta(&phi, &y, &edf0, &edf_for(from, &phi));
         let j = from - 1;
-        let mu = basis_all.mean(j, &theta);
-        let nu = basis_all.edf(j, &theta, levels_all[j].n_coef);
-        let z = (levels_all[j].mean_sq / mu - 1.0) * (nu / 2.0).sqrt();
-        if !(mu > 0.0 && z.abs() < 3.0) {
-            break;
+        if from < levels_all.len() {
+            let (a, b) = (&levels_all[j], &levels_all[from]);
+            let r = a.mean_sq / b.mean_sq;
+            let sd = r * (2.0 / a.n_coef + 2.0 / b.n_coef).sqrt();
+            if r - 1.0 > 2.0 * sd {
+                break;
+            }
         }
         from = j;
     }
+    if levels_all.len() - from < 2 {
+        from = levels_all.len().saturating_sub(2);
+    }
     let (phi, y, edf0) = rows(from);
     let mut o = *opts;
-    o.always_keep |= 1; // the white-angle term is a nuisance here, never selected away
+    o.always_keep |= 1; // the (zeroed) white-angle column stays out of model selection
     let fit = fit_rows(&phi, &y, &edf0, &edf_for(from, &phi), &o);
     let theta_lf = [fit.terms[0].theta, fit.terms[1].theta, fit.terms[2].theta, fit.terms[3].theta];
     let (a, b) = q_from_angle(&theta_lf);
