@@ -162,7 +162,7 @@ fn check_against_naive(points: &[StreamPoint], x: &[f64], tau0: f64, cap: u64, p
     }
     // Every octave with at least one term is reported.
     let last = points.last().unwrap().m;
-    assert!(x.len() as u64 >= 2 * last + 1 && (x.len() as u64) < 4 * last + 1);
+    assert!(x.len() as u64 > 2 * last && (x.len() as u64) <= 4 * last);
 }
 
 #[test]
@@ -449,7 +449,9 @@ fn memory_prediction_is_exact_and_72h_at_10khz_fits_in_8_mb() {
         eprintln!("{kind:?}: state after 72 h at 10 kHz = {bytes} bytes");
         assert!(bytes < 8 << 20, "{bytes} bytes");
         // Even an endless stream (every ring of the 62 octaves full) stays below 8 MB.
-        assert!(cfg.memory_bytes_after(kind, u64::MAX - 1).unwrap() < 8 << 20);
+        let endless = cfg.memory_bytes_after(kind, u64::MAX - 1).unwrap();
+        eprintln!("{kind:?}: state for an endless stream = {endless} bytes");
+        assert!(endless < 8 << 20, "{endless} bytes");
     }
 }
 

@@ -94,24 +94,28 @@ const LANES: usize = 16;
 fn sq_acc_f64_body(a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; LANES]) {
     let n = c.len();
     let (a, b) = (&a[..n], &b[..n]);
-    let (ca, ra) = a.as_chunks::<LANES>();
-    let (cb, rb) = b.as_chunks::<LANES>();
-    let (cc, rc) = c.as_chunks::<LANES>();
-    for ((xa, xb), xc) in ca.iter().zip(cb).zip(cc) {
+    let whole = n / LANES * LANES;
+    let chunks = a[..whole]
+        .chunks_exact(LANES)
+        .zip(b[..whole].chunks_exact(LANES))
+        .zip(c[..whole].chunks_exact(LANES));
+    for ((xa, xb), xc) in chunks {
         for l in 0..LANES {
             let z = (xc[l] - (xb[l] + xb[l])) + xa[l];
             acc[l] += z * z;
         }
     }
-    for (l, ((xa, xb), xc)) in ra.iter().zip(rb).zip(rc).enumerate() {
-        let z = (xc - (xb + xb)) + xa;
+    for (l, k) in (whole..n).enumerate() {
+        let z = (c[k] - (b[k] + b[k])) + a[k];
         acc[l] += z * z;
     }
 }
 
+/// # Safety
+/// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn sq_acc_f64_avx2(a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; LANES]) {
+unsafe fn sq_acc_f64_avx2(a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; LANES]) {
     use std::arch::x86_64::*;
     let n = c.len();
     let (a, b) = (&a[..n], &b[..n]);

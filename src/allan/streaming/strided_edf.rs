@@ -85,7 +85,7 @@ pub fn edf_strided(alpha: i32, m: u64, stride: u64, n_terms: u64) -> Result<f64,
     let model = Model::new(alpha, m);
     let s_per_tau = m / stride;
     let kex = model.exact_lags(s_per_tau);
-    if n_terms - 1 >= kex {
+    if n_terms > kex {
         let sums = LagSums::compute_checked(&model, s_per_tau, kex);
         Ok(sums.edf(&model, s_per_tau, n_terms))
     } else {
@@ -168,7 +168,7 @@ impl LagSums {
     pub(crate) fn edf_for(&self, alpha: i32, m: u64, stride: u64, n_terms: u64) -> f64 {
         let model = Model::new(alpha, m);
         let s_per_tau = m / stride;
-        if n_terms - 1 >= self.k_exact {
+        if n_terms > self.k_exact {
             self.edf(&model, s_per_tau, n_terms)
         } else {
             direct_edf(&model, s_per_tau, n_terms)
