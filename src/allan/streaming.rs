@@ -51,17 +51,24 @@
 //!   every other point of level `L-1`, compacted in place; level `L` feeds the noise
 //!   identification of octave `2^L` and the ring of the strided octave whose stride is
 //!   `2^L`, so both read contiguous memory (fewer than two updates per sample).
-//! * **EDF** from first principles for the stride actually used ([`edf_strided`];
-//!   equals Greenhall's OADEV EDF at stride 1 and ADEV EDF at stride `m`), cached per
-//!   octave and alpha. **CIs**: `avar * edf / chi2_{edf}(1 - p)` ...
-//!   `avar * edf / chi2_{edf}(p)`, `p = (1 - confidence)/2`, reported as deviations.
+//! * **EDF** from first principles for the stride actually used ([`edf_strided`]),
+//!   cached per octave and alpha. At stride 1 and stride `m` it is Greenhall's OADEV
+//!   and ADEV EDF wherever his algorithm uses the same phase model: identical for
+//!   white PM, white FM and RW FM, 0.4 % lower for flicker FM (Greenhall truncates the
+//!   lag sum at 3 tau), within his tables' 0.1-3 % where he uses them. For `m <= 33`
+//!   and `alpha <= 0` Greenhall averages the phase over `tau0`; the engine samples it
+//!   at points, which a Monte-Carlo test shows is right for integrated white FM.
+//!   **CIs**: `avar * edf / chi2_{edf}(1 - p)` ... `avar * edf / chi2_{edf}(p)`,
+//!   `p = (1 - confidence)/2`, reported as deviations.
 //!
 //! # Precision
 //! Terms are the batch terms bitwise (same evaluation order) for phase input; each
-//! block of at most `B` terms is summed in 8 lanes (worst-case relative error
-//! `(B/8) eps`, typically `sqrt(B/8) eps` ~ 3e-14) and the block sums go into a
-//! Neumaier total (error `2 eps`, independent of the 2e4 blocks of a 72 h, 10 kHz run).
-//! The counts path is exact up to the final division.
+//! block of at most `B` terms is summed in 16 lanes (worst-case relative error
+//! `(B/16) eps`, typically `sqrt(B/16) eps` ~ 2e-14; a strided octave has at most
+//! `B/s` terms per block, summed in order) and the block sums go into a Neumaier total
+//! (error `2 eps`, independent of the 2e4 blocks of a 72 h, 10 kHz run). The noise
+//! identification sums use 8 lanes per block and Neumaier totals as well. The counts
+//! path is exact up to the final division.
 //!
 //! # Memory
 //! Fixed at construction except for the strided rings, which grow (by doubling, capped
@@ -71,8 +78,9 @@
 //! plus about 400 bytes per octave of fixed state. [`StreamConfig::memory_bytes_after`]
 //! predicts [`OctaveAllan::memory_bytes`] exactly; for the defaults and a 72 h run at
 //! 10 kHz (2.6e9 samples, octaves up to `2^30`) it is 3.7 MB, and 5.7 MB bounds a
-//! stream of any length (all 62 octaves' rings full). A report on a partial block briefly clones the accumulators
-//! (not the phase buffer) and allocates a `B/2` scratch. Work per sample: one kernel
+//! stream of any length (all 62 octaves' rings full). A report on a partial block
+//! briefly clones the accumulators (not the phase buffer) and allocates a `B/2`
+//! scratch. Work per sample: one kernel
 //! step per full-overlap octave (17 by default) plus O(1) amortised; measured about
 //! 40 M samples/s on one core of the 2.5 GHz Xeon used for development
 //! (`scripts/bench-allan`).
@@ -479,6 +487,7 @@ impl<P: PhaseValue> Accumulators<P> {
         // Full-overlap octaves, in L1-sized tiles at absolute boundaries (b0 is a
         // multiple of the block, hence of TILE): octave j reads x[i-2m], which octave
         // j+1 reads next as x[i-m], so the tile's working set stays in cache.
+        scratch.clear();
         let mut lanes = [P::Lanes::default(); MAX_FULL_OCTAVES];
         let lanes = &mut lanes[..self.full.len()];
         let mut t0 = b0;
@@ -498,28 +507,30 @@ impl<P: PhaseValue> Accumulators<P> {
                     lane,
                 );
             }
+            // While the tile is in L1: noise identification of m = 1 (level 0 of the
+            // cascade below) and the level-1 decimation (t0 is even).
+            let tile = &buf[(t0 - base) as usize..(t1 - base) as usize];
+            self.id[0].feed(tile);
+            if g.max_oct >= 1 {
+                scratch.extend(tile.iter().step_by(2).copied());
+            }
             t0 = t1;
         }
         for (total, lane) in self.full.iter_mut().zip(lanes.iter()) {
             P::total_add(total, P::lanes_partial(lane));
         }
         // Decimation cascade: level L holds the points at multiples of 2^L in
-        // [b0, end). It feeds the noise identification of octave L and the strided
-        // octave whose stride is 2^L (octave L + log2 P). While 2^L <= block, b0 is a
-        // multiple of 2^L and level L + 1 is every other point of level L (compacted
-        // in place); beyond, a level has at most one point, read directly.
+        // [b0, end). It feeds the noise identification of octave 2^L and the strided
+        // octave whose stride is 2^L (octave L + log2 P; never level 0, as P <= cap).
+        // Level 0 was fed tile by tile above, level 1 gathered there. While
+        // 2^L <= block, b0 is a multiple of 2^L and level L + 1 is every other point of
+        // level L (compacted in place); beyond, a level has at most one point.
         let p_oct = g.p.trailing_zeros();
-        let (lo, hi) = ((b0 - base) as usize, (end - base) as usize);
-        scratch.clear();
-        for level in 0..=g.max_oct {
+        for level in 1..=g.max_oct {
             let step = 1u64 << level;
             let single;
-            let values: &[P] = if level == 0 {
-                &buf[lo..hi]
-            } else if step <= g.block {
-                if level == 1 {
-                    scratch.extend(buf[lo..hi].iter().step_by(2).copied());
-                } else {
+            let values: &[P] = if step <= g.block {
+                if level >= 2 {
                     let n = scratch.len().div_ceil(2);
                     for k in 0..n {
                         scratch[k] = scratch[2 * k];
@@ -542,6 +553,16 @@ impl<P: PhaseValue> Accumulators<P> {
             }
         }
         self.done = end;
+    }
+}
+
+/// Index of the first NaN or infinity: a branch-free (vectorisable) scan first, the
+/// position only when there is one.
+fn first_non_finite(v: &[f64]) -> Option<usize> {
+    if v.iter().fold(true, |ok, x| ok & x.is_finite()) {
+        None
+    } else {
+        v.iter().position(|x| !x.is_finite())
     }
 }
 
@@ -675,12 +696,12 @@ impl OctaveAllan<f64> {
             let (seg, tail) = rest.split_at(take);
             let bad = match self.kind {
                 InputKind::Freq => {
-                    let bad = seg.iter().position(|v| !v.is_finite());
+                    let bad = first_non_finite(seg);
                     let ok = &seg[..bad.unwrap_or(seg.len())];
                     self.integ.integrate(self.samples, ok, &mut self.buf);
                     bad
                 }
-                _ => match seg.iter().position(|v| !v.is_finite()) {
+                _ => match first_non_finite(seg) {
                     Some(i) => {
                         self.buf.extend_from_slice(&seg[..i]);
                         Some(i)
