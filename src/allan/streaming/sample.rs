@@ -168,18 +168,6 @@ fn sq_acc_f64(a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; LANES]) {
     sq_acc_f64_body(a, b, c, acc)
 }
 
-/// Portable path, for the test that both paths agree bitwise.
-#[doc(hidden)]
-pub fn sq_acc_f64_portable(a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; 16]) {
-    sq_acc_f64_body(a, b, c, acc)
-}
-
-/// Dispatching path (AVX2 when available).
-#[doc(hidden)]
-pub fn sq_acc_f64_dispatch(a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; 16]) {
-    sq_acc_f64(a, b, c, acc)
-}
-
 impl PhaseValue for f64 {
     type Total = Neumaier;
     type Partial = f64;
@@ -287,8 +275,8 @@ mod tests {
         for (len, m) in [(0usize, 1usize), (7, 2), (16, 3), (1023, 64), (4000, 256)] {
             let mut a = [0.5f64; 16];
             let mut b = [0.5f64; 16];
-            sq_acc_f64_portable(&x[..len], &x[m..m + len], &x[2 * m..2 * m + len], &mut a);
-            sq_acc_f64_dispatch(&x[..len], &x[m..m + len], &x[2 * m..2 * m + len], &mut b);
+            sq_acc_f64_body(&x[..len], &x[m..m + len], &x[2 * m..2 * m + len], &mut a);
+            sq_acc_f64(&x[..len], &x[m..m + len], &x[2 * m..2 * m + len], &mut b);
             assert_eq!(a.map(f64::to_bits), b.map(f64::to_bits), "len {len} m {m}");
             // And the lanes hold the plain sum (1e-12 relative, different order).
             let plain: f64 = (0..len)
