@@ -282,6 +282,27 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
     if levels_all.len() - from < 2 {
         from = levels_all.len().saturating_sub(2);
     }
+    // The neighbour test can miss a QN tail of ~10 % at the boundary level (its
+    // neighbour is noisy too). Check the finest kept level against the fit of
+    // the deeper ones and drop it while it carries a significant excess (at
+    // most twice: a misspecified low-frequency model must not eat the levels).
+    for _ in 0..2 {
+        if levels_all.len() - from < 3 {
+            break;
+        }
+        let (phi, y, edf0) = rows(from + 1);
+        let theta = super::fit::ml_theta(&phi, &y, &edf0, &edf_for(from + 1, &phi));
+        let mut th = theta.clone();
+        th[0] = 0.0;
+        let mu = basis_all.mean(from, &th);
+        let nu = basis_all.edf(from, &th, levels_all[from].n_coef);
+        let z = (levels_all[from].mean_sq / mu - 1.0) * (nu / 2.0).sqrt();
+        if mu > 0.0 && z > 3.0 {
+            from += 1;
+        } else {
+            break;
+        }
+    }
     let (phi, y, edf0) = rows(from);
     let mut o = *opts;
     o.always_keep |= 1; // the (zeroed) white-angle column stays out of model selection
