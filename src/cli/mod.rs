@@ -6,6 +6,7 @@ use clap::{Parser, Subcommand};
 
 pub mod allan;
 pub mod analyze;
+pub mod run;
 pub mod simulate;
 
 #[derive(Debug, Parser)]
@@ -21,6 +22,9 @@ pub enum Command {
     Allan(allan::AllanArgs),
     /// Estimate QN, ARW, bias instability, RRW and rate ramp with 95 % intervals.
     Analyze(analyze::AnalyzeArgs),
+    /// The acquisition daemon: serial gyro, replayed capture or simulated bench -> QN removal,
+    /// Allan variance, live estimates -> MCAP recording and Prometheus metrics.
+    Run(run::RunArgs),
     /// Simulate a gyro from a model file and write its pulse stream.
     Simulate(simulate::SimulateArgs),
 }
@@ -44,6 +48,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Allan(args) => allan::run(args),
         Command::Analyze(args) => analyze::run(args),
+        Command::Run(args) => run::run(args),
         Command::Simulate(args) => simulate::run(args),
     }
 }
