@@ -150,6 +150,25 @@ pub struct EstimatorOutput {
     pub ramp_arcsec_s2: Option<(f64, f64)>,
 }
 
+impl EstimatorOutput {
+    /// Every coefficient unknown: too little data.
+    pub fn insufficient() -> Self {
+        let none = Coefficient { value: None, ci95: None, upper95: None };
+        EstimatorOutput {
+            estimates: NoiseEstimates {
+                quantization_arcsec: none,
+                arw_dpsh: none,
+                bias_instability_dph: none,
+                rrw_dphsh: none,
+                rate_ramp_dphh: none,
+            },
+            fit: LevelFit { terms: Vec::new(), loglik: 0.0, edf: Vec::new(), fitted: Vec::new(), chi2_per_dof: f64::NAN },
+            theta: [0.0; 4],
+            ramp_arcsec_s2: None,
+        }
+    }
+}
+
 /// Levels whose count of transient-free coefficients is at least this are used.
 pub const MIN_LEVEL_COEFS: f64 = 8.0;
 
@@ -182,7 +201,7 @@ pub fn standard_terms(n_samples: u64, tau0_s: f64) -> [SpectralTerm; 4] {
 pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
     let tau0 = input.tau0_s;
     let terms = standard_terms(input.n_samples, tau0);
-    let usable = |l: &LevelObs| l.n_coef >= MIN_LEVEL_COEFS && l.mean_sq > 0.0;
+    let usable = |l: &LevelObs| l.n_coef >= MIN_LEVEL_COEFS && l.mean_sq > 0.0 && l.mean_sq.is_finite();
 
     // --- 1. quantization from the angle-domain levels (first pass without LF correction)
     let angle: Vec<LevelObs> = input.angle_levels.iter().copied().filter(usable).collect();
@@ -214,12 +233,16 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
 
     // --- 2. low-frequency terms
     let levels_all: Vec<LevelObs> = input.levels.iter().copied().filter(usable).collect();
+    if levels_all.len() < 2 {
+        // too short a record for any estimate (a few seconds at most)
+        return EstimatorOutput::insufficient();
+    }
     let ids_all: Vec<u32> = levels_all.iter().map(|l| l.level).collect();
     let basis_all = LevelBasis::new(input.dec_lo, input.dec_hi, tau0, &ids_all, &terms);
     let deepest = ids_all.iter().copied().max().unwrap_or(0);
     let m_min = 1u64 << (deepest + 1).min(62);
     let allan: Vec<AllanObs> =
-        input.allan.iter().copied().filter(|a| a.m >= m_min && a.avar > 0.0 && a.n_terms > 0).collect();
+        input.allan.iter().copied().filter(|a| a.m >= m_min && a.avar > 0.0 && a.avar.is_finite() && a.n_terms > 0).collect();
     // rows: levels[from..] then the Allan points
     let rows = |from: usize| -> (Vec<Vec<f64>>, Vec<f64>, Vec<f64>) {
         // quantization is measured in the angle domain; the levels used here

@@ -229,8 +229,8 @@ pub fn weighted_nnls(phi: &[Vec<f64>], y: &[f64], w: &[f64]) -> Vec<f64> {
 fn solve(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Option<Vec<f64>> {
     let n = b.len();
     for c in 0..n {
-        let piv = (c..n).max_by(|&i, &j| a[i][c].abs().partial_cmp(&a[j][c].abs()).unwrap())?;
-        if a[piv][c].abs() < 1e-300 {
+        let piv = (c..n).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))?;
+        if !(a[piv][c].abs() >= 1e-300) {
             return None;
         }
         a.swap(c, piv);
