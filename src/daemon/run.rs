@@ -47,6 +47,10 @@ use crate::source::serial::{SerialConfig, SerialError, SerialSource};
 /// The built-in gyro model of the simulated bench (the founding paper's RLG).
 pub const PAPER_GYRO_TOML: &str = include_str!("../../config/paper_gyro.toml");
 
+/// zstd level of the recording: 1 compresses the JSON samples about twice as
+/// fast as the default 3 for files about 10 % larger (scripts/bench-pipeline).
+pub const ZSTD_LEVEL: u32 = 1;
+
 /// Share of wall time estimator updates may take with a replay or the simulated
 /// bench (see [`crate::daemon::process`]).
 pub const UPDATE_BUDGET: f64 = 0.1;
@@ -292,6 +296,7 @@ impl Daemon {
             let rc = RecorderConfig {
                 record_dir: PathBuf::from(&config.record.dir),
                 flush_interval_s: config.record.flush_interval_s,
+                zstd_level: ZSTD_LEVEL,
                 ..RecorderConfig::default()
             };
             let r = tokio::task::spawn_blocking(move || Recorder::start(&rc))

@@ -264,29 +264,29 @@ impl ReplaySource {
             offset,
             source,
         };
-        let mut file = BufReader::with_capacity(
-            READ_CHUNK,
-            File::open(&cfg.path).map_err(|e| io_err(0, e))?,
-        );
+        let mut file = File::open(&cfg.path).map_err(|e| io_err(0, e))?;
         let pacer = Pacer::new(cfg.rate_hz, cfg.speed);
         let per_batch = pacer.batch_samples();
         let mut decoder = FrameDecoder::with_config(cfg.decoder);
         let mut asm = Assembler::new(cfg.rate_hz, cfg.limit_periods, telemetry);
-        let mut buf = BytesMut::with_capacity(READ_CHUNK);
-        let mut chunk = vec![0u8; READ_CHUNK];
+        let mut buf = BytesMut::with_capacity(2 * READ_CHUNK);
         let mut in_batch = 0usize;
         let mut eof = false;
         let mut stopped = false;
         while !eof && !stopped {
+            // Read straight into the decoder's buffer (no intermediate copy).
+            let have = buf.len();
+            buf.resize(have + READ_CHUNK, 0);
             let n = loop {
-                match file.read(&mut chunk) {
+                match file.read(&mut buf[have..]) {
                     Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
-                    r => break r.map_err(|e| io_err(decoder.stats().bytes_read, e))?,
+                    r => break r.map_err(|e| io_err(decoder.stats().bytes_read, e)),
                 }
             };
+            buf.truncate(have + *n.as_ref().unwrap_or(&0));
+            let n = n?;
             let now = wall_ns();
             eof = n == 0;
-            buf.extend_from_slice(&chunk[..n]);
             loop {
                 let item = if eof {
                     decoder.decode_eof(&mut buf)
