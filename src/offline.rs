@@ -30,6 +30,7 @@ pub enum RateUnit {
     /// deg/s.
     Dps,
     /// rad/s.
+    #[value(name = "rad_s")]
     RadS,
 }
 

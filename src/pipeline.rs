@@ -318,16 +318,6 @@ impl Pipeline {
         self.feed_channels(n0, out);
     }
 
-    /// Print the level observations (development aid).
-    #[doc(hidden)]
-    pub fn debug_levels(&self) {
-        for (r, a) in [("rate", self.rate_levels.observations()), ("angle", self.angle_levels.observations())] {
-            for l in a {
-                eprintln!("{r} level {:>2} n {:>9} mean_sq {:.6e}", l.level, l.n_coef, l.mean_sq);
-            }
-        }
-    }
-
     /// Estimates and curves from everything pushed so far.
     pub fn analysis(&self) -> Analysis {
         let conf = allan::DEFAULT_CONFIDENCE;
@@ -371,17 +361,5 @@ impl Pipeline {
 }
 
 fn to_points(p: &[StreamPoint]) -> Vec<AllanPoint> {
-    p.iter()
-        .filter(|p| p.n > 0 && p.avar.is_finite())
-        .map(|p| AllanPoint {
-            tau_s: p.tau_s,
-            m: p.m,
-            n: p.n,
-            dev: p.dev,
-            ci_lo: p.ci_lo,
-            ci_hi: p.ci_hi,
-            edf: p.edf,
-            alpha: p.alpha,
-        })
-        .collect()
+    p.iter().filter(|p| p.n > 0 && p.avar.is_finite()).map(AllanPoint::from).collect()
 }

@@ -12,10 +12,12 @@
 //!   a causal stand-in for the batch engines' mean removal: the Allan variance is
 //!   invariant to a constant frequency offset, so the second differences are
 //!   mathematically the same, and the phase stays small (a gyro at rest still sees the
-//!   Earth rate). The sum is Neumaier-compensated and stored rounded once, so every
-//!   stored phase point is within one rounding of the exact integral however long the
-//!   run. (Internally the phase is kept in units of `y * samples`; `tau0` enters only
-//!   the final scaling.)
+//!   Earth rate). The running sum is split into 256-sample quarters: a plain prefix sum
+//!   inside the quarter on top of a Neumaier-compensated sum of the earlier quarters, so
+//!   a stored phase point is off by at most `eps |x| + 256 eps max|p|` (`p` the
+//!   in-quarter partial sum) however long the run - no error grows with the stream
+//!   length. (Internally the phase is kept in units of `y * samples`; `tau0` enters
+//!   only the final scaling.)
 //! * [`OctaveAllan::counts`]: integer pulse-count increments (i64), accumulated in a
 //!   wrapping `i64` cumulative count: second differences are exact integers and their
 //!   squares are summed exactly in `u128` (see [`sample`]).
@@ -29,7 +31,10 @@
 //!   from it. Work is done per block of `B` points whose boundaries are fixed by the
 //!   absolute sample index, so how the caller splits its input never changes a single
 //!   bit of the result; a report on a partial block processes the pending points on a
-//!   copy of the accumulators. The kernel runs 8 independent lanes (SSE2/AVX2).
+//!   copy of the accumulators. The block is swept in L1-sized tiles of 1024 points,
+//!   all octaves per tile (octave `j`'s `x[i-2m]` is octave `j+1`'s `x[i-m]`), by a
+//!   16-lane kernel (AVX2 or portable, chosen at run time; no FMA, so both give
+//!   identical bits).
 //! * **Strided octaves** (`m > cap`) keep only every `s`-th phase point,
 //!   `s = m / P` with `P` = [`StreamConfig::strided_terms_per_tau`] (default `2^12`),
 //!   in a ring of `2P + 1` values, and use the second differences starting at every
@@ -41,28 +46,44 @@
 //!   Their EDF is computed honestly for the stride by [`strided_edf`].
 //! * **Noise identification** per octave by the lag-1 autocorrelation of the
 //!   non-overlapping `m`-decimated phase, differenced once or twice
-//!   ([`noise_id`], O(1) amortised per sample via the octave cascade).
-//! * **EDF** from first principles for the stride actually used ([`edf_strided`];
-//!   equals Greenhall's OADEV EDF at stride 1 and ADEV EDF at stride `m`), cached per
-//!   octave and alpha. **CIs**: `avar * edf / chi2_{edf}(1 - p)` ...
-//!   `avar * edf / chi2_{edf}(p)`, `p = (1 - confidence)/2`, reported as deviations.
+//!   ([`noise_id`], O(1) amortised per sample). Each block builds a decimation
+//!   cascade in a scratch buffer of `B/2` points: level `L` (every `2^L`-th point) is
+//!   every other point of level `L-1`, compacted in place; level `L` feeds the noise
+//!   identification of octave `2^L` and the ring of the strided octave whose stride is
+//!   `2^L`, so both read contiguous memory (fewer than two updates per sample).
+//! * **EDF** from first principles for the stride actually used ([`edf_strided`]),
+//!   cached per octave and alpha. At stride 1 and stride `m` it is Greenhall's OADEV
+//!   and ADEV EDF wherever his algorithm uses the same phase model: identical for
+//!   white PM, white FM and RW FM, 0.4 % lower for flicker FM (Greenhall truncates the
+//!   lag sum at 3 tau), within his tables' 0.1-3 % where he uses them. For `m <= 33`
+//!   and `alpha <= 0` Greenhall averages the phase over `tau0`; the engine samples it
+//!   at points, which a Monte-Carlo test shows is right for integrated white FM.
+//!   **CIs**: `avar * edf / chi2_{edf}(1 - p)` ... `avar * edf / chi2_{edf}(p)`,
+//!   `p = (1 - confidence)/2`, reported as deviations.
 //!
 //! # Precision
 //! Terms are the batch terms bitwise (same evaluation order) for phase input; each
-//! block of at most `B` terms is summed in 8 lanes (worst-case relative error
-//! `(B/8) eps`, typically `sqrt(B/8) eps` ~ 3e-14) and the block sums go into a
-//! Neumaier total (error `2 eps`, independent of the 2e4 blocks of a 72 h, 10 kHz run).
-//! The counts path is exact up to the final division.
+//! block of at most `B` terms is summed in 16 lanes (worst-case relative error
+//! `(B/16) eps`, typically `sqrt(B/16) eps` ~ 2e-14; a strided octave has at most
+//! `B/s` terms per block, summed in order) and the block sums go into a Neumaier total
+//! (error `2 eps`, independent of the 2e4 blocks of a 72 h, 10 kHz run). The noise
+//! identification sums use 8 lanes per block and Neumaier totals as well. The counts
+//! path is exact up to the final division.
 //!
 //! # Memory
 //! Fixed at construction except for the strided rings, which grow (by doubling, capped
 //! at `2P + 1`) only as their octave receives values, so the state is bounded by the
 //! octave count and independent of the stream length:
-//! `8 (2 cap + B) + sum_{strided octaves} 8 min(2P + 1, cap_growth(values))` plus about
-//! 400 bytes per octave of fixed state. [`StreamConfig::memory_bytes_after`] predicts
-//! [`OctaveAllan::memory_bytes`] exactly; for the defaults and a 72 h run at 10 kHz
-//! (2.6e9 samples, octaves up to `2^30`) it is about 3.3 MB. Work per sample: one
-//! kernel step per full-overlap octave (17 by default) plus O(1) amortised.
+//! `8 (2 cap + B + B/2) + sum_{strided octaves} 8 min(2P + 1, cap_growth(values))`
+//! plus about 400 bytes per octave of fixed state. [`StreamConfig::memory_bytes_after`]
+//! predicts [`OctaveAllan::memory_bytes`] exactly; for the defaults and a 72 h run at
+//! 10 kHz (2.6e9 samples, octaves up to `2^30`) it is 3.7 MB, and 5.7 MB bounds a
+//! stream of any length (all 62 octaves' rings full). A report on a partial block
+//! briefly clones the accumulators (not the phase buffer) and allocates a `B/2`
+//! scratch. Work per sample: one kernel
+//! step per full-overlap octave (17 by default) plus O(1) amortised; measured about
+//! 40 M samples/s on one core of the 2.5 GHz Xeon used for development
+//! (`scripts/bench-allan`).
 
 pub mod noise_id;
 pub mod sample;
@@ -283,6 +304,22 @@ pub struct StreamPoint {
     pub ci_hi: f64,
 }
 
+impl From<&StreamPoint> for super::AllanPoint {
+    /// The batch engine's point type (what the JSON contract prints).
+    fn from(p: &StreamPoint) -> Self {
+        super::AllanPoint {
+            tau_s: p.tau_s,
+            m: p.m,
+            n: p.n,
+            dev: p.dev,
+            ci_lo: p.ci_lo,
+            ci_hi: p.ci_hi,
+            edf: p.edf,
+            alpha: p.alpha,
+        }
+    }
+}
+
 /// Chi-square confidence interval of a deviation with `edf` degrees of freedom:
 /// `(dev sqrt(edf / chi2(1-p)), dev sqrt(edf / chi2(p)))`, `p = (1 - confidence) / 2`.
 pub fn chi2_dev_interval(dev: f64, edf: f64, confidence: f64) -> Result<(f64, f64), StreamError> {
@@ -324,7 +361,7 @@ fn fixed_bytes<P: PhaseValue>(g: &Geometry) -> usize {
     let octaves = g.max_oct as usize + 1;
     let full = g.cap_oct as usize + 1;
     size_of::<OctaveAllan<P>>()
-        + (g.hist + g.block) as usize * size_of::<P>()
+        + (g.hist + g.block + g.block / 2) as usize * size_of::<P>()
         + full * size_of::<P::Total>()
         + (octaves - full) * size_of::<Strided<P>>()
         + octaves * size_of::<OctaveId<P>>()
@@ -360,9 +397,10 @@ impl<P: PhaseValue> Strided<P> {
         }
     }
 
-    fn feed(&mut self, buf: &[P], base: u64, b0: u64, b1: u64) {
-        let first = b0.next_multiple_of(self.s);
-        if first >= b1 {
+    /// Push the next decimated phase points (consecutive multiples of `s`).
+    #[inline(always)]
+    fn feed(&mut self, values: &[P]) {
+        if values.is_empty() {
             return;
         }
         let len = 2 * self.sp + 1;
@@ -370,9 +408,7 @@ impl<P: PhaseValue> Strided<P> {
         // Write position `w = count mod len`; with len = 2S + 1 the values S and 2S
         // points back sit at `w + S + 1` and `w + 1` (mod len).
         let mut w = (self.count % len as u64) as usize;
-        let mut a = first;
-        while a < b1 {
-            let x = buf[(a - base) as usize];
+        for &x in values {
             if self.count >= 2 * self.sp as u64 {
                 let ia = if w + 1 == len { 0 } else { w + 1 };
                 let ib = if w + self.sp + 1 >= len {
@@ -393,7 +429,6 @@ impl<P: PhaseValue> Strided<P> {
             }
             self.count += 1;
             w = if w + 1 == len { 0 } else { w + 1 };
-            a += self.s;
         }
         P::total_add(&mut self.total, partial);
     }
@@ -428,27 +463,39 @@ impl<P: PhaseValue> Accumulators<P> {
         }
     }
 
-    /// Accumulate the phase points `[done, end)`; `buf[0]` is point `base`.
-    fn process(&mut self, buf: &[P], base: u64, end: u64) {
+    /// Accumulate the phase points `[done, end)`; `buf[0]` is point `base`; `done` is
+    /// a multiple of `g.block`. `scratch` (capacity `block / 2`) holds the decimation
+    /// cascade.
+    fn process(&mut self, g: &Geometry, buf: &[P], base: u64, end: u64, scratch: &mut Vec<P>) {
         #[cfg(target_arch = "x86_64")]
         {
             if std::arch::is_x86_feature_detected!("avx2") {
                 // SAFETY: the CPU supports AVX2 (checked just above).
-                return unsafe { self.process_avx2(buf, base, end) };
+                return unsafe { self.process_avx2(g, buf, base, end, scratch) };
             }
         }
-        self.process_body(buf, base, end)
+        self.process_body(g, buf, base, end, scratch)
     }
 
     /// The same code compiled for 256-bit vectors (no FMA: identical results).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn process_avx2(&mut self, buf: &[P], base: u64, end: u64) {
-        self.process_body(buf, base, end)
+    unsafe fn process_avx2(
+        &mut self,
+        g: &Geometry,
+        buf: &[P],
+        base: u64,
+        end: u64,
+        scratch: &mut Vec<P>,
+    ) {
+        self.process_body(g, buf, base, end, scratch)
     }
 
     #[inline(always)]
-    fn process_body(&mut self, buf: &[P], base: u64, end: u64) {
+    fn process_body(&mut self, g: &Geometry, buf: &[P], base: u64, end: u64, scratch: &mut Vec<P>) {
         let b0 = self.done;
         if end <= b0 {
             return;
@@ -456,6 +503,7 @@ impl<P: PhaseValue> Accumulators<P> {
         // Full-overlap octaves, in L1-sized tiles at absolute boundaries (b0 is a
         // multiple of the block, hence of TILE): octave j reads x[i-2m], which octave
         // j+1 reads next as x[i-m], so the tile's working set stays in cache.
+        scratch.clear();
         let mut lanes = [P::Lanes::default(); MAX_FULL_OCTAVES];
         let lanes = &mut lanes[..self.full.len()];
         let mut t0 = b0;
@@ -475,34 +523,140 @@ impl<P: PhaseValue> Accumulators<P> {
                     lane,
                 );
             }
+            // While the tile is in L1: noise identification of m = 1 (level 0 of the
+            // cascade below) and the level-1 decimation (t0 is even).
+            let tile = &buf[(t0 - base) as usize..(t1 - base) as usize];
+            self.id[0].feed(tile);
+            if g.max_oct >= 1 {
+                scratch.extend(tile.iter().step_by(2).copied());
+            }
             t0 = t1;
         }
         for (total, lane) in self.full.iter_mut().zip(lanes.iter()) {
             P::total_add(total, P::lanes_partial(lane));
         }
-        for st in &mut self.strided {
-            st.feed(buf, base, b0, end);
-        }
-        for (j, id) in self.id.iter_mut().enumerate() {
-            let step = 1u64 << j;
-            let first = b0.next_multiple_of(step);
-            if first >= end {
-                continue;
+        // Decimation cascade: level L holds the points at multiples of 2^L in
+        // [b0, end). It feeds the noise identification of octave 2^L and the strided
+        // octave whose stride is 2^L (octave L + log2 P; never level 0, as P <= cap).
+        // Level 0 was fed tile by tile above, level 1 gathered there. While
+        // 2^L <= block, b0 is a multiple of 2^L and level L + 1 is every other point of
+        // level L (compacted in place); beyond, a level has at most one point.
+        let p_oct = g.p.trailing_zeros();
+        for level in 1..=g.max_oct {
+            let step = 1u64 << level;
+            let single;
+            let values: &[P] = if step <= g.block {
+                if level >= 2 {
+                    let n = scratch.len().div_ceil(2);
+                    for k in 0..n {
+                        scratch[k] = scratch[2 * k];
+                    }
+                    scratch.truncate(n);
+                }
+                scratch
+            } else {
+                let first = b0.next_multiple_of(step);
+                if first >= end {
+                    continue;
+                }
+                single = [buf[(first - base) as usize]];
+                &single
+            };
+            self.id[level as usize].feed(values);
+            let j = level + p_oct;
+            if j > g.cap_oct && j <= g.max_oct {
+                self.strided[(j - g.cap_oct - 1) as usize].feed(values);
             }
-            let lo = (first - base) as usize;
-            let hi = (end - base) as usize;
-            id.feed(&buf[lo..hi], step as usize);
         }
         self.done = end;
     }
 }
 
+/// Index of the first NaN or infinity: a branch-free (vectorisable) scan first, the
+/// position only when there is one.
+fn first_non_finite(v: &[f64]) -> Option<usize> {
+    if v.iter().fold(true, |ok, x| ok & x.is_finite()) {
+        None
+    } else {
+        v.iter().position(|x| !x.is_finite())
+    }
+}
+
+/// Samples per integration quarter (see [`Integrator::integrate`]).
+const QUARTER: usize = 256;
+
 /// Running state of the input integration.
 #[derive(Clone, Copy, Debug, Default)]
 struct Integrator {
+    /// First frequency sample (the causal offset removed before integrating).
     y0: f64,
-    phase: Neumaier,
+    /// Compensated sum of all completed quarters.
+    base: Neumaier,
+    /// `base` at the start of the current quarter.
+    off: f64,
+    /// Prefix sum within the current quarter.
+    p: f64,
+    /// Cumulative pulse count (wrapping).
     count: i64,
+}
+
+impl Integrator {
+    /// Integrate `ys` (input samples `k0, k0 + 1, ...`) to phase points
+    /// `x[k+1] = x[k] + (y[k] - y0)`, appended to `out`.
+    ///
+    /// Quarters of [`QUARTER`] samples at absolute sample indices: within a quarter a
+    /// plain prefix sum `p`, each point stored as `off + p`, where `off` is the
+    /// Neumaier sum of all earlier quarter totals. The stored value depends only on the
+    /// samples up to it, never on how the input was split. Four whole quarters in a
+    /// row are integrated as four independent chains (4x the speed of one dependent
+    /// chain) with exactly the same operations. Error of a stored point: at most
+    /// `eps |x| + 256 eps max|p|`, independent of the stream length.
+    fn integrate(&mut self, k0: u64, ys: &[f64], out: &mut Vec<f64>) {
+        let y0 = self.y0;
+        let q = QUARTER as u64;
+        let mut k = k0;
+        let mut i = 0;
+        while i < ys.len() {
+            if k % q == 0 && ys.len() - i >= 4 * QUARTER {
+                let mut tmp = [0.0f64; 4 * QUARTER];
+                let mut pq = [0.0f64; 4];
+                let group = &ys[i..i + 4 * QUARTER];
+                for j in 0..QUARTER {
+                    for l in 0..4 {
+                        pq[l] += group[l * QUARTER + j] - y0;
+                        tmp[l * QUARTER + j] = pq[l];
+                    }
+                }
+                let mut prev = self.p;
+                let mut offs = [0.0f64; 4];
+                for (l, off) in offs.iter_mut().enumerate() {
+                    self.base.add(prev);
+                    *off = self.base.value();
+                    prev = pq[l];
+                }
+                self.off = offs[3];
+                self.p = prev;
+                for (l, &off) in offs.iter().enumerate() {
+                    out.extend(tmp[l * QUARTER..(l + 1) * QUARTER].iter().map(|&v| v + off));
+                }
+                i += 4 * QUARTER;
+                k += 4 * q;
+                continue;
+            }
+            let until = ys.len().min(i + (q - k % q) as usize);
+            for &y in &ys[i..until] {
+                if k % q == 0 {
+                    self.base.add(self.p);
+                    self.off = self.base.value();
+                    self.p = 0.0;
+                }
+                self.p += y - y0;
+                out.push(self.off + self.p);
+                k += 1;
+            }
+            i = until;
+        }
+    }
 }
 
 /// Streaming octave-spaced OADEV accumulator (see the module docs).
@@ -519,6 +673,8 @@ pub struct OctaveAllan<P: PhaseValue = f64> {
     buf: Vec<P>,
     buf_start: u64,
     acc: Accumulators<P>,
+    /// Decimation cascade scratch (`block / 2` points), reused by every block.
+    scratch: Vec<P>,
     edf_cache: Vec<EdfCache>,
 }
 
@@ -542,33 +698,26 @@ impl OctaveAllan<f64> {
     /// consumed and an error naming its index is returned.
     pub fn push_block(&mut self, samples: &[f64]) -> Result<(), StreamError> {
         let mut rest = samples;
-        if self.kind == InputKind::Freq
-            && self.samples == 0
-            && let Some(&y) = rest.first()
-        {
-            if !y.is_finite() {
-                return Err(StreamError::NonFinite { index: 0, value: y });
+        if self.kind == InputKind::Freq && self.samples == 0 {
+            if let Some(&y) = rest.first() {
+                if !y.is_finite() {
+                    return Err(StreamError::NonFinite { index: 0, value: y });
+                }
+                self.integ.y0 = y;
+                self.append_one(0.0);
             }
-            self.integ.y0 = y;
-            self.append_one(0.0);
         }
         while !rest.is_empty() {
             let take = self.room().min(rest.len());
             let (seg, tail) = rest.split_at(take);
             let bad = match self.kind {
                 InputKind::Freq => {
-                    let bad = seg.iter().position(|v| !v.is_finite());
+                    let bad = first_non_finite(seg);
                     let ok = &seg[..bad.unwrap_or(seg.len())];
-                    let y0 = self.integ.y0;
-                    let mut ph = self.integ.phase;
-                    self.buf.extend(ok.iter().map(|&y| {
-                        ph.add(y - y0);
-                        ph.value()
-                    }));
-                    self.integ.phase = ph;
+                    self.integ.integrate(self.samples, ok, &mut self.buf);
                     bad
                 }
-                _ => match seg.iter().position(|v| !v.is_finite()) {
+                _ => match first_non_finite(seg) {
                     Some(i) => {
                         self.buf.extend_from_slice(&seg[..i]);
                         Some(i)
@@ -643,6 +792,7 @@ impl<P: PhaseValue> OctaveAllan<P> {
             integ: Integrator::default(),
             buf,
             buf_start: 0,
+            scratch: Vec::with_capacity((geo.block / 2) as usize),
             edf_cache,
         })
     }
@@ -663,7 +813,8 @@ impl<P: PhaseValue> OctaveAllan<P> {
         if end < self.acc.done + self.geo.block {
             return;
         }
-        self.acc.process(&self.buf, self.buf_start, end);
+        self.acc
+            .process(&self.geo, &self.buf, self.buf_start, end, &mut self.scratch);
         let keep = self.geo.hist as usize;
         if self.buf.len() > keep {
             let drop = self.buf.len() - keep;
@@ -707,6 +858,7 @@ impl<P: PhaseValue> OctaveAllan<P> {
         use std::mem::size_of;
         size_of::<Self>()
             + self.buf.capacity() * size_of::<P>()
+            + self.scratch.capacity() * size_of::<P>()
             + self.acc.full.capacity() * size_of::<P::Total>()
             + self.acc.strided.capacity() * size_of::<Strided<P>>()
             + self
@@ -725,7 +877,14 @@ impl<P: PhaseValue> OctaveAllan<P> {
             std::borrow::Cow::Borrowed(&self.acc)
         } else {
             let mut acc = self.acc.clone();
-            acc.process(&self.buf, self.buf_start, self.phase_points());
+            let mut scratch = Vec::with_capacity((self.geo.block / 2) as usize);
+            acc.process(
+                &self.geo,
+                &self.buf,
+                self.buf_start,
+                self.phase_points(),
+                &mut scratch,
+            );
             std::borrow::Cow::Owned(acc)
         }
     }

@@ -28,10 +28,10 @@ pub struct AnalyzeArgs {
     #[arg(long, value_enum, default_value = "csv")]
     pub format: AnalyzeFormat,
     /// Sample rate, Hz (MCAP recordings carry their own).
-    #[arg(long, value_name = "F")]
+    #[arg(long, value_name = "F", allow_negative_numbers = true)]
     pub rate_hz: Option<f64>,
     /// Angle of one counter pulse, arcsec (for pulse counts).
-    #[arg(long, value_name = "D", default_value_t = 1.21)]
+    #[arg(long, value_name = "D", default_value_t = 1.21, allow_negative_numbers = true)]
     pub pulse_arcsec: f64,
     /// CSV column to analyse (default `counts`).
     #[arg(long, value_name = "NAME")]

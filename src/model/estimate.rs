@@ -28,7 +28,7 @@ use std::f64::consts::PI;
 use serde::{Deserialize, Serialize};
 
 use super::fit::{FitOptions, LevelFit, LevelObs, fit_rows};
-use super::wvar::{Domain, LevelBasis, SpectralTerm};
+use super::wvar::{Domain, GL8, LevelBasis, SpectralTerm};
 use crate::units;
 
 /// One overlapping Allan variance point of the raw rate.
@@ -150,6 +150,25 @@ pub struct EstimatorOutput {
     pub ramp_arcsec_s2: Option<(f64, f64)>,
 }
 
+impl EstimatorOutput {
+    /// Every coefficient unknown: too little data.
+    pub fn insufficient() -> Self {
+        let none = Coefficient { value: None, ci95: None, upper95: None };
+        EstimatorOutput {
+            estimates: NoiseEstimates {
+                quantization_arcsec: none,
+                arw_dpsh: none,
+                bias_instability_dph: none,
+                rrw_dphsh: none,
+                rate_ramp_dphh: none,
+            },
+            fit: LevelFit { terms: Vec::new(), loglik: 0.0, edf: Vec::new(), fitted: Vec::new(), chi2_per_dof: f64::NAN },
+            theta: [0.0; 4],
+            ramp_arcsec_s2: None,
+        }
+    }
+}
+
 /// Levels whose count of transient-free coefficients is at least this are used.
 pub const MIN_LEVEL_COEFS: f64 = 8.0;
 
@@ -182,7 +201,7 @@ pub fn standard_terms(n_samples: u64, tau0_s: f64) -> [SpectralTerm; 4] {
 pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
     let tau0 = input.tau0_s;
     let terms = standard_terms(input.n_samples, tau0);
-    let usable = |l: &LevelObs| l.n_coef >= MIN_LEVEL_COEFS && l.mean_sq > 0.0;
+    let usable = |l: &LevelObs| l.n_coef >= MIN_LEVEL_COEFS && l.mean_sq > 0.0 && l.mean_sq.is_finite();
 
     // --- 1. quantization from the angle-domain levels (first pass without LF correction)
     let angle: Vec<LevelObs> = input.angle_levels.iter().copied().filter(usable).collect();
@@ -210,23 +229,34 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         (q2 / norm, var.sqrt() / norm)
     };
     let (q2, q2_sd);
+    let q2_first = q_from_angle(&[0.0; 4]).0;
 
     // --- 2. low-frequency terms
     let levels_all: Vec<LevelObs> = input.levels.iter().copied().filter(usable).collect();
+    if levels_all.len() < 2 {
+        // too short a record for any estimate (a few seconds at most)
+        return EstimatorOutput::insufficient();
+    }
     let ids_all: Vec<u32> = levels_all.iter().map(|l| l.level).collect();
     let basis_all = LevelBasis::new(input.dec_lo, input.dec_hi, tau0, &ids_all, &terms);
     let deepest = ids_all.iter().copied().max().unwrap_or(0);
     let m_min = 1u64 << (deepest + 1).min(62);
     let allan: Vec<AllanObs> =
-        input.allan.iter().copied().filter(|a| a.m >= m_min && a.avar > 0.0 && a.n_terms > 0).collect();
+        input.allan.iter().copied().filter(|a| a.m >= m_min && a.avar > 0.0 && a.avar.is_finite() && a.n_terms > 0).collect();
     // rows: levels[from..] then the Allan points
     let rows = |from: usize| -> (Vec<Vec<f64>>, Vec<f64>, Vec<f64>) {
-        let mut phi: Vec<Vec<f64>> = basis_all.phi[from..].to_vec();
+        // quantization is measured in the angle domain; the levels used here
+        // are chosen free of it, so its column is zero (no nuisance trade-off with ARW)
+        let mut phi: Vec<Vec<f64>> = basis_all.phi[from..].iter().map(|r| { let mut r = r.clone(); r[0] = 0.0; r }).collect();
         let mut y: Vec<f64> = levels_all[from..].iter().map(|l| l.mean_sq).collect();
         let mut edf0: Vec<f64> = levels_all[from..].iter().map(|l| l.n_coef).collect();
         for a in &allan {
-            phi.push(terms.iter().map(|t| t.allan_var(a.m, tau0)).collect());
-            y.push(a.avar);
+            // long-tau Allan points do see QN (3 Q^2 / tau^2): use the angle-domain Q
+            let mut row: Vec<f64> = terms.iter().map(|t| t.allan_var(a.m, tau0)).collect();
+            let qn = q2_first.max(0.0) * row[0];
+            row[0] = 0.0;
+            phi.push(row);
+            y.push((a.avar - qn).max(1e-300));
             edf0.push(a.edf(0));
         }
         (phi, y, edf0)
@@ -251,26 +281,54 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
             }
         }
     };
-    // Which levels carry only low-frequency noise? Start from the deepest few
-    // and move towards the fine levels while each new level agrees (|z| < 3)
-    // with the low-frequency model fitted to the deeper ones; stop at the first
-    // level where quantization noise (of whatever shape) shows up.
-    let mut from = levels_all.len().saturating_sub(4);
+    // Which levels carry only low-frequency noise? Every term of the low-
+    // frequency model gives detail variances that are flat (ARW) or fall
+    // towards the fine levels (flicker, RRW, Gauss-Markov); quantization noise,
+    // white (rate PSD ~ f^2) or periodic (a sawtooth's lines), makes them rise.
+    // Walk from the deepest level towards the fine ones and stop at the first
+    // level that is significantly (2 sigma) above its deeper neighbour: it and
+    // every finer level belong to QN. Model-free, so a Gauss-Markov hump the
+    // model lacks does not push real ARW levels out.
+    let mut from = levels_all.len();
     while from > 0 {
-        let (phi, y, edf0) = rows(from);
-        let theta = super::fit::ml_theta(&phi, &y, &edf0, &edf_for(from, &phi));
         let j = from - 1;
-        let mu = basis_all.mean(j, &theta);
-        let nu = basis_all.edf(j, &theta, levels_all[j].n_coef);
-        let z = (levels_all[j].mean_sq / mu - 1.0) * (nu / 2.0).sqrt();
-        if !(mu > 0.0 && z.abs() < 3.0) {
-            break;
+        if from < levels_all.len() {
+            let (a, b) = (&levels_all[j], &levels_all[from]);
+            let r = a.mean_sq / b.mean_sq;
+            let sd = r * (2.0 / a.n_coef + 2.0 / b.n_coef).sqrt();
+            if r - 1.0 > 2.0 * sd {
+                break;
+            }
         }
         from = j;
     }
+    if levels_all.len() - from < 2 {
+        from = levels_all.len().saturating_sub(2);
+    }
+    // The neighbour test can miss a QN tail of ~10 % at the boundary level (its
+    // neighbour is noisy too). Check the finest kept level against the fit of
+    // the deeper ones and drop it while it carries a significant excess (at
+    // most twice: a misspecified low-frequency model must not eat the levels).
+    for _ in 0..2 {
+        if levels_all.len() - from < 3 {
+            break;
+        }
+        let (phi, y, edf0) = rows(from + 1);
+        let theta = super::fit::ml_theta(&phi, &y, &edf0, &edf_for(from + 1, &phi));
+        let mut th = theta.clone();
+        th[0] = 0.0;
+        let mu = basis_all.mean(from, &th);
+        let nu = basis_all.edf(from, &th, levels_all[from].n_coef);
+        let z = (levels_all[from].mean_sq / mu - 1.0) * (nu / 2.0).sqrt();
+        if mu > 0.0 && z > 3.0 {
+            from += 1;
+        } else {
+            break;
+        }
+    }
     let (phi, y, edf0) = rows(from);
     let mut o = *opts;
-    o.always_keep |= 1; // the white-angle term is a nuisance here, never selected away
+    o.always_keep |= 1; // the (zeroed) white-angle column stays out of model selection
     let fit = fit_rows(&phi, &y, &edf0, &edf_for(from, &phi), &o);
     let theta_lf = [fit.terms[0].theta, fit.terms[1].theta, fit.terms[2].theta, fit.terms[3].theta];
     let (a, b) = q_from_angle(&theta_lf);
@@ -387,16 +445,6 @@ pub fn slope_var_per_theta(term: &SpectralTerm, n: u64, tau0_s: f64) -> f64 {
     total
 }
 
-const GL8: [(f64, f64); 8] = [
-    (-0.960_289_856_497_536_3, 0.101_228_536_290_376_26),
-    (-0.796_666_477_413_626_7, 0.222_381_034_453_374_47),
-    (-0.525_532_409_916_329, 0.313_706_645_877_887_3),
-    (-0.183_434_642_495_649_8, 0.362_683_783_378_362),
-    (0.183_434_642_495_649_8, 0.362_683_783_378_362),
-    (0.525_532_409_916_329, 0.313_706_645_877_887_3),
-    (0.796_666_477_413_626_7, 0.222_381_034_453_374_47),
-    (0.960_289_856_497_536_3, 0.101_228_536_290_376_26),
-];
 
 #[cfg(test)]
 mod tests {

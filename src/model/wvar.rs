@@ -258,7 +258,7 @@ pub fn finite_level_vars(lo: &[f64], hi: &[f64], r0: &[f64], levels: u32) -> Vec
 }
 
 /// Gauss-Legendre nodes and weights on [-1, 1] (8 points).
-const GL8: [(f64, f64); 8] = [
+pub(crate) const GL8: [(f64, f64); 8] = [
     (-0.960_289_856_497_536_3, 0.101_228_536_290_376_26),
     (-0.796_666_477_413_626_7, 0.222_381_034_453_374_47),
     (-0.525_532_409_916_329, 0.313_706_645_877_887_3),
@@ -287,7 +287,7 @@ pub fn level_nodes(lo: &[f64], hi: &[f64], level: u32, extra_breaks: &[f64]) -> 
             breaks.push(e);
         }
     }
-    breaks.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    breaks.sort_by(|a, b| a.total_cmp(b));
     breaks.dedup();
     let mut nodes = Vec::with_capacity(breaks.len() * 32 * 8);
     for seg in breaks.windows(2) {

@@ -81,7 +81,9 @@ impl SeriesSums {
     }
 
     fn fold(&mut self, lanes: &SumLanes, added: u64, last: f64) {
-        let red = |l: &[f64; 4]| (l[0] + l[1]) + (l[2] + l[3]);
+        let red = |l: &[f64; SUM_LANES]| {
+            ((l[0] + l[1]) + (l[2] + l[3])) + ((l[4] + l[5]) + (l[6] + l[7]))
+        };
         self.s1.add(red(&lanes.s1));
         self.s2.add(red(&lanes.s2));
         self.s11.add(red(&lanes.s11));
@@ -90,17 +92,20 @@ impl SeriesSums {
     }
 }
 
-/// 4-lane partial sums (vectorisable; lane fixed by the position in the tile).
+/// Lanes of the partial sums of the identification series.
+const SUM_LANES: usize = 8;
+
+/// 8-lane partial sums (vectorisable; lane fixed by the position in the tile).
 #[derive(Clone, Copy, Default)]
 struct SumLanes {
-    s1: [f64; 4],
-    s2: [f64; 4],
-    s11: [f64; 4],
+    s1: [f64; SUM_LANES],
+    s2: [f64; SUM_LANES],
+    s11: [f64; SUM_LANES],
 }
 
 impl SumLanes {
     /// Add `u[i]`, `u[i]^2` and `u[i] u[i-1]` (`u[-1] = prev`): `u[0]` to lane 0, then
-    /// `u[1..]` in groups of 4 (lane = position in the group), the remainder to lanes
+    /// `u[1..]` in groups of 8 (lane = position in the group), the remainder to lanes
     /// `0 ..`. The AVX2 path does the same IEEE operations lane by lane.
     #[inline(always)]
     fn add(&mut self, u: &[f64], prev: f64) {
@@ -111,7 +116,7 @@ impl SumLanes {
         self.s2[0] += first * first;
         self.s11[0] += first * prev;
         let (cur, before) = (&u[1..], &u[..u.len() - 1]);
-        let whole = cur.len() / 4 * 4;
+        let whole = cur.len() / SUM_LANES * SUM_LANES;
         #[cfg(target_arch = "x86_64")]
         let done = if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2 (checked just above).
@@ -123,10 +128,11 @@ impl SumLanes {
         #[cfg(not(target_arch = "x86_64"))]
         let done = false;
         if !done {
-            let (cc, _) = cur[..whole].as_chunks::<4>();
-            let (cb, _) = before[..whole].as_chunks::<4>();
-            for (c, b) in cc.iter().zip(cb) {
-                for l in 0..4 {
+            let chunks = cur[..whole]
+                .chunks_exact(SUM_LANES)
+                .zip(before[..whole].chunks_exact(SUM_LANES));
+            for (c, b) in chunks {
+                for l in 0..SUM_LANES {
                     self.s1[l] += c[l];
                     self.s2[l] += c[l] * c[l];
                     self.s11[l] += c[l] * b[l];
@@ -140,29 +146,42 @@ impl SumLanes {
         }
     }
 
+    /// # Safety
+    /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn add_avx2(&mut self, cur: &[f64], before: &[f64]) {
+    unsafe fn add_avx2(&mut self, cur: &[f64], before: &[f64]) {
         use std::arch::x86_64::*;
-        let n = cur.len().min(before.len()) / 4 * 4;
-        // SAFETY: AVX2 is enabled; loads read 4 f64 at `i < n`, `i + 4 <= n` within both
-        // slices; the lane arrays have 4 elements.
+        let n = cur.len().min(before.len()) / SUM_LANES * SUM_LANES;
+        // SAFETY: AVX2 is enabled; loads read 4 f64 at `i + 4k < n`, `i + 8 <= n` within
+        // both slices; the lane arrays have 8 elements.
         unsafe {
-            let mut s1 = _mm256_loadu_pd(self.s1.as_ptr());
-            let mut s2 = _mm256_loadu_pd(self.s2.as_ptr());
-            let mut s11 = _mm256_loadu_pd(self.s11.as_ptr());
+            let mut s1a = _mm256_loadu_pd(self.s1.as_ptr());
+            let mut s1b = _mm256_loadu_pd(self.s1.as_ptr().add(4));
+            let mut s2a = _mm256_loadu_pd(self.s2.as_ptr());
+            let mut s2b = _mm256_loadu_pd(self.s2.as_ptr().add(4));
+            let mut s11a = _mm256_loadu_pd(self.s11.as_ptr());
+            let mut s11b = _mm256_loadu_pd(self.s11.as_ptr().add(4));
             let mut i = 0;
             while i < n {
-                let c = _mm256_loadu_pd(cur.as_ptr().add(i));
-                let b = _mm256_loadu_pd(before.as_ptr().add(i));
-                s1 = _mm256_add_pd(s1, c);
-                s2 = _mm256_add_pd(s2, _mm256_mul_pd(c, c));
-                s11 = _mm256_add_pd(s11, _mm256_mul_pd(c, b));
-                i += 4;
+                let ca = _mm256_loadu_pd(cur.as_ptr().add(i));
+                let cb = _mm256_loadu_pd(cur.as_ptr().add(i + 4));
+                let ba = _mm256_loadu_pd(before.as_ptr().add(i));
+                let bb = _mm256_loadu_pd(before.as_ptr().add(i + 4));
+                s1a = _mm256_add_pd(s1a, ca);
+                s1b = _mm256_add_pd(s1b, cb);
+                s2a = _mm256_add_pd(s2a, _mm256_mul_pd(ca, ca));
+                s2b = _mm256_add_pd(s2b, _mm256_mul_pd(cb, cb));
+                s11a = _mm256_add_pd(s11a, _mm256_mul_pd(ca, ba));
+                s11b = _mm256_add_pd(s11b, _mm256_mul_pd(cb, bb));
+                i += SUM_LANES;
             }
-            _mm256_storeu_pd(self.s1.as_mut_ptr(), s1);
-            _mm256_storeu_pd(self.s2.as_mut_ptr(), s2);
-            _mm256_storeu_pd(self.s11.as_mut_ptr(), s11);
+            _mm256_storeu_pd(self.s1.as_mut_ptr(), s1a);
+            _mm256_storeu_pd(self.s1.as_mut_ptr().add(4), s1b);
+            _mm256_storeu_pd(self.s2.as_mut_ptr(), s2a);
+            _mm256_storeu_pd(self.s2.as_mut_ptr().add(4), s2b);
+            _mm256_storeu_pd(self.s11.as_mut_ptr(), s11a);
+            _mm256_storeu_pd(self.s11.as_mut_ptr().add(4), s11b);
         }
     }
 }
@@ -240,38 +259,29 @@ impl<P: PhaseValue> OctaveId<P> {
         self.count += 1;
     }
 
-    /// Feed the decimated phase points `src[0], src[step], src[2 step], ...`, in
-    /// order. Differences are taken in the phase representation (exact for counts),
-    /// shifted, then converted to `f64`.
+    /// Feed the next decimated phase points, in order. Differences are taken in the
+    /// phase representation (exact for counts), shifted, then converted to `f64`.
     #[inline(always)]
-    pub(crate) fn feed(&mut self, src: &[P], step: usize) {
-        let total = src.len().div_ceil(step);
+    pub(crate) fn feed(&mut self, src: &[P]) {
+        let total = src.len();
         let mut next = 0usize;
         while self.count < 3 {
             if next == total {
                 return;
             }
-            self.push_slow(src[next * step]);
+            self.push_slow(src[next]);
             next += 1;
         }
         let mut lanes1 = SumLanes::default();
         let mut lanes2 = SumLanes::default();
         let (mut last1, mut last2) = (self.s_d1.last, self.s_d2.last);
         let added = (total - next) as u64;
-        let mut gathered = [P::default(); TILE];
         let mut d = [P::default(); TILE];
         let mut u1 = [0.0f64; TILE];
         let mut u2 = [0.0f64; TILE];
         while next < total {
             let t = (total - next).min(TILE);
-            let tile: &[P] = if step == 1 {
-                &src[next..next + t]
-            } else {
-                for (k, slot) in gathered[..t].iter_mut().enumerate() {
-                    *slot = src[(next + k) * step];
-                }
-                &gathered[..t]
-            };
+            let tile = &src[next..next + t];
             let (d, u1, u2) = (&mut d[..t], &mut u1[..t], &mut u2[..t]);
             d[0] = P::sub(tile[0], self.x1);
             for ((di, &x), &xp) in d[1..].iter_mut().zip(&tile[1..]).zip(&tile[..t - 1]) {
@@ -318,13 +328,13 @@ impl<P: PhaseValue> OctaveId<P> {
             Some(d1) if d1 < 0.25 => Some((1u32, d1)),
             _ => r1b.map(|r| (2u32, delta(r))),
         };
-        if let Some((d, dl)) = choice
-            && dl.is_finite()
-        {
-            let a = 2.0 - 2.0 * f64::from(d) - (2.0 * dl).round();
-            id.d = d;
-            id.delta = dl;
-            id.alpha = Some((a as i32).clamp(-2, 2));
+        if let Some((d, dl)) = choice {
+            if dl.is_finite() {
+                let a = 2.0 - 2.0 * f64::from(d) - (2.0 * dl).round();
+                id.d = d;
+                id.delta = dl;
+                id.alpha = Some((a as i32).clamp(-2, 2));
+            }
         }
         id
     }
@@ -341,7 +351,7 @@ mod tests {
         let u: Vec<f64> = (0..1003)
             .map(|i| ((i * 7919) % 1000) as f64 * 0.37 - 150.0)
             .collect();
-        for len in [0usize, 1, 2, 5, 8, 1003] {
+        for len in [0usize, 1, 2, 5, 8, 9, 17, 1003] {
             let mut got = SumLanes::default();
             got.add(&u[..len], 2.5);
             let mut want = SumLanes::default();
@@ -349,9 +359,9 @@ mod tests {
                 want.s1[0] += u[0];
                 want.s2[0] += u[0] * u[0];
                 want.s11[0] += u[0] * 2.5;
-                let whole = (len - 1) / 4 * 4;
+                let whole = (len - 1) / SUM_LANES * SUM_LANES;
                 for i in 0..len - 1 {
-                    let l = if i < whole { i % 4 } else { i - whole };
+                    let l = if i < whole { i % SUM_LANES } else { i - whole };
                     let (c, b) = (u[i + 1], u[i]);
                     want.s1[l] += c;
                     want.s2[l] += c * c;

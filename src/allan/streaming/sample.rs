@@ -94,24 +94,28 @@ const LANES: usize = 16;
 fn sq_acc_f64_body(a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; LANES]) {
     let n = c.len();
     let (a, b) = (&a[..n], &b[..n]);
-    let (ca, ra) = a.as_chunks::<LANES>();
-    let (cb, rb) = b.as_chunks::<LANES>();
-    let (cc, rc) = c.as_chunks::<LANES>();
-    for ((xa, xb), xc) in ca.iter().zip(cb).zip(cc) {
+    let whole = n / LANES * LANES;
+    let chunks = a[..whole]
+        .chunks_exact(LANES)
+        .zip(b[..whole].chunks_exact(LANES))
+        .zip(c[..whole].chunks_exact(LANES));
+    for ((xa, xb), xc) in chunks {
         for l in 0..LANES {
             let z = (xc[l] - (xb[l] + xb[l])) + xa[l];
             acc[l] += z * z;
         }
     }
-    for (l, ((xa, xb), xc)) in ra.iter().zip(rb).zip(rc).enumerate() {
-        let z = (xc - (xb + xb)) + xa;
+    for (l, k) in (whole..n).enumerate() {
+        let z = (c[k] - (b[k] + b[k])) + a[k];
         acc[l] += z * z;
     }
 }
 
+/// # Safety
+/// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn sq_acc_f64_avx2(a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; LANES]) {
+unsafe fn sq_acc_f64_avx2(a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; LANES]) {
     use std::arch::x86_64::*;
     let n = c.len();
     let (a, b) = (&a[..n], &b[..n]);
@@ -162,18 +166,6 @@ fn sq_acc_f64(a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; LANES]) {
         }
     }
     sq_acc_f64_body(a, b, c, acc)
-}
-
-/// Portable path, for the test that both paths agree bitwise.
-#[doc(hidden)]
-pub fn sq_acc_f64_portable(a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; 16]) {
-    sq_acc_f64_body(a, b, c, acc)
-}
-
-/// Dispatching path (AVX2 when available).
-#[doc(hidden)]
-pub fn sq_acc_f64_dispatch(a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; 16]) {
-    sq_acc_f64(a, b, c, acc)
 }
 
 impl PhaseValue for f64 {
@@ -283,8 +275,8 @@ mod tests {
         for (len, m) in [(0usize, 1usize), (7, 2), (16, 3), (1023, 64), (4000, 256)] {
             let mut a = [0.5f64; 16];
             let mut b = [0.5f64; 16];
-            sq_acc_f64_portable(&x[..len], &x[m..m + len], &x[2 * m..2 * m + len], &mut a);
-            sq_acc_f64_dispatch(&x[..len], &x[m..m + len], &x[2 * m..2 * m + len], &mut b);
+            sq_acc_f64_body(&x[..len], &x[m..m + len], &x[2 * m..2 * m + len], &mut a);
+            sq_acc_f64(&x[..len], &x[m..m + len], &x[2 * m..2 * m + len], &mut b);
             assert_eq!(a.map(f64::to_bits), b.map(f64::to_bits), "len {len} m {m}");
             // And the lanes hold the plain sum (1e-12 relative, different order).
             let plain: f64 = (0..len)
