@@ -40,7 +40,12 @@ pub struct RunArgs {
     pub replay: Option<PathBuf>,
     /// Pace of a replay or of the simulated bench, in multiples of real time (0 = as fast
     /// as possible; default: 1 for the simulated bench, 0 for a replay).
-    #[arg(long, value_name = "X", conflicts_with = "serial", allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "X",
+        conflicts_with = "serial",
+        allow_negative_numbers = true
+    )]
     pub speed: Option<f64>,
     /// Run the simulated bench on this gyro model (no source flag at all: the built-in
     /// model of the founding paper's gyro).
@@ -217,7 +222,10 @@ fn install_signal_handlers(trigger: shutdown::ShutdownTrigger) -> Result<()> {
             };
             match first {
                 None => {
-                    tracing::info!(signal = name, "stopping: draining the pipeline and finishing the recording (send again to exit at once)");
+                    tracing::info!(
+                        signal = name,
+                        "stopping: draining the pipeline and finishing the recording (send again to exit at once)"
+                    );
                     trigger.trigger();
                     first = Some(std::time::Instant::now());
                 }

@@ -133,7 +133,8 @@ impl Daemon {
         config.validate()?;
         let speed = config.source.effective_speed();
         let limit = |rate_hz: f64| {
-            (config.run.duration_s > 0.0).then(|| (config.run.duration_s * rate_hz).round().max(1.0) as u64)
+            (config.run.duration_s > 0.0)
+                .then(|| (config.run.duration_s * rate_hz).round().max(1.0) as u64)
         };
         let source = match config.source.kind {
             SourceKind::Simulate => {
@@ -167,7 +168,12 @@ impl Daemon {
                 }
                 config.gyro.rate_hz = rate;
                 config.gyro.pulse_arcsec = pulse;
-                tracing::info!(model = origin, seed = config.source.seed, speed, "source: simulated bench");
+                tracing::info!(
+                    model = origin,
+                    seed = config.source.seed,
+                    speed,
+                    "source: simulated bench"
+                );
                 Source::Bench(
                     SimBenchConfig {
                         model,
@@ -208,12 +214,18 @@ impl Daemon {
                 )
             }
             SourceKind::Serial => {
-                tracing::info!(device = config.source.serial_path, baud = config.source.baud, "source: serial");
+                tracing::info!(
+                    device = config.source.serial_path,
+                    baud = config.source.baud,
+                    "source: serial"
+                );
                 Source::Serial(
                     SerialConfig {
                         path: PathBuf::from(&config.source.serial_path),
                         baud: config.source.baud,
-                        reconnect_initial: Duration::from_secs_f64(config.source.reconnect_initial_s),
+                        reconnect_initial: Duration::from_secs_f64(
+                            config.source.reconnect_initial_s,
+                        ),
                         reconnect_max: Duration::from_secs_f64(config.source.reconnect_max_s),
                         rate_hz: config.gyro.rate_hz,
                         limit_periods: limit(config.gyro.rate_hz),
@@ -234,7 +246,11 @@ impl Daemon {
             },
             interval_s: config.estimator.interval_s,
             batch_samples: config.record.batch_samples,
-            delivery: if live { Delivery::Live } else { Delivery::Lossless },
+            delivery: if live {
+                Delivery::Live
+            } else {
+                Delivery::Lossless
+            },
             update_budget: (!live).then_some(UPDATE_BUDGET),
         }
         .build()?;
@@ -339,14 +355,18 @@ impl Daemon {
                 .await
                 .map_err(|e| join_err("serial source", e))?
                 .map_err(DaemonError::from),
-            Source::Replay(r) => tokio::task::spawn_blocking(move || r.run_blocking(sender, tel, sd))
-                .await
-                .map_err(|e| join_err("replay source", e))?
-                .map_err(DaemonError::from),
-            Source::Bench(b) => tokio::task::spawn_blocking(move || b.run_blocking(sender, tel, sd))
-                .await
-                .map_err(|e| join_err("simulated bench", e))?
-                .map_err(DaemonError::from),
+            Source::Replay(r) => {
+                tokio::task::spawn_blocking(move || r.run_blocking(sender, tel, sd))
+                    .await
+                    .map_err(|e| join_err("replay source", e))?
+                    .map_err(DaemonError::from)
+            }
+            Source::Bench(b) => {
+                tokio::task::spawn_blocking(move || b.run_blocking(sender, tel, sd))
+                    .await
+                    .map_err(|e| join_err("simulated bench", e))?
+                    .map_err(DaemonError::from)
+            }
         };
         if let Err(e) = &source_result {
             tracing::error!(error = %e, "source failed; draining the pipeline");
@@ -355,9 +375,7 @@ impl Daemon {
             tracing::info!("shutdown requested: draining the pipeline");
         }
         // The source dropped its sender: the pipeline drains and returns.
-        let process = process_task
-            .await
-            .map_err(|e| join_err("pipeline", e))?;
+        let process = process_task.await.map_err(|e| join_err("pipeline", e))?;
         let recording = match recorder {
             Some(r) => {
                 let summary = tokio::task::spawn_blocking(move || r.finish())

@@ -163,10 +163,7 @@ impl ReplayConfig {
             return Err(bad("rate_hz", self.rate_hz.to_string(), "must be > 0"));
         }
         let kind = probe(&self.path)?;
-        Ok(ReplaySource {
-            config: self,
-            kind,
-        })
+        Ok(ReplaySource { config: self, kind })
     }
 }
 
@@ -190,7 +187,11 @@ impl Pacer {
     fn new(rate_hz: f64, speed: f64) -> Self {
         Pacer {
             start: Instant::now(),
-            s_per_period: if speed > 0.0 { 1.0 / (rate_hz * speed) } else { 0.0 },
+            s_per_period: if speed > 0.0 {
+                1.0 / (rate_hz * speed)
+            } else {
+                0.0
+            },
         }
     }
 
@@ -386,8 +387,8 @@ impl ReplaySource {
             for (i, _) in raw.counts.iter().enumerate() {
                 while gi < raw.gaps.len() && raw.gaps[gi].index == i as u64 {
                     let g = raw.gaps[gi];
-                    let t_ns = raw.t0_ns
-                        + ((seq - raw.seq0) as f64 * raw.dt_ns as f64).round() as u64;
+                    let t_ns =
+                        raw.t0_ns + ((seq - raw.seq0) as f64 * raw.dt_ns as f64).round() as u64;
                     b.events.push(Event {
                         t_ns,
                         kind: EventKind::Gap { seq, lost: g.lost },

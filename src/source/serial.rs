@@ -221,7 +221,11 @@ impl SerialSource {
                 }
                 asm.sync_stats(decoder.stats());
                 report.disconnects += 1;
-                tracing::warn!(device, reason, "serial device went away; reconnecting with backoff");
+                tracing::warn!(
+                    device,
+                    reason,
+                    "serial device went away; reconnecting with backoff"
+                );
                 telemetry.device_connected.set(0);
                 asm.push_event(
                     now,
@@ -245,7 +249,10 @@ impl SerialSource {
                 out.send(batch).await.map_err(pipeline_err)?;
             }
             if asm.done() {
-                tracing::info!(periods = asm.periods(), "serial source: run duration reached");
+                tracing::info!(
+                    periods = asm.periods(),
+                    "serial source: run duration reached"
+                );
                 break;
             }
         }
