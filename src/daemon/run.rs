@@ -90,9 +90,9 @@ pub struct Explicit {
 }
 
 enum Source {
-    Serial(SerialSource),
-    Replay(ReplaySource),
-    Bench(SimBench),
+    Serial(Box<SerialSource>),
+    Replay(Box<ReplaySource>),
+    Bench(Box<SimBench>),
 }
 
 /// A daemon ready to run.
@@ -174,7 +174,7 @@ impl Daemon {
                     speed,
                     "source: simulated bench"
                 );
-                Source::Bench(
+                Source::Bench(Box::new(
                     SimBenchConfig {
                         model,
                         seed: config.source.seed,
@@ -182,7 +182,7 @@ impl Daemon {
                         duration_s: (config.run.duration_s > 0.0).then_some(config.run.duration_s),
                     }
                     .build()?,
-                )
+                ))
             }
             SourceKind::Replay => {
                 let path = PathBuf::from(&config.source.replay_path);
@@ -202,7 +202,7 @@ impl Daemon {
                     }
                 }
                 tracing::info!(path = %path.display(), speed, "source: replay");
-                Source::Replay(
+                Source::Replay(Box::new(
                     ReplayConfig {
                         path,
                         speed,
@@ -211,7 +211,7 @@ impl Daemon {
                         decoder: DecoderConfig::default(),
                     }
                     .build()?,
-                )
+                ))
             }
             SourceKind::Serial => {
                 tracing::info!(
@@ -219,7 +219,7 @@ impl Daemon {
                     baud = config.source.baud,
                     "source: serial"
                 );
-                Source::Serial(
+                Source::Serial(Box::new(
                     SerialConfig {
                         path: PathBuf::from(&config.source.serial_path),
                         baud: config.source.baud,
@@ -232,7 +232,7 @@ impl Daemon {
                         decoder: DecoderConfig::default(),
                     }
                     .build()?,
-                )
+                ))
             }
         };
         let live = config.source.kind == SourceKind::Serial;

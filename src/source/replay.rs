@@ -121,7 +121,7 @@ pub fn probe(path: &Path) -> Result<CaptureKind, ReplayError> {
 pub fn probe_mcap_period_ns(path: &Path) -> Result<Option<u64>, ReplayError> {
     let mut found = None;
     let mut reader = RawReader::open(path)?;
-    while let Some(m) = reader.next()? {
+    while let Some(m) = reader.next_raw()? {
         if m.dt_ns > 0 {
             found = Some(m.dt_ns);
             break;
@@ -359,7 +359,9 @@ impl ReplaySource {
             if shutdown.is_requested() {
                 break;
             }
-            let Some(mut raw) = reader.next()? else { break };
+            let Some(mut raw) = reader.next_raw()? else {
+                break;
+            };
             if !raw.counts.is_empty() && (raw.dt_ns as f64 - period_ns).abs() > 1.0 {
                 return Err(ReplayError::RateMismatch {
                     path: cfg.path.clone(),
@@ -492,7 +494,7 @@ impl RawReader {
     }
 
     /// The next `/gyro/raw` message, `None` at the end (or at a break).
-    pub fn next(&mut self) -> Result<Option<RawBatch>, ReplayError> {
+    pub fn next_raw(&mut self) -> Result<Option<RawBatch>, ReplayError> {
         loop {
             if let Some(m) = self.queue.pop_front() {
                 return Ok(Some(m));
@@ -547,24 +549,22 @@ impl RawReader {
                         self.raw_channel = Some(c.id);
                     }
                 }
-                op::MESSAGE => {
-                    // Header: channel id u16, sequence u32, log and publish time u64.
-                    if data.len() >= 22 {
-                        let channel = u16::from_le_bytes([data[0], data[1]]);
-                        if Some(channel) == self.raw_channel {
-                            let sequence = u32::from_le_bytes([data[2], data[3], data[4], data[5]]);
-                            match SinkMessage::from_json(Topic::Raw, &data[22..]) {
-                                Ok(SinkMessage::Raw(m)) => self.queue.push_back(m),
-                                Ok(_) => {}
-                                Err(e) => {
-                                    return Err(ReplayError::Message {
-                                        path: self.path.clone(),
-                                        offset: self.offset,
-                                        sequence,
-                                        reason: e.to_string(),
-                                    });
-                                }
-                            }
+                // Header: channel id u16, sequence u32, log and publish time u64.
+                op::MESSAGE
+                    if data.len() >= 22
+                        && Some(u16::from_le_bytes([data[0], data[1]])) == self.raw_channel =>
+                {
+                    let sequence = u32::from_le_bytes([data[2], data[3], data[4], data[5]]);
+                    match SinkMessage::from_json(Topic::Raw, &data[22..]) {
+                        Ok(SinkMessage::Raw(m)) => self.queue.push_back(m),
+                        Ok(_) => {}
+                        Err(e) => {
+                            return Err(ReplayError::Message {
+                                path: self.path.clone(),
+                                offset: self.offset,
+                                sequence,
+                                reason: e.to_string(),
+                            });
                         }
                     }
                 }
