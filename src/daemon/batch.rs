@@ -144,6 +144,16 @@ impl Assembler {
         self.periods
     }
 
+    /// Samples assembled and not yet taken.
+    pub fn pending_samples(&self) -> usize {
+        self.batch.counts.len()
+    }
+
+    /// Whether anything (samples or events) waits to be taken.
+    pub fn has_pending(&self) -> bool {
+        !self.batch.is_empty()
+    }
+
     /// Partial frames dropped at an end of stream or disconnect.
     pub fn truncated(&self) -> u64 {
         self.truncated
