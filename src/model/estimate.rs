@@ -172,6 +172,13 @@ impl EstimatorOutput {
 /// Levels whose count of transient-free coefficients is at least this are used.
 pub const MIN_LEVEL_COEFS: f64 = 8.0;
 
+/// A level starts the QN band when it rises above its deeper neighbour by this
+/// many standard deviations, and above the level beyond that one as well.
+pub const CUT_RISE_Z: f64 = 3.0;
+/// The finest kept level is dropped while it exceeds the fit of the deeper ones
+/// by this many standard deviations (low-frequency terms only: a non-white QN tail).
+pub const TRIM_EXCESS_Z: f64 = 4.0;
+
 /// The terms fitted, in order: Q^2, N^2, B^2, K^2.
 pub fn standard_terms(n_samples: u64, tau0_s: f64) -> [SpectralTerm; 4] {
     [
@@ -245,9 +252,11 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         input.allan.iter().copied().filter(|a| a.m >= m_min && a.avar > 0.0 && a.avar.is_finite() && a.n_terms > 0).collect();
     // rows: levels[from..] then the Allan points
     let rows = |from: usize| -> (Vec<Vec<f64>>, Vec<f64>, Vec<f64>) {
-        // quantization is measured in the angle domain; the levels used here
-        // are chosen free of it, so its column is zero (no nuisance trade-off with ARW)
-        let mut phi: Vec<Vec<f64>> = basis_all.phi[from..].iter().map(|r| { let mut r = r.clone(); r[0] = 0.0; r }).collect();
+        // quantization is measured in the angle domain; on these levels its
+        // white-angle column is a free nuisance that absorbs what leaks below the
+        // QN band (the Lorentzian tails of a sawtooth's broadened lines are white
+        // in angle), so the boundary levels need not be cut exactly
+        let mut phi: Vec<Vec<f64>> = basis_all.phi[from..].to_vec();
         let mut y: Vec<f64> = levels_all[from..].iter().map(|l| l.mean_sq).collect();
         let mut edf0: Vec<f64> = levels_all[from..].iter().map(|l| l.n_coef).collect();
         for a in &allan {
@@ -286,17 +295,22 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
     // towards the fine levels (flicker, RRW, Gauss-Markov); quantization noise,
     // white (rate PSD ~ f^2) or periodic (a sawtooth's lines), makes them rise.
     // Walk from the deepest level towards the fine ones and stop at the first
-    // level that is significantly (2 sigma) above its deeper neighbour: it and
+    // level that is significantly (CUT_RISE_Z sigma) above its deeper neighbour: it and
     // every finer level belong to QN. Model-free, so a Gauss-Markov hump the
     // model lacks does not push real ARW levels out.
     let mut from = levels_all.len();
     while from > 0 {
         let j = from - 1;
         if from < levels_all.len() {
-            let (a, b) = (&levels_all[j], &levels_all[from]);
-            let r = a.mean_sq / b.mean_sq;
-            let sd = r * (2.0 / a.n_coef + 2.0 / b.n_coef).sqrt();
-            if r - 1.0 > 2.0 * sd {
+            let rise = |a: &LevelObs, b: &LevelObs| {
+                let r = a.mean_sq / b.mean_sq;
+                (r - 1.0) / (r * (2.0 / a.n_coef + 2.0 / b.n_coef).sqrt())
+            };
+            // one deep level low by chance must not stop the walk (it would
+            // also bias the kept levels low): the rise must hold over the level
+            // beyond it too (QN's rise only grows with the distance)
+            let confirmed = from + 1 >= levels_all.len() || rise(&levels_all[j], &levels_all[from + 1]) > CUT_RISE_Z;
+            if rise(&levels_all[j], &levels_all[from]) > CUT_RISE_Z && confirmed {
                 break;
             }
         }
@@ -306,7 +320,7 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         from = levels_all.len().saturating_sub(2);
     }
     // The neighbour test can miss a QN tail of ~10 % at the boundary level (its
-    // neighbour is noisy too). Check the finest kept level against the fit of
+    // neighbour is noisy too) that is not white in angle. Check the finest kept level against the fit of
     // the deeper ones and drop it while it carries a significant excess (at
     // most twice: a misspecified low-frequency model must not eat the levels).
     for _ in 0..2 {
@@ -319,8 +333,11 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         th[0] = 0.0;
         let mu = basis_all.mean(from, &th);
         let nu = basis_all.edf(from, &th, levels_all[from].n_coef);
-        let z = (levels_all[from].mean_sq / mu - 1.0) * (nu / 2.0).sqrt();
-        if mu > 0.0 && z > 3.0 {
+        // the prediction is itself uncertain: about as much as a variance
+        // measured on all the deeper levels' coefficients together
+        let n_deeper: f64 = levels_all[from + 1..].iter().map(|l| l.n_coef).sum();
+        let z = (levels_all[from].mean_sq / mu - 1.0) / (2.0 / nu + 2.0 / n_deeper).sqrt();
+        if mu > 0.0 && z > TRIM_EXCESS_Z {
             from += 1;
         } else {
             break;
@@ -328,14 +345,12 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
     }
     let (phi, y, edf0) = rows(from);
     let mut o = *opts;
-    o.always_keep |= 1; // the (zeroed) white-angle column stays out of model selection
+    o.always_keep |= 1; // the white-angle nuisance stays out of model selection
     let fit = fit_rows(&phi, &y, &edf0, &edf_for(from, &phi), &o);
     let theta_lf = [fit.terms[0].theta, fit.terms[1].theta, fit.terms[2].theta, fit.terms[3].theta];
     let (a, b) = q_from_angle(&theta_lf);
     q2 = a;
     q2_sd = b;
-    let fit_and_basis = Some(fit);
-    let fit = fit_and_basis.expect("two passes ran");
     let theta = [q2.max(0.0), fit.terms[1].theta, fit.terms[2].theta, fit.terms[3].theta];
 
     let conv: [fn(f64) -> f64; 4] = [

@@ -20,6 +20,11 @@
 //!   `2 (l_max - l_profile(theta_k)) <= 3.84` (95 %, two-sided); a dropped term
 //!   gets the one-sided 95 % upper bound where that deviance reaches 2.71.
 
+// Rows, weights and coefficients are parallel arrays indexed together.
+#![allow(clippy::needless_range_loop)]
+// `!(a >= b)` is meant: a NaN likelihood must fail the test.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use super::wvar::LevelBasis;
 
 /// One level's observation.

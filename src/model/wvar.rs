@@ -24,6 +24,9 @@
 //! white noise gives exactly `N_j` (the coefficients of white noise through an
 //! orthonormal DWT are independent).
 
+// Rows, weights and coefficients are parallel arrays indexed together.
+#![allow(clippy::needless_range_loop)]
+
 use std::f64::consts::PI;
 
 /// A noise term whose spectrum is known up to a scale `theta` (its squared
