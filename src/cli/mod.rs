@@ -5,6 +5,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 pub mod allan;
+pub mod diagnose;
 pub mod simulate;
 
 #[derive(Debug, Parser)]
@@ -20,6 +21,8 @@ pub enum Command {
     Allan(allan::AllanArgs),
     /// Simulate a gyro from a model file and write its pulse stream.
     Simulate(simulate::SimulateArgs),
+    /// Compare a recording with its gyro model: locate the mismatch, name and fit the missing physics.
+    Diagnose(diagnose::DiagnoseArgs),
 }
 
 /// Parse the command line, run, print the error chain and exit 2 on failure.
@@ -41,5 +44,6 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Allan(args) => allan::run(args),
         Command::Simulate(args) => simulate::run(args),
+        Command::Diagnose(args) => diagnose::run(args),
     }
 }
