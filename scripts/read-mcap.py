@@ -3,7 +3,9 @@
 via `zstandard`); prints a JSON summary that tests/sink_mcap.rs compares with what
 the Rust recorder wrote.
 
-Usage: scripts/read-mcap.py RECORDING.mcap
+Usage: scripts/read-mcap.py [--no-schema] RECORDING.mcap
+  --no-schema   skip the JSON Schema validation (slow on long recordings);
+                schema_valid is then null
 
 Summary keys:
   messages              total messages (indexed read, file order)
@@ -20,6 +22,9 @@ Summary keys:
   schema_valid          messages valid against their channel's JSON Schema, checked
                         with the `jsonschema` package, or null when it is missing
   schema_invalid        list of the first validation errors (empty when valid)
+  last_estimates        payload of the /gyro/estimates message with the largest
+                        log time (the final estimates of a `sagnac run`), or null
+  gap_lost_total        sum of "lost" over the gap events on /gyro/events
 """
 
 import json
@@ -34,10 +39,13 @@ except ImportError:  # pragma: no cover
 
 
 def main() -> int:
-    if len(sys.argv) != 2:
+    args = sys.argv[1:]
+    check_schemas = "--no-schema" not in args
+    args = [a for a in args if a != "--no-schema"]
+    if len(args) != 1:
         print(__doc__, file=sys.stderr)
         return 2
-    path = sys.argv[1]
+    path = args[0]
     channels: dict[str, int] = {}
     encodings: dict[str, list] = {}
     values_total: dict[str, int] = {}
@@ -45,9 +53,13 @@ def main() -> int:
     raw_samples = raw_counts_total = raw_lost_total = 0
     time_mismatches = 0
     messages = 0
-    schema_valid = 0 if jsonschema is not None else None
+    validate = jsonschema is not None and check_schemas
+    schema_valid = 0 if validate else None
     schema_invalid: list[str] = []
     validators: dict[int, object] = {}
+    last_estimates = None
+    last_estimates_time = -1
+    gap_lost_total = 0
 
     with open(path, "rb") as f:
         reader = make_reader(f, validate_crcs=True)
@@ -79,7 +91,13 @@ def main() -> int:
             elif topic == "/gyro/events":
                 kind = payload["kind"]
                 events_by_kind[kind] = events_by_kind.get(kind, 0) + 1
-            if jsonschema is not None and schema is not None:
+                if kind == "gap":
+                    gap_lost_total += payload["lost"]
+            elif topic == "/gyro/estimates":
+                if message.log_time >= last_estimates_time:
+                    last_estimates_time = message.log_time
+                    last_estimates = payload
+            if validate and schema is not None:
                 if schema.id not in validators:
                     doc = json.loads(schema.data)
                     cls = jsonschema.validators.validator_for(doc)
@@ -107,6 +125,8 @@ def main() -> int:
                 "time_mismatches": time_mismatches,
                 "schema_valid": schema_valid,
                 "schema_invalid": schema_invalid,
+                "last_estimates": last_estimates,
+                "gap_lost_total": gap_lost_total,
             },
             sort_keys=True,
         )

@@ -10,15 +10,18 @@
 //!   -> sink (MCAP recording, Prometheus metrics)
 //! ```
 //!
-//! `daemon` wires the stages into tokio tasks; `cli` holds the subcommands.
-//! The numeric modules (`dsp`, `allan`, `model`) are plain synchronous Rust and
-//! never import tokio: the daemon and the offline commands share the same code.
+//! `pipeline` chains dsp -> allan -> model synchronously; `analyze` and the
+//! daemon both run it. `daemon` wires sources and sinks around it with tokio
+//! tasks; `cli` holds the subcommands. The numeric modules (`dsp`, `allan`,
+//! `model`, `pipeline`) are plain synchronous Rust and never import tokio.
 
 pub mod allan;
 pub mod cli;
 pub mod daemon;
 pub mod dsp;
 pub mod model;
+pub mod offline;
+pub mod pipeline;
 pub mod sink;
 pub mod source;
 pub mod units;

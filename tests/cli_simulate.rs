@@ -1,5 +1,5 @@
 //! `sagnac simulate`: CSV output on config/paper_gyro.toml, the thermal column,
-//! determinism, and errors (exit code 2 naming the key / the unwired format).
+//! determinism, and errors (exit code 2 naming the key).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -125,23 +125,9 @@ fn bad_model_exits_2_naming_the_key() {
 }
 
 #[test]
-fn unwired_formats_and_bad_durations_exit_2() {
+fn bad_durations_exit_2() {
+    // (--format frames / mcap are tested in tests/daemon_simulate.rs)
     let dir = tempfile::tempdir().unwrap();
-    for fmt in ["frames", "mcap"] {
-        let r = simulate(
-            &paper(),
-            "1",
-            "1",
-            &dir.path().join("x"),
-            &["--format", fmt],
-        );
-        assert_eq!(r.status.code(), Some(2));
-        let err = String::from_utf8_lossy(&r.stderr);
-        assert!(
-            err.contains(&format!("--format {fmt} is not wired yet")),
-            "{err}"
-        );
-    }
     let r = simulate(&paper(), "0", "1", &dir.path().join("x.csv"), &[]);
     assert_eq!(r.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&r.stderr).contains("duration_s = 0"));

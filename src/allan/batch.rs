@@ -52,7 +52,9 @@ pub fn max_m(stat: Stat, n_phase: u64) -> u64 {
 
 /// The averaging factors of a tau set for `stat` on `n_phase` points.
 ///
-/// * `Octave`: 1, 2, 4, ...; `Decade`: 1, 2, 4, 10, 20, 40, ... (as Stable32 and AllanTools);
+/// * `Octave`: 1, 2, 4, ...; `Decade`: 1, 2, 5, 10, 20, 50, ... (the 1-2-5 sequence of the
+///   sagnac CLI contract; Stable32 and AllanTools print 1, 2, 4 x 10^k: use `compute_at`
+///   for those exact factors);
 /// * `All`: every m up to [`ALL_TAU_DENSE`], then steps of `1 + m / ALL_TAU_DENSE`.
 ///
 /// All stop at [`max_m`].
@@ -70,7 +72,7 @@ pub fn tau_ms(set: TauSet, stat: Stat, n_phase: u64) -> Vec<u64> {
         TauSet::Decade => {
             let mut dec = 1_u64;
             'outer: loop {
-                for k in [1, 2, 4] {
+                for k in [1, 2, 5] {
                     let m = k * dec;
                     if m > top {
                         break 'outer;
@@ -609,7 +611,7 @@ mod tests {
         assert_eq!(
             tau_ms(TauSet::Decade, Stat::Oadev, 556990),
             vec![
-                1, 2, 4, 10, 20, 40, 100, 200, 400, 1000, 2000, 4000, 10000, 20000, 40000, 100000
+                1, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000, 10000, 20000, 50000, 100000
             ]
         );
         assert_eq!(
@@ -618,8 +620,8 @@ mod tests {
         );
         assert_eq!(
             tau_ms(TauSet::Decade, Stat::Adev, 241218).last(),
-            Some(&40000)
-        ); // gps ADEV_decade
+            Some(&20000)
+        ); // 1-2-5 cut at Stable32's adev stop ratio (its ADEV_decade file ends at 40000 = 4 x 10^4)
         let all = tau_ms(TauSet::All, Stat::Oadev, 1001);
         assert_eq!(&all[..5], &[1, 2, 3, 4, 5]);
         assert_eq!(all.iter().filter(|&&m| m <= 100).count(), 100);

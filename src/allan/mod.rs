@@ -11,6 +11,8 @@
 //! * [`batch`]: whole-series estimators, tau sets, the [`compute`] entry point.
 //! * [`edf`]: Greenhall-Riley EDF, total-deviation EDF, chi-square intervals.
 //! * [`noise_id`]: power-law noise identification (lag-1 ACF, B1 / R(n)).
+//! * [`streaming`]: `OctaveAllan`, octave-spaced accumulators with bounded
+//!   memory, equal to the batch OADEV up to a full-overlap cap, strided beyond.
 //!
 //! The definitions follow NIST SP 1065 and IEEE Std 952 and are checked
 //! against Stable32 result files and AllanTools (see `tests/allan_*.rs`).
@@ -23,7 +25,7 @@
 pub mod batch;
 pub mod edf;
 pub mod noise_id;
-// `pub mod streaming;` (the octave accumulators) is added when that engine is merged.
+pub mod streaming;
 
 pub use batch::{AllanOptions, all_tau_progression, compute, compute_at, deviation, max_m, tau_ms};
 pub use edf::{chi2_interval, edf_for_stat, edf_greenhall, edf_simple, edf_totdev};

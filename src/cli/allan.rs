@@ -133,10 +133,10 @@ pub fn run(args: AllanArgs) -> Result<()> {
     if !(args.confidence > 0.0 && args.confidence < 1.0) {
         bail!("--confidence must be in (0, 1) (got {})", args.confidence);
     }
-    if args.engine == EngineArg::Streaming {
-        bail!("streaming engine not wired yet (use --engine batch)");
-    }
     let kind = DataKind::from(args.data);
+    if args.engine == EngineArg::Streaming {
+        return run_streaming(&args, kind);
+    }
     let samples = SampleReader::open(&args.input, args.format.into(), args.column.as_deref())
         .and_then(|r| r.require_integers(kind == DataKind::Counts).read_to_end())
         .with_context(|| format!("cannot read samples from {}", args.input.display()))?;
@@ -161,6 +161,83 @@ pub fn run(args: AllanArgs) -> Result<()> {
             }
         }
         None => print_table(&result, &args, phase.len(), opts.confidence)?,
+    }
+    Ok(())
+}
+
+/// The streaming engine: the file is read block by block into the octave
+/// accumulators (bounded memory whatever the file size); OADEV at octave taus.
+fn run_streaming(args: &AllanArgs, kind: DataKind) -> Result<()> {
+    use crate::allan::streaming::{OctaveAllan, StreamConfig};
+    if !matches!(args.stat, StatArg::Oadev) || !matches!(args.taus, TausArg::Octave) {
+        bail!("--engine streaming computes --stat oadev at --taus octave only");
+    }
+    let mut reader = SampleReader::open(&args.input, args.format.into(), args.column.as_deref())
+        .with_context(|| format!("cannot read samples from {}", args.input.display()))?
+        .require_integers(kind == DataKind::Counts);
+    let cfg = StreamConfig::with_tau0(args.tau0);
+    enum Acc {
+        F(OctaveAllan),
+        C(OctaveAllan<i64>),
+    }
+    let mut acc = match kind {
+        DataKind::Phase => Acc::F(OctaveAllan::phase(cfg)?),
+        DataKind::Freq => Acc::F(OctaveAllan::freq(cfg)?),
+        DataKind::Counts => Acc::C(OctaveAllan::counts(cfg)?),
+    };
+    let mut buf = Vec::with_capacity(1 << 17);
+    let mut ints: Vec<i64> = Vec::with_capacity(1 << 17);
+    loop {
+        let n = reader
+            .next_block(&mut buf, 1 << 17)
+            .with_context(|| format!("cannot read samples from {}", args.input.display()))?;
+        if n == 0 {
+            break;
+        }
+        match &mut acc {
+            Acc::F(a) => a.push_block(&buf).with_context(|| format!("invalid samples in {}", args.input.display()))?,
+            Acc::C(a) => {
+                ints.clear();
+                ints.extend(buf.iter().map(|&v| v as i64));
+                a.push_block(&ints);
+            }
+        }
+    }
+    let (points, n_phase) = match &acc {
+        Acc::F(a) => (a.points(args.confidence)?, a.phase_points()),
+        Acc::C(a) => (a.points(args.confidence)?, a.phase_points()),
+    };
+    if n_phase < 3 {
+        bail!("{}: too few samples for an Allan deviation ({n_phase} phase points)", args.input.display());
+    }
+    let result = AllanResult {
+        stat: Stat::Oadev,
+        tau0_s: args.tau0,
+        points: points
+            .iter()
+            .filter(|p| p.n > 0)
+            .map(|p| allan::AllanPoint {
+                tau_s: p.tau_s,
+                m: p.m,
+                n: p.n,
+                dev: p.dev,
+                ci_lo: p.ci_lo,
+                ci_hi: p.ci_hi,
+                edf: p.edf,
+                alpha: p.alpha,
+            })
+            .collect(),
+    };
+    match &args.json {
+        Some(out) => {
+            let text = serde_json::to_string_pretty(&result).context("serialising the result")?;
+            if out.as_os_str() == "-" {
+                println!("{text}");
+            } else {
+                std::fs::write(out, text + "\n").with_context(|| format!("cannot write {}", out.display()))?;
+            }
+        }
+        None => print_table(&result, args, n_phase as usize, args.confidence)?,
     }
     Ok(())
 }

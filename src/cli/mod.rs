@@ -5,7 +5,9 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 pub mod allan;
+pub mod analyze;
 pub mod diagnose;
+pub mod run;
 pub mod simulate;
 
 #[derive(Debug, Parser)]
@@ -19,6 +21,11 @@ pub struct Cli {
 pub enum Command {
     /// Allan-family deviations (OADEV, ADEV, MDEV, HDEV, OHDEV, TOTDEV) of a file, with confidence intervals.
     Allan(allan::AllanArgs),
+    /// Estimate QN, ARW, bias instability, RRW and rate ramp with 95 % intervals.
+    Analyze(analyze::AnalyzeArgs),
+    /// The acquisition daemon: serial gyro, replayed capture or simulated bench -> QN removal,
+    /// Allan variance, live estimates -> MCAP recording and Prometheus metrics.
+    Run(run::RunArgs),
     /// Simulate a gyro from a model file and write its pulse stream.
     Simulate(simulate::SimulateArgs),
     /// Compare a recording with its gyro model: locate the mismatch, name and fit the missing physics.
@@ -43,6 +50,8 @@ pub fn main() -> ExitCode {
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Allan(args) => allan::run(args),
+        Command::Analyze(args) => analyze::run(args),
+        Command::Run(args) => run::run(args),
         Command::Simulate(args) => simulate::run(args),
         Command::Diagnose(args) => diagnose::run(args),
     }

@@ -1,22 +1,36 @@
 //! `sagnac simulate`: run the gyro simulator on a model file and write the pulse
-//! stream (CSV now; binary frames and MCAP once those writers are wired in).
+//! stream as CSV, as a raw frame capture (`--format frames`: the 16-byte gyro
+//! frames of [`crate::source::frame`], what a serial capture holds), or as an
+//! MCAP recording holding `/gyro/raw` (`--format mcap`, the channel `sagnac run`
+//! records and replays).
+//!
+//! Frames start at `seq` 65000 and a counter 10^6 pulses below 2^32 (both wrap
+//! in a normal run), with all status flags OK and the model's temperature (25.00
+//! deg C without a thermal section); N samples give N + 1 frames (the first is
+//! the decoder's baseline). MCAP batches hold 1000 samples; simulated time
+//! starts at the Unix epoch (t = 0), so the same model and seed give the same
+//! messages.
 
 use std::fs::File;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use clap::{Args, ValueEnum};
 
 use crate::model::{GyroModel, Simulator, sim};
+use crate::sink::mcap::{Recorder, RecorderConfig};
+use crate::sink::messages::{RawBatch, SinkMessage};
+use crate::source::bench::{SIM_START_COUNTER, SIM_START_SEQ};
+use crate::source::frame::{FrameEncoder, FrameWriter, STATUS_ALL_OK};
 
 /// Output format of `sagnac simulate`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum SimFormat {
     /// CSV: header `counts` (plus `temp_c` with a thermal model), one row per sample.
     Csv,
-    /// Binary gyro frames (not wired yet).
+    /// Raw gyro frames, 16 bytes each (a `.bin` capture).
     Frames,
-    /// MCAP recording (not wired yet).
+    /// MCAP recording with the `/gyro/raw` channel (not to stdout).
     Mcap,
 }
 
@@ -42,18 +56,34 @@ pub struct SimulateArgs {
 
 /// Run `sagnac simulate`.
 pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
-    match args.format {
-        SimFormat::Csv => {}
-        SimFormat::Frames => bail!(
-            "--format frames is not wired yet (the frame encoder is merged later); use --format csv"
-        ),
-        SimFormat::Mcap => bail!(
-            "--format mcap is not wired yet (the MCAP writer is merged later); use --format csv"
-        ),
+    let to_stdout = args.out.as_os_str() == "-";
+    if args.format == SimFormat::Mcap && to_stdout {
+        bail!("--format mcap cannot go to stdout (MCAP needs a seekable file): give --out FILE");
     }
     let model = GyroModel::load(&args.model).context("loading the gyro model")?;
     let mut simulator = Simulator::new(&model, args.seed, Some(args.duration_s))
         .with_context(|| format!("setting up the simulator for {}", args.model.display()))?;
+    match args.format {
+        SimFormat::Csv => {}
+        SimFormat::Frames => {
+            let frames = if to_stdout {
+                write_frames(&mut simulator, std::io::stdout().lock())
+            } else {
+                let file = File::create(&args.out)
+                    .with_context(|| format!("creating {}", args.out.display()))?;
+                write_frames(&mut simulator, file)
+            }
+            .with_context(|| format!("writing frames to {}", args.out.display()))?;
+            tracing::debug!(frames, "simulate: done");
+            return Ok(());
+        }
+        SimFormat::Mcap => {
+            let messages = write_mcap(&mut simulator, &args.out)
+                .with_context(|| format!("writing MCAP recording {}", args.out.display()))?;
+            tracing::debug!(messages, "simulate: done");
+            return Ok(());
+        }
+    }
     let rows = if args.out.as_os_str() == "-" {
         sim::write_csv(&mut simulator, std::io::stdout().lock())
     } else {
@@ -64,4 +94,89 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     .with_context(|| format!("writing {}", args.out.display()))?;
     tracing::debug!(rows, "simulate: done");
     Ok(())
+}
+
+/// Samples generated per simulator call.
+const BLOCK: usize = 65_536;
+
+/// Write the frames of the whole run; returns the number of frames.
+fn write_frames<W: std::io::Write>(sim: &mut Simulator, out: W) -> anyhow::Result<u64> {
+    let mut enc = FrameEncoder::new(SIM_START_SEQ, SIM_START_COUNTER);
+    if let Some(t) = sim.temperature_at(0.0) {
+        enc.set_temp_c(t);
+    }
+    let thermal = sim.has_temperature();
+    let mut w = FrameWriter::new(std::io::BufWriter::with_capacity(1 << 20, out), enc);
+    w.start()?;
+    let (mut counts, mut temps) = (Vec::with_capacity(BLOCK), Vec::with_capacity(BLOCK));
+    let mut frames = 1u64;
+    loop {
+        counts.clear();
+        temps.clear();
+        let n = sim.next_block_with_temp(BLOCK, &mut counts, &mut temps);
+        if n == 0 {
+            break;
+        }
+        for (i, &c) in counts.iter().enumerate() {
+            if thermal {
+                w.encoder_mut().set_temp_c(temps[i]);
+            }
+            w.write_increment(c)?;
+        }
+        frames += n as u64;
+    }
+    w.into_inner()?;
+    Ok(frames)
+}
+
+/// Samples per `/gyro/raw` message.
+const MCAP_BATCH: usize = 1000;
+
+/// Write the run as `/gyro/raw` messages to `out`; returns the number of messages.
+fn write_mcap(sim: &mut Simulator, out: &Path) -> anyhow::Result<u64> {
+    // The recorder names its file by time in a directory: write next to `out`
+    // under that name, then rename.
+    let dir = match out.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let config = RecorderConfig {
+        record_dir: dir,
+        ..RecorderConfig::default()
+    };
+    let recorder = Recorder::start_at(&config, std::time::UNIX_EPOCH)?;
+    let dt_ns = (1e9 / sim.sample_rate_hz()).round() as u64;
+    let period_ns = 1e9 / sim.sample_rate_hz();
+    let (mut counts, mut temps) = (Vec::with_capacity(MCAP_BATCH), Vec::with_capacity(MCAP_BATCH));
+    let mut seq = 0u64;
+    let mut sent = Ok(());
+    loop {
+        counts.clear();
+        temps.clear();
+        let n = sim.next_block_with_temp(MCAP_BATCH, &mut counts, &mut temps);
+        if n == 0 {
+            break;
+        }
+        let msg = SinkMessage::Raw(RawBatch {
+            t0_ns: (seq as f64 * period_ns).round() as u64,
+            dt_ns,
+            seq0: seq,
+            counts: counts.clone(),
+            gaps: Vec::new(),
+            temp_c: temps.last().copied(),
+            status: u32::from(STATUS_ALL_OK),
+        });
+        seq += n as u64;
+        if let Err(e) = recorder.send(msg) {
+            sent = Err(e);
+            break;
+        }
+    }
+    let path = recorder.path().to_path_buf();
+    // finish() reports the writer's first error, which explains a failed send.
+    let summary = recorder.finish()?;
+    sent?;
+    std::fs::rename(&path, out)
+        .with_context(|| format!("renaming {} to {}", path.display(), out.display()))?;
+    Ok(summary.messages())
 }

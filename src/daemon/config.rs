@@ -45,8 +45,11 @@ pub struct SourceConfig {
     pub reconnect_max_s: f64,
     /// Capture to replay: a raw frame capture (`.bin`) or an MCAP recording (kind = replay).
     pub replay_path: String,
-    /// Replay pace in multiples of real time; 0 = as fast as possible.
-    pub speed: f64,
+    /// Pace in multiples of real time; 0 = as fast as possible. Absent = the
+    /// source's default ([`SourceConfig::effective_speed`]): real time (1) for the
+    /// simulated bench, as fast as possible (0) for a replay.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub speed: Option<f64>,
     /// Gyro model TOML for the simulated bench; empty = the built-in paper gyro.
     pub model: String,
     /// Seed of the simulated bench.
@@ -62,9 +65,22 @@ impl Default for SourceConfig {
             reconnect_initial_s: 0.5,
             reconnect_max_s: 10.0,
             replay_path: String::new(),
-            speed: 0.0,
+            speed: None,
             model: String::new(),
             seed: 1,
+        }
+    }
+}
+
+impl SourceConfig {
+    /// The pace actually used, in multiples of real time (0 = as fast as possible):
+    /// `speed` when set, otherwise 1 for the simulated bench (so a dashboard shows
+    /// it converging) and 0 for a replay. Serial input is never paced.
+    pub fn effective_speed(&self) -> f64 {
+        match (self.speed, self.kind) {
+            (Some(s), _) => s,
+            (None, SourceKind::Simulate) => 1.0,
+            (None, _) => 0.0,
         }
     }
 }
@@ -257,8 +273,10 @@ impl Config {
         if self.source.reconnect_max_s < self.source.reconnect_initial_s {
             return Err(invalid("source.reconnect_max_s", self.source.reconnect_max_s, "must be >= source.reconnect_initial_s"));
         }
-        if !(self.source.speed.is_finite() && self.source.speed >= 0.0) {
-            return Err(invalid("source.speed", self.source.speed, "must be >= 0 (0 = as fast as possible)"));
+        if let Some(speed) = self.source.speed
+            && !(speed.is_finite() && speed >= 0.0)
+        {
+            return Err(invalid("source.speed", speed, "must be >= 0 (0 = as fast as possible)"));
         }
         if !["sym8", "haar", "db4", "sym4", "db8"].contains(&self.dsp.wavelet.as_str()) {
             return Err(invalid("dsp.wavelet", &self.dsp.wavelet, "must be one of sym8, haar, db4, sym4, db8"));

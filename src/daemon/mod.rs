@@ -1,5 +1,23 @@
-//! The acquisition daemon: tokio tasks that move bytes from a source through
-//! the synchronous numerics into the sinks.
+//! The acquisition daemon (`sagnac run`): tokio tasks that move bytes from a
+//! source through the synchronous numerics into the sinks.
+//!
+//! * [`config`]: the validated configuration (`config/default.toml`);
+//! * [`batch`]: what a source hands to the pipeline ([`batch::SourceBatch`]),
+//!   built from the frame decoder's output, delivered losslessly (replays,
+//!   simulated bench: backpressure) or live (serial: drop, count, fold);
+//! * [`process`]: the pipeline thread (gap fill, the shared
+//!   [`crate::pipeline::Pipeline`], estimator updates) publishing to the sinks;
+//! * [`run`]: [`run::Daemon`], wiring sources, pipeline, recorder and the
+//!   `/metrics` server ([`http`]) with bounded channels and a drained shutdown
+//!   ([`shutdown`]);
+//! * [`telemetry`]: the daemon's own metrics next to [`crate::sink::metrics`].
+//!
+//! The sources live in [`crate::source`]: `serial`, `replay`, `bench`.
 
+pub mod batch;
 pub mod config;
 pub mod http;
+pub mod process;
+pub mod run;
+pub mod shutdown;
+pub mod telemetry;

@@ -40,6 +40,24 @@ pub struct AllanObs {
     pub n_phase: u64,
     /// Allan variance, (arcsec/s)^2.
     pub avar: f64,
+    /// Distance between the starts of successive terms (1 = full overlap).
+    pub stride: u64,
+    /// Number of second-difference terms.
+    pub n_terms: u64,
+}
+
+impl AllanObs {
+    /// EDF of this point for noise exponent `alpha`: Greenhall's algorithm for
+    /// full overlap, the strided-estimator EDF otherwise.
+    pub fn edf(&self, alpha: i32) -> f64 {
+        let e = if self.stride <= 1 {
+            crate::allan::edf_greenhall(alpha, 2, self.m, self.n_phase, true, false)
+        } else {
+            crate::allan::streaming::edf_strided(alpha, self.m, self.stride, self.n_terms)
+                .unwrap_or_else(|_| crate::allan::edf_simple(alpha, self.m, self.n_phase))
+        };
+        if e.is_finite() { e.max(1.0) } else { 1.0 }
+    }
 }
 
 /// Streaming least-squares slope of the rate against time (Welford updates).
@@ -132,6 +150,25 @@ pub struct EstimatorOutput {
     pub ramp_arcsec_s2: Option<(f64, f64)>,
 }
 
+impl EstimatorOutput {
+    /// Every coefficient unknown: too little data.
+    pub fn insufficient() -> Self {
+        let none = Coefficient { value: None, ci95: None, upper95: None };
+        EstimatorOutput {
+            estimates: NoiseEstimates {
+                quantization_arcsec: none,
+                arw_dpsh: none,
+                bias_instability_dph: none,
+                rrw_dphsh: none,
+                rate_ramp_dphh: none,
+            },
+            fit: LevelFit { terms: Vec::new(), loglik: 0.0, edf: Vec::new(), fitted: Vec::new(), chi2_per_dof: f64::NAN },
+            theta: [0.0; 4],
+            ramp_arcsec_s2: None,
+        }
+    }
+}
+
 /// Levels whose count of transient-free coefficients is at least this are used.
 pub const MIN_LEVEL_COEFS: f64 = 8.0;
 
@@ -140,29 +177,11 @@ pub fn standard_terms(n_samples: u64, tau0_s: f64) -> [SpectralTerm; 4] {
     [
         SpectralTerm::WhiteAngle,
         SpectralTerm::WhiteRate,
-        SpectralTerm::Flicker { f_lo_hz: 1.0 / (n_samples.max(1) as f64 * tau0_s) },
+        // flicker with no visible low-frequency corner: put it three decades
+        // below the record's lowest frequency
+        SpectralTerm::Flicker { f_lo_hz: 1e-3 / (n_samples.max(1) as f64 * tau0_s) },
         SpectralTerm::RateRandomWalk,
     ]
-}
-
-/// EDF of an overlapping Allan variance (NIST SP 1065, Table 5 approximations)
-/// for noise exponent `alpha`, averaging factor `m`, `n` phase points.
-pub fn oadev_edf_approx(alpha: i32, m: u64, n: u64) -> f64 {
-    let (m, n) = (m as f64, n as f64);
-    let e = match alpha {
-        2 => (n + 1.0) * (n - 2.0 * m) / (2.0 * (n - m)),
-        1 => (((n - 1.0) / (2.0 * m)).ln() * ((2.0 * m + 1.0) * (n - 1.0) / 4.0).ln()).sqrt().exp(),
-        0 => (3.0 * (n - 1.0) / (2.0 * m) - 2.0 * (n - 2.0) / n) * 4.0 * m * m / (4.0 * m * m + 5.0),
-        -1 => {
-            if m <= 1.0 {
-                2.0 * (n - 2.0) / (2.3 * n - 4.9)
-            } else {
-                5.0 * n * n / (4.0 * m * (n + 3.0 * m))
-            }
-        }
-        _ => (n - 2.0) / m * ((n - 1.0).powi(2) - 3.0 * m * (n - 1.0) + 4.0 * m * m) / (n - 3.0).powi(2),
-    };
-    if e.is_finite() { e.max(1.0) } else { 1.0 }
 }
 
 /// Run the estimator.
@@ -182,7 +201,7 @@ pub fn oadev_edf_approx(alpha: i32, m: u64, n: u64) -> f64 {
 pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
     let tau0 = input.tau0_s;
     let terms = standard_terms(input.n_samples, tau0);
-    let usable = |l: &LevelObs| l.n_coef >= MIN_LEVEL_COEFS && l.mean_sq > 0.0;
+    let usable = |l: &LevelObs| l.n_coef >= MIN_LEVEL_COEFS && l.mean_sq > 0.0 && l.mean_sq.is_finite();
 
     // --- 1. quantization from the angle-domain levels (first pass without LF correction)
     let angle: Vec<LevelObs> = input.angle_levels.iter().copied().filter(usable).collect();
@@ -192,53 +211,64 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         }
         let ids: Vec<u32> = angle.iter().map(|l| l.level).collect();
         let b = LevelBasis::new_in(input.dec_lo, input.dec_hi, tau0, &ids, &terms, Domain::Angle);
-        let jmax = ids.iter().copied().max().unwrap_or(1);
+        let mut jmax = 1u32;
         let (mut q2, mut var) = (0.0, 0.0);
         for (j, l) in angle.iter().enumerate() {
             let w = 2f64.powi(-(l.level as i32));
             // low-frequency terms' share of this level (theta_lf[0], the white-angle nuisance, excluded)
             let lf: f64 = (1..terms.len()).map(|k| theta_lf[k] * b.phi[j][k]).sum();
+            if lf > 0.5 * l.mean_sq && l.level > 1 {
+                // beyond the QN band: the angle here is mostly random walk
+                break;
+            }
             q2 += w * (l.mean_sq - lf);
+            jmax = l.level;
             var += w * w * 2.0 * l.mean_sq * l.mean_sq / l.n_coef;
         }
         let norm = 1.0 - 2f64.powi(-(jmax as i32));
         (q2 / norm, var.sqrt() / norm)
     };
-    let (mut q2, mut q2_sd) = q_from_angle(&[0.0; 4]);
+    let (q2, q2_sd);
+    let q2_first = q_from_angle(&[0.0; 4]).0;
 
     // --- 2. low-frequency terms
     let levels_all: Vec<LevelObs> = input.levels.iter().copied().filter(usable).collect();
+    if levels_all.len() < 2 {
+        // too short a record for any estimate (a few seconds at most)
+        return EstimatorOutput::insufficient();
+    }
     let ids_all: Vec<u32> = levels_all.iter().map(|l| l.level).collect();
     let basis_all = LevelBasis::new(input.dec_lo, input.dec_hi, tau0, &ids_all, &terms);
-    let mut fit_and_basis = None;
-    for _pass in 0..2 {
-        // levels where white QN of strength q2 would be at most half the variance
-        let keep: Vec<usize> = (0..levels_all.len())
-            .filter(|&j| q2.max(0.0) * basis_all.phi[j][0] <= 0.5 * levels_all[j].mean_sq)
-            .collect();
-        let levels: Vec<LevelObs> = keep.iter().map(|&j| levels_all[j]).collect();
-        let ids: Vec<u32> = levels.iter().map(|l| l.level).collect();
-        let basis = LevelBasis::new(input.dec_lo, input.dec_hi, tau0, &ids, &terms);
-        let deepest = ids_all.iter().copied().max().unwrap_or(0);
-        let m_min = 1u64 << (deepest + 1).min(62);
-        let allan: Vec<AllanObs> = input
-            .allan
-            .iter()
-            .copied()
-            .filter(|a| a.m >= m_min && a.avar > 0.0 && a.n_phase > 2 * a.m + 1)
-            .collect();
-        let mut phi: Vec<Vec<f64>> = basis.phi.clone();
-        let mut y: Vec<f64> = levels.iter().map(|l| l.mean_sq).collect();
-        let mut edf0: Vec<f64> = levels.iter().map(|l| l.n_coef).collect();
+    let deepest = ids_all.iter().copied().max().unwrap_or(0);
+    let m_min = 1u64 << (deepest + 1).min(62);
+    let allan: Vec<AllanObs> =
+        input.allan.iter().copied().filter(|a| a.m >= m_min && a.avar > 0.0 && a.avar.is_finite() && a.n_terms > 0).collect();
+    // rows: levels[from..] then the Allan points
+    let rows = |from: usize| -> (Vec<Vec<f64>>, Vec<f64>, Vec<f64>) {
+        // quantization is measured in the angle domain; the levels used here
+        // are chosen free of it, so its column is zero (no nuisance trade-off with ARW)
+        let mut phi: Vec<Vec<f64>> = basis_all.phi[from..].iter().map(|r| { let mut r = r.clone(); r[0] = 0.0; r }).collect();
+        let mut y: Vec<f64> = levels_all[from..].iter().map(|l| l.mean_sq).collect();
+        let mut edf0: Vec<f64> = levels_all[from..].iter().map(|l| l.n_coef).collect();
         for a in &allan {
-            phi.push(terms.iter().map(|t| t.allan_var(a.m, tau0)).collect());
-            y.push(a.avar);
-            edf0.push(oadev_edf_approx(0, a.m, a.n_phase));
+            // long-tau Allan points do see QN (3 Q^2 / tau^2): use the angle-domain Q
+            let mut row: Vec<f64> = terms.iter().map(|t| t.allan_var(a.m, tau0)).collect();
+            let qn = q2_first.max(0.0) * row[0];
+            row[0] = 0.0;
+            phi.push(row);
+            y.push((a.avar - qn).max(1e-300));
+            edf0.push(a.edf(0));
         }
-        let nl = levels.len();
-        let edf = |j: usize, theta: &[f64]| -> f64 {
+        (phi, y, edf0)
+    };
+    let (levels_ref, basis_ref, allan_ref, terms_ref) = (&levels_all, &basis_all, &allan, &terms);
+    let edf_for = |from: usize, phi: &[Vec<f64>]| {
+        let (levels_all, basis_all, allan, terms) = (levels_ref, basis_ref, allan_ref, terms_ref);
+        let nl = levels_all.len() - from;
+        let phi = phi.to_vec();
+        move |j: usize, theta: &[f64]| -> f64 {
             if j < nl {
-                basis.edf(j, theta, levels[j].n_coef)
+                basis_all.edf(from + j, theta, levels_all[from + j].n_coef)
             } else {
                 let a = &allan[j - nl];
                 let tau = a.m as f64 * tau0;
@@ -247,18 +277,64 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
                         (theta[p] * phi[j][p]).partial_cmp(&(theta[q] * phi[j][q])).unwrap_or(std::cmp::Ordering::Equal)
                     })
                     .unwrap_or(1);
-                oadev_edf_approx(terms[dom].alpha_at(tau), a.m, a.n_phase)
+                a.edf(terms[dom].alpha_at(tau))
             }
-        };
-        let mut o = *opts;
-        o.always_keep |= 1; // the white-angle term is a nuisance here, never selected away
-        let fit = fit_rows(&phi, &y, &edf0, &edf, &o);
-        let theta_lf = [fit.terms[0].theta, fit.terms[1].theta, fit.terms[2].theta, fit.terms[3].theta];
-        let (a, b) = q_from_angle(&theta_lf);
-        q2 = a;
-        q2_sd = b;
-        fit_and_basis = Some(fit);
+        }
+    };
+    // Which levels carry only low-frequency noise? Every term of the low-
+    // frequency model gives detail variances that are flat (ARW) or fall
+    // towards the fine levels (flicker, RRW, Gauss-Markov); quantization noise,
+    // white (rate PSD ~ f^2) or periodic (a sawtooth's lines), makes them rise.
+    // Walk from the deepest level towards the fine ones and stop at the first
+    // level that is significantly (2 sigma) above its deeper neighbour: it and
+    // every finer level belong to QN. Model-free, so a Gauss-Markov hump the
+    // model lacks does not push real ARW levels out.
+    let mut from = levels_all.len();
+    while from > 0 {
+        let j = from - 1;
+        if from < levels_all.len() {
+            let (a, b) = (&levels_all[j], &levels_all[from]);
+            let r = a.mean_sq / b.mean_sq;
+            let sd = r * (2.0 / a.n_coef + 2.0 / b.n_coef).sqrt();
+            if r - 1.0 > 2.0 * sd {
+                break;
+            }
+        }
+        from = j;
     }
+    if levels_all.len() - from < 2 {
+        from = levels_all.len().saturating_sub(2);
+    }
+    // The neighbour test can miss a QN tail of ~10 % at the boundary level (its
+    // neighbour is noisy too). Check the finest kept level against the fit of
+    // the deeper ones and drop it while it carries a significant excess (at
+    // most twice: a misspecified low-frequency model must not eat the levels).
+    for _ in 0..2 {
+        if levels_all.len() - from < 3 {
+            break;
+        }
+        let (phi, y, edf0) = rows(from + 1);
+        let theta = super::fit::ml_theta(&phi, &y, &edf0, &edf_for(from + 1, &phi));
+        let mut th = theta.clone();
+        th[0] = 0.0;
+        let mu = basis_all.mean(from, &th);
+        let nu = basis_all.edf(from, &th, levels_all[from].n_coef);
+        let z = (levels_all[from].mean_sq / mu - 1.0) * (nu / 2.0).sqrt();
+        if mu > 0.0 && z > 3.0 {
+            from += 1;
+        } else {
+            break;
+        }
+    }
+    let (phi, y, edf0) = rows(from);
+    let mut o = *opts;
+    o.always_keep |= 1; // the (zeroed) white-angle column stays out of model selection
+    let fit = fit_rows(&phi, &y, &edf0, &edf_for(from, &phi), &o);
+    let theta_lf = [fit.terms[0].theta, fit.terms[1].theta, fit.terms[2].theta, fit.terms[3].theta];
+    let (a, b) = q_from_angle(&theta_lf);
+    q2 = a;
+    q2_sd = b;
+    let fit_and_basis = Some(fit);
     let fit = fit_and_basis.expect("two passes ran");
     let theta = [q2.max(0.0), fit.terms[1].theta, fit.terms[2].theta, fit.terms[3].theta];
 

@@ -229,8 +229,8 @@ pub fn weighted_nnls(phi: &[Vec<f64>], y: &[f64], w: &[f64]) -> Vec<f64> {
 fn solve(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Option<Vec<f64>> {
     let n = b.len();
     for c in 0..n {
-        let piv = (c..n).max_by(|&i, &j| a[i][c].abs().partial_cmp(&a[j][c].abs()).unwrap())?;
-        if a[piv][c].abs() < 1e-300 {
+        let piv = (c..n).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))?;
+        if !(a[piv][c].abs() >= 1e-300) {
             return None;
         }
         a.swap(c, piv);
@@ -257,6 +257,22 @@ pub fn fit_levels(basis: &LevelBasis, obs: &[LevelObs], opts: &FitOptions) -> Le
     let y: Vec<f64> = obs.iter().map(|o| o.mean_sq).collect();
     let n0: Vec<f64> = obs.iter().map(|o| o.n_coef).collect();
     fit_rows(&basis.phi, &y, &n0, &|j, theta| basis.edf(j, theta, obs[j].n_coef), opts)
+}
+
+/// Maximum-likelihood strengths only (no selection, no intervals): the quick
+/// fit used while choosing which observations to trust.
+pub fn ml_theta(phi: &[Vec<f64>], y: &[f64], edf0: &[f64], edf: &dyn Fn(usize, &[f64]) -> f64) -> Vec<f64> {
+    let k = phi.first().map_or(0, |r| r.len());
+    let n = y.len();
+    let mut prob = Problem { phi, y: y.to_vec(), half_edf: edf0.iter().map(|e| e / 2.0).collect(), k };
+    let all = vec![true; k];
+    let zero = vec![0.0; k];
+    let mut theta = prob.maximise(&all, &zero, None);
+    for _ in 0..2 {
+        prob.half_edf = (0..n).map(|j| edf(j, &theta) / 2.0).collect();
+        theta = prob.maximise(&all, &zero, Some(&theta));
+    }
+    theta
 }
 
 /// Generic fit: rows `phi[j][k]` (expected value of observation `j` per unit

@@ -287,7 +287,7 @@ pub fn level_nodes(lo: &[f64], hi: &[f64], level: u32, extra_breaks: &[f64]) -> 
             breaks.push(e);
         }
     }
-    breaks.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    breaks.sort_by(|a, b| a.total_cmp(b));
     breaks.dedup();
     let mut nodes = Vec::with_capacity(breaks.len() * 32 * 8);
     for seg in breaks.windows(2) {

@@ -1,0 +1,160 @@
+//! `sagnac analyze`: automatic estimation of the IEEE 952 coefficients (QN,
+//! ARW, bias instability, RRW, rate ramp) with 95 % intervals, from a CSV
+//! file, a raw frame capture or an MCAP recording.
+//!
+//! Thin: reading is `offline`, the numerics are `pipeline` (the same chain the
+//! daemon runs live).
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::model::estimate::Coefficient;
+use crate::offline::{self, RateUnit};
+use crate::pipeline::{Analysis, PipelineConfig};
+use crate::source::input::InputFormat;
+
+/// Arguments of `sagnac analyze`.
+#[derive(Debug, Args)]
+pub struct AnalyzeArgs {
+    /// Input: CSV (plain or .gz; header row), a raw frame capture, or an MCAP recording.
+    #[arg(long, value_name = "FILE")]
+    pub input: PathBuf,
+    /// Input format.
+    #[arg(long, value_enum, default_value = "csv")]
+    pub format: AnalyzeFormat,
+    /// Sample rate, Hz (MCAP recordings carry their own).
+    #[arg(long, value_name = "F", allow_negative_numbers = true)]
+    pub rate_hz: Option<f64>,
+    /// Angle of one counter pulse, arcsec (for pulse counts).
+    #[arg(long, value_name = "D", default_value_t = 1.21, allow_negative_numbers = true)]
+    pub pulse_arcsec: f64,
+    /// CSV column to analyse (default `counts`).
+    #[arg(long, value_name = "NAME")]
+    pub column: Option<String>,
+    /// Unit of the column: pulse counts per sample, deg/h, deg/s or rad/s.
+    #[arg(long, value_enum, default_value = "counts")]
+    pub unit: RateUnit,
+    /// Write the result as JSON here ("-" for stdout) instead of printing a table.
+    #[arg(long, value_name = "OUT")]
+    pub json: Option<PathBuf>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum AnalyzeFormat {
+    Csv,
+    Frames,
+    Mcap,
+}
+
+/// Default sample rate when neither the flag nor the file gives one.
+const DEFAULT_RATE_HZ: f64 = 1000.0;
+
+pub fn run(args: AnalyzeArgs) -> Result<()> {
+    if let Some(r) = args.rate_hz {
+        if !(r.is_finite() && r > 0.0) {
+            bail!("--rate-hz must be a positive number of Hz (got {r})");
+        }
+    }
+    if !(args.pulse_arcsec.is_finite() && args.pulse_arcsec > 0.0) {
+        bail!("--pulse-arcsec must be a positive number of arcsec (got {})", args.pulse_arcsec);
+    }
+    let started = Instant::now();
+    let bar = ProgressBar::hidden();
+    let mut shown = false;
+    let mut progress = |done: u64, total: Option<u64>| {
+        // a bar on stderr once the job is visibly long (hidden when stderr is not a terminal)
+        if !shown && started.elapsed() > Duration::from_millis(700) {
+            bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+            if let Some(t) = total {
+                bar.set_length(t);
+            }
+            bar.set_style(
+                ProgressStyle::with_template("{spinner} {pos}/{len} samples [{elapsed}] {per_sec}")
+                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            );
+            shown = true;
+        }
+        bar.set_position(done);
+    };
+    let input = &args.input;
+    let pipe = match args.format {
+        AnalyzeFormat::Csv => {
+            let rate = args.rate_hz.unwrap_or(DEFAULT_RATE_HZ);
+            let cfg = PipelineConfig::counts(rate, args.pulse_arcsec);
+            let column = args.column.as_deref().unwrap_or("counts");
+            offline::run_file(input, InputFormat::Csv, Some(column), args.unit, &cfg, &mut progress)
+                .with_context(|| format!("analysing {}", input.display()))?
+        }
+        AnalyzeFormat::Frames => {
+            let rate = args.rate_hz.unwrap_or(DEFAULT_RATE_HZ);
+            let cfg = PipelineConfig::counts(rate, args.pulse_arcsec);
+            offline::run_capture(input, &cfg, &mut progress)
+                .with_context(|| format!("analysing frame capture {}", input.display()))?
+                .0
+        }
+        AnalyzeFormat::Mcap => {
+            let dt = offline::recording_period_ns(input).with_context(|| format!("reading {}", input.display()))?;
+            let rate = match (args.rate_hz, dt) {
+                (Some(r), _) => r,
+                (None, Some(dt)) if dt > 0 => 1e9 / dt as f64,
+                _ => DEFAULT_RATE_HZ,
+            };
+            let cfg = PipelineConfig::counts(rate, args.pulse_arcsec);
+            offline::run_recording(input, &cfg, &mut progress)
+                .with_context(|| format!("analysing recording {}", input.display()))?
+        }
+    };
+    bar.finish_and_clear();
+    let analysis = pipe.analysis();
+    match &args.json {
+        Some(path) => {
+            let text = serde_json::to_string_pretty(&analysis).context("serialising the analysis")?;
+            if path.as_os_str() == "-" {
+                println!("{text}");
+            } else {
+                std::fs::write(path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
+            }
+        }
+        None => print_table(&analysis)?,
+    }
+    Ok(())
+}
+
+fn fmt_coef(c: &Coefficient) -> String {
+    match (c.value, c.ci95, c.upper95) {
+        (Some(v), Some([lo, hi]), _) => format!("{v:<12.6} [{lo:.6}, {hi:.6}]"),
+        (Some(v), None, _) => format!("{v:.6}"),
+        (None, _, Some(u)) => format!("{:<12} < {u:.6} (95 % upper bound)", "not found"),
+        _ => "n/a".to_string(),
+    }
+}
+
+fn print_table(a: &Analysis) -> Result<()> {
+    let mut o = std::io::stdout().lock();
+    let e = &a.estimates;
+    writeln!(o, "{} samples, {:.1} s; fit chi2/dof {:.2}", a.samples, a.duration_s, a.fit.chi2_per_dof)?;
+    writeln!(o, "{:<32} {:<12} 95 % interval", "coefficient", "value")?;
+    for (name, c) in [
+        ("quantization Q, arcsec", &e.quantization_arcsec),
+        ("angle random walk N, deg/sqrt(h)", &e.arw_dpsh),
+        ("bias instability B, deg/h", &e.bias_instability_dph),
+        ("rate random walk K, deg/h/sqrt(h)", &e.rrw_dphsh),
+        ("rate ramp R, deg/h/h", &e.rate_ramp_dphh),
+    ] {
+        writeln!(o, "{name:<32} {}", fmt_coef(c))?;
+    }
+    writeln!(o)?;
+    writeln!(o, "{:>12} {:>14} {:>14} {:>14}", "tau, s", "raw ADEV", "clean ADEV", "noise ADEV")?;
+    for p in &a.allan.raw {
+        let find = |v: &[crate::allan::AllanPoint]| v.iter().find(|q| q.m == p.m).map(|q| q.dev);
+        let f = |x: Option<f64>| x.map_or("-".to_string(), |v| format!("{v:.6e}"));
+        writeln!(o, "{:>12.4} {:>14} {:>14} {:>14}", p.tau_s, format!("{:.6e}", p.dev), f(find(&a.allan.clean)), f(find(&a.allan.noise)))?;
+    }
+    writeln!(o, "(Allan deviations in deg/h)")?;
+    Ok(())
+}

@@ -1,0 +1,225 @@
+//! `sagnac run`: the acquisition daemon.
+//!
+//! ```text
+//! sagnac run [--config FILE] [--serial PATH --baud N | --replay FILE [--speed X] | --simulate MODEL.toml]
+//!            [--rate-hz F] [--pulse-arcsec D] [--metrics-addr ADDR] [--record-dir DIR]
+//!            [--wavelet sym8] [--duration-s S]
+//! ```
+//!
+//! Thin: read the config file (or the built-in defaults), apply the flags,
+//! validate (a bad value exits 2 naming the key and the flag), set up logging
+//! (`log.format`, `log.level`; `RUST_LOG` overrides the level), start a tokio
+//! runtime, install the SIGINT/SIGTERM handlers and run [`Daemon`]. The first
+//! signal drains the pipeline and finishes the recording (exit 0); a second
+//! one exits at once (exit 130).
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use clap::{ArgGroup, Args};
+
+use crate::daemon::config::{Config, ConfigError, GyroConfig, LogFormat, SourceKind};
+use crate::daemon::run::{Daemon, DaemonError, Explicit};
+use crate::daemon::shutdown;
+
+/// Arguments of `sagnac run`.
+#[derive(Debug, Args)]
+#[command(group(ArgGroup::new("source").args(["serial", "replay", "simulate"])))]
+pub struct RunArgs {
+    /// Configuration file (TOML, every key documented in config/default.toml); flags override it.
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// Read the gyro's frames from this serial device (e.g. /dev/ttyUSB0).
+    #[arg(long, value_name = "PATH")]
+    pub serial: Option<PathBuf>,
+    /// Baud rate of the serial device (default 921600).
+    #[arg(long, value_name = "N", requires = "serial")]
+    pub baud: Option<u32>,
+    /// Replay a capture: raw frames (.bin) or an MCAP recording made by `sagnac run`.
+    #[arg(long, value_name = "FILE")]
+    pub replay: Option<PathBuf>,
+    /// Pace of a replay or of the simulated bench, in multiples of real time (0 = as fast
+    /// as possible; default: 1 for the simulated bench, 0 for a replay).
+    #[arg(long, value_name = "X", conflicts_with = "serial", allow_negative_numbers = true)]
+    pub speed: Option<f64>,
+    /// Run the simulated bench on this gyro model (no source flag at all: the built-in
+    /// model of the founding paper's gyro).
+    #[arg(long, value_name = "MODEL.toml")]
+    pub simulate: Option<PathBuf>,
+    /// Gyro sample (frame) rate, Hz.
+    #[arg(long, value_name = "F", allow_negative_numbers = true)]
+    pub rate_hz: Option<f64>,
+    /// Angle of one counter pulse, arcsec.
+    #[arg(long, value_name = "D", allow_negative_numbers = true)]
+    pub pulse_arcsec: Option<f64>,
+    /// Prometheus endpoint address (path /metrics; default 127.0.0.1:9898; "" disables it).
+    #[arg(long, value_name = "ADDR")]
+    pub metrics_addr: Option<String>,
+    /// Directory for the MCAP recording, one file per run ("" disables recording).
+    #[arg(long, value_name = "DIR")]
+    pub record_dir: Option<String>,
+    /// Wavelet of the QN-removal bank (sym8, haar, db4, sym4, db8).
+    #[arg(long, value_name = "NAME")]
+    pub wavelet: Option<String>,
+    /// Stop after this many seconds of samples (0 = until SIGINT/SIGTERM or the end of a replay).
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    pub duration_s: Option<f64>,
+}
+
+/// The config key a flag overrides (for error messages).
+fn flag_of(key: &str) -> Option<&'static str> {
+    Some(match key {
+        "source.serial_path" => "--serial",
+        "source.baud" => "--baud",
+        "source.replay_path" => "--replay",
+        "source.speed" => "--speed",
+        "source.model" => "--simulate",
+        "gyro.rate_hz" => "--rate-hz",
+        "gyro.pulse_arcsec" => "--pulse-arcsec",
+        "metrics.addr" => "--metrics-addr",
+        "record.dir" => "--record-dir",
+        "dsp.wavelet" => "--wavelet",
+        "run.duration_s" => "--duration-s",
+        _ => return None,
+    })
+}
+
+/// The configuration: the file (or the defaults) with the flags applied, and
+/// which gyro settings were given explicitly.
+pub fn resolve(args: &RunArgs) -> Result<(Config, Explicit), ConfigError> {
+    let mut cfg = match &args.config {
+        Some(p) => Config::load(p)?,
+        None => Config::default(),
+    };
+    let from_file = args.config.is_some();
+    let defaults = GyroConfig::default();
+    let explicit = Explicit {
+        rate_hz: args.rate_hz.is_some() || (from_file && cfg.gyro.rate_hz != defaults.rate_hz),
+        pulse_arcsec: args.pulse_arcsec.is_some()
+            || (from_file && cfg.gyro.pulse_arcsec != defaults.pulse_arcsec),
+    };
+    if let Some(p) = &args.serial {
+        cfg.source.kind = SourceKind::Serial;
+        cfg.source.serial_path = p.display().to_string();
+    }
+    if let Some(b) = args.baud {
+        cfg.source.baud = b;
+    }
+    if let Some(p) = &args.replay {
+        cfg.source.kind = SourceKind::Replay;
+        cfg.source.replay_path = p.display().to_string();
+    }
+    if let Some(p) = &args.simulate {
+        cfg.source.kind = SourceKind::Simulate;
+        cfg.source.model = p.display().to_string();
+    }
+    if let Some(s) = args.speed {
+        cfg.source.speed = Some(s);
+    }
+    if let Some(v) = args.rate_hz {
+        cfg.gyro.rate_hz = v;
+    }
+    if let Some(v) = args.pulse_arcsec {
+        cfg.gyro.pulse_arcsec = v;
+    }
+    if let Some(a) = &args.metrics_addr {
+        cfg.metrics.addr = a.clone();
+    }
+    if let Some(d) = &args.record_dir {
+        cfg.record.dir = d.clone();
+    }
+    if let Some(w) = &args.wavelet {
+        cfg.dsp.wavelet = w.clone();
+    }
+    if let Some(d) = args.duration_s {
+        cfg.run.duration_s = d;
+    }
+    cfg.validate()?;
+    Ok((cfg, explicit))
+}
+
+fn init_logging(cfg: &Config) -> Result<()> {
+    let filter = match std::env::var("RUST_LOG") {
+        Ok(v) if !v.trim().is_empty() => tracing_subscriber::EnvFilter::try_new(&v)
+            .with_context(|| format!("RUST_LOG = {v:?} is not a valid tracing filter"))?,
+        _ => tracing_subscriber::EnvFilter::try_new(&cfg.log.level).map_err(|e| {
+            anyhow::Error::new(ConfigError::Invalid {
+                key: "log.level",
+                value: cfg.log.level.clone(),
+                message: "must be a tracing filter such as info or sagnac=debug",
+            })
+            .context(format!("invalid log filter: {e}"))
+        })?,
+    };
+    use std::io::IsTerminal;
+    let builder = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_ansi(std::io::stderr().is_terminal())
+        .with_writer(std::io::stderr);
+    // A subscriber may already be set (tests calling run twice): keep it.
+    let _ = match cfg.log.format {
+        LogFormat::Human => builder.try_init(),
+        LogFormat::Json => builder.json().try_init(),
+    };
+    Ok(())
+}
+
+/// Name the flag next to the config key in a validation error.
+fn with_flag(e: DaemonError) -> anyhow::Error {
+    let flag = match &e {
+        DaemonError::Config(ConfigError::Invalid { key, .. }) => flag_of(key),
+        _ => None,
+    };
+    match flag {
+        Some(f) => anyhow::Error::new(e).context(format!("bad value for {f}")),
+        None => anyhow::Error::new(e),
+    }
+}
+
+/// Run `sagnac run`.
+pub fn run(args: RunArgs) -> Result<()> {
+    let (cfg, explicit) = resolve(&args).map_err(|e| with_flag(DaemonError::Config(e)))?;
+    init_logging(&cfg)?;
+    let daemon = Daemon::build(cfg, explicit).map_err(with_flag)?;
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .thread_name("sagnac-rt")
+        .build()
+        .context("starting the tokio runtime")?;
+    let report = runtime.block_on(async move {
+        let (trigger, _) = shutdown::channel();
+        install_signal_handlers(trigger.clone())?;
+        daemon.run(trigger).await.map_err(anyhow::Error::new)
+    })?;
+    // Do not wait for blocking threads still parked in the pool.
+    runtime.shutdown_timeout(std::time::Duration::from_millis(100));
+    if let Some(rec) = &report.recording {
+        tracing::info!(path = %rec.path.display(), "done");
+    }
+    Ok(())
+}
+
+/// First SIGINT/SIGTERM: graceful shutdown; second: exit 130 at once.
+fn install_signal_handlers(trigger: shutdown::ShutdownTrigger) -> Result<()> {
+    use tokio::signal::unix::{SignalKind, signal};
+    let mut term = signal(SignalKind::terminate()).context("installing the SIGTERM handler")?;
+    let mut int = signal(SignalKind::interrupt()).context("installing the SIGINT handler")?;
+    tokio::spawn(async move {
+        let mut first = true;
+        loop {
+            let name = tokio::select! {
+                _ = term.recv() => "SIGTERM",
+                _ = int.recv() => "SIGINT",
+            };
+            if first {
+                tracing::info!(signal = name, "stopping: draining the pipeline and finishing the recording (send again to exit at once)");
+                trigger.trigger();
+                first = false;
+            } else {
+                eprintln!("sagnac run: second {name}: exiting without draining");
+                std::process::exit(130);
+            }
+        }
+    });
+    Ok(())
+}

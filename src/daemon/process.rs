@@ -1,0 +1,703 @@
+//! The numeric stage of the daemon: a blocking thread that takes
+//! [`SourceBatch`]es from a bounded channel, runs them through the same
+//! [`Pipeline`] as `sagnac analyze` (gap fill -> streaming sym8 QN removal ->
+//! octave Allan accumulators -> estimator), and publishes to the sinks:
+//! MCAP messages to the recorder, values to the Prometheus metrics, one log line
+//! per estimator update.
+//!
+//! * Gaps: a sample after `lost` missing ones carries the whole increment over
+//!   `lost + 1` periods; it is spread over them as integers
+//!   ([`spread_increment`]), so the pipeline sees a uniform series whose sum is
+//!   the true number of pulses. `/gyro/raw` records the samples as decoded
+//!   (with the gaps), `/gyro/clean` and `/gyro/noise` the uniform series.
+//! * Estimator updates happen every `interval_s` seconds *of samples*, at exact
+//!   sample counts (the input is split there), so they do not depend on how the
+//!   input was batched. One update (the ML fit with profile intervals) costs
+//!   0.03-0.3 s of CPU, so a source that runs faster than real time could spend
+//!   all its time estimating: with an `update_budget` (replays and the simulated
+//!   bench: 10 %), an update is skipped while less than `cost / budget` of wall
+//!   time has passed since the previous one started. At real-time pace (1 kHz,
+//!   5 s interval) no update is skipped; a live serial source never skips. The
+//!   final update after the end of the stream is always made, so final
+//!   estimates are deterministic.
+//! * Recording: lossless sources use the recorder's blocking `send`
+//!   (backpressure all the way to the source); live sources use `try_send`, and
+//!   what a full queue refuses is counted (`sagnac_dropped_messages_total
+//!   {sink="mcap"}`) and reported by a `backpressure_drop` event once the queue
+//!   takes messages again.
+//! * Canonical pushes: the pipeline's floating-point sums depend (in the last
+//!   bits) on how its input is split into calls, so samples are pushed in pieces
+//!   cut at absolute sample indices (every [`PUSH_CHUNK`] samples and at every
+//!   estimator boundary), whatever the source's batching: a live run, a replay
+//!   of its raw capture and a replay of its recording give bit-identical
+//!   estimates (with the same configuration).
+//! * Time: each segment of contiguous samples has a time anchor (from its first
+//!   batch); uniform sample `u` of the segment is at `t0 + u / rate`.
+
+use std::collections::{BTreeMap, VecDeque};
+use std::time::{Duration, Instant};
+
+use tokio::sync::mpsc;
+
+use crate::allan::AllanPoint;
+use crate::daemon::batch::{Delivery, SourceBatch};
+use crate::daemon::telemetry::Telemetry;
+use crate::pipeline::{Analysis, Pipeline, PipelineConfig, PipelineError, PipelineOutput};
+use crate::sink::mcap::{RecordError, RecordSender};
+use crate::sink::messages::{
+    AllanCurve, AllanUpdate, EstimateUpdate, Event, EventKind, Gap, RateBatch, RawBatch,
+    SinkMessage, TermEstimate, terms,
+};
+use crate::sink::metrics::{AllanChannel, Bounds95};
+use crate::model::estimate::Coefficient;
+use crate::source::frame::spread_increment;
+
+/// Errors building the numeric stage.
+#[derive(Debug, thiserror::Error)]
+pub enum ProcessError {
+    /// A setting is out of range.
+    #[error("processing stage: `{key}` = {value}: {reason}")]
+    Config {
+        key: &'static str,
+        value: String,
+        reason: &'static str,
+    },
+    /// The pipeline cannot be built.
+    #[error("processing stage: {0}")]
+    Pipeline(#[from] PipelineError),
+}
+
+/// Settings of the numeric stage.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProcessConfig {
+    /// The numeric chain (shared with `sagnac analyze`).
+    pub pipeline: PipelineConfig,
+    /// Seconds of samples between estimator updates.
+    pub interval_s: f64,
+    /// Samples per `/gyro/raw`, `/gyro/clean` and `/gyro/noise` message.
+    pub batch_samples: usize,
+    /// How to hand messages to the recorder.
+    pub delivery: Delivery,
+    /// Largest share of wall time the estimator updates may take, in (0, 1];
+    /// `None`: never skip an update.
+    pub update_budget: Option<f64>,
+}
+
+/// A built numeric stage, ready to run.
+#[derive(Debug)]
+pub struct Processor {
+    cfg: ProcessConfig,
+    pipeline: Pipeline,
+    interval_samples: u64,
+    period_ns: f64,
+    dt_ns: u64,
+}
+
+impl ProcessConfig {
+    /// Validate and build the pipeline.
+    pub fn build(self) -> Result<Processor, ProcessError> {
+        let bad = |key, value: String, reason| ProcessError::Config { key, value, reason };
+        if !(self.interval_s.is_finite() && self.interval_s > 0.0) {
+            return Err(bad("interval_s", self.interval_s.to_string(), "must be > 0"));
+        }
+        if self.batch_samples == 0 {
+            return Err(bad("batch_samples", "0".into(), "must be > 0"));
+        }
+        if let Some(b) = self.update_budget
+            && !(b > 0.0 && b <= 1.0)
+        {
+            return Err(bad("update_budget", b.to_string(), "must be in (0, 1]"));
+        }
+        let pipeline = Pipeline::new(&self.pipeline)?;
+        let rate: f64 = self.pipeline.rate_hz;
+        let interval_samples = (self.interval_s * rate).round().max(1.0) as u64;
+        Ok(Processor {
+            period_ns: 1e9 / rate,
+            dt_ns: (1e9 / rate).round() as u64,
+            interval_samples,
+            pipeline,
+            cfg: self,
+        })
+    }
+}
+
+/// Where the numeric stage publishes.
+#[derive(Clone)]
+pub struct Outputs {
+    /// The MCAP recorder, if recording.
+    pub recorder: Option<RecordSender>,
+    /// Metrics.
+    pub telemetry: Telemetry,
+}
+
+impl std::fmt::Debug for Outputs {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Outputs")
+            .field("recording", &self.recorder.is_some())
+            .finish_non_exhaustive()
+    }
+}
+
+/// What the numeric stage did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProcessReport {
+    /// The final analysis (after the wavelet bank was flushed).
+    pub analysis: Analysis,
+    /// Samples decoded (as delivered by the source).
+    pub samples: u64,
+    /// Sample periods pushed through the pipeline (samples plus lost, gap-filled).
+    pub periods: u64,
+    /// Lost periods (device gaps and backpressure drops).
+    pub lost: u64,
+    /// Estimator updates published, the final one included.
+    pub updates: u64,
+    /// Largest estimate latency seen, s (arrival of the sample closing an
+    /// interval -> estimate in the metrics).
+    pub max_estimate_latency_s: f64,
+    /// Messages the recorder refused (live sources with a full queue).
+    pub recorder_dropped: u64,
+}
+
+/// Samples per pipeline call (plus cuts at estimator boundaries), aligned on
+/// absolute sample indices.
+pub const PUSH_CHUNK: u64 = 1024;
+
+/// A time segment: uniform sample `u_start` is period `seq_start` at `t_start_ns`.
+#[derive(Debug, Clone, Copy)]
+struct Segment {
+    u_start: u64,
+    seq_start: u64,
+    t_start_ns: u64,
+}
+
+/// `/gyro/raw` being assembled.
+#[derive(Debug, Default)]
+struct RawAcc {
+    /// Uniform index of the first period covered.
+    u0: u64,
+    counts: Vec<i64>,
+    gaps: Vec<Gap>,
+}
+
+/// `/gyro/clean` + `/gyro/noise` being assembled.
+#[derive(Debug, Default)]
+struct RateAcc {
+    /// Uniform index of the first value.
+    u0: u64,
+    clean: Vec<f64>,
+    noise: Vec<f64>,
+}
+
+struct Run<'a> {
+    p: &'a mut Processor,
+    out: &'a mut Outputs,
+    segments: VecDeque<Segment>,
+    /// Uniform samples pushed into the pipeline.
+    pushed: u64,
+    /// Clean/noise values received from the pipeline.
+    emitted: u64,
+    samples: u64,
+    lost: u64,
+    raw: RawAcc,
+    rates: RateAcc,
+    temp_c: Option<f64>,
+    status: u32,
+    /// Gap-filled samples not yet pushed into the pipeline.
+    pending: Vec<i64>,
+    /// (uniform index one past a batch's last sample, its arrival), oldest first.
+    arrivals: VecDeque<(u64, Instant)>,
+    pout: PipelineOutput,
+    next_update_at: u64,
+    /// Start and cost of the last estimator update.
+    last_update: Option<(Instant, Duration)>,
+    updates: u64,
+    max_latency_s: f64,
+    recorder_dropped: u64,
+    unreported_drops: u64,
+    recorder_failed: bool,
+}
+
+impl Processor {
+    /// The pipeline (e.g. its latency).
+    pub fn pipeline(&self) -> &Pipeline {
+        &self.pipeline
+    }
+
+    /// Run on the calling (blocking) thread until every sender of `input` is
+    /// gone, then flush the wavelet bank and publish the final estimates.
+    pub fn run(
+        mut self,
+        mut input: mpsc::Receiver<SourceBatch>,
+        mut outputs: Outputs,
+    ) -> ProcessReport {
+        let first_update = self.interval_samples;
+        let mut run = Run {
+            p: &mut self,
+            out: &mut outputs,
+            segments: VecDeque::new(),
+            pushed: 0,
+            emitted: 0,
+            samples: 0,
+            lost: 0,
+            raw: RawAcc::default(),
+            rates: RateAcc::default(),
+            temp_c: None,
+            status: 0,
+            pending: Vec::new(),
+            arrivals: VecDeque::new(),
+            pout: PipelineOutput::default(),
+            next_update_at: first_update,
+            last_update: None,
+            updates: 0,
+            max_latency_s: 0.0,
+            recorder_dropped: 0,
+            unreported_drops: 0,
+            recorder_failed: false,
+        };
+        while let Some(batch) = input.blocking_recv() {
+            run.batch(batch);
+        }
+        run.finish()
+    }
+}
+
+fn bounds(c: &Coefficient) -> Bounds95 {
+    Bounds95 {
+        estimate: c.value,
+        lower95: c.ci95.map(|c| c[0]),
+        upper95: c.ci95.map(|c| c[1]).or(c.upper95),
+    }
+}
+
+fn term(c: &Coefficient) -> TermEstimate {
+    let b = bounds(c);
+    let finite = |v: Option<f64>| v.filter(|x| x.is_finite());
+    TermEstimate {
+        value: finite(b.estimate),
+        lo95: finite(b.lower95),
+        hi95: finite(b.upper95),
+    }
+}
+
+/// "0.351 [0.349, 0.353]", or "< 0.002" for an upper bound, or "-".
+pub fn format_coefficient(c: &Coefficient) -> String {
+    match (c.value, c.ci95, c.upper95) {
+        (Some(v), Some([lo, hi]), _) => format!("{v:.4e} [{lo:.4e}, {hi:.4e}]"),
+        (Some(v), None, _) => format!("{v:.4e}"),
+        (None, _, Some(u)) => format!("< {u:.4e}"),
+        _ => "-".into(),
+    }
+}
+
+fn curve(points: &[AllanPoint]) -> AllanCurve {
+    let ok: Vec<&AllanPoint> = points
+        .iter()
+        .filter(|p| {
+            [p.tau_s, p.dev, p.ci_lo, p.ci_hi]
+                .iter()
+                .all(|v| v.is_finite())
+        })
+        .collect();
+    AllanCurve {
+        tau_s: ok.iter().map(|p| p.tau_s).collect(),
+        dev: ok.iter().map(|p| p.dev).collect(),
+        ci_lo: ok.iter().map(|p| p.ci_lo).collect(),
+        ci_hi: ok.iter().map(|p| p.ci_hi).collect(),
+        n: ok.iter().map(|p| p.n).collect(),
+    }
+}
+
+impl Run<'_> {
+    fn time_of(&self, u: u64) -> u64 {
+        let seg = self
+            .segments
+            .iter()
+            .rev()
+            .find(|s| s.u_start <= u)
+            .or(self.segments.front());
+        match seg {
+            Some(s) => {
+                let d = u as f64 - s.u_start as f64;
+                (s.t_start_ns as f64 + d * self.p.period_ns).round().max(0.0) as u64
+            }
+            None => 0,
+        }
+    }
+
+    fn seq_of(&self, u: u64) -> u64 {
+        match self.segments.iter().rev().find(|s| s.u_start <= u) {
+            Some(s) => s.seq_start + (u - s.u_start),
+            None => u,
+        }
+    }
+
+    /// Drop segments no pending output can refer to.
+    fn prune_segments(&mut self) {
+        let mut oldest = self.emitted;
+        if !self.raw.counts.is_empty() {
+            oldest = oldest.min(self.raw.u0);
+        }
+        if !self.rates.clean.is_empty() {
+            oldest = oldest.min(self.rates.u0);
+        }
+        while self.segments.len() > 1 && self.segments[1].u_start <= oldest {
+            self.segments.pop_front();
+        }
+    }
+
+    fn record(&mut self, msg: SinkMessage) {
+        if self.recorder_failed {
+            return;
+        }
+        let Some(rec) = &self.out.recorder else {
+            return;
+        };
+        let live = self.p.cfg.delivery == Delivery::Live;
+        let r = if live {
+            rec.try_send(msg)
+        } else {
+            rec.send(msg)
+        };
+        match r {
+            Ok(()) => {
+                if self.unreported_drops > 0 {
+                    let dropped = std::mem::take(&mut self.unreported_drops);
+                    let ev = SinkMessage::Event(Event {
+                        t_ns: self.time_of(self.pushed.saturating_sub(1)),
+                        kind: EventKind::BackpressureDrop {
+                            sink: "mcap".into(),
+                            dropped,
+                        },
+                    });
+                    if rec.try_send(ev).is_err() {
+                        self.unreported_drops += dropped;
+                    }
+                }
+            }
+            Err(RecordError::QueueFull { .. }) => {
+                if self.recorder_dropped == 0 {
+                    tracing::warn!("MCAP recorder queue full: dropping messages (counted)");
+                }
+                self.recorder_dropped += 1;
+                self.unreported_drops += 1;
+                self.out
+                    .telemetry
+                    .dropped_messages
+                    .with_label_values(&["mcap"])
+                    .inc();
+            }
+            Err(e @ RecordError::Invalid { .. }) => {
+                tracing::warn!(error = %e, "message not recorded");
+            }
+            Err(e) => {
+                // The writer thread stopped; finish() reports its error.
+                tracing::error!(error = %e, "MCAP recorder stopped: recording disabled for the rest of the run");
+                self.recorder_failed = true;
+            }
+        }
+    }
+
+    fn flush_raw(&mut self) {
+        if self.raw.counts.is_empty() {
+            return;
+        }
+        let raw = std::mem::take(&mut self.raw);
+        let msg = RawBatch {
+            t0_ns: self.time_of(raw.u0),
+            dt_ns: self.p.dt_ns,
+            seq0: self.seq_of(raw.u0),
+            counts: raw.counts,
+            gaps: raw.gaps,
+            temp_c: self.temp_c,
+            status: self.status,
+        };
+        self.record(SinkMessage::Raw(msg));
+    }
+
+    fn flush_rates(&mut self) {
+        if self.rates.clean.is_empty() {
+            return;
+        }
+        let r = std::mem::take(&mut self.rates);
+        let t0_ns = self.time_of(r.u0);
+        let dt_ns = self.p.dt_ns;
+        self.record(SinkMessage::Clean(RateBatch {
+            t0_ns,
+            dt_ns,
+            values: r.clean,
+        }));
+        self.record(SinkMessage::Noise(RateBatch {
+            t0_ns,
+            dt_ns,
+            values: r.noise,
+        }));
+    }
+
+    /// Take the pipeline's clean/noise output into the rate messages.
+    fn take_output(&mut self) {
+        let n = self.pout.clean_dph.len();
+        let bs = self.p.cfg.batch_samples;
+        let mut i = 0;
+        while i < n {
+            if self.rates.clean.is_empty() {
+                self.rates.u0 = self.emitted;
+            }
+            // A message never spans the start of a new time segment.
+            let seg_end = self
+                .segments
+                .iter()
+                .map(|s| s.u_start)
+                .find(|&u| u > self.emitted)
+                .map_or(usize::MAX, |u| (u - self.emitted) as usize);
+            let take = (bs - self.rates.clean.len()).min(n - i).min(seg_end);
+            self.rates
+                .clean
+                .extend_from_slice(&self.pout.clean_dph[i..i + take]);
+            self.rates
+                .noise
+                .extend_from_slice(&self.pout.noise_dph[i..i + take]);
+            self.emitted += take as u64;
+            i += take;
+            let at_segment = self.segments.iter().any(|s| s.u_start == self.emitted);
+            if self.rates.clean.len() >= bs || at_segment {
+                self.flush_rates();
+            }
+        }
+        self.pout.clear();
+    }
+
+    fn batch(&mut self, b: SourceBatch) {
+        for ev in b.events {
+            self.record(SinkMessage::Event(ev));
+        }
+        if let Some(t) = b.temp_c {
+            self.temp_c = Some(t);
+            self.out.telemetry.metrics.set_temperature_c(Some(t));
+        }
+        if let Some(s) = b.status {
+            self.status = s;
+        }
+        if b.counts.is_empty() {
+            return;
+        }
+        let u_next = self.pushed + self.pending.len() as u64;
+        if b.new_segment || self.segments.is_empty() {
+            self.flush_raw();
+            self.segments.push_back(Segment {
+                u_start: u_next,
+                seq_start: b.seq0,
+                t_start_ns: b.t0_ns,
+            });
+        }
+        // Gap-fill into the uniform series; assemble /gyro/raw on the way.
+        let bs = self.p.cfg.batch_samples;
+        let mut gi = 0;
+        for (i, &c) in b.counts.iter().enumerate() {
+            let mut lost = 0u64;
+            while gi < b.gaps.len() && b.gaps[gi].index == i as u64 {
+                lost += b.gaps[gi].lost;
+                gi += 1;
+            }
+            if self.raw.counts.is_empty() {
+                self.raw.u0 = self.pushed + self.pending.len() as u64;
+            }
+            if lost > 0 {
+                self.raw.gaps.push(Gap {
+                    index: self.raw.counts.len() as u64,
+                    lost,
+                });
+                let n = u32::try_from(lost + 1).unwrap_or(u32::MAX);
+                self.pending.extend(spread_increment(c, n));
+                self.lost += lost;
+            } else {
+                self.pending.push(c);
+            }
+            self.raw.counts.push(c);
+            if self.raw.counts.len() >= bs {
+                self.flush_raw();
+            }
+        }
+        self.samples += b.counts.len() as u64;
+        self.arrivals
+            .push_back((self.pushed + self.pending.len() as u64, b.arrived));
+        self.push_ready(false);
+        self.prune_segments();
+        if let Some(rec) = &self.out.recorder {
+            self.out
+                .telemetry
+                .metrics
+                .set_recording_bytes(rec.bytes_written());
+        }
+    }
+
+    /// Push the pending uniform samples into the pipeline in canonical pieces:
+    /// cut at every multiple of [`PUSH_CHUNK`] and at every estimator boundary
+    /// (absolute sample indices), so the pipeline sees the same calls whatever
+    /// the source's batching (a live run and the replay of its recording give
+    /// bit-identical results). `all`: push the remainder too (end of stream).
+    fn push_ready(&mut self, all: bool) {
+        let mut start = 0usize;
+        loop {
+            let avail = self.pending.len() - start;
+            if avail == 0 {
+                break;
+            }
+            let to_chunk = PUSH_CHUNK - self.pushed % PUSH_CHUNK;
+            let to_update = self.next_update_at - self.pushed;
+            let cut = to_chunk.min(to_update) as usize;
+            let n = if avail >= cut {
+                cut
+            } else if all {
+                avail
+            } else {
+                break;
+            };
+            self.p
+                .pipeline
+                .push_counts(&self.pending[start..start + n], &mut self.pout);
+            self.pushed += n as u64;
+            start += n;
+            self.take_output();
+            if self.pushed == self.next_update_at {
+                self.next_update_at += self.p.interval_samples;
+                let due = match (self.p.cfg.update_budget, self.last_update) {
+                    (Some(budget), Some((t, cost))) => {
+                        t.elapsed().as_secs_f64() * budget >= cost.as_secs_f64()
+                    }
+                    _ => true,
+                };
+                if due {
+                    // when the sample that closed the interval arrived
+                    let pushed = self.pushed;
+                    let arrived = self
+                        .arrivals
+                        .iter()
+                        .find(|(end, _)| *end >= pushed)
+                        .map_or_else(Instant::now, |(_, a)| *a);
+                    self.update(arrived, false);
+                }
+            }
+        }
+        self.pending.drain(..start);
+        // Processing lag: the newest batch whose samples are all in the pipeline.
+        let mut newest = None;
+        while let Some(&(end, arrived)) = self.arrivals.front() {
+            if end > self.pushed {
+                break;
+            }
+            newest = Some(arrived);
+            self.arrivals.pop_front();
+        }
+        if let Some(a) = newest {
+            self.out
+                .telemetry
+                .metrics
+                .set_processing_lag_s(a.elapsed().as_secs_f64());
+        }
+    }
+
+    /// Publish an estimator update from everything pushed so far.
+    fn update(&mut self, arrived: Instant, last: bool) {
+        let start = Instant::now();
+        let a = self.p.pipeline.analysis();
+        self.publish(&a, arrived, last);
+        self.last_update = Some((start, start.elapsed()));
+    }
+
+    fn publish(&mut self, a: &Analysis, arrived: Instant, last: bool) {
+        let tel = self.out.telemetry.clone();
+        let m = &tel.metrics;
+        let e = &a.estimates;
+        m.set_qn_arcsec(bounds(&e.quantization_arcsec));
+        m.set_arw_dpsh(bounds(&e.arw_dpsh));
+        m.set_bias_instability_dph(bounds(&e.bias_instability_dph));
+        for (ch, pts) in [
+            (AllanChannel::Raw, &a.allan.raw),
+            (AllanChannel::Clean, &a.allan.clean),
+        ] {
+            let c = curve(pts);
+            if let Err(err) = m.set_allan_curve(ch, &c.tau_s, &c.dev) {
+                tracing::warn!(error = %err, "Allan curve not exported");
+            }
+        }
+        tel.estimator_updates.inc();
+        let latency = arrived.elapsed().as_secs_f64();
+        if !last {
+            tel.estimate_latency.set(latency);
+            self.max_latency_s = self.max_latency_s.max(latency);
+        }
+        self.updates += 1;
+        let t_ns = self.time_of(self.pushed.saturating_sub(1));
+        let mut terms_map = BTreeMap::new();
+        for (k, c) in [
+            (terms::QN_ARCSEC, &e.quantization_arcsec),
+            (terms::ARW_DPSH, &e.arw_dpsh),
+            (terms::BIAS_INSTABILITY_DPH, &e.bias_instability_dph),
+            (terms::RRW_DPHSH, &e.rrw_dphsh),
+            (terms::RAMP_DPHH, &e.rate_ramp_dphh),
+        ] {
+            terms_map.insert(k.to_string(), term(c));
+        }
+        self.record(SinkMessage::Estimates(EstimateUpdate {
+            t_ns,
+            n_samples: a.samples,
+            duration_s: a.duration_s,
+            terms: terms_map,
+        }));
+        let mut curves = BTreeMap::new();
+        curves.insert("raw".to_string(), curve(&a.allan.raw));
+        curves.insert("clean".to_string(), curve(&a.allan.clean));
+        curves.insert("noise".to_string(), curve(&a.allan.noise));
+        self.record(SinkMessage::Allan(AllanUpdate { t_ns, curves }));
+        tracing::info!(
+            final_update = last,
+            samples = a.samples,
+            duration_s = a.duration_s,
+            lost = self.lost,
+            qn_arcsec = %format_coefficient(&e.quantization_arcsec),
+            arw_dpsh = %format_coefficient(&e.arw_dpsh),
+            bias_instability_dph = %format_coefficient(&e.bias_instability_dph),
+            latency_s = latency,
+            "estimate"
+        );
+    }
+
+    fn finish(mut self) -> ProcessReport {
+        self.push_ready(true);
+        self.p.pipeline.finish(&mut self.pout);
+        self.take_output();
+        self.flush_raw();
+        self.flush_rates();
+        let a = self.p.pipeline.analysis();
+        if a.samples > 0 {
+            self.publish(&a, Instant::now(), true);
+        }
+        if self.unreported_drops > 0
+            && let Some(rec) = &self.out.recorder
+        {
+            // Blocking: at the end there is time to wait for room.
+            let _ = rec.send(SinkMessage::Event(Event {
+                t_ns: self.time_of(self.pushed.saturating_sub(1)),
+                kind: EventKind::BackpressureDrop {
+                    sink: "mcap".into(),
+                    dropped: self.unreported_drops,
+                },
+            }));
+        }
+        if let Some(rec) = &self.out.recorder {
+            self.out
+                .telemetry
+                .metrics
+                .set_recording_bytes(rec.bytes_written());
+        }
+        ProcessReport {
+            analysis: a,
+            samples: self.samples,
+            periods: self.pushed,
+            lost: self.lost,
+            updates: self.updates,
+            max_estimate_latency_s: self.max_latency_s,
+            recorder_dropped: self.recorder_dropped,
+        }
+    }
+}

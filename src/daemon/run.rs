@@ -1,0 +1,411 @@
+//! Wiring the daemon together: [`Daemon::build`] validates the configuration
+//! and builds every component; [`Daemon::run`] starts the tasks, waits for the
+//! source to end (end of a replay, the run duration, or a shutdown request),
+//! drains every stage in order and reports.
+//!
+//! ```text
+//!  source task ──SourceBatch──▶ pipeline thread ──SinkMessage──▶ recorder thread (MCAP)
+//!  (serial: async task;        (blocking: gap fill,      │
+//!   replay, simulated bench:    QN removal, Allan,       └──▶ Metrics ◀── /metrics server task
+//!   blocking threads)           estimator)
+//! ```
+//!
+//! Every channel is bounded: the source -> pipeline queue holds
+//! `run.channel_capacity` batches, the recorder queue 1024 messages.
+//!
+//! Shutdown (mini-redis style): SIGINT/SIGTERM (or a programmatic trigger)
+//! flips a `watch` channel every task listens to. The source stops reading,
+//! flushes the partial batch it holds and drops its sender; the pipeline thread
+//! drains the queue, flushes the wavelet bank, publishes the final estimates
+//! (log, MCAP, metrics) and returns; then the recorder writes its summary and
+//! closes the file (its error is checked and returned); then the metrics server
+//! stops. Each stage holds a drain guard; `run` returns once every guard is
+//! dropped.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Duration;
+
+use tokio::sync::mpsc;
+
+use crate::daemon::batch::{BatchSender, Delivery, SourceReport};
+use crate::daemon::config::{Config, ConfigError, SourceKind};
+use crate::daemon::http::{self, HttpError};
+use crate::daemon::process::{Outputs, ProcessConfig, ProcessError, ProcessReport, Processor};
+use crate::daemon::shutdown::{self, ShutdownTrigger};
+use crate::daemon::telemetry::Telemetry;
+use crate::model::{GyroModel, ModelError};
+use crate::pipeline::PipelineConfig;
+use crate::sink::mcap::{RecordError, Recorder, RecorderConfig, RecordingSummary};
+use crate::sink::metrics::{Metrics, MetricsError};
+use crate::source::bench::{BenchError, SimBench, SimBenchConfig};
+use crate::source::frame::DecoderConfig;
+use crate::source::replay::{self, CaptureKind, ReplayConfig, ReplayError, ReplaySource};
+use crate::source::serial::{SerialConfig, SerialError, SerialSource};
+
+/// The built-in gyro model of the simulated bench (the founding paper's RLG).
+pub const PAPER_GYRO_TOML: &str = include_str!("../../config/paper_gyro.toml");
+
+/// Share of wall time estimator updates may take with a replay or the simulated
+/// bench (see [`crate::daemon::process`]).
+pub const UPDATE_BUDGET: f64 = 0.1;
+
+/// Errors of the daemon.
+#[derive(Debug, thiserror::Error)]
+pub enum DaemonError {
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    #[error("gyro model {origin}: {source}")]
+    Model { origin: String, source: ModelError },
+    #[error(transparent)]
+    Serial(#[from] SerialError),
+    #[error(transparent)]
+    Replay(#[from] ReplayError),
+    #[error(transparent)]
+    Bench(#[from] BenchError),
+    #[error(transparent)]
+    Process(#[from] ProcessError),
+    #[error("MCAP recording: {0}")]
+    Record(#[from] RecordError),
+    #[error(transparent)]
+    Http(#[from] HttpError),
+    #[error("metrics: {0}")]
+    Metrics(#[from] MetricsError),
+    #[error("the {task} task failed: {message}")]
+    Task { task: &'static str, message: String },
+}
+
+/// Which gyro settings the user gave explicitly (a flag, or a config file
+/// value other than the default): those must agree with what a simulated model
+/// or an MCAP recording says; otherwise the source's own values are used.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Explicit {
+    pub rate_hz: bool,
+    pub pulse_arcsec: bool,
+}
+
+enum Source {
+    Serial(SerialSource),
+    Replay(ReplaySource),
+    Bench(SimBench),
+}
+
+/// A daemon ready to run.
+pub struct Daemon {
+    config: Config,
+    source: Source,
+    processor: Processor,
+    metrics_addr: Option<SocketAddr>,
+}
+
+/// What a run did.
+#[derive(Debug)]
+pub struct RunReport {
+    /// The source's counts.
+    pub source: SourceReport,
+    /// The pipeline's counts and final analysis.
+    pub process: ProcessReport,
+    /// The recording, if any.
+    pub recording: Option<RecordingSummary>,
+    /// Where `/metrics` was served, if anywhere.
+    pub metrics_addr: Option<SocketAddr>,
+}
+
+fn mismatch(key: &'static str, value: f64, message: &'static str) -> DaemonError {
+    DaemonError::Config(ConfigError::Invalid {
+        key,
+        value: value.to_string(),
+        message,
+    })
+}
+
+impl Daemon {
+    /// Validate `config` (already overridden by flags) and build every component.
+    /// The gyro rate and pulse weight of a simulated bench come from its model,
+    /// the rate of an MCAP replay from the recording, unless given explicitly
+    /// (then they must agree).
+    pub fn build(mut config: Config, explicit: Explicit) -> Result<Daemon, DaemonError> {
+        config.validate()?;
+        let speed = config.source.effective_speed();
+        let limit = |rate_hz: f64| {
+            (config.run.duration_s > 0.0).then(|| (config.run.duration_s * rate_hz).round().max(1.0) as u64)
+        };
+        let source = match config.source.kind {
+            SourceKind::Simulate => {
+                let (model, origin) = if config.source.model.is_empty() {
+                    (
+                        GyroModel::from_toml_str(PAPER_GYRO_TOML, "built-in paper_gyro.toml"),
+                        "built-in paper_gyro.toml".to_string(),
+                    )
+                } else {
+                    let p = PathBuf::from(&config.source.model);
+                    (GyroModel::load(&p), p.display().to_string())
+                };
+                let model = model.map_err(|source| DaemonError::Model {
+                    origin: origin.clone(),
+                    source,
+                })?;
+                let (rate, pulse) = (model.gyro.sample_rate_hz, model.gyro.pulse_weight_arcsec);
+                if explicit.rate_hz && config.gyro.rate_hz != rate {
+                    return Err(mismatch(
+                        "gyro.rate_hz",
+                        config.gyro.rate_hz,
+                        "differs from the simulated model's gyro.sample_rate_hz (leave it out to use the model's)",
+                    ));
+                }
+                if explicit.pulse_arcsec && config.gyro.pulse_arcsec != pulse {
+                    return Err(mismatch(
+                        "gyro.pulse_arcsec",
+                        config.gyro.pulse_arcsec,
+                        "differs from the simulated model's gyro.pulse_weight_arcsec (leave it out to use the model's)",
+                    ));
+                }
+                config.gyro.rate_hz = rate;
+                config.gyro.pulse_arcsec = pulse;
+                tracing::info!(model = origin, seed = config.source.seed, speed, "source: simulated bench");
+                Source::Bench(
+                    SimBenchConfig {
+                        model,
+                        seed: config.source.seed,
+                        speed,
+                        duration_s: (config.run.duration_s > 0.0).then_some(config.run.duration_s),
+                    }
+                    .build()?,
+                )
+            }
+            SourceKind::Replay => {
+                let path = PathBuf::from(&config.source.replay_path);
+                if replay::probe(&path)? == CaptureKind::Mcap
+                    && let Some(dt_ns) = replay::probe_mcap_period_ns(&path)?
+                {
+                    let recorded = 1e9 / dt_ns as f64;
+                    if (1e9 / config.gyro.rate_hz - dt_ns as f64).abs() > 1.0 {
+                        if explicit.rate_hz {
+                            return Err(mismatch(
+                                "gyro.rate_hz",
+                                config.gyro.rate_hz,
+                                "differs from the sample period recorded in /gyro/raw (leave it out to use the recording's)",
+                            ));
+                        }
+                        config.gyro.rate_hz = recorded;
+                    }
+                }
+                tracing::info!(path = %path.display(), speed, "source: replay");
+                Source::Replay(
+                    ReplayConfig {
+                        path,
+                        speed,
+                        rate_hz: config.gyro.rate_hz,
+                        limit_periods: limit(config.gyro.rate_hz),
+                        decoder: DecoderConfig::default(),
+                    }
+                    .build()?,
+                )
+            }
+            SourceKind::Serial => {
+                tracing::info!(device = config.source.serial_path, baud = config.source.baud, "source: serial");
+                Source::Serial(
+                    SerialConfig {
+                        path: PathBuf::from(&config.source.serial_path),
+                        baud: config.source.baud,
+                        reconnect_initial: Duration::from_secs_f64(config.source.reconnect_initial_s),
+                        reconnect_max: Duration::from_secs_f64(config.source.reconnect_max_s),
+                        rate_hz: config.gyro.rate_hz,
+                        limit_periods: limit(config.gyro.rate_hz),
+                        decoder: DecoderConfig::default(),
+                    }
+                    .build()?,
+                )
+            }
+        };
+        let live = config.source.kind == SourceKind::Serial;
+        let processor = ProcessConfig {
+            pipeline: PipelineConfig {
+                rate_hz: config.gyro.rate_hz,
+                pulse_arcsec: Some(config.gyro.pulse_arcsec),
+                wavelet: config.dsp.wavelet.clone(),
+                levels: (config.dsp.levels > 0).then_some(config.dsp.levels),
+                allan_cap: config.allan.full_overlap_max_m,
+            },
+            interval_s: config.estimator.interval_s,
+            batch_samples: config.record.batch_samples,
+            delivery: if live { Delivery::Live } else { Delivery::Lossless },
+            update_budget: (!live).then_some(UPDATE_BUDGET),
+        }
+        .build()?;
+        let metrics_addr = if config.metrics.addr.is_empty() {
+            None
+        } else {
+            // validate() checked that it parses
+            config.metrics.addr.parse().ok()
+        };
+        Ok(Daemon {
+            config,
+            source,
+            processor,
+            metrics_addr,
+        })
+    }
+
+    /// The configuration in effect (after the source's own settings were applied).
+    pub fn config(&self) -> &Config {
+        &self.config
+    }
+
+    /// Run until the source ends or `trigger` fires, then drain everything.
+    pub async fn run(self, trigger: ShutdownTrigger) -> Result<RunReport, DaemonError> {
+        let Daemon {
+            config,
+            mut source,
+            processor,
+            metrics_addr,
+        } = self;
+        // A serial port that cannot be opened fails the run before anything starts.
+        if let Source::Serial(s) = &mut source {
+            s.open()?;
+        }
+        let telemetry = Telemetry::new(Arc::new(Metrics::new()?))?;
+        let (drain_guard, drained) = shutdown::drain_channel();
+
+        // The metrics server stops last, after the final estimates are in.
+        let (http_trigger, http_shutdown) = shutdown::channel();
+        let mut served = None;
+        let http_task = match metrics_addr {
+            Some(addr) => {
+                let (bound, server) =
+                    http::bind(addr, Arc::clone(&telemetry.metrics), http_shutdown.watch()).await?;
+                tracing::info!("metrics on http://{bound}/metrics");
+                served = Some(bound);
+                let guard = drain_guard.clone();
+                Some(tokio::spawn(async move {
+                    server.await;
+                    drop(guard);
+                }))
+            }
+            None => None,
+        };
+
+        let recorder = if config.record.dir.is_empty() {
+            None
+        } else {
+            let rc = RecorderConfig {
+                record_dir: PathBuf::from(&config.record.dir),
+                flush_interval_s: config.record.flush_interval_s,
+                ..RecorderConfig::default()
+            };
+            let r = tokio::task::spawn_blocking(move || Recorder::start(&rc))
+                .await
+                .map_err(|e| join_err("recorder start", e))??;
+            tracing::info!(path = %r.path().display(), "recording");
+            Some(r)
+        };
+
+        tracing::info!(
+            rate_hz = config.gyro.rate_hz,
+            pulse_arcsec = config.gyro.pulse_arcsec,
+            wavelet = config.dsp.wavelet,
+            latency_samples = processor.pipeline().latency(),
+            estimator_interval_s = config.estimator.interval_s,
+            "pipeline ready"
+        );
+
+        let (tx, rx) = mpsc::channel(config.run.channel_capacity);
+        let outputs = Outputs {
+            recorder: recorder.as_ref().map(Recorder::sender),
+            telemetry: telemetry.clone(),
+        };
+        let guard = drain_guard.clone();
+        let process_task = tokio::task::spawn_blocking(move || {
+            let report = processor.run(rx, outputs);
+            drop(guard);
+            report
+        });
+
+        let delivery = match source {
+            Source::Serial(_) => Delivery::Live,
+            _ => Delivery::Lossless,
+        };
+        let sender = BatchSender::new(tx, delivery, telemetry.clone());
+        let sd = trigger.subscribe();
+        let tel = telemetry.clone();
+        let source_result: Result<SourceReport, DaemonError> = match source {
+            Source::Serial(s) => tokio::spawn(async move { s.run(sender, tel, sd).await })
+                .await
+                .map_err(|e| join_err("serial source", e))?
+                .map_err(DaemonError::from),
+            Source::Replay(r) => tokio::task::spawn_blocking(move || r.run_blocking(sender, tel, sd))
+                .await
+                .map_err(|e| join_err("replay source", e))?
+                .map_err(DaemonError::from),
+            Source::Bench(b) => tokio::task::spawn_blocking(move || b.run_blocking(sender, tel, sd))
+                .await
+                .map_err(|e| join_err("simulated bench", e))?
+                .map_err(DaemonError::from),
+        };
+        if let Err(e) = &source_result {
+            tracing::error!(error = %e, "source failed; draining the pipeline");
+        }
+        if trigger.is_triggered() {
+            tracing::info!("shutdown requested: draining the pipeline");
+        }
+        // The source dropped its sender: the pipeline drains and returns.
+        let process = process_task
+            .await
+            .map_err(|e| join_err("pipeline", e))?;
+        let recording = match recorder {
+            Some(r) => {
+                let summary = tokio::task::spawn_blocking(move || r.finish())
+                    .await
+                    .map_err(|e| join_err("recorder", e))?;
+                match summary {
+                    Ok(s) => {
+                        telemetry.metrics.set_recording_bytes(s.bytes);
+                        tracing::info!(
+                            path = %s.path.display(),
+                            bytes = s.bytes,
+                            messages = s.messages(),
+                            "recording finished"
+                        );
+                        Some(s)
+                    }
+                    Err(e) => {
+                        tracing::error!(error = %e, "recording failed");
+                        http_trigger.trigger();
+                        return Err(e.into());
+                    }
+                }
+            }
+            None => None,
+        };
+        http_trigger.trigger();
+        if let Some(t) = http_task {
+            let _ = t.await;
+        }
+        drop(drain_guard);
+        drained.wait().await;
+        let source = source_result?;
+        tracing::info!(
+            samples = process.samples,
+            periods = process.periods,
+            lost = process.lost,
+            updates = process.updates,
+            max_estimate_latency_s = process.max_estimate_latency_s,
+            recorder_dropped = process.recorder_dropped,
+            "run finished"
+        );
+        Ok(RunReport {
+            source,
+            process,
+            recording,
+            metrics_addr: served,
+        })
+    }
+}
+
+fn join_err(task: &'static str, e: tokio::task::JoinError) -> DaemonError {
+    DaemonError::Task {
+        task,
+        message: e.to_string(),
+    }
+}

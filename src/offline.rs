@@ -1,0 +1,238 @@
+//! Offline inputs for the pipeline: CSV/text files (pulse counts or a rate
+//! column in any unit), raw frame captures (`.bin`) and MCAP recordings made
+//! by `sagnac run`. Each is streamed block by block into a
+//! [`Pipeline`](crate::pipeline::Pipeline), so memory stays bounded and the
+//! numbers are exactly those the daemon computes live.
+//!
+//! Gaps (lost frames) are filled the same way everywhere: the pulses of the
+//! gap, which the cumulative counter kept, are spread over the missing
+//! samples as integers ([`crate::source::frame::spread_increment`]), so the
+//! series stays uniformly sampled and no angle is lost.
+
+use std::path::{Path, PathBuf};
+
+use crate::pipeline::{Pipeline, PipelineConfig, PipelineError, PipelineOutput};
+use crate::sink::messages::SinkMessage;
+use crate::sink::reader::{ReadError, scan_recording};
+use crate::source::capture::{CaptureError, CaptureReader};
+use crate::source::frame::spread_increment;
+use crate::source::input::{InputError, InputFormat, SampleReader};
+use crate::units;
+
+/// Unit of a CSV rate column.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RateUnit {
+    /// Pulse increments per sample (integers or decimals).
+    Counts,
+    /// deg/h.
+    Dph,
+    /// deg/s.
+    Dps,
+    /// rad/s.
+    #[value(name = "rad_s")]
+    RadS,
+}
+
+/// Errors of the offline readers.
+#[derive(Debug, thiserror::Error)]
+pub enum OfflineError {
+    #[error(transparent)]
+    Input(#[from] InputError),
+    #[error(transparent)]
+    Capture(#[from] CaptureError),
+    #[error(transparent)]
+    Recording(#[from] ReadError),
+    #[error(transparent)]
+    Pipeline(#[from] PipelineError),
+    #[error("{path}: no samples")]
+    Empty { path: PathBuf },
+    #[error("{path}: /gyro/raw batches disagree on the sample period ({first_ns} ns, then {other_ns} ns)")]
+    MixedRate { path: PathBuf, first_ns: u64, other_ns: u64 },
+}
+
+/// Called with (samples so far, total expected if known) as input is read.
+pub type Progress<'a> = &'a mut dyn FnMut(u64, Option<u64>);
+
+const BLOCK: usize = 1 << 16;
+
+/// Feed a CSV/text file. `unit = Counts` with `pulse_arcsec` set uses the exact
+/// integer path when every value is an integer, else the rate path.
+pub fn run_file(
+    path: &Path,
+    format: InputFormat,
+    column: Option<&str>,
+    unit: RateUnit,
+    cfg: &PipelineConfig,
+    progress: Progress,
+) -> Result<Pipeline, OfflineError> {
+    let integral = unit == RateUnit::Counts && cfg.pulse_arcsec.is_some();
+    match feed_file(path, format, column, unit, cfg, integral, progress) {
+        Err(FeedError::NotInteger) => {
+            let mut noop = |_: u64, _: Option<u64>| {};
+            feed_file(path, format, column, unit, cfg, false, &mut noop).map_err(FeedError::into_offline)
+        }
+        other => other.map_err(FeedError::into_offline),
+    }
+}
+
+enum FeedError {
+    NotInteger,
+    Other(OfflineError),
+}
+
+impl FeedError {
+    fn into_offline(self) -> OfflineError {
+        match self {
+            FeedError::Other(e) => e,
+            FeedError::NotInteger => unreachable!("handled by the caller"),
+        }
+    }
+}
+
+impl<E: Into<OfflineError>> From<E> for FeedError {
+    fn from(e: E) -> Self {
+        FeedError::Other(e.into())
+    }
+}
+
+fn feed_file(
+    path: &Path,
+    format: InputFormat,
+    column: Option<&str>,
+    unit: RateUnit,
+    cfg: &PipelineConfig,
+    integral: bool,
+    progress: Progress,
+) -> Result<Pipeline, FeedError> {
+    let mut reader = SampleReader::open(path, format, column)?;
+    let hint = reader.len_hint();
+    let mut c = cfg.clone();
+    if !integral {
+        c.pulse_arcsec = None;
+    }
+    let mut pipe = Pipeline::new(&c)?;
+    let mut out = PipelineOutput::default();
+    let mut buf = Vec::with_capacity(BLOCK);
+    let mut ints = Vec::with_capacity(BLOCK);
+    let tau0 = 1.0 / cfg.rate_hz;
+    let to_dph = |v: f64| -> f64 {
+        match unit {
+            RateUnit::Counts => units::counts_to_dph(v, cfg.pulse_arcsec.unwrap_or(1.0), tau0),
+            RateUnit::Dph => v,
+            RateUnit::Dps => units::dps_to_dph(v),
+            RateUnit::RadS => units::rad_s_to_dph(v),
+        }
+    };
+    loop {
+        let n = reader.next_block(&mut buf, BLOCK)?;
+        if n == 0 {
+            break;
+        }
+        out.clear();
+        if integral {
+            ints.clear();
+            for &v in &buf {
+                if v.fract() != 0.0 || v.abs() > 9.0e15 {
+                    return Err(FeedError::NotInteger);
+                }
+                ints.push(v as i64);
+            }
+            pipe.push_counts(&ints, &mut out);
+        } else {
+            for v in &mut buf {
+                *v = to_dph(*v);
+            }
+            pipe.push_rates_dph(&buf, &mut out)?;
+        }
+        progress(pipe.samples(), hint);
+    }
+    if pipe.samples() == 0 {
+        return Err(OfflineError::Empty { path: path.to_path_buf() }.into());
+    }
+    out.clear();
+    pipe.finish(&mut out);
+    Ok(pipe)
+}
+
+/// Feed a raw frame capture (`.bin`); gaps are filled. Returns the pipeline and
+/// the decoder's counts.
+pub fn run_capture(
+    path: &Path,
+    cfg: &PipelineConfig,
+    progress: Progress,
+) -> Result<(Pipeline, crate::source::frame::DecoderStats), OfflineError> {
+    let mut reader = CaptureReader::open(path)?;
+    let hint = std::fs::metadata(path).ok().map(|m| m.len() / 16);
+    let mut pipe = Pipeline::new(cfg)?;
+    let mut out = PipelineOutput::default();
+    let mut counts = Vec::with_capacity(BLOCK);
+    while let Some(block) = reader.next_block()? {
+        counts.clear();
+        for s in &block.samples {
+            counts.extend(spread_increment(s.increment, u32::from(s.lost_before) + 1));
+        }
+        out.clear();
+        pipe.push_counts(&counts, &mut out);
+        progress(pipe.samples(), hint);
+    }
+    if pipe.samples() == 0 {
+        return Err(OfflineError::Empty { path: path.to_path_buf() });
+    }
+    out.clear();
+    pipe.finish(&mut out);
+    Ok((pipe, *reader.stats()))
+}
+
+/// Sample period (ns) of the first `/gyro/raw` batch of a recording, if any.
+pub fn recording_period_ns(path: &Path) -> Result<Option<u64>, OfflineError> {
+    let mut dt = None;
+    scan_recording(path, false, &mut |m| {
+        if dt.is_none() {
+            if let SinkMessage::Raw(b) = &m.message {
+                dt = Some(b.dt_ns);
+            }
+        }
+    })?;
+    Ok(dt)
+}
+
+/// Feed the `/gyro/raw` channel of an MCAP recording (truncated files are read
+/// up to their last complete chunk); gaps are filled.
+pub fn run_recording(path: &Path, cfg: &PipelineConfig, progress: Progress) -> Result<Pipeline, OfflineError> {
+    let mut pipe = Pipeline::new(cfg)?;
+    let mut out = PipelineOutput::default();
+    let mut counts: Vec<i64> = Vec::new();
+    let mut first_dt: Option<u64> = None;
+    let mut mixed: Option<u64> = None;
+    scan_recording(path, false, &mut |m| {
+        if let SinkMessage::Raw(b) = m.message {
+            match first_dt {
+                None => first_dt = Some(b.dt_ns),
+                Some(d) if d != b.dt_ns && !b.counts.is_empty() => mixed = Some(b.dt_ns),
+                _ => {}
+            }
+            counts.clear();
+            let mut gaps = b.gaps.iter().peekable();
+            for (i, &c) in b.counts.iter().enumerate() {
+                let mut lost = 0u64;
+                while let Some(g) = gaps.next_if(|g| g.index as usize == i) {
+                    lost += g.lost;
+                }
+                counts.extend(spread_increment(c, (lost + 1).min(u32::MAX as u64) as u32));
+            }
+            out.clear();
+            pipe.push_counts(&counts, &mut out);
+            progress(pipe.samples(), None);
+        }
+    })?;
+    if let (Some(a), Some(b)) = (first_dt, mixed) {
+        return Err(OfflineError::MixedRate { path: path.to_path_buf(), first_ns: a, other_ns: b });
+    }
+    if pipe.samples() == 0 {
+        return Err(OfflineError::Empty { path: path.to_path_buf() });
+    }
+    out.clear();
+    pipe.finish(&mut out);
+    Ok(pipe)
+}

@@ -1,0 +1,377 @@
+//! The synchronous processing chain shared by `sagnac analyze` and the daemon:
+//!
+//! ```text
+//! pulse increments (or rates) --> rate, arcsec/s
+//!    |-> QnSplitter (streaming sym8)  --> clean, noise  (outputs, delayed by latency())
+//!    |-> OctaveAllan x3 (raw exact counts, clean, noise)
+//!    |-> wavelet level variances of the rate (deep) and of the angle (fine)
+//!    |-> least-squares slope (rate ramp)
+//! analysis() --> estimator (model::estimate) + Allan curves with CIs
+//! ```
+//!
+//! Everything is streaming with memory independent of the record length, and
+//! results do not depend on how the input is split into blocks, so replaying a
+//! capture through the daemon gives exactly what `analyze` gives on the file.
+
+use serde::Serialize;
+
+use crate::allan::streaming::{OctaveAllan, StreamConfig, StreamError, StreamPoint};
+use crate::allan::{self, AllanPoint};
+use crate::dsp::bank::{AnalysisOutput, MAX_LEVELS, StreamingAnalysis};
+use crate::dsp::qn::{QnConfig, QnSplitter};
+use crate::dsp::wavelet::Wavelet;
+use crate::dsp::DspError;
+use crate::model::baseline::{self, AdevPoint, BaselineEstimates};
+use crate::model::estimate::{self, AllanObs, EstimatorInput, NoiseEstimates, RampAccumulator};
+use crate::model::fit::{FitOptions, LevelObs};
+
+/// Errors building or running the pipeline.
+#[derive(Debug, thiserror::Error)]
+pub enum PipelineError {
+    #[error("pipeline configuration: `{key}` = {value}: {reason}")]
+    Config { key: &'static str, value: String, reason: &'static str },
+    #[error("wavelet stage: {0}")]
+    Dsp(#[from] DspError),
+    #[error("Allan stage: {0}")]
+    Allan(#[from] StreamError),
+}
+
+/// Configuration of the chain.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PipelineConfig {
+    /// Sample rate, Hz.
+    pub rate_hz: f64,
+    /// Pulse weight, arcsec, for count input; `None` for rate input.
+    pub pulse_arcsec: Option<f64>,
+    /// Wavelet of the QN-removal bank and of the level variances.
+    pub wavelet: String,
+    /// Depth of the QN-removal bank; `None` = automatic.
+    pub levels: Option<u32>,
+    /// Largest averaging factor with full overlap in the Allan accumulators.
+    pub allan_cap: u64,
+}
+
+impl PipelineConfig {
+    /// Defaults for count input at `rate_hz` with pulse weight `pulse_arcsec`.
+    pub fn counts(rate_hz: f64, pulse_arcsec: f64) -> Self {
+        PipelineConfig { rate_hz, pulse_arcsec: Some(pulse_arcsec), wavelet: "sym8".into(), levels: None, allan_cap: 1 << 16 }
+    }
+    /// Defaults for rate input (deg/h) at `rate_hz`.
+    pub fn rates(rate_hz: f64) -> Self {
+        PipelineConfig { pulse_arcsec: None, ..Self::counts(rate_hz, 1.0) }
+    }
+    fn validate(&self) -> Result<(), PipelineError> {
+        if !(self.rate_hz.is_finite() && self.rate_hz > 0.0) {
+            return Err(PipelineError::Config { key: "rate_hz", value: self.rate_hz.to_string(), reason: "must be > 0" });
+        }
+        if let Some(d) = self.pulse_arcsec {
+            if !(d.is_finite() && d > 0.0) {
+                return Err(PipelineError::Config { key: "pulse_arcsec", value: d.to_string(), reason: "must be > 0" });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Clean and noise rates produced by a push, deg/h, aligned with the input
+/// delayed by [`Pipeline::latency`] samples.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PipelineOutput {
+    pub clean_dph: Vec<f64>,
+    pub noise_dph: Vec<f64>,
+}
+
+impl PipelineOutput {
+    pub fn clear(&mut self) {
+        self.clean_dph.clear();
+        self.noise_dph.clear();
+    }
+}
+
+/// Allan curves of the three channels.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct AllanCurves {
+    pub raw: Vec<AllanPoint>,
+    pub clean: Vec<AllanPoint>,
+    pub noise: Vec<AllanPoint>,
+}
+
+/// The baseline estimators on the same data, for comparison.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Baselines {
+    /// MATLAB's graphical recipe on the raw Allan deviation.
+    pub graphical: BaselineEstimates,
+    /// Weighted least squares of the IEEE 952 sum on the raw Allan variance.
+    pub wls_raw: BaselineEstimates,
+}
+
+/// Goodness of fit of the estimator.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct FitSummary {
+    pub chi2_per_dof: f64,
+    pub observations: usize,
+}
+
+/// What `analyze` prints and the daemon publishes.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Analysis {
+    pub estimates: NoiseEstimates,
+    pub allan: AllanCurves,
+    pub samples: u64,
+    pub duration_s: f64,
+    pub fit: FitSummary,
+    pub baselines: Baselines,
+}
+
+/// Streaming per-level mean squares of a DWT, to any depth (two cascaded
+/// analysis banks), counting only coefficients free of the start-up transient.
+#[derive(Debug, Clone)]
+struct LevelAccumulator {
+    first: StreamingAnalysis,
+    second: Option<StreamingAnalysis>,
+    out1: AnalysisOutput,
+    out2: AnalysisOutput,
+    skip: u64,
+    seen: Vec<u64>,
+    sum_sq: Vec<f64>,
+}
+
+impl LevelAccumulator {
+    fn new(w: &Wavelet, levels: u32) -> Result<Self, PipelineError> {
+        let l1 = levels.min(MAX_LEVELS);
+        let second = if levels > l1 { Some(StreamingAnalysis::new(w, (levels - l1).min(MAX_LEVELS))?) } else { None };
+        Ok(LevelAccumulator {
+            first: StreamingAnalysis::new(w, l1)?,
+            second,
+            out1: AnalysisOutput::default(),
+            out2: AnalysisOutput::default(),
+            // a coefficient's support reaches back (L-1)(2^j - 1) samples: the
+            // first L-1 coefficients of every level touch the zero pre-history
+            skip: w.len() as u64 - 1,
+            seen: vec![0; levels as usize],
+            sum_sq: vec![0.0; levels as usize],
+        })
+    }
+
+    fn push(&mut self, x: &[f64]) {
+        self.out1.approx.clear();
+        for d in &mut self.out1.details {
+            d.clear();
+        }
+        self.first.push(x, &mut self.out1);
+        let n1 = self.out1.details.len();
+        for (j, d) in self.out1.details.iter().enumerate() {
+            Self::acc(self.skip, &mut self.seen[j], &mut self.sum_sq[j], d);
+        }
+        if let Some(second) = &mut self.second {
+            self.out2.approx.clear();
+            for d in &mut self.out2.details {
+                d.clear();
+            }
+            second.push(&self.out1.approx, &mut self.out2);
+            for (j, d) in self.out2.details.iter().enumerate() {
+                Self::acc(self.skip, &mut self.seen[n1 + j], &mut self.sum_sq[n1 + j], d);
+            }
+        }
+    }
+
+    #[inline]
+    fn acc(skip: u64, seen: &mut u64, sum: &mut f64, d: &[f64]) {
+        let start = skip.saturating_sub(*seen).min(d.len() as u64) as usize;
+        *seen += d.len() as u64;
+        let mut s = 0.0;
+        for &v in &d[start..] {
+            s += v * v;
+        }
+        *sum += s;
+    }
+
+    fn observations(&self) -> Vec<LevelObs> {
+        (0..self.seen.len())
+            .filter_map(|j| {
+                let n = self.seen[j].saturating_sub(self.skip);
+                (n > 0).then(|| LevelObs { level: j as u32 + 1, n_coef: n as f64, mean_sq: self.sum_sq[j] / n as f64 })
+            })
+            .collect()
+    }
+}
+
+/// The chain.
+#[derive(Debug)]
+pub struct Pipeline {
+    cfg: PipelineConfig,
+    tau0_s: f64,
+    wavelet: Wavelet,
+    splitter: QnSplitter,
+    raw_counts: Option<OctaveAllan<i64>>,
+    raw_rate: Option<OctaveAllan>,
+    clean_allan: OctaveAllan,
+    noise_allan: OctaveAllan,
+    rate_levels: LevelAccumulator,
+    angle_levels: LevelAccumulator,
+    ramp: RampAccumulator,
+    angle: f64,
+    samples: u64,
+    rate_buf: Vec<f64>,
+    angle_buf: Vec<f64>,
+}
+
+/// Depth of the deep (rate) level accumulator.
+const DEEP_LEVELS: u32 = 32;
+
+impl Pipeline {
+    pub fn new(cfg: &PipelineConfig) -> Result<Pipeline, PipelineError> {
+        cfg.validate()?;
+        let tau0_s = 1.0 / cfg.rate_hz;
+        let wavelet = Wavelet::by_name(&cfg.wavelet)?;
+        let mut qn = QnConfig::new(cfg.rate_hz);
+        qn.wavelet = cfg.wavelet.clone();
+        qn.levels = cfg.levels;
+        qn.validate()?;
+        let splitter = QnSplitter::new(&qn)?;
+        let j = splitter.levels();
+        let scfg = |scale: f64| StreamConfig { tau0_s, full_overlap_cap: cfg.allan_cap, scale, ..StreamConfig::default() };
+        let (raw_counts, raw_rate) = match cfg.pulse_arcsec {
+            Some(d) => (Some(OctaveAllan::counts(scfg(d))?), None),
+            None => (None, Some(OctaveAllan::freq(scfg(1.0))?)),
+        };
+        Ok(Pipeline {
+            cfg: cfg.clone(),
+            tau0_s,
+            splitter,
+            raw_counts,
+            raw_rate,
+            clean_allan: OctaveAllan::freq(scfg(1.0))?,
+            noise_allan: OctaveAllan::freq(scfg(1.0))?,
+            rate_levels: LevelAccumulator::new(&wavelet, DEEP_LEVELS)?,
+            angle_levels: LevelAccumulator::new(&wavelet, (j + 2).min(MAX_LEVELS))?,
+            wavelet,
+            ramp: RampAccumulator::default(),
+            angle: 0.0,
+            samples: 0,
+            rate_buf: Vec::new(),
+            angle_buf: Vec::new(),
+        })
+    }
+
+    /// Samples pushed.
+    pub fn samples(&self) -> u64 {
+        self.samples
+    }
+    /// Delay of the clean/noise outputs, samples.
+    pub fn latency(&self) -> usize {
+        self.splitter.latency()
+    }
+    pub fn config(&self) -> &PipelineConfig {
+        &self.cfg
+    }
+
+    /// Push pulse increments (count input).
+    pub fn push_counts(&mut self, counts: &[i64], out: &mut PipelineOutput) {
+        let d = self.cfg.pulse_arcsec.unwrap_or(1.0);
+        if let Some(a) = &mut self.raw_counts {
+            a.push_block(counts);
+        }
+        let k = d / self.tau0_s;
+        self.rate_buf.clear();
+        self.rate_buf.extend(counts.iter().map(|&c| c as f64 * k));
+        self.process_rates(out);
+    }
+
+    /// Push rates in deg/h (== arcsec/s) (rate input).
+    pub fn push_rates_dph(&mut self, rates: &[f64], out: &mut PipelineOutput) -> Result<(), PipelineError> {
+        if let Some(a) = &mut self.raw_rate {
+            a.push_block(rates)?;
+        }
+        self.rate_buf.clear();
+        self.rate_buf.extend_from_slice(rates);
+        self.process_rates(out);
+        Ok(())
+    }
+
+    fn process_rates(&mut self, out: &mut PipelineOutput) {
+        let n0 = out.clean_dph.len();
+        self.splitter.push(&self.rate_buf, &mut out.clean_dph, &mut out.noise_dph);
+        self.rate_levels.push(&self.rate_buf);
+        self.angle_buf.clear();
+        for &r in &self.rate_buf {
+            self.ramp.push(r);
+            self.angle += r * self.tau0_s;
+            self.angle_buf.push(self.angle);
+        }
+        self.angle_levels.push(&self.angle_buf);
+        self.samples += self.rate_buf.len() as u64;
+        self.feed_channels(n0, out);
+    }
+
+    fn feed_channels(&mut self, from: usize, out: &PipelineOutput) {
+        // the channel accumulators see exactly the samples emitted (finite values)
+        let _ = self.clean_allan.push_block(&out.clean_dph[from..]);
+        let _ = self.noise_allan.push_block(&out.noise_dph[from..]);
+    }
+
+    /// End of stream: flush the wavelet bank so every sample has its clean and
+    /// noise values.
+    pub fn finish(&mut self, out: &mut PipelineOutput) {
+        let n0 = out.clean_dph.len();
+        self.splitter.flush(&mut out.clean_dph, &mut out.noise_dph);
+        self.feed_channels(n0, out);
+    }
+
+    /// Estimates and curves from everything pushed so far.
+    pub fn analysis(&self) -> Analysis {
+        let conf = allan::DEFAULT_CONFIDENCE;
+        let raw_points: Vec<StreamPoint> = match (&self.raw_counts, &self.raw_rate) {
+            (Some(a), _) => a.points(conf).unwrap_or_default(),
+            (_, Some(a)) => a.points(conf).unwrap_or_default(),
+            _ => Vec::new(),
+        };
+        let levels = self.rate_levels.observations();
+        let angle_levels = self.angle_levels.observations();
+        let allan_obs: Vec<AllanObs> = raw_points
+            .iter()
+            .map(|p| AllanObs { m: p.m, n_phase: self.samples + 1, avar: p.avar, stride: p.stride, n_terms: p.n })
+            .collect();
+        let input = EstimatorInput {
+            tau0_s: self.tau0_s,
+            n_samples: self.samples,
+            dec_lo: self.wavelet.dec_lo(),
+            dec_hi: self.wavelet.dec_hi(),
+            levels: &levels,
+            angle_levels: &angle_levels,
+            allan: &allan_obs,
+            ramp: Some(self.ramp),
+        };
+        let est = estimate::estimate(&input, &FitOptions::default());
+        let adev: Vec<AdevPoint> =
+            raw_points.iter().filter(|p| p.n > 0).map(|p| AdevPoint { tau_s: p.tau_s, adev: p.dev, edf: p.edf }).collect();
+        Analysis {
+            estimates: est.estimates,
+            allan: AllanCurves {
+                raw: to_points(&raw_points),
+                clean: to_points(&self.clean_allan.points(conf).unwrap_or_default()),
+                noise: to_points(&self.noise_allan.points(conf).unwrap_or_default()),
+            },
+            samples: self.samples,
+            duration_s: self.samples as f64 * self.tau0_s,
+            fit: FitSummary { chi2_per_dof: est.fit.chi2_per_dof, observations: est.fit.edf.len() },
+            baselines: Baselines { graphical: baseline::graphical(&adev), wls_raw: baseline::wls_raw(&adev) },
+        }
+    }
+}
+
+fn to_points(p: &[StreamPoint]) -> Vec<AllanPoint> {
+    p.iter()
+        .filter(|p| p.n > 0 && p.avar.is_finite())
+        .map(|p| AllanPoint {
+            tau_s: p.tau_s,
+            m: p.m,
+            n: p.n,
+            dev: p.dev,
+            ci_lo: p.ci_lo,
+            ci_hi: p.ci_hi,
+            edf: p.edf,
+            alpha: p.alpha,
+        })
+        .collect()
+}

@@ -1,0 +1,590 @@
+//! The daemon's replay source: a capture played back through the same pipeline
+//! as a live gyro, as fast as possible or paced at `speed` times real time.
+//!
+//! Two kinds of capture, told apart by their first bytes:
+//! * a raw frame capture (`.bin`: the serial bytes as captured): decoded by the
+//!   same sans-IO [`FrameDecoder`] as the serial source, corruption included
+//!   (so the frame counters and events come out as they did live);
+//! * an MCAP recording made by `sagnac run`: the `/gyro/raw` messages (counts,
+//!   gaps, sequence numbers and sample times as recorded) are fed back; the other
+//!   channels are skipped without being decoded. A recording cut by a crash is
+//!   replayed up to its last complete chunk (with a warning). Gap events are
+//!   re-emitted from the recorded gaps; the other recorded events are not.
+//!
+//! Replays are lossless: the source runs on a blocking thread and waits for room
+//! in the pipeline's bounded queue (backpressure), so its speed is that of the
+//! slowest stage. Pacing follows the sample clock: the batch ending at sample
+//! period `p` is sent no earlier than `start + p / (rate * speed)`.
+
+use std::fs::File;
+use std::io::{self, BufReader, Read};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use ::mcap::records::{Record, op};
+use ::mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
+use bytes::BytesMut;
+
+use crate::daemon::batch::{
+    Assembler, BatchSender, PipelineClosed, SourceBatch, SourceReport, wall_ns,
+};
+use crate::daemon::shutdown::Shutdown;
+use crate::daemon::telemetry::Telemetry;
+use crate::sink::messages::{Event, EventKind, RawBatch, SinkMessage, Topic};
+use crate::source::frame::{DecoderConfig, FrameDecoder};
+
+/// Errors of the replay source; each names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum ReplayError {
+    /// A setting is out of range.
+    #[error("replay source: `{key}` = {value}: {reason}")]
+    Config {
+        key: &'static str,
+        value: String,
+        reason: &'static str,
+    },
+    /// The capture cannot be opened or read.
+    #[error("cannot read capture {} at byte {offset}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        offset: u64,
+        source: io::Error,
+    },
+    /// The MCAP structure is broken before any sample could be read.
+    #[error("{}: MCAP record at byte {offset} is unreadable: {source}", path.display())]
+    Mcap {
+        path: PathBuf,
+        offset: u64,
+        source: ::mcap::McapError,
+    },
+    /// A `/gyro/raw` message does not decode.
+    #[error("{}: /gyro/raw message #{sequence} (record at byte {offset}): {reason}", path.display())]
+    Message {
+        path: PathBuf,
+        offset: u64,
+        sequence: u32,
+        reason: String,
+    },
+    /// The recording's sample period disagrees with the configured rate.
+    #[error(
+        "{}: /gyro/raw has a sample period of {dt_ns} ns but the gyro rate is {rate_hz} Hz \
+         (set --rate-hz to {recorded_hz})", path.display()
+    )]
+    RateMismatch {
+        path: PathBuf,
+        dt_ns: u64,
+        rate_hz: f64,
+        recorded_hz: f64,
+    },
+    /// The pipeline stopped during the replay.
+    #[error("replay of {}: {source}", path.display())]
+    Pipeline {
+        path: PathBuf,
+        source: PipelineClosed,
+    },
+}
+
+/// What kind of capture a file is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CaptureKind {
+    /// Raw frame bytes.
+    Frames,
+    /// An MCAP recording.
+    Mcap,
+}
+
+/// Look at the first bytes of `path`: MCAP magic or raw frames.
+pub fn probe(path: &Path) -> Result<CaptureKind, ReplayError> {
+    let mut head = Vec::with_capacity(8);
+    File::open(path)
+        .and_then(|f| f.take(8).read_to_end(&mut head))
+        .map_err(|source| ReplayError::Io {
+            path: path.to_path_buf(),
+            offset: 0,
+            source,
+        })?;
+    Ok(if head[..] == ::mcap::MAGIC[..] {
+        CaptureKind::Mcap
+    } else {
+        CaptureKind::Frames
+    })
+}
+
+/// The sample period (ns) of the first `/gyro/raw` message of an MCAP
+/// recording, or `None` when it has none.
+pub fn probe_mcap_period_ns(path: &Path) -> Result<Option<u64>, ReplayError> {
+    let mut found = None;
+    let mut reader = RawReader::open(path)?;
+    while let Some(m) = reader.next()? {
+        if m.dt_ns > 0 {
+            found = Some(m.dt_ns);
+            break;
+        }
+    }
+    Ok(found)
+}
+
+/// Settings of the replay source.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReplayConfig {
+    /// The capture.
+    pub path: PathBuf,
+    /// Pace in multiples of real time; 0 = as fast as possible.
+    pub speed: f64,
+    /// Gyro sample rate, Hz.
+    pub rate_hz: f64,
+    /// Stop after this many sample periods.
+    pub limit_periods: Option<u64>,
+    /// Frame decoder settings (raw captures).
+    pub decoder: DecoderConfig,
+}
+
+/// A validated replay, ready to run.
+#[derive(Debug)]
+pub struct ReplaySource {
+    config: ReplayConfig,
+    kind: CaptureKind,
+}
+
+impl ReplayConfig {
+    /// Validate and look at the file.
+    pub fn build(self) -> Result<ReplaySource, ReplayError> {
+        let bad = |key, value: String, reason| ReplayError::Config { key, value, reason };
+        if !(self.speed.is_finite() && self.speed >= 0.0) {
+            return Err(bad("speed", self.speed.to_string(), "must be >= 0"));
+        }
+        if !(self.rate_hz.is_finite() && self.rate_hz > 0.0) {
+            return Err(bad("rate_hz", self.rate_hz.to_string(), "must be > 0"));
+        }
+        let kind = probe(&self.path)?;
+        Ok(ReplaySource {
+            config: self,
+            kind,
+        })
+    }
+}
+
+/// Stream time covered by one paced batch.
+const PACED_BATCH: Duration = Duration::from_millis(20);
+/// Samples per batch when not paced.
+const FAST_BATCH_SAMPLES: usize = 8192;
+/// File read size, bytes.
+const READ_CHUNK: usize = 64 * 1024;
+/// Longest single sleep, so that shutdown is noticed quickly.
+const SLEEP_SLICE: Duration = Duration::from_millis(50);
+
+/// Sends batches no earlier than their due time on the sample clock.
+struct Pacer {
+    start: Instant,
+    /// Seconds of wall time per sample period; 0 = not paced.
+    s_per_period: f64,
+}
+
+impl Pacer {
+    fn new(rate_hz: f64, speed: f64) -> Self {
+        Pacer {
+            start: Instant::now(),
+            s_per_period: if speed > 0.0 { 1.0 / (rate_hz * speed) } else { 0.0 },
+        }
+    }
+
+    fn batch_samples(&self) -> usize {
+        if self.s_per_period > 0.0 {
+            ((PACED_BATCH.as_secs_f64() / self.s_per_period) as usize).max(1)
+        } else {
+            FAST_BATCH_SAMPLES
+        }
+    }
+
+    /// Sleep until period `p` is due; `false` if a shutdown came first.
+    fn wait_until(&self, periods: u64, shutdown: &Shutdown) -> bool {
+        if self.s_per_period <= 0.0 {
+            return !shutdown.is_requested();
+        }
+        let due = self.start + Duration::from_secs_f64(periods as f64 * self.s_per_period);
+        loop {
+            if shutdown.is_requested() {
+                return false;
+            }
+            let now = Instant::now();
+            if now >= due {
+                return true;
+            }
+            std::thread::sleep((due - now).min(SLEEP_SLICE));
+        }
+    }
+}
+
+impl ReplaySource {
+    /// What kind of capture this is.
+    pub fn kind(&self) -> CaptureKind {
+        self.kind
+    }
+
+    /// Replay on the calling (blocking) thread until the end of the capture, the
+    /// period limit, or a shutdown.
+    pub fn run_blocking(
+        self,
+        mut out: BatchSender,
+        telemetry: Telemetry,
+        shutdown: Shutdown,
+    ) -> Result<SourceReport, ReplayError> {
+        let path = self.config.path.clone();
+        let report = match self.kind {
+            CaptureKind::Frames => self.replay_frames(&mut out, telemetry, &shutdown),
+            CaptureKind::Mcap => self.replay_mcap(&mut out, telemetry, &shutdown),
+        }?;
+        // Nothing is held by a lossless sender; close for symmetry.
+        drop(out);
+        tracing::info!(
+            path = %path.display(),
+            samples = report.samples,
+            periods = report.periods,
+            "replay finished"
+        );
+        Ok(report)
+    }
+
+    fn pipeline_err(&self) -> impl Fn(PipelineClosed) -> ReplayError + '_ {
+        |source| ReplayError::Pipeline {
+            path: self.config.path.clone(),
+            source,
+        }
+    }
+
+    fn replay_frames(
+        &self,
+        out: &mut BatchSender,
+        telemetry: Telemetry,
+        shutdown: &Shutdown,
+    ) -> Result<SourceReport, ReplayError> {
+        let cfg = &self.config;
+        let io_err = |offset, source| ReplayError::Io {
+            path: cfg.path.clone(),
+            offset,
+            source,
+        };
+        let mut file = BufReader::with_capacity(
+            READ_CHUNK,
+            File::open(&cfg.path).map_err(|e| io_err(0, e))?,
+        );
+        let pacer = Pacer::new(cfg.rate_hz, cfg.speed);
+        let per_batch = pacer.batch_samples();
+        let mut decoder = FrameDecoder::with_config(cfg.decoder);
+        let mut asm = Assembler::new(cfg.rate_hz, cfg.limit_periods, telemetry);
+        let mut buf = BytesMut::with_capacity(READ_CHUNK);
+        let mut chunk = vec![0u8; READ_CHUNK];
+        let mut in_batch = 0usize;
+        let mut eof = false;
+        let mut stopped = false;
+        while !eof && !stopped {
+            let n = loop {
+                match file.read(&mut chunk) {
+                    Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+                    r => break r.map_err(|e| io_err(decoder.stats().bytes_read, e))?,
+                }
+            };
+            let now = wall_ns();
+            eof = n == 0;
+            buf.extend_from_slice(&chunk[..n]);
+            loop {
+                let item = if eof {
+                    decoder.decode_eof(&mut buf)
+                } else {
+                    decoder.decode(&mut buf)
+                };
+                let Some(item) = item else { break };
+                let was = asm.periods();
+                asm.push(item, now);
+                in_batch += usize::from(asm.periods() != was);
+                if in_batch >= per_batch || asm.done() {
+                    asm.sync_stats(decoder.stats());
+                    if !pacer.wait_until(asm.periods(), shutdown) {
+                        stopped = true;
+                    }
+                    if let Some(b) = asm.take(Instant::now()) {
+                        out.blocking_send(b).map_err(self.pipeline_err())?;
+                    }
+                    in_batch = 0;
+                    if stopped || asm.done() {
+                        stopped = true;
+                        break;
+                    }
+                }
+            }
+        }
+        asm.sync_stats(decoder.stats());
+        if !stopped {
+            pacer.wait_until(asm.periods(), shutdown);
+        }
+        if let Some(b) = asm.take(Instant::now()) {
+            out.blocking_send(b).map_err(self.pipeline_err())?;
+        }
+        let s = decoder.stats();
+        Ok(SourceReport {
+            bytes_read: s.bytes_read,
+            samples: s.samples,
+            periods: asm.periods(),
+            disconnects: 0,
+        })
+    }
+
+    fn replay_mcap(
+        &self,
+        out: &mut BatchSender,
+        telemetry: Telemetry,
+        shutdown: &Shutdown,
+    ) -> Result<SourceReport, ReplayError> {
+        let cfg = &self.config;
+        let period_ns = 1e9 / cfg.rate_hz;
+        let pacer = Pacer::new(cfg.rate_hz, cfg.speed);
+        let mut reader = RawReader::open(&cfg.path)?;
+        let mut report = SourceReport::default();
+        let mut next_seq: Option<u64> = None;
+        let mut read_bytes = 0u64;
+        loop {
+            if shutdown.is_requested() {
+                break;
+            }
+            let Some(mut raw) = reader.next()? else { break };
+            if !raw.counts.is_empty() && (raw.dt_ns as f64 - period_ns).abs() > 1.0 {
+                return Err(ReplayError::RateMismatch {
+                    path: cfg.path.clone(),
+                    dt_ns: raw.dt_ns,
+                    rate_hz: cfg.rate_hz,
+                    recorded_hz: 1e9 / raw.dt_ns as f64,
+                });
+            }
+            // Apply the period limit at a sample boundary.
+            if let Some(limit) = cfg.limit_periods {
+                let left = limit.saturating_sub(report.periods);
+                if left == 0 {
+                    break;
+                }
+                truncate_periods(&mut raw, left);
+            }
+            let mut b = SourceBatch::new(Instant::now());
+            b.new_segment = next_seq.is_some_and(|s| s != raw.seq0);
+            b.seq0 = raw.seq0;
+            b.t0_ns = raw.t0_ns;
+            b.temp_c = raw.temp_c;
+            b.status = Some(raw.status);
+            let mut seq = raw.seq0;
+            let mut gi = 0;
+            for (i, _) in raw.counts.iter().enumerate() {
+                while gi < raw.gaps.len() && raw.gaps[gi].index == i as u64 {
+                    let g = raw.gaps[gi];
+                    let t_ns = raw.t0_ns
+                        + ((seq - raw.seq0) as f64 * raw.dt_ns as f64).round() as u64;
+                    b.events.push(Event {
+                        t_ns,
+                        kind: EventKind::Gap { seq, lost: g.lost },
+                    });
+                    seq += g.lost;
+                    gi += 1;
+                }
+                seq += 1;
+            }
+            b.counts = raw.counts;
+            b.gaps = raw.gaps;
+            let periods = b.periods();
+            let lost: u64 = b.gaps.iter().map(|g| g.lost).sum();
+            let m = &telemetry.metrics;
+            m.add_samples(b.counts.len() as u64);
+            m.add_lost_samples(lost);
+            let now_read = reader.offset();
+            m.add_bytes_read(now_read - read_bytes);
+            read_bytes = now_read;
+            report.samples += b.counts.len() as u64;
+            report.periods += periods;
+            next_seq = Some(b.seq0 + periods);
+            if !pacer.wait_until(report.periods, shutdown) {
+                break;
+            }
+            b.arrived = Instant::now();
+            out.blocking_send(b).map_err(self.pipeline_err())?;
+        }
+        report.bytes_read = reader.offset();
+        if let Some(reason) = reader.broken() {
+            tracing::warn!(path = %cfg.path.display(), reason, "recording is cut: replayed up to its last complete chunk");
+        }
+        Ok(report)
+    }
+}
+
+/// Keep at most `periods` sample periods of `raw` (cut at a sample).
+fn truncate_periods(raw: &mut RawBatch, periods: u64) {
+    let mut used = 0u64;
+    let mut gi = 0;
+    for i in 0..raw.counts.len() {
+        let mut lost = 0;
+        while gi < raw.gaps.len() && raw.gaps[gi].index == i as u64 {
+            lost += raw.gaps[gi].lost;
+            gi += 1;
+        }
+        used += lost + 1;
+        if used >= periods {
+            raw.counts.truncate(i + 1);
+            raw.gaps.retain(|g| g.index <= i as u64);
+            return;
+        }
+    }
+}
+
+/// Streams the `/gyro/raw` messages of an MCAP recording without decoding the
+/// other channels; stops cleanly at a truncation (see [`RawReader::broken`]).
+pub struct RawReader {
+    path: PathBuf,
+    file: BufReader<File>,
+    reader: LinearReader,
+    raw_channel: Option<u16>,
+    offset: u64,
+    broken: Option<String>,
+    done: bool,
+    queue: std::collections::VecDeque<RawBatch>,
+}
+
+impl RawReader {
+    /// Open a recording.
+    pub fn open(path: &Path) -> Result<RawReader, ReplayError> {
+        let file = File::open(path).map_err(|source| ReplayError::Io {
+            path: path.to_path_buf(),
+            offset: 0,
+            source,
+        })?;
+        let len = file.metadata().map(|m| m.len()).unwrap_or(u64::MAX);
+        let options = LinearReaderOptions::default()
+            .with_validate_chunk_crcs(true)
+            .with_record_length_limit(usize::try_from(len).unwrap_or(usize::MAX).max(1 << 20));
+        Ok(RawReader {
+            path: path.to_path_buf(),
+            file: BufReader::with_capacity(READ_CHUNK, file),
+            reader: LinearReader::new_with_options(options),
+            raw_channel: None,
+            offset: 0,
+            broken: None,
+            done: false,
+            queue: Default::default(),
+        })
+    }
+
+    /// Bytes of the file read so far.
+    pub fn offset(&self) -> u64 {
+        self.offset
+    }
+
+    /// Why reading stopped early (a cut or damaged file), if it did.
+    pub fn broken(&self) -> Option<&str> {
+        self.broken.as_deref()
+    }
+
+    /// The next `/gyro/raw` message, `None` at the end (or at a break).
+    pub fn next(&mut self) -> Result<Option<RawBatch>, ReplayError> {
+        loop {
+            if let Some(m) = self.queue.pop_front() {
+                return Ok(Some(m));
+            }
+            if self.done {
+                return Ok(None);
+            }
+            self.step()?;
+        }
+    }
+
+    fn step(&mut self) -> Result<(), ReplayError> {
+        let Some(event) = self.reader.next_event() else {
+            self.done = true;
+            return Ok(());
+        };
+        match event {
+            Err(e) => {
+                // A cut file (crash): stop here, as recover_recording does. A file
+                // that is not MCAP at all, or broken at its start, is an error.
+                if self.raw_channel.is_none() {
+                    return Err(ReplayError::Mcap {
+                        path: self.path.clone(),
+                        offset: self.offset,
+                        source: e,
+                    });
+                }
+                self.broken = Some(e.to_string());
+                self.done = true;
+            }
+            Ok(LinearReadEvent::ReadRequest(need)) => {
+                let buf = self.reader.insert(need.clamp(1, READ_CHUNK));
+                let n = loop {
+                    match self.file.read(buf) {
+                        Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+                        r => break r,
+                    }
+                }
+                .map_err(|source| ReplayError::Io {
+                    path: self.path.clone(),
+                    offset: self.offset,
+                    source,
+                })?;
+                self.offset += n as u64;
+                self.reader.notify_read(n);
+            }
+            Ok(LinearReadEvent::Record { data, opcode }) => match opcode {
+                op::CHANNEL => {
+                    if let Ok(Record::Channel(c)) = ::mcap::parse_record(opcode, data)
+                        && c.topic == Topic::Raw.name()
+                    {
+                        self.raw_channel = Some(c.id);
+                    }
+                }
+                op::MESSAGE => {
+                    // Header: channel id u16, sequence u32, log and publish time u64.
+                    if data.len() >= 22 {
+                        let channel = u16::from_le_bytes([data[0], data[1]]);
+                        if Some(channel) == self.raw_channel {
+                            let sequence = u32::from_le_bytes([data[2], data[3], data[4], data[5]]);
+                            match SinkMessage::from_json(Topic::Raw, &data[22..]) {
+                                Ok(SinkMessage::Raw(m)) => self.queue.push_back(m),
+                                Ok(_) => {}
+                                Err(e) => {
+                                    return Err(ReplayError::Message {
+                                        path: self.path.clone(),
+                                        offset: self.offset,
+                                        sequence,
+                                        reason: e.to_string(),
+                                    });
+                                }
+                            }
+                        }
+                    }
+                }
+                _ => {}
+            },
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sink::messages::Gap;
+
+    #[test]
+    fn truncation_keeps_whole_samples() {
+        let mut raw = RawBatch {
+            t0_ns: 0,
+            dt_ns: 1,
+            seq0: 0,
+            counts: vec![1, 2, 3, 4],
+            gaps: vec![Gap { index: 2, lost: 5 }],
+            temp_c: None,
+            status: 0,
+        };
+        let mut r = raw.clone();
+        truncate_periods(&mut r, 2);
+        assert_eq!(r.counts, vec![1, 2]);
+        assert!(r.gaps.is_empty());
+        // the third sample covers periods 3..8 (5 lost + itself): a limit of 4 keeps it whole
+        truncate_periods(&mut raw, 4);
+        assert_eq!(raw.counts, vec![1, 2, 3]);
+        assert_eq!(raw.gaps, vec![Gap { index: 2, lost: 5 }]);
+    }
+}

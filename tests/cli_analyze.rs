@@ -1,0 +1,125 @@
+//! `sagnac analyze`: the CLI contract of issue 4 (JSON shape, inputs, errors).
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+fn sagnac(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_sagnac")).args(args).output().unwrap()
+}
+
+fn simulate(dir: &Path, seconds: &str) -> std::path::PathBuf {
+    let model = dir.join("m.toml");
+    std::fs::write(
+        &model,
+        "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 1.21\ninput_rate_dph = 12.3\n\
+         [noise]\nquantization_arcsec = 0.35\narw_dpsh = 0.0015\n",
+    )
+    .unwrap();
+    let csv = dir.join("run.csv");
+    let o = sagnac(&["simulate", "--model", model.to_str().unwrap(), "--duration-s", seconds, "--seed", "5", "--out", csv.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    csv
+}
+
+fn check_coefficient(c: &Value, name: &str) {
+    let obj = c.as_object().unwrap_or_else(|| panic!("{name} is not an object"));
+    assert!(obj.contains_key("value"), "{name}: no value key");
+    if c["value"].is_null() {
+        assert!(c["upper95"].as_f64().unwrap() >= 0.0, "{name}: null value needs upper95");
+        assert!(!obj.contains_key("ci95"), "{name}");
+    } else {
+        let v = c["value"].as_f64().unwrap();
+        let ci = c["ci95"].as_array().unwrap();
+        let (lo, hi) = (ci[0].as_f64().unwrap(), ci[1].as_f64().unwrap());
+        assert!(lo <= v && v <= hi, "{name}: {lo} <= {v} <= {hi}");
+    }
+}
+
+#[test]
+fn json_contract_and_values_on_a_simulated_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = simulate(dir.path(), "600");
+    let out = dir.path().join("a.json");
+    let o = sagnac(&["analyze", "--input", csv.to_str().unwrap(), "--json", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    for k in ["quantization_arcsec", "arw_dpsh", "bias_instability_dph", "rrw_dphsh", "rate_ramp_dphh"] {
+        check_coefficient(&v["estimates"][k], k);
+    }
+    for ch in ["raw", "clean", "noise"] {
+        let pts = v["allan"][ch].as_array().unwrap();
+        assert!(pts.len() > 8, "{ch}: {} points", pts.len());
+        for key in ["tau_s", "m", "n", "dev", "ci_lo", "ci_hi", "edf", "alpha"] {
+            assert!(pts[0].get(key).is_some(), "{ch}: missing {key}");
+        }
+    }
+    // truth: Q 0.35", N 0.0015 deg/sqrt(h); 10 minutes is enough for a few %
+    let q = v["estimates"]["quantization_arcsec"]["value"].as_f64().unwrap();
+    let n = v["estimates"]["arw_dpsh"]["value"].as_f64().unwrap();
+    assert!((q / 0.35 - 1.0).abs() < 0.01, "Q {q}");
+    assert!((n / 0.0015 - 1.0).abs() < 0.1, "N {n}");
+    // the readable table
+    let o = sagnac(&["analyze", "--input", csv.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success() && text.contains("angle random walk") && text.contains("clean ADEV"), "{text}");
+}
+
+#[test]
+fn rate_columns_in_every_unit_give_the_same_estimates() {
+    // the same rate written in deg/h, deg/s and rad/s
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = 0x2545F4914F6CDD1D_u64;
+    let mut u = move || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    let mut text = String::from("dph,dps,rad_s,temp_c\n");
+    for _ in 0..200_000 {
+        let r = 30.0 + 400.0 * u();
+        text.push_str(&format!("{r},{},{},25.0\n", r / 3600.0, (r / 3600.0).to_radians()));
+    }
+    let csv = dir.path().join("rates.csv");
+    std::fs::write(&csv, text).unwrap();
+    let mut n = Vec::new();
+    for (col, unit) in [("dph", "dph"), ("dps", "dps"), ("rad_s", "rad_s")] {
+        let o = sagnac(&["analyze", "--input", csv.to_str().unwrap(), "--rate-hz", "100", "--column", col, "--unit", unit, "--json", "-"]);
+        assert!(o.status.success(), "{unit}: {}", String::from_utf8_lossy(&o.stderr));
+        let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+        n.push(v["estimates"]["arw_dpsh"]["value"].as_f64().unwrap());
+    }
+    // white rate noise of sd 400/sqrt(12) deg/h at 100 Hz: N = sd sqrt(tau0) / 60
+    let truth = 400.0 / 12f64.sqrt() * 0.1 / 60.0;
+    for x in &n {
+        assert!((x / n[0] - 1.0).abs() < 1e-6, "{n:?}");
+        assert!((x / truth - 1.0).abs() < 0.05, "N {x} vs {truth}");
+    }
+}
+
+#[test]
+fn bad_inputs_exit_2_with_a_clear_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = simulate(dir.path(), "5");
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["--column", "rate"], "rate"),
+        (vec!["--rate-hz", "-5"], "--rate-hz"),
+        (vec!["--pulse-arcsec", "0"], "--pulse-arcsec"),
+    ];
+    for (extra, needle) in cases {
+        let mut a = vec!["analyze", "--input", csv.to_str().unwrap(), "--json", "-"];
+        a.extend(extra);
+        let o = sagnac(&a);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains(needle), "{err}");
+    }
+    let bad = dir.path().join("bad.csv");
+    std::fs::write(&bad, "counts\n1\n2\nthree\n4\n").unwrap();
+    let o = sagnac(&["analyze", "--input", bad.to_str().unwrap(), "--json", "-"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("bad.csv") && err.contains('4'), "must name the file and line: {err}");
+}

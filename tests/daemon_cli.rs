@@ -1,0 +1,173 @@
+//! `sagnac run` as a user meets it: the default run (no source flag: the
+//! built-in simulated paper gyro) serving promtool-clean metrics, draining on
+//! SIGTERM and leaving a complete recording; a run that stops by itself after
+//! `--duration-s` with JSON logs; and bad values exiting 2 with a message that
+//! names the config key and the flag.
+
+mod daemon_common;
+
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+use daemon_common::*;
+
+fn run(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_sagnac"))
+        .arg("run")
+        .args(args)
+        .env_remove("RUST_LOG")
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn bad_values_exit_2_naming_the_key_and_the_flag() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = dir.path().join("rec");
+    let rec = rec.to_str().unwrap();
+    let model = dir.path().join("m.toml");
+    std::fs::write(&model, "[gyro]\nsample_rate_hz = 500.0\npulse_weight_arcsec = 1.21\n").unwrap();
+    let bad_cfg = dir.path().join("bad.toml");
+    std::fs::write(&bad_cfg, "[estimator]\ninterval = 5\n").unwrap();
+    let cases: Vec<(Vec<&str>, Vec<&str>)> = vec![
+        (vec!["--rate-hz", "-1"], vec!["gyro.rate_hz", "--rate-hz", "-1"]),
+        (vec!["--pulse-arcsec", "0"], vec!["gyro.pulse_arcsec", "--pulse-arcsec"]),
+        (vec!["--wavelet", "morlet"], vec!["dsp.wavelet", "--wavelet", "morlet"]),
+        (vec!["--metrics-addr", "localhost"], vec!["metrics.addr", "--metrics-addr"]),
+        (vec!["--duration-s", "-3"], vec!["run.duration_s", "--duration-s"]),
+        (vec!["--replay", "x.bin", "--speed", "-2"], vec!["source.speed", "--speed"]),
+        (vec!["--replay", "/nonexistent/capture.bin"], vec!["/nonexistent/capture.bin"]),
+        (vec!["--serial", "/nonexistent/ttyUSB9"], vec!["cannot open serial port /nonexistent/ttyUSB9"]),
+        // an explicit rate that contradicts the simulated model
+        (vec!["--simulate", model.to_str().unwrap(), "--rate-hz", "1000"], vec!["gyro.rate_hz", "sample_rate_hz"]),
+        (vec!["--config", bad_cfg.to_str().unwrap()], vec!["bad.toml", "interval"]),
+        // clap: sources are exclusive, --speed does not apply to a serial port
+        (vec!["--serial", "/dev/null", "--replay", "x"], vec!["cannot be used with"]),
+        (vec!["--serial", "/dev/null", "--speed", "2"], vec!["cannot be used with"]),
+        (vec!["--baud", "9600"], vec!["--serial"]),
+    ];
+    for (args, needles) in cases {
+        let mut a = args.clone();
+        a.extend_from_slice(&["--record-dir", rec, "--metrics-addr", ""]);
+        // keep the metrics flag given last from overriding a bad one under test
+        if args.contains(&"--metrics-addr") {
+            a.truncate(args.len() + 2);
+        }
+        let r = run(&a);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(2), "{args:?}: {err}");
+        for n in needles {
+            assert!(err.contains(n), "{args:?}: expected {n:?} in:\n{err}");
+        }
+    }
+    assert!(!rec.is_empty() && !std::path::Path::new(rec).exists(), "nothing recorded on errors");
+}
+
+#[test]
+fn default_run_is_the_simulated_bench_promtool_clean_and_drains_on_sigterm() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec_dir = dir.path().join("rec");
+    let addr = free_addr();
+    let cfg = dir.path().join("c.toml");
+    std::fs::write(&cfg, "[estimator]\ninterval_s = 2.0\n").unwrap();
+    // No source flag: the built-in paper gyro, here at 40x real time.
+    let mut d = DaemonProc::start(
+        &[
+            "run",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--speed",
+            "40",
+            "--metrics-addr",
+            &addr.to_string(),
+            "--record-dir",
+            rec_dir.to_str().unwrap(),
+        ],
+        &dir.path().join("log"),
+    );
+    // The clean channel lags the input by the wavelet bank's latency (about 31 s
+    // of samples with the automatic depth at 1 kHz): wait for its Allan curve.
+    let clean = "sagnac_allan_deviation_degrees_per_hour{channel=\"clean\",tau_seconds=\"0.001\"}";
+    let text = wait_for("the clean Allan curve", Duration::from_secs(40), || {
+        let t = scrape(addr)?;
+        (metric(&t, "sagnac_estimator_updates_total")? >= 2.0 && metric(&t, clean).is_some()).then_some(t)
+    });
+    let (ok, out) = promtool(&text);
+    assert!(ok, "promtool check metrics:\n{out}\n---\n{text}");
+    // the simulated pulses went through the frame encoder and decoder
+    let frames = metric(&text, "sagnac_frames_decoded_total").unwrap();
+    let samples = metric(&text, "sagnac_samples_total").unwrap();
+    assert!(samples >= 4000.0 && frames >= samples, "{frames} frames, {samples} samples");
+    assert_eq!(metric(&text, "sagnac_frame_errors_total{kind=\"crc\"}"), Some(0.0));
+    for series in [
+        "sagnac_qn_arcseconds{bound=\"estimate\"}",
+        // ARW is not resolved in a few seconds of data: its 95 % upper bound is exported
+        "sagnac_arw_degrees_per_root_hour{bound=\"upper95\"}",
+        "sagnac_allan_deviation_degrees_per_hour{channel=\"raw\",tau_seconds=\"0.001\"}",
+        "sagnac_allan_deviation_degrees_per_hour{channel=\"clean\",tau_seconds=\"0.001\"}",
+        "sagnac_processing_lag_seconds",
+        "sagnac_estimate_latency_seconds",
+        "sagnac_recording_bytes",
+    ] {
+        let v = metric(&text, series).unwrap_or_else(|| panic!("{series} missing:\n{text}"));
+        assert!(v.is_finite() && v >= 0.0, "{series} = {v}");
+    }
+    assert_eq!(metric(&text, "sagnac_temperature_celsius"), Some(25.0));
+
+    let t = Instant::now();
+    d.sigterm();
+    let status = d.wait(Duration::from_secs(10));
+    assert!(status.success(), "{status:?}\n{}", d.log_text());
+    eprintln!("SIGTERM -> exit in {:?}", t.elapsed());
+    let log = d.log_text();
+    assert!(log.contains("final_update=true"), "final estimate logged:\n{log}");
+    let v = read_mcap_py(&only_recording(&rec_dir));
+    assert_eq!(v["messages"], v["statistics_messages"], "complete file");
+    let raw = v["raw_samples"].as_u64().unwrap();
+    assert!(raw >= samples as u64);
+    // wavelet bank flushed: every raw sample has its clean and noise value
+    assert_eq!(v["values_total"]["/gyro/clean"].as_u64(), Some(raw));
+    assert_eq!(v["values_total"]["/gyro/noise"].as_u64(), Some(raw));
+    assert!(v["last_estimates"]["terms"]["qn_arcsec"]["value"].as_f64().is_some());
+    assert_eq!(v["schema_invalid"], serde_json::json!([]));
+}
+
+#[test]
+fn duration_limit_ends_the_run_and_logs_are_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = dir.path().join("c.toml");
+    std::fs::write(&cfg, "[log]\nformat = \"json\"\n\n[estimator]\ninterval_s = 1.0\n").unwrap();
+    let r = run(&[
+        "--config",
+        cfg.to_str().unwrap(),
+        "--simulate",
+        repo().join("config/paper_gyro.toml").to_str().unwrap(),
+        "--speed",
+        "0",
+        "--duration-s",
+        "3",
+        "--metrics-addr",
+        "",
+        "--record-dir",
+        dir.path().join("rec").to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    let lines: Vec<serde_json::Value> = err
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("not JSON ({e}): {l}")))
+        .collect();
+    let estimates: Vec<&serde_json::Value> = lines
+        .iter()
+        .filter(|l| l["fields"]["message"] == "estimate")
+        .collect();
+    let last = estimates.last().expect("estimate lines");
+    assert_eq!(last["level"], "INFO");
+    assert_eq!(last["fields"]["samples"], 3000);
+    assert_eq!(last["fields"]["final_update"], true);
+    for f in ["qn_arcsec", "arw_dpsh", "bias_instability_dph", "lost"] {
+        assert!(!last["fields"][f].is_null(), "{f} in {last}");
+    }
+    let v = read_mcap_py(&only_recording(&dir.path().join("rec")));
+    assert_eq!(v["raw_samples"], 3000);
+}

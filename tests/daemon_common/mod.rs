@@ -1,0 +1,252 @@
+//! Helpers of the daemon tests: the real binary as a child process, a socat
+//! pseudo-terminal pair, /metrics scraping over a plain TcpStream, promtool and
+//! the independent Python MCAP reader.
+#![allow(dead_code)]
+
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::time::{Duration, Instant};
+
+pub fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+pub fn paper_model() -> sagnac::model::GyroModel {
+    sagnac::model::GyroModel::load(&repo().join("config/paper_gyro.toml")).unwrap()
+}
+
+/// A free loopback port (bound then released).
+pub fn free_addr() -> SocketAddr {
+    let l = TcpListener::bind("127.0.0.1:0").unwrap();
+    l.local_addr().unwrap()
+}
+
+/// Poll `f` every 20 ms until it returns `Some`, or panic after `timeout`.
+pub fn wait_for<T>(what: &str, timeout: Duration, mut f: impl FnMut() -> Option<T>) -> T {
+    let start = Instant::now();
+    loop {
+        if let Some(v) = f() {
+            return v;
+        }
+        if start.elapsed() > timeout {
+            panic!("timed out after {timeout:?} waiting for {what}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// `GET /metrics` over a plain TcpStream; the body, or `None` if unreachable.
+pub fn scrape(addr: SocketAddr) -> Option<String> {
+    let mut s = TcpStream::connect_timeout(&addr, Duration::from_millis(500)).ok()?;
+    s.set_read_timeout(Some(Duration::from_secs(5))).ok()?;
+    write!(
+        s,
+        "GET /metrics HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
+    )
+    .ok()?;
+    let mut resp = String::new();
+    s.read_to_string(&mut resp).ok()?;
+    let (head, body) = resp.split_once("\r\n\r\n")?;
+    head.starts_with("HTTP/1.1 200").then(|| body.to_string())
+}
+
+/// The value of one series (exact name with labels, e.g. `a{b="c"}`).
+pub fn metric(text: &str, series: &str) -> Option<f64> {
+    text.lines()
+        .filter(|l| !l.starts_with('#'))
+        .find_map(|l| l.strip_prefix(series)?.strip_prefix(' ')?.trim().parse().ok())
+}
+
+/// Scrape until `series` reaches `want` (exactly), returning the scrape.
+pub fn wait_metric(addr: SocketAddr, series: &str, want: f64, timeout: Duration) -> String {
+    wait_for(&format!("{series} == {want}"), timeout, || {
+        let t = scrape(addr)?;
+        (metric(&t, series) == Some(want)).then_some(t)
+    })
+}
+
+/// `promtool check metrics` on an exposition: (passed, output).
+pub fn promtool(exposition: &str) -> (bool, String) {
+    let mut child = Command::new("promtool")
+        .args(["check", "metrics"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap_or_else(|e| {
+            panic!("promtool is required (apt-get install prometheus; scripts/install-peers): {e}")
+        });
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(exposition.as_bytes())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (out.status.success(), text)
+}
+
+/// The independent Python reader's summary of a recording (scripts/read-mcap.py),
+/// every message validated against its channel's JSON Schema.
+pub fn read_mcap_py(path: &Path) -> serde_json::Value {
+    read_mcap_py_with(path, &[])
+}
+
+/// Same without the (slow) JSON Schema validation, for long recordings.
+pub fn read_mcap_py_fast(path: &Path) -> serde_json::Value {
+    read_mcap_py_with(path, &["--no-schema"])
+}
+
+fn read_mcap_py_with(path: &Path, flags: &[&str]) -> serde_json::Value {
+    let out = Command::new("python3")
+        .arg(repo().join("scripts/read-mcap.py"))
+        .args(flags)
+        .arg(path)
+        .output()
+        .expect("python3 with the mcap package (scripts/install-peers)");
+    assert!(
+        out.status.success(),
+        "read-mcap.py {}: {}",
+        path.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+/// The single `.mcap` file in `dir`.
+pub fn only_recording(dir: &Path) -> PathBuf {
+    let files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "mcap"))
+        .collect();
+    assert_eq!(files.len(), 1, "recordings in {}: {files:?}", dir.display());
+    files.into_iter().next().unwrap()
+}
+
+/// `sagnac` as a child process, its stderr going to a log file.
+pub struct DaemonProc {
+    pub child: Child,
+    pub log: PathBuf,
+}
+
+impl DaemonProc {
+    pub fn start(args: &[&str], log: &Path) -> DaemonProc {
+        let err = std::fs::File::create(log).unwrap();
+        let child = Command::new(env!("CARGO_BIN_EXE_sagnac"))
+            .args(args)
+            .env_remove("RUST_LOG")
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(err)
+            .spawn()
+            .unwrap();
+        DaemonProc {
+            child,
+            log: log.to_path_buf(),
+        }
+    }
+
+    pub fn log_text(&self) -> String {
+        std::fs::read_to_string(&self.log).unwrap_or_default()
+    }
+
+    /// SIGTERM through kill(1).
+    pub fn sigterm(&self) {
+        let ok = Command::new("kill")
+            .args(["-TERM", &self.child.id().to_string()])
+            .status()
+            .unwrap()
+            .success();
+        assert!(ok, "kill -TERM failed");
+    }
+
+    /// Wait for the exit, at most `timeout`.
+    pub fn wait(&mut self, timeout: Duration) -> ExitStatus {
+        let start = Instant::now();
+        loop {
+            if let Some(s) = self.child.try_wait().unwrap() {
+                return s;
+            }
+            if start.elapsed() > timeout {
+                let _ = self.child.kill();
+                panic!(
+                    "sagnac did not exit within {timeout:?}; log:\n{}",
+                    self.log_text()
+                );
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+}
+
+impl Drop for DaemonProc {
+    fn drop(&mut self) {
+        if let Ok(None) = self.child.try_wait() {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
+}
+
+/// A socat pseudo-terminal pair linked at `a` and `b`.
+pub struct Socat {
+    child: Child,
+    pub a: PathBuf,
+    pub b: PathBuf,
+}
+
+impl Socat {
+    pub fn start(a: &Path, b: &Path) -> Socat {
+        let child = Command::new("socat")
+            .arg("-d")
+            .arg("-d")
+            .arg(format!("pty,raw,echo=0,link={}", a.display()))
+            .arg(format!("pty,raw,echo=0,link={}", b.display()))
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap_or_else(|e| panic!("socat is required (scripts/install-peers): {e}"));
+        wait_for("the socat pty links", Duration::from_secs(10), || {
+            (a.exists() && b.exists()).then_some(())
+        });
+        Socat {
+            child,
+            a: a.to_path_buf(),
+            b: b.to_path_buf(),
+        }
+    }
+
+    /// Open the writing end (the emulator's side).
+    pub fn writer(&self) -> std::fs::File {
+        std::fs::OpenOptions::new().write(true).open(&self.a).unwrap()
+    }
+
+    /// Terminate socat: both ptys vanish (the daemon's end reads EOF).
+    pub fn stop(mut self) {
+        let _ = Command::new("kill")
+            .args(["-TERM", &self.child.id().to_string()])
+            .status();
+        let _ = self.child.wait();
+        wait_for("socat to remove its links", Duration::from_secs(10), || {
+            (!self.a.exists() && !self.b.exists()).then_some(())
+        });
+    }
+}
+
+impl Drop for Socat {
+    fn drop(&mut self) {
+        if let Ok(None) = self.child.try_wait() {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
+}
