@@ -17,7 +17,7 @@
 //!    by the estimator's chi-square EDF under the model's Gaussian terms.
 //! 3. **Locate**: points beyond a Bonferroni threshold (family-wise 1 % over
 //!    all wavelet, MDEV and spectral-band points) form tau regions; a separate
-//!    search finds narrow spectral lines (0.5 % family-wise over the bins,
+//!    search finds narrow spectral lines (0.1 % family-wise over the bins,
 //!    after dividing out the local continuum, with the counter's own harmonic
 //!    lines masked); the slope tests use 0.25 % each.
 //! 4. **Explain** ([`explain`]): lines become sinusoids (frequency and
@@ -49,10 +49,9 @@ pub mod svg;
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
 
-use rustfft::FftPlanner;
 use rustfft::num_complex::Complex64;
 use serde::{Deserialize, Serialize};
-use statrs::distribution::{ChiSquared, ContinuousCDF};
+use statrs::distribution::{ChiSquared, ContinuousCDF, StudentsT};
 
 use self::compare::{Family, LineHit, Point, Region};
 use self::explain::{Basis, Fit, LevelData};
@@ -102,7 +101,7 @@ impl Default for DiagnoseOptions {
 }
 
 /// Family-wise false-alarm probability of the spectral line search.
-pub const ALPHA_LINES: f64 = 0.005;
+pub const ALPHA_LINES: f64 = 0.001;
 /// Two-sided false-alarm probability of each slope test (ramp, temperature).
 pub const ALPHA_SLOPE: f64 = 0.0025;
 /// Smallest recording, samples.
@@ -615,6 +614,7 @@ fn mean_stats(runs: &[StatSet]) -> StatSet {
         slope: runs.iter().map(|s| s.slope).sum::<f64>() / r,
         temp_slope: None,
         kurtosis: avg(&|s| &s.kurtosis),
+        sines: Vec::new(),
     }
 }
 
@@ -666,8 +666,21 @@ fn all_points(
         .iter()
         .map(|&j| (tau0 * 2f64.powi(j as i32 - 1), tau0 * 2f64.powi(j as i32)))
         .collect();
+    // white quantization share of each wavelet level and spectral band
+    let q2 = model.quantization_q_arcsec().powi(2);
+    let qn_w = LevelBasis::new(
+        &layout.lo,
+        &layout.hi,
+        tau0,
+        &layout.levels,
+        &[SpectralTerm::WhiteAngle],
+    );
     let r: Vec<&[f64]> = runs.iter().map(|s| s.wvar.as_slice()).collect();
-    pts.extend(compare::points(Family::Wavelet, &obs.wvar, &r, &fw, &tw));
+    let mut wp = compare::points(Family::Wavelet, &obs.wvar, &r, &fw, &tw);
+    for p in &mut wp {
+        p.qn_dominated = q2 * qn_w.phi[p.index][0] > 0.5 * p.model_mean;
+    }
+    pts.extend(wp);
     let tm: Vec<(f64, f64)> = layout
         .ms
         .iter()
@@ -681,13 +694,18 @@ fn all_points(
         .map(|b| (0.5 / b.f_hi_hz, 0.5 / b.f_lo_hz))
         .collect();
     let r: Vec<&[f64]> = runs.iter().map(|s| s.band_psd.as_slice()).collect();
-    pts.extend(compare::points(
-        Family::Spectrum,
-        &obs.band_psd,
-        &r,
-        &fp,
-        &tp,
-    ));
+    let mut sp = compare::points(Family::Spectrum, &obs.band_psd, &r, &fp, &tp);
+    for p in &mut sp {
+        let b = &layout.bands[p.index];
+        let qn: f64 = b
+            .bins
+            .iter()
+            .map(|&k| 8.0 * q2 * (PI * layout.bin_hz(k) * tau0).sin().powi(2) / tau0)
+            .sum::<f64>()
+            / b.bins.len() as f64;
+        p.qn_dominated = qn > 0.5 * p.model_mean;
+    }
+    pts.extend(sp);
     // the raw Allan variance only supports the claim that an effect is hidden
     // there: its band is the Monte-Carlo spread alone (no conservative floor)
     let _ = fo;
@@ -732,92 +750,53 @@ fn mean_sd(v: &[f64]) -> (f64, f64) {
     (m, s)
 }
 
-/// Hann-windowed DFT `sum w_k x_k e^{-2 pi i f k tau0}` of a centred series.
-fn dft_hann(x: &[f64], tau0: f64, f_hz: f64) -> Complex64 {
-    let n = x.len();
-    let step = Complex64::from_polar(1.0, -2.0 * PI * f_hz * tau0);
-    let mut ph = Complex64::new(1.0, 0.0);
-    let mut acc = Complex64::new(0.0, 0.0);
-    for (k, &v) in x.iter().enumerate() {
-        let w = 0.5 - 0.5 * (2.0 * PI * k as f64 / n as f64).cos();
-        acc += ph * (w * v);
-        ph *= step;
-        if k % 4096 == 4095 {
-            ph = Complex64::from_polar(1.0, -2.0 * PI * f_hz * tau0 * (k + 1) as f64);
-        }
-    }
-    acc
-}
-
-/// A sinusoid measured in the whole record: frequency, amplitude (arcsec/s)
-/// and their standard deviations given the background one-sided PSD `s_bg`.
+/// A fitted line whose interval is refined by the parametric bootstrap.
 #[derive(Debug, Clone, Copy)]
-struct SineFit {
-    f_hz: f64,
-    amp: f64,
-    amp_sd: f64,
-    f_sd: f64,
-}
-
-/// Refine a line near `f0` (searching `+-half_width`) with the Hann DFT of the
-/// centred rate; `spectrum` is the padded FFT magnitude (for the coarse peak).
-fn refine_sine(
-    x: &[f64],
-    tau0: f64,
+struct SineProbe {
+    /// Index of its finding.
+    finding: usize,
     f0: f64,
     half_width: f64,
-    fft_mag: &[f64],
-    s_bg: f64,
-) -> SineFit {
-    let n = x.len();
-    let size = fft_mag.len();
-    let fs = 1.0 / tau0;
-    let df = fs / size as f64;
-    let k0 = ((f0 - half_width) / df).floor().max(1.0) as usize;
-    let k1 = (((f0 + half_width) / df).ceil() as usize).min(size / 2);
-    let mut kb = k0;
-    for k in k0..=k1.max(k0) {
-        if fft_mag[k] > fft_mag[kb] {
-            kb = k;
-        }
+    fit: stats::SineFit,
+}
+
+/// Parametric bootstrap of the fitted sinusoids: the updated model's runs
+/// contain each fitted line; the same estimator applied to them gives the
+/// spread of the amplitude and frequency estimates. The 95 % interval is
+/// `+- t_{R-1} max(sd_analytic, sd_bootstrap)` (the analytic Hann/Cramer-Rao
+/// values understate the spread of the peak-searched estimator by up to ~2x).
+fn bootstrap_sines(findings: &mut [Finding], probes: &[SineProbe], runs: &[StatSet]) {
+    let r = runs.len();
+    if r < 2 {
+        return;
     }
-    let (mut a, mut b) = ((kb as f64 - 1.0) * df, (kb as f64 + 1.0) * df);
-    let val = |f: f64| dft_hann(x, tau0, f).norm();
-    let g = 0.618_033_988_749_895;
-    let mut c = b - g * (b - a);
-    let mut d = a + g * (b - a);
-    let mut fc = val(c);
-    let mut fd = val(d);
-    for _ in 0..24 {
-        if fc > fd {
-            b = d;
-            d = c;
-            fd = fc;
-            c = b - g * (b - a);
-            fc = val(c);
-        } else {
-            a = c;
-            c = d;
-            fc = fd;
-            d = a + g * (b - a);
-            fd = val(d);
+    let t = StudentsT::new(0.0, 1.0, (r - 1) as f64)
+        .map(|d| d.inverse_cdf(0.975))
+        .unwrap_or(1.96);
+    for (k, p) in probes.iter().enumerate() {
+        let amps: Vec<f64> = runs.iter().filter_map(|s| s.sines.get(k).map(|v| v.1)).collect();
+        let fs_: Vec<f64> = runs.iter().filter_map(|s| s.sines.get(k).map(|v| v.0)).collect();
+        if amps.len() < 2 {
+            continue;
         }
-    }
-    let f = 0.5 * (a + b);
-    let mag = val(f);
-    let wsum = n as f64 / 2.0;
-    let xarg = PI * f * tau0;
-    let sinc = if xarg > 0.0 { xarg.sin() / xarg } else { 1.0 };
-    let amp = 2.0 * mag / wsum / sinc;
-    let t = n as f64 * tau0;
-    // Hann: ENBW 1.5 bins
-    let amp_sd = (1.5 * s_bg / t).sqrt() / sinc;
-    let f_sd = (1.5 * 3.0 * s_bg / (2.0 * PI * PI * amp.max(1e-300).powi(2) * t.powi(3))).sqrt();
-    SineFit {
-        f_hz: f,
-        amp,
-        amp_sd,
-        f_sd,
+        let sd_a = mean_sd(&amps).1.max(p.fit.amp_sd);
+        let sd_f = mean_sd(&fs_).1.max(p.fit.f_sd);
+        let a = units::arcsec_per_s_to_dph(p.fit.amp);
+        let amp_ci = [(a - t * sd_a).max(0.0), a + t * sd_a];
+        let f = p.fit.f_hz;
+        let per_ci = [1.0 / (f + t * sd_f), 1.0 / (f - t * sd_f).max(1e-300)];
+        let fnd = &mut findings[p.finding];
+        if let Some(add) = fnd.added.as_mut() {
+            add.ci95.insert("amplitude_dph".into(), amp_ci);
+            add.ci95.insert("period_s".into(), per_ci);
+        }
+        for c in fnd.changes.iter_mut() {
+            if c.term.ends_with(".amplitude_dph") {
+                c.ci95 = amp_ci;
+            } else if c.term.ends_with(".period_s") {
+                c.ci95 = per_ci;
+            }
+        }
     }
 }
 
@@ -880,6 +859,7 @@ pub fn diagnose(
         lp_cutoffs_hz: &cutoffs_before,
         threads,
         full: true,
+        sine_probes: &[],
     };
     let runs = mc::run(&job, &seeds)?;
     let r = runs.len();
@@ -990,45 +970,33 @@ pub fn diagnose(
     let thermal_z = thermal_stats.map(|t| t.0);
 
     // --- model sinusoids: amplitude check at their own frequencies
-    let xc: Vec<f64> = {
-        let rate = stats::counts_to_rate(&rec.counts, d, fs);
-        let m = rate.iter().sum::<f64>() / n as f64;
-        rate.into_iter().map(|v| v - m).collect()
+    let xc: Vec<f64> = stats::centred_rate(&rec.counts, d, fs);
+    let fft_mag: Vec<f64> = if lines.is_empty() {
+        Vec::new()
+    } else {
+        stats::hann_fft_magnitude(&xc)
     };
-    let mut fft_mag: Option<Vec<f64>> = None;
-    let mut get_fft = || -> Vec<f64> {
-        fft_mag
-            .get_or_insert_with(|| {
-                let size = n.next_power_of_two();
-                let mut buf: Vec<Complex64> = xc
-                    .iter()
-                    .enumerate()
-                    .map(|(k, &v)| {
-                        Complex64::new(
-                            v * (0.5 - 0.5 * (2.0 * PI * k as f64 / n as f64).cos()),
-                            0.0,
-                        )
-                    })
-                    .collect();
-                buf.resize(size, Complex64::new(0.0, 0.0));
-                FftPlanner::new().plan_fft_forward(size).process(&mut buf);
-                buf.iter().map(|c| c.norm()).collect()
-            })
-            .clone()
-    };
+    // background PSD under a line: the larger of the model's continuum and the
+    // recording's own (median of the neighbouring usable bins, de-biased)
     let s_bg_at = |f: f64| -> f64 {
-        let k = ((f / layout.bin_width_hz()).round() as usize).clamp(layout.k_lo, layout.k_hi - 1);
-        // the model's continuum near f (median of the neighbouring usable bins)
+        let k = ((f / layout.bin_width_hz()).round() as usize)
+            .clamp(layout.k_lo, layout.k_hi - 1);
         let i = k - layout.k_lo;
-        let mut v: Vec<f64> = (i.saturating_sub(16)..(i + 17).min(mc_mean.psd.len()))
-            .filter(|&j| layout.mask[j] && (j as i64 - i as i64).abs() > 2)
-            .map(|j| mc_mean.psd[j])
-            .collect();
-        if v.is_empty() {
-            return mc_mean.psd[i];
-        }
-        v.sort_by(|a, b| a.total_cmp(b));
-        v[v.len() / 2]
+        let median = |src: &[f64]| -> Option<f64> {
+            let mut v: Vec<f64> = (i.saturating_sub(16)..(i + 17).min(src.len()))
+                .filter(|&j| layout.mask[j] && (j as i64 - i as i64).abs() > 2)
+                .map(|j| src[j])
+                .collect();
+            if v.is_empty() {
+                return None;
+            }
+            v.sort_by(|a, b| a.total_cmp(b));
+            Some(v[v.len() / 2])
+        };
+        let model_bg = median(&mc_mean.psd).unwrap_or(mc_mean.psd[i]);
+        let nu = nu_bin[i].max(2.0);
+        let rec_bg = median(&obs.psd).map_or(0.0, |m| m / (1.0 - 2.0 / (3.0 * nu)).max(0.5));
+        model_bg.max(rec_bg)
     };
 
     let mut findings: Vec<Finding> = Vec::new();
@@ -1036,18 +1004,25 @@ pub fn diagnose(
     let welch_f_min = layout.bin_hz(layout.k_lo);
     let mut sine_findings: Vec<(f64, f64)> = Vec::new(); // (f, amp) for the wavelet expectation
     let mut model_sine_handled = vec![false; ref_model.noise.sinusoid.len()];
+    let mut sine_probes: Vec<SineProbe> = Vec::new();
 
     // lines -> sinusoids
     for line in &lines {
         let s_bg = s_bg_at(line.f_hz);
-        let sf = refine_sine(
+        let sf = stats::refine_sine(
             &xc,
             tau0,
             line.f_hz,
             1.5 * layout.bin_width_hz(),
-            &get_fft(),
+            &fft_mag,
             s_bg,
         );
+        sine_probes.push(SineProbe {
+            finding: findings.len(),
+            f0: sf.f_hz,
+            half_width: 1.5 * layout.bin_width_hz(),
+            fit: sf,
+        });
         let existing = ref_model
             .noise
             .sinusoid
@@ -1152,7 +1127,7 @@ pub fn diagnose(
             continue;
         }
         let s_bg = s_bg_at(f.max(welch_f_min));
-        let mag = dft_hann(&xc, tau0, f).norm();
+        let mag = stats::dft_hann(&xc, tau0, f).norm();
         let xarg = PI * f * tau0;
         let sinc = xarg.sin() / xarg;
         let amp = 2.0 * mag / (n as f64 / 2.0) / sinc;
@@ -1437,6 +1412,7 @@ pub fn diagnose(
             .map(|k| opts.seed.wrapping_add(1_000_003).wrapping_add(k))
             .collect();
         let mut cutoffs = cutoffs_before.clone();
+        let probes: Vec<(f64, f64)> = sine_probes.iter().map(|p| (p.f0, p.half_width)).collect();
         let mut alt_model = None;
         if let Some(fi) = telegraph_pending
             && let Edit::GaussMarkov {
@@ -1468,8 +1444,10 @@ pub fn diagnose(
             lp_cutoffs_hz: &cutoffs,
             threads,
             full: true,
+            sine_probes: &probes,
         };
         let mut runs_after = mc::run(&job, &seeds_after)?;
+        bootstrap_sines(&mut findings, &sine_probes, &runs_after);
         let mut m_new_replacement = None;
         if let (Some(fi), Some(alt)) = (telegraph_pending, alt_model) {
             // the alternative's kurtosis first (cheap); its full statistics only if chosen

@@ -62,6 +62,10 @@ pub struct Point {
     /// Runs behind the reference.
     pub runs: usize,
     pub z: f64,
+    /// The model's quantization noise carries more than half of the expected
+    /// value: such points share one common random driver (the counter's pulse
+    /// train) and are never combined in scan windows.
+    pub qn_dominated: bool,
 }
 
 impl Point {
@@ -118,6 +122,7 @@ pub fn points(
                 sd_log: sd,
                 runs: r,
                 z,
+                qn_dominated: false,
             })
         })
         .collect()
@@ -190,6 +195,7 @@ pub fn linear_points(
                 sd_log: sd,
                 runs: r,
                 z: (obs[i] - mean) / (sd * (1.0 + 1.0 / n).sqrt()),
+                qn_dominated: false,
             })
         })
         .collect()
@@ -205,7 +211,8 @@ pub fn bonferroni_z(alpha: f64, n: usize) -> f64 {
 
 /// A test of the scan: one point, or a window of adjacent points of one family
 /// combined by Stouffer's rule `z = sum z_i / sqrt(k)` (valid for the wavelet
-/// levels and the spectral bands, whose estimates are nearly independent).
+/// levels and the spectral bands, whose estimates are nearly independent,
+/// except where quantization noise dominates: those points are tested singly).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Window {
     pub family: Family,
@@ -229,6 +236,9 @@ pub fn scan(family: Family, pts: &[&Point]) -> Vec<Window> {
     let mut out = Vec::new();
     for w in 1..=max_w.min(pts.len()) {
         for a in 0..=pts.len() - w {
+            if w > 1 && pts[a..a + w].iter().any(|p| p.qn_dominated) {
+                continue;
+            }
             let s: f64 = pts[a..a + w].iter().map(|p| p.z).sum();
             out.push(Window {
                 family,

@@ -27,6 +27,8 @@ pub struct McJob<'a> {
     /// All statistics (`false`: only the kurtosis statistics, for the
     /// random-telegraph alternative).
     pub full: bool,
+    /// Lines to re-estimate in each run: `(f0 Hz, search half-width Hz)`.
+    pub sine_probes: &'a [(f64, f64)],
 }
 
 /// Simulate `job.model` once per seed (each run as long as the recording)
@@ -81,12 +83,20 @@ fn one_run(job: &McJob, seed: u64) -> Result<StatSet, ModelError> {
     // duration rounding can in principle differ by one sample: pad or cut
     counts.resize(n, counts.last().copied().unwrap_or(0));
     if job.full {
-        Ok(stats::compute(
-            job.layout,
-            &counts,
-            job.temp_c,
-            job.lp_cutoffs_hz,
-        ))
+        let mut s = stats::compute(job.layout, &counts, job.temp_c, job.lp_cutoffs_hz);
+        if !job.sine_probes.is_empty() {
+            let x = stats::centred_rate(&counts, job.layout.pulse_arcsec, fs);
+            let mag = stats::hann_fft_magnitude(&x);
+            s.sines = job
+                .sine_probes
+                .iter()
+                .map(|&(f0, hw)| {
+                    let fit = stats::refine_sine(&x, 1.0 / fs, f0, hw, &mag, 0.0);
+                    (fit.f_hz, fit.amp)
+                })
+                .collect();
+        }
+        Ok(s)
     } else {
         let rate = stats::counts_to_rate(&counts, job.layout.pulse_arcsec, fs);
         Ok(StatSet {

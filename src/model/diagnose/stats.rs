@@ -27,32 +27,11 @@ use rustfft::{Fft, FftPlanner};
 use crate::allan::{self, Phase, Stat};
 use crate::model::estimate::RampAccumulator;
 
-/// The sym8 analysis filters `(dec_lo, dec_hi)` (PyWavelets convention).
-// TEMPORARY until `dsp::wavelet` is in main: PyWavelets 1.9 sym8 (same values as
-// the wvar tests). Replaced by `dsp::wavelet::Wavelet::by_name("sym8")`.
+/// The sym8 analysis filters `(dec_lo, dec_hi)` (PyWavelets convention),
+/// from the project's wavelet table.
 pub fn sym8() -> (Vec<f64>, Vec<f64>) {
-    const LO: [f64; 16] = [
-        -0.0033824159510061256,
-        -0.0005421323317911481,
-        0.03169508781149298,
-        0.007607487324917605,
-        -0.1432942383508097,
-        -0.061273359067658524,
-        0.4813596512583722,
-        0.7771857517005235,
-        0.3644418948353314,
-        -0.05194583810770904,
-        -0.027219029917056003,
-        0.049137179673607506,
-        0.003808752013890615,
-        -0.01495225833704823,
-        -0.0003029205147213668,
-        0.0018899503327594609,
-    ];
-    let hi: Vec<f64> = (0..16)
-        .map(|k| if k % 2 == 0 { -LO[15 - k] } else { LO[15 - k] })
-        .collect();
-    (LO.to_vec(), hi)
+    let w = crate::dsp::wavelet::Wavelet::by_name("sym8").expect("sym8 is in the wavelet table");
+    (w.dec_lo().to_vec(), w.dec_hi().to_vec())
 }
 
 /// Detail-coefficient mean squares of a decimated DWT of `x`, using only the
@@ -445,6 +424,9 @@ pub struct StatSet {
     pub temp_slope: Option<f64>,
     /// Excess kurtosis of the low-passed rate, one per requested cut-off.
     pub kurtosis: Vec<f64>,
+    /// Re-estimated sinusoids `(frequency Hz, amplitude arcsec/s)`, one per
+    /// requested probe (the parametric bootstrap of a fitted line).
+    pub sines: Vec<(f64, f64)>,
 }
 
 /// Rate in arcsec/s from pulse increments.
@@ -517,6 +499,7 @@ pub fn compute(
         slope: ramp.slope_per_sample() / tau0,
         temp_slope,
         kurtosis,
+        sines: Vec::new(),
     }
 }
 
@@ -607,4 +590,118 @@ pub fn excess_kurtosis(x: &[f64]) -> f64 {
     } else {
         f64::NAN
     }
+}
+
+/// Hann-windowed DFT `sum w_k x_k e^{-2 pi i f k tau0}` of a centred series.
+pub fn dft_hann(x: &[f64], tau0: f64, f_hz: f64) -> Complex64 {
+    let n = x.len();
+    let step = Complex64::from_polar(1.0, -2.0 * PI * f_hz * tau0);
+    let mut ph = Complex64::new(1.0, 0.0);
+    let mut acc = Complex64::new(0.0, 0.0);
+    for (k, &v) in x.iter().enumerate() {
+        let w = 0.5 - 0.5 * (2.0 * PI * k as f64 / n as f64).cos();
+        acc += ph * (w * v);
+        ph *= step;
+        if k % 4096 == 4095 {
+            ph = Complex64::from_polar(1.0, -2.0 * PI * f_hz * tau0 * (k + 1) as f64);
+        }
+    }
+    acc
+}
+
+/// A sinusoid measured in the whole record: frequency, amplitude (arcsec/s)
+/// and their standard deviations given the background one-sided PSD `s_bg`.
+#[derive(Debug, Clone, Copy)]
+pub struct SineFit {
+    pub f_hz: f64,
+    pub amp: f64,
+    pub amp_sd: f64,
+    pub f_sd: f64,
+}
+
+/// Refine a line near `f0` (searching `+-half_width`) with the Hann DFT of the
+/// centred rate `x`; `fft_mag` is [`hann_fft_magnitude`] of `x` (the coarse
+/// peak), `s_bg` the one-sided background PSD at the line (for the analytic
+/// standard deviations: amplitude `sqrt(1.5 s_bg / T)`, Hann's 1.5-bin noise
+/// bandwidth; frequency from the Cramer-Rao bound, inflated by the same 1.5).
+pub fn refine_sine(
+    x: &[f64],
+    tau0: f64,
+    f0: f64,
+    half_width: f64,
+    fft_mag: &[f64],
+    s_bg: f64,
+) -> SineFit {
+    let n = x.len();
+    let size = fft_mag.len();
+    let fs = 1.0 / tau0;
+    let df = fs / size as f64;
+    let k0 = ((f0 - half_width) / df).floor().max(1.0) as usize;
+    let k1 = (((f0 + half_width) / df).ceil() as usize).min(size / 2);
+    let mut kb = k0;
+    for k in k0..=k1.max(k0) {
+        if fft_mag[k] > fft_mag[kb] {
+            kb = k;
+        }
+    }
+    let (mut a, mut b) = ((kb as f64 - 1.0) * df, (kb as f64 + 1.0) * df);
+    let val = |f: f64| dft_hann(x, tau0, f).norm();
+    let g = 0.618_033_988_749_895;
+    let mut c = b - g * (b - a);
+    let mut d = a + g * (b - a);
+    let mut fc = val(c);
+    let mut fd = val(d);
+    for _ in 0..24 {
+        if fc > fd {
+            b = d;
+            d = c;
+            fd = fc;
+            c = b - g * (b - a);
+            fc = val(c);
+        } else {
+            a = c;
+            c = d;
+            fc = fd;
+            d = a + g * (b - a);
+            fd = val(d);
+        }
+    }
+    let f = 0.5 * (a + b);
+    let mag = val(f);
+    let wsum = n as f64 / 2.0;
+    let xarg = PI * f * tau0;
+    let sinc = if xarg > 0.0 { xarg.sin() / xarg } else { 1.0 };
+    let amp = 2.0 * mag / wsum / sinc;
+    let t = n as f64 * tau0;
+    // Hann: ENBW 1.5 bins
+    let amp_sd = (1.5 * s_bg / t).sqrt() / sinc;
+    let f_sd = (1.5 * 3.0 * s_bg / (2.0 * PI * PI * amp.max(1e-300).powi(2) * t.powi(3))).sqrt();
+    SineFit {
+        f_hz: f,
+        amp,
+        amp_sd,
+        f_sd,
+    }
+}
+
+/// Magnitude of the FFT (size: next power of two of the length) of the
+/// Hann-windowed series `x`.
+pub fn hann_fft_magnitude(x: &[f64]) -> Vec<f64> {
+    let n = x.len();
+    let size = n.next_power_of_two();
+    let mut buf: Vec<Complex64> = x
+        .iter()
+        .enumerate()
+        .map(|(k, &v)| Complex64::new(v * (0.5 - 0.5 * (2.0 * PI * k as f64 / n as f64).cos()), 0.0))
+        .collect();
+    buf.resize(size, Complex64::new(0.0, 0.0));
+    FftPlanner::new().plan_fft_forward(size).process(&mut buf);
+    buf.iter().map(|c| c.norm()).collect()
+}
+
+/// Centred rate (mean removed), arcsec/s.
+pub fn centred_rate(counts: &[i64], pulse_arcsec: f64, fs_hz: f64) -> Vec<f64> {
+    let rate = counts_to_rate(counts, pulse_arcsec, fs_hz);
+    let m = rate.iter().sum::<f64>() / rate.len().max(1) as f64;
+    rate.into_iter().map(|v| v - m).collect()
 }
