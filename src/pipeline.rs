@@ -361,17 +361,5 @@ impl Pipeline {
 }
 
 fn to_points(p: &[StreamPoint]) -> Vec<AllanPoint> {
-    p.iter()
-        .filter(|p| p.n > 0 && p.avar.is_finite())
-        .map(|p| AllanPoint {
-            tau_s: p.tau_s,
-            m: p.m,
-            n: p.n,
-            dev: p.dev,
-            ci_lo: p.ci_lo,
-            ci_hi: p.ci_hi,
-            edf: p.edf,
-            alpha: p.alpha,
-        })
-        .collect()
+    p.iter().filter(|p| p.n > 0 && p.avar.is_finite()).map(AllanPoint::from).collect()
 }

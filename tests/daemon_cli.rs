@@ -26,24 +26,64 @@ fn bad_values_exit_2_naming_the_key_and_the_flag() {
     let rec = dir.path().join("rec");
     let rec = rec.to_str().unwrap();
     let model = dir.path().join("m.toml");
-    std::fs::write(&model, "[gyro]\nsample_rate_hz = 500.0\npulse_weight_arcsec = 1.21\n").unwrap();
+    std::fs::write(
+        &model,
+        "[gyro]\nsample_rate_hz = 500.0\npulse_weight_arcsec = 1.21\n",
+    )
+    .unwrap();
     let bad_cfg = dir.path().join("bad.toml");
     std::fs::write(&bad_cfg, "[estimator]\ninterval = 5\n").unwrap();
     let cases: Vec<(Vec<&str>, Vec<&str>)> = vec![
-        (vec!["--rate-hz", "-1"], vec!["gyro.rate_hz", "--rate-hz", "-1"]),
-        (vec!["--pulse-arcsec", "0"], vec!["gyro.pulse_arcsec", "--pulse-arcsec"]),
-        (vec!["--wavelet", "morlet"], vec!["dsp.wavelet", "--wavelet", "morlet"]),
-        (vec!["--metrics-addr", "localhost"], vec!["metrics.addr", "--metrics-addr"]),
-        (vec!["--duration-s", "-3"], vec!["run.duration_s", "--duration-s"]),
-        (vec!["--replay", "x.bin", "--speed", "-2"], vec!["source.speed", "--speed"]),
-        (vec!["--replay", "/nonexistent/capture.bin"], vec!["/nonexistent/capture.bin"]),
-        (vec!["--serial", "/nonexistent/ttyUSB9"], vec!["cannot open serial port /nonexistent/ttyUSB9"]),
+        (
+            vec!["--rate-hz", "-1"],
+            vec!["gyro.rate_hz", "--rate-hz", "-1"],
+        ),
+        (
+            vec!["--pulse-arcsec", "0"],
+            vec!["gyro.pulse_arcsec", "--pulse-arcsec"],
+        ),
+        (
+            vec!["--wavelet", "morlet"],
+            vec!["dsp.wavelet", "--wavelet", "morlet"],
+        ),
+        (
+            vec!["--metrics-addr", "localhost"],
+            vec!["metrics.addr", "--metrics-addr"],
+        ),
+        (
+            vec!["--duration-s", "-3"],
+            vec!["run.duration_s", "--duration-s"],
+        ),
+        (
+            vec!["--replay", "x.bin", "--speed", "-2"],
+            vec!["source.speed", "--speed"],
+        ),
+        (
+            vec!["--replay", "/nonexistent/capture.bin"],
+            vec!["/nonexistent/capture.bin"],
+        ),
+        (
+            vec!["--serial", "/nonexistent/ttyUSB9"],
+            vec!["cannot open serial port /nonexistent/ttyUSB9"],
+        ),
         // an explicit rate that contradicts the simulated model
-        (vec!["--simulate", model.to_str().unwrap(), "--rate-hz", "1000"], vec!["gyro.rate_hz", "sample_rate_hz"]),
-        (vec!["--config", bad_cfg.to_str().unwrap()], vec!["bad.toml", "interval"]),
+        (
+            vec!["--simulate", model.to_str().unwrap(), "--rate-hz", "1000"],
+            vec!["gyro.rate_hz", "sample_rate_hz"],
+        ),
+        (
+            vec!["--config", bad_cfg.to_str().unwrap()],
+            vec!["bad.toml", "interval"],
+        ),
         // clap: sources are exclusive, --speed does not apply to a serial port
-        (vec!["--serial", "/dev/null", "--replay", "x"], vec!["cannot be used with"]),
-        (vec!["--serial", "/dev/null", "--speed", "2"], vec!["cannot be used with"]),
+        (
+            vec!["--serial", "/dev/null", "--replay", "x"],
+            vec!["cannot be used with"],
+        ),
+        (
+            vec!["--serial", "/dev/null", "--speed", "2"],
+            vec!["cannot be used with"],
+        ),
         (vec!["--baud", "9600"], vec!["--serial"]),
     ];
     for (args, needles) in cases {
@@ -60,7 +100,34 @@ fn bad_values_exit_2_naming_the_key_and_the_flag() {
             assert!(err.contains(n), "{args:?}: expected {n:?} in:\n{err}");
         }
     }
-    assert!(!rec.is_empty() && !std::path::Path::new(rec).exists(), "nothing recorded on errors");
+    assert!(
+        !rec.is_empty() && !std::path::Path::new(rec).exists(),
+        "nothing recorded on errors"
+    );
+
+    // A capture without a single valid frame is an error too (found while reading).
+    let garbage = dir.path().join("garbage.bin");
+    std::fs::write(
+        &garbage,
+        (0..5000u32)
+            .map(|i| (i * 7 % 251) as u8)
+            .collect::<Vec<u8>>(),
+    )
+    .unwrap();
+    let r = run(&[
+        "--replay",
+        garbage.to_str().unwrap(),
+        "--record-dir",
+        rec,
+        "--metrics-addr",
+        "",
+    ]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("garbage.bin: no samples in this capture (5000 bytes read)"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -90,15 +157,22 @@ fn default_run_is_the_simulated_bench_promtool_clean_and_drains_on_sigterm() {
     let clean = "sagnac_allan_deviation_degrees_per_hour{channel=\"clean\",tau_seconds=\"0.001\"}";
     let text = wait_for("the clean Allan curve", Duration::from_secs(40), || {
         let t = scrape(addr)?;
-        (metric(&t, "sagnac_estimator_updates_total")? >= 2.0 && metric(&t, clean).is_some()).then_some(t)
+        (metric(&t, "sagnac_estimator_updates_total")? >= 2.0 && metric(&t, clean).is_some())
+            .then_some(t)
     });
     let (ok, out) = promtool(&text);
     assert!(ok, "promtool check metrics:\n{out}\n---\n{text}");
     // the simulated pulses went through the frame encoder and decoder
     let frames = metric(&text, "sagnac_frames_decoded_total").unwrap();
     let samples = metric(&text, "sagnac_samples_total").unwrap();
-    assert!(samples >= 4000.0 && frames >= samples, "{frames} frames, {samples} samples");
-    assert_eq!(metric(&text, "sagnac_frame_errors_total{kind=\"crc\"}"), Some(0.0));
+    assert!(
+        samples >= 4000.0 && frames >= samples,
+        "{frames} frames, {samples} samples"
+    );
+    assert_eq!(
+        metric(&text, "sagnac_frame_errors_total{kind=\"crc\"}"),
+        Some(0.0)
+    );
     for series in [
         "sagnac_qn_arcseconds{bound=\"estimate\"}",
         // ARW is not resolved in a few seconds of data: its 95 % upper bound is exported
@@ -120,7 +194,10 @@ fn default_run_is_the_simulated_bench_promtool_clean_and_drains_on_sigterm() {
     assert!(status.success(), "{status:?}\n{}", d.log_text());
     eprintln!("SIGTERM -> exit in {:?}", t.elapsed());
     let log = d.log_text();
-    assert!(log.contains("final_update=true"), "final estimate logged:\n{log}");
+    assert!(
+        log.contains("final_update=true"),
+        "final estimate logged:\n{log}"
+    );
     let v = read_mcap_py(&only_recording(&rec_dir));
     assert_eq!(v["messages"], v["statistics_messages"], "complete file");
     let raw = v["raw_samples"].as_u64().unwrap();
@@ -128,7 +205,11 @@ fn default_run_is_the_simulated_bench_promtool_clean_and_drains_on_sigterm() {
     // wavelet bank flushed: every raw sample has its clean and noise value
     assert_eq!(v["values_total"]["/gyro/clean"].as_u64(), Some(raw));
     assert_eq!(v["values_total"]["/gyro/noise"].as_u64(), Some(raw));
-    assert!(v["last_estimates"]["terms"]["qn_arcsec"]["value"].as_f64().is_some());
+    assert!(
+        v["last_estimates"]["terms"]["qn_arcsec"]["value"]
+            .as_f64()
+            .is_some()
+    );
     assert_eq!(v["schema_invalid"], serde_json::json!([]));
 }
 
@@ -136,7 +217,11 @@ fn default_run_is_the_simulated_bench_promtool_clean_and_drains_on_sigterm() {
 fn duration_limit_ends_the_run_and_logs_are_json() {
     let dir = tempfile::tempdir().unwrap();
     let cfg = dir.path().join("c.toml");
-    std::fs::write(&cfg, "[log]\nformat = \"json\"\n\n[estimator]\ninterval_s = 1.0\n").unwrap();
+    std::fs::write(
+        &cfg,
+        "[log]\nformat = \"json\"\n\n[estimator]\ninterval_s = 1.0\n",
+    )
+    .unwrap();
     let r = run(&[
         "--config",
         cfg.to_str().unwrap(),

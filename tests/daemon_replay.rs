@@ -37,7 +37,12 @@ fn run_replay(input: &Path, rec_dir: &Path, log: &Path, extra: &[&str]) -> Durat
     args.extend_from_slice(extra);
     let mut d = DaemonProc::start(&args, log);
     let status = d.wait(Duration::from_secs(60));
-    assert!(status.success(), "replay of {}: {status:?}\n{}", input.display(), d.log_text());
+    assert!(
+        status.success(),
+        "replay of {}: {status:?}\n{}",
+        input.display(),
+        d.log_text()
+    );
     start.elapsed()
 }
 
@@ -99,10 +104,16 @@ fn replays_are_exact_deterministic_and_equal_the_offline_pipeline() {
     run_replay(&bin, &r1, &dir.path().join("r1.log"), &[]);
     let rec1 = only_recording(&r1);
     let v = read_mcap_py_fast(&rec1);
-    assert_eq!(v["raw_counts_total"].as_i64(), Some(emu.true_total_pulses()));
+    assert_eq!(
+        v["raw_counts_total"].as_i64(),
+        Some(emu.true_total_pulses())
+    );
     assert_eq!(v["raw_samples"].as_u64(), Some(e.samples));
     assert_eq!(v["raw_lost_total"].as_u64(), Some(e.lost_samples));
-    assert_eq!(v["events_by_kind"]["crc_error"].as_u64().unwrap_or(0), e.crc_errors);
+    assert_eq!(
+        v["events_by_kind"]["crc_error"].as_u64().unwrap_or(0),
+        e.crc_errors
+    );
     assert_eq!(v["events_by_kind"]["gap"].as_u64().unwrap_or(0), e.gaps);
     assert_eq!(v["values_total"]["/gyro/clean"].as_u64(), Some(300_000));
 
@@ -130,8 +141,13 @@ fn replays_are_exact_deterministic_and_equal_the_offline_pipeline() {
             .arg(&out)
             .output()
             .unwrap();
-        assert!(r.status.success(), "analyze: {}", String::from_utf8_lossy(&r.stderr));
-        let a: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+        assert!(
+            r.status.success(),
+            "analyze: {}",
+            String::from_utf8_lossy(&r.stderr)
+        );
+        let a: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
         assert_eq!(a["samples"], 300_000);
         for (k, key) in [
             ("qn_arcsec", "quantization_arcsec"),
@@ -144,7 +160,11 @@ fn replays_are_exact_deterministic_and_equal_the_offline_pipeline() {
             // The same Pipeline on the same samples, pushed in other block sizes:
             // equal to rounding (relative 1e-9; the pipeline's sums are not
             // bit-invariant to the block split).
-            close(&f1.terms[k], &term(&c), &format!("{k}: daemon vs analyze --format {format}"));
+            close(
+                &f1.terms[k],
+                &term(&c),
+                &format!("{k}: daemon vs analyze --format {format}"),
+            );
         }
     }
 }
@@ -156,14 +176,30 @@ fn speed_paces_an_mcap_replay() {
     let r = std::process::Command::new(env!("CARGO_BIN_EXE_sagnac"))
         .args(["simulate", "--model"])
         .arg(repo().join("config/paper_gyro.toml"))
-        .args(["--duration-s", "10", "--seed", "3", "--format", "mcap", "--out"])
+        .args([
+            "--duration-s",
+            "10",
+            "--seed",
+            "3",
+            "--format",
+            "mcap",
+            "--out",
+        ])
         .arg(&mcap)
         .output()
         .unwrap();
     assert!(r.status.success());
     // 10 s of data at 20x real time cannot take less than 0.5 s.
-    let wall = run_replay(&mcap, &dir.path().join("rec"), &dir.path().join("log"), &["--speed", "20"]);
-    assert!(wall >= Duration::from_millis(480), "paced replay took {wall:?}");
+    let wall = run_replay(
+        &mcap,
+        &dir.path().join("rec"),
+        &dir.path().join("log"),
+        &["--speed", "20"],
+    );
+    assert!(
+        wall >= Duration::from_millis(480),
+        "paced replay took {wall:?}"
+    );
     let v = read_mcap_py_fast(&only_recording(&dir.path().join("rec")));
     assert_eq!(v["raw_samples"], 10_000);
 }

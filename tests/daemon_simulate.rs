@@ -16,7 +16,15 @@ fn simulate(out: &Path, format: &str, duration: &str) {
     let r = Command::new(env!("CARGO_BIN_EXE_sagnac"))
         .args(["simulate", "--model"])
         .arg(paper())
-        .args(["--duration-s", duration, "--seed", "11", "--format", format, "--out"])
+        .args([
+            "--duration-s",
+            duration,
+            "--seed",
+            "11",
+            "--format",
+            format,
+            "--out",
+        ])
         .arg(out)
         .output()
         .unwrap();
@@ -56,9 +64,16 @@ fn frames_carry_exactly_the_csv_stream() {
         })
         .collect();
     assert_eq!(got, want);
-    assert_eq!(stats.bytes_skipped + stats.crc_errors + stats.lost_samples, 0);
+    assert_eq!(
+        stats.bytes_skipped + stats.crc_errors + stats.lost_samples,
+        0
+    );
     // the run starts at seq 65000: the 16-bit sequence wraps inside 3.2 s
-    assert!(items.iter().any(|d| matches!(d, Decoded::Event(DecodeEvent::Baseline { seq: 65_000, .. }))));
+    assert!(
+        items
+            .iter()
+            .any(|d| matches!(d, Decoded::Event(DecodeEvent::Baseline { seq: 65_000, .. })))
+    );
     // same seed, same bytes
     let again = dir.path().join("again.bin");
     simulate(&again, "frames", "3.2");
@@ -91,7 +106,11 @@ fn mcap_carries_exactly_the_csv_stream() {
         .arg(&out)
         .output()
         .expect("python3 (scripts/install-peers)");
-    assert!(py.status.success(), "{}", String::from_utf8_lossy(&py.stderr));
+    assert!(
+        py.status.success(),
+        "{}",
+        String::from_utf8_lossy(&py.stderr)
+    );
     let v: serde_json::Value = serde_json::from_slice(&py.stdout).unwrap();
     assert_eq!(v["raw_samples"], want.len() as u64);
     assert_eq!(v["raw_counts_total"], want.iter().sum::<i64>());
@@ -108,7 +127,16 @@ fn mcap_to_stdout_is_refused_with_exit_2() {
     let r = Command::new(env!("CARGO_BIN_EXE_sagnac"))
         .args(["simulate", "--model"])
         .arg(paper())
-        .args(["--duration-s", "1", "--seed", "1", "--format", "mcap", "--out", "-"])
+        .args([
+            "--duration-s",
+            "1",
+            "--seed",
+            "1",
+            "--format",
+            "mcap",
+            "--out",
+            "-",
+        ])
         .output()
         .unwrap();
     assert_eq!(r.status.code(), Some(2));

@@ -304,6 +304,22 @@ pub struct StreamPoint {
     pub ci_hi: f64,
 }
 
+impl From<&StreamPoint> for super::AllanPoint {
+    /// The batch engine's point type (what the JSON contract prints).
+    fn from(p: &StreamPoint) -> Self {
+        super::AllanPoint {
+            tau_s: p.tau_s,
+            m: p.m,
+            n: p.n,
+            dev: p.dev,
+            ci_lo: p.ci_lo,
+            ci_hi: p.ci_hi,
+            edf: p.edf,
+            alpha: p.alpha,
+        }
+    }
+}
+
 /// Chi-square confidence interval of a deviation with `edf` degrees of freedom:
 /// `(dev sqrt(edf / chi2(1-p)), dev sqrt(edf / chi2(p)))`, `p = (1 - confidence) / 2`.
 pub fn chi2_dev_interval(dev: f64, edf: f64, confidence: f64) -> Result<(f64, f64), StreamError> {

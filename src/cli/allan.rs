@@ -213,20 +213,7 @@ fn run_streaming(args: &AllanArgs, kind: DataKind) -> Result<()> {
     let result = AllanResult {
         stat: Stat::Oadev,
         tau0_s: args.tau0,
-        points: points
-            .iter()
-            .filter(|p| p.n > 0)
-            .map(|p| allan::AllanPoint {
-                tau_s: p.tau_s,
-                m: p.m,
-                n: p.n,
-                dev: p.dev,
-                ci_lo: p.ci_lo,
-                ci_hi: p.ci_hi,
-                edf: p.edf,
-                alpha: p.alpha,
-            })
-            .collect(),
+        points: points.iter().filter(|p| p.n > 0).map(allan::AllanPoint::from).collect(),
     };
     match &args.json {
         Some(out) => {

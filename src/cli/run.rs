@@ -10,8 +10,8 @@
 //! validate (a bad value exits 2 naming the key and the flag), set up logging
 //! (`log.format`, `log.level`; `RUST_LOG` overrides the level), start a tokio
 //! runtime, install the SIGINT/SIGTERM handlers and run [`Daemon`]. The first
-//! signal drains the pipeline and finishes the recording (exit 0); a second
-//! one exits at once (exit 130).
+//! signal drains the pipeline and finishes the recording (exit 0); another one
+//! at least a second later exits at once (exit 130).
 
 use std::path::PathBuf;
 
@@ -40,7 +40,12 @@ pub struct RunArgs {
     pub replay: Option<PathBuf>,
     /// Pace of a replay or of the simulated bench, in multiples of real time (0 = as fast
     /// as possible; default: 1 for the simulated bench, 0 for a replay).
-    #[arg(long, value_name = "X", conflicts_with = "serial", allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "X",
+        conflicts_with = "serial",
+        allow_negative_numbers = true
+    )]
     pub speed: Option<f64>,
     /// Run the simulated bench on this gyro model (no source flag at all: the built-in
     /// model of the founding paper's gyro).
@@ -199,25 +204,38 @@ pub fn run(args: RunArgs) -> Result<()> {
     Ok(())
 }
 
-/// First SIGINT/SIGTERM: graceful shutdown; second: exit 130 at once.
+/// Signals within this time of the first count as the same request.
+const REPEAT_WINDOW: std::time::Duration = std::time::Duration::from_secs(1);
+
+/// First SIGINT/SIGTERM: graceful shutdown; another one at least a second
+/// later: exit 130 at once.
 fn install_signal_handlers(trigger: shutdown::ShutdownTrigger) -> Result<()> {
     use tokio::signal::unix::{SignalKind, signal};
     let mut term = signal(SignalKind::terminate()).context("installing the SIGTERM handler")?;
     let mut int = signal(SignalKind::interrupt()).context("installing the SIGINT handler")?;
     tokio::spawn(async move {
-        let mut first = true;
+        let mut first: Option<std::time::Instant> = None;
         loop {
             let name = tokio::select! {
                 _ = term.recv() => "SIGTERM",
                 _ = int.recv() => "SIGINT",
             };
-            if first {
-                tracing::info!(signal = name, "stopping: draining the pipeline and finishing the recording (send again to exit at once)");
-                trigger.trigger();
-                first = false;
-            } else {
-                eprintln!("sagnac run: second {name}: exiting without draining");
-                std::process::exit(130);
+            match first {
+                None => {
+                    tracing::info!(
+                        signal = name,
+                        "stopping: draining the pipeline and finishing the recording (send again to exit at once)"
+                    );
+                    trigger.trigger();
+                    first = Some(std::time::Instant::now());
+                }
+                // A copy of the same signal (e.g. sent to the process and to its
+                // group by a supervisor) is not a second request.
+                Some(t) if t.elapsed() < REPEAT_WINDOW => {}
+                Some(_) => {
+                    eprintln!("sagnac run: second {name}: exiting without draining");
+                    std::process::exit(130);
+                }
             }
         }
     });

@@ -144,6 +144,16 @@ impl Assembler {
         self.periods
     }
 
+    /// Samples assembled and not yet taken.
+    pub fn pending_samples(&self) -> usize {
+        self.batch.counts.len()
+    }
+
+    /// Whether anything (samples or events) waits to be taken.
+    pub fn has_pending(&self) -> bool {
+        !self.batch.is_empty()
+    }
+
     /// Partial frames dropped at an end of stream or disconnect.
     pub fn truncated(&self) -> u64 {
         self.truncated
@@ -181,7 +191,9 @@ impl Assembler {
                     return;
                 }
                 // The decoder emits a baseline event before any sample.
-                let first = self.next_seq.unwrap_or(u64::from(s.seq.wrapping_sub(s.lost_before)));
+                let first = self
+                    .next_seq
+                    .unwrap_or(u64::from(s.seq.wrapping_sub(s.lost_before)));
                 let lost = u64::from(s.lost_before);
                 let seq = first + lost;
                 if self.anchor.is_none() {
@@ -227,9 +239,12 @@ impl Assembler {
                     skipped_bytes,
                 },
             ),
-            DecodeEvent::CrcError { offset, .. } => {
-                self.push_event(t_ns, EventKind::CrcError { byte_offset: offset })
-            }
+            DecodeEvent::CrcError { offset, .. } => self.push_event(
+                t_ns,
+                EventKind::CrcError {
+                    byte_offset: offset,
+                },
+            ),
             DecodeEvent::FalseSync { .. } => {} // counted from the decoder stats
             DecodeEvent::Gap { lost, .. } => {
                 let seq = self.next_seq.unwrap_or(0);
@@ -316,7 +331,10 @@ impl Assembler {
         m.add_samples(stats.samples - old.samples);
         m.add_lost_samples(stats.lost_samples - old.lost_samples);
         m.add_frame_errors(FrameErrorKind::Crc, stats.crc_errors - old.crc_errors);
-        m.add_frame_errors(FrameErrorKind::FalseSync, stats.false_syncs - old.false_syncs);
+        m.add_frame_errors(
+            FrameErrorKind::FalseSync,
+            stats.false_syncs - old.false_syncs,
+        );
         self.stats = *stats;
     }
 
@@ -599,7 +617,10 @@ mod tests {
         let mut asm = Assembler::new(1000.0, None, t.clone());
         let batches = decode_into(&mut asm, &injected.bytes);
         let counts: Vec<i64> = batches.iter().flat_map(|b| b.counts.clone()).collect();
-        let lost: u64 = batches.iter().flat_map(|b| b.gaps.iter().map(|g| g.lost)).sum();
+        let lost: u64 = batches
+            .iter()
+            .flat_map(|b| b.gaps.iter().map(|g| g.lost))
+            .sum();
         // Exact: every pulse is kept, 3 samples lost, 197 samples decoded.
         assert_eq!(counts.iter().sum::<i64>(), incs.iter().sum::<i64>());
         assert_eq!(lost, 3);

@@ -42,6 +42,7 @@ use tokio::sync::mpsc;
 use crate::allan::AllanPoint;
 use crate::daemon::batch::{Delivery, SourceBatch};
 use crate::daemon::telemetry::Telemetry;
+use crate::model::estimate::Coefficient;
 use crate::pipeline::{Analysis, Pipeline, PipelineConfig, PipelineError, PipelineOutput};
 use crate::sink::mcap::{RecordError, RecordSender};
 use crate::sink::messages::{
@@ -49,7 +50,6 @@ use crate::sink::messages::{
     SinkMessage, TermEstimate, terms,
 };
 use crate::sink::metrics::{AllanChannel, Bounds95};
-use crate::model::estimate::Coefficient;
 use crate::source::frame::spread_increment;
 
 /// Errors building the numeric stage.
@@ -98,7 +98,11 @@ impl ProcessConfig {
     pub fn build(self) -> Result<Processor, ProcessError> {
         let bad = |key, value: String, reason| ProcessError::Config { key, value, reason };
         if !(self.interval_s.is_finite() && self.interval_s > 0.0) {
-            return Err(bad("interval_s", self.interval_s.to_string(), "must be > 0"));
+            return Err(bad(
+                "interval_s",
+                self.interval_s.to_string(),
+                "must be > 0",
+            ));
         }
         if self.batch_samples == 0 {
             return Err(bad("batch_samples", "0".into(), "must be > 0"));
@@ -318,7 +322,9 @@ impl Run<'_> {
         match seg {
             Some(s) => {
                 let d = u as f64 - s.u_start as f64;
-                (s.t_start_ns as f64 + d * self.p.period_ns).round().max(0.0) as u64
+                (s.t_start_ns as f64 + d * self.p.period_ns)
+                    .round()
+                    .max(0.0) as u64
             }
             None => 0,
         }

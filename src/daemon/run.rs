@@ -47,6 +47,10 @@ use crate::source::serial::{SerialConfig, SerialError, SerialSource};
 /// The built-in gyro model of the simulated bench (the founding paper's RLG).
 pub const PAPER_GYRO_TOML: &str = include_str!("../../config/paper_gyro.toml");
 
+/// zstd level of the recording: 1 compresses the JSON samples about twice as
+/// fast as the default 3 for files about 10 % larger (scripts/bench-pipeline).
+pub const ZSTD_LEVEL: u32 = 1;
+
 /// Share of wall time estimator updates may take with a replay or the simulated
 /// bench (see [`crate::daemon::process`]).
 pub const UPDATE_BUDGET: f64 = 0.1;
@@ -86,9 +90,9 @@ pub struct Explicit {
 }
 
 enum Source {
-    Serial(SerialSource),
-    Replay(ReplaySource),
-    Bench(SimBench),
+    Serial(Box<SerialSource>),
+    Replay(Box<ReplaySource>),
+    Bench(Box<SimBench>),
 }
 
 /// A daemon ready to run.
@@ -129,7 +133,8 @@ impl Daemon {
         config.validate()?;
         let speed = config.source.effective_speed();
         let limit = |rate_hz: f64| {
-            (config.run.duration_s > 0.0).then(|| (config.run.duration_s * rate_hz).round().max(1.0) as u64)
+            (config.run.duration_s > 0.0)
+                .then(|| (config.run.duration_s * rate_hz).round().max(1.0) as u64)
         };
         let source = match config.source.kind {
             SourceKind::Simulate => {
@@ -163,8 +168,13 @@ impl Daemon {
                 }
                 config.gyro.rate_hz = rate;
                 config.gyro.pulse_arcsec = pulse;
-                tracing::info!(model = origin, seed = config.source.seed, speed, "source: simulated bench");
-                Source::Bench(
+                tracing::info!(
+                    model = origin,
+                    seed = config.source.seed,
+                    speed,
+                    "source: simulated bench"
+                );
+                Source::Bench(Box::new(
                     SimBenchConfig {
                         model,
                         seed: config.source.seed,
@@ -172,7 +182,7 @@ impl Daemon {
                         duration_s: (config.run.duration_s > 0.0).then_some(config.run.duration_s),
                     }
                     .build()?,
-                )
+                ))
             }
             SourceKind::Replay => {
                 let path = PathBuf::from(&config.source.replay_path);
@@ -192,7 +202,7 @@ impl Daemon {
                     }
                 }
                 tracing::info!(path = %path.display(), speed, "source: replay");
-                Source::Replay(
+                Source::Replay(Box::new(
                     ReplayConfig {
                         path,
                         speed,
@@ -201,22 +211,28 @@ impl Daemon {
                         decoder: DecoderConfig::default(),
                     }
                     .build()?,
-                )
+                ))
             }
             SourceKind::Serial => {
-                tracing::info!(device = config.source.serial_path, baud = config.source.baud, "source: serial");
-                Source::Serial(
+                tracing::info!(
+                    device = config.source.serial_path,
+                    baud = config.source.baud,
+                    "source: serial"
+                );
+                Source::Serial(Box::new(
                     SerialConfig {
                         path: PathBuf::from(&config.source.serial_path),
                         baud: config.source.baud,
-                        reconnect_initial: Duration::from_secs_f64(config.source.reconnect_initial_s),
+                        reconnect_initial: Duration::from_secs_f64(
+                            config.source.reconnect_initial_s,
+                        ),
                         reconnect_max: Duration::from_secs_f64(config.source.reconnect_max_s),
                         rate_hz: config.gyro.rate_hz,
                         limit_periods: limit(config.gyro.rate_hz),
                         decoder: DecoderConfig::default(),
                     }
                     .build()?,
-                )
+                ))
             }
         };
         let live = config.source.kind == SourceKind::Serial;
@@ -230,7 +246,11 @@ impl Daemon {
             },
             interval_s: config.estimator.interval_s,
             batch_samples: config.record.batch_samples,
-            delivery: if live { Delivery::Live } else { Delivery::Lossless },
+            delivery: if live {
+                Delivery::Live
+            } else {
+                Delivery::Lossless
+            },
             update_budget: (!live).then_some(UPDATE_BUDGET),
         }
         .build()?;
@@ -292,6 +312,7 @@ impl Daemon {
             let rc = RecorderConfig {
                 record_dir: PathBuf::from(&config.record.dir),
                 flush_interval_s: config.record.flush_interval_s,
+                zstd_level: ZSTD_LEVEL,
                 ..RecorderConfig::default()
             };
             let r = tokio::task::spawn_blocking(move || Recorder::start(&rc))
@@ -334,14 +355,18 @@ impl Daemon {
                 .await
                 .map_err(|e| join_err("serial source", e))?
                 .map_err(DaemonError::from),
-            Source::Replay(r) => tokio::task::spawn_blocking(move || r.run_blocking(sender, tel, sd))
-                .await
-                .map_err(|e| join_err("replay source", e))?
-                .map_err(DaemonError::from),
-            Source::Bench(b) => tokio::task::spawn_blocking(move || b.run_blocking(sender, tel, sd))
-                .await
-                .map_err(|e| join_err("simulated bench", e))?
-                .map_err(DaemonError::from),
+            Source::Replay(r) => {
+                tokio::task::spawn_blocking(move || r.run_blocking(sender, tel, sd))
+                    .await
+                    .map_err(|e| join_err("replay source", e))?
+                    .map_err(DaemonError::from)
+            }
+            Source::Bench(b) => {
+                tokio::task::spawn_blocking(move || b.run_blocking(sender, tel, sd))
+                    .await
+                    .map_err(|e| join_err("simulated bench", e))?
+                    .map_err(DaemonError::from)
+            }
         };
         if let Err(e) = &source_result {
             tracing::error!(error = %e, "source failed; draining the pipeline");
@@ -350,9 +375,7 @@ impl Daemon {
             tracing::info!("shutdown requested: draining the pipeline");
         }
         // The source dropped its sender: the pipeline drains and returns.
-        let process = process_task
-            .await
-            .map_err(|e| join_err("pipeline", e))?;
+        let process = process_task.await.map_err(|e| join_err("pipeline", e))?;
         let recording = match recorder {
             Some(r) => {
                 let summary = tokio::task::spawn_blocking(move || r.finish())

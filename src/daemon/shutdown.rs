@@ -40,7 +40,9 @@ impl ShutdownTrigger {
 
     /// Another receiver.
     pub fn subscribe(&self) -> Shutdown {
-        Shutdown { rx: self.tx.subscribe() }
+        Shutdown {
+            rx: self.tx.subscribe(),
+        }
     }
 }
 

@@ -105,7 +105,10 @@ impl Telemetry {
             estimator_updates: reg(
                 m,
                 "sagnac_estimator_updates_total",
-                IntCounter::new("sagnac_estimator_updates_total", "Estimator updates published."),
+                IntCounter::new(
+                    "sagnac_estimator_updates_total",
+                    "Estimator updates published.",
+                ),
             )?,
             estimate_latency: reg(
                 m,
@@ -118,7 +121,11 @@ impl Telemetry {
             metrics,
         };
         t.dropped_messages.with_label_values(&["mcap"]);
-        for kind in [ANOMALY_DUPLICATE, ANOMALY_OUT_OF_SEQUENCE, ANOMALY_DISCONTINUITY] {
+        for kind in [
+            ANOMALY_DUPLICATE,
+            ANOMALY_OUT_OF_SEQUENCE,
+            ANOMALY_DISCONTINUITY,
+        ] {
             t.sequence_anomalies.with_label_values(&[kind]);
         }
         t.estimate_latency.set(f64::NAN);

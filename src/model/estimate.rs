@@ -28,7 +28,7 @@ use std::f64::consts::PI;
 use serde::{Deserialize, Serialize};
 
 use super::fit::{FitOptions, LevelFit, LevelObs, fit_rows};
-use super::wvar::{Domain, LevelBasis, SpectralTerm};
+use super::wvar::{Domain, GL8, LevelBasis, SpectralTerm};
 use crate::units;
 
 /// One overlapping Allan variance point of the raw rate.
@@ -445,16 +445,6 @@ pub fn slope_var_per_theta(term: &SpectralTerm, n: u64, tau0_s: f64) -> f64 {
     total
 }
 
-const GL8: [(f64, f64); 8] = [
-    (-0.960_289_856_497_536_3, 0.101_228_536_290_376_26),
-    (-0.796_666_477_413_626_7, 0.222_381_034_453_374_47),
-    (-0.525_532_409_916_329, 0.313_706_645_877_887_3),
-    (-0.183_434_642_495_649_8, 0.362_683_783_378_362),
-    (0.183_434_642_495_649_8, 0.362_683_783_378_362),
-    (0.525_532_409_916_329, 0.313_706_645_877_887_3),
-    (0.796_666_477_413_626_7, 0.222_381_034_453_374_47),
-    (0.960_289_856_497_536_3, 0.101_228_536_290_376_26),
-];
 
 #[cfg(test)]
 mod tests {

@@ -262,17 +262,29 @@ pub fn fit_levels(basis: &LevelBasis, obs: &[LevelObs], opts: &FitOptions) -> Le
 /// Maximum-likelihood strengths only (no selection, no intervals): the quick
 /// fit used while choosing which observations to trust.
 pub fn ml_theta(phi: &[Vec<f64>], y: &[f64], edf0: &[f64], edf: &dyn Fn(usize, &[f64]) -> f64) -> Vec<f64> {
+    ml_with_edf(phi, y, edf0, edf, 2).1
+}
+
+/// Maximise the likelihood, re-deriving the EDFs from the fitted spectrum
+/// `rounds` times; returns the problem (with its final EDFs) and theta.
+fn ml_with_edf<'a>(
+    phi: &'a [Vec<f64>],
+    y: &[f64],
+    edf0: &[f64],
+    edf: &dyn Fn(usize, &[f64]) -> f64,
+    rounds: usize,
+) -> (Problem<'a>, Vec<f64>) {
     let k = phi.first().map_or(0, |r| r.len());
     let n = y.len();
     let mut prob = Problem { phi, y: y.to_vec(), half_edf: edf0.iter().map(|e| e / 2.0).collect(), k };
     let all = vec![true; k];
     let zero = vec![0.0; k];
     let mut theta = prob.maximise(&all, &zero, None);
-    for _ in 0..2 {
+    for _ in 0..rounds {
         prob.half_edf = (0..n).map(|j| edf(j, &theta) / 2.0).collect();
         theta = prob.maximise(&all, &zero, Some(&theta));
     }
-    theta
+    (prob, theta)
 }
 
 /// Generic fit: rows `phi[j][k]` (expected value of observation `j` per unit
@@ -287,15 +299,9 @@ pub fn fit_rows(
 ) -> LevelFit {
     let k = phi.first().map_or(0, |r| r.len());
     let n = y.len();
-    let mut prob = Problem { phi, y: y.to_vec(), half_edf: edf0.iter().map(|e| e / 2.0).collect(), k };
-    let all = vec![true; k];
     let zero = vec![0.0; k];
     // EDF depends on the spectrum: iterate fit -> EDF a few times
-    let mut theta = prob.maximise(&all, &zero, None);
-    for _ in 0..4 {
-        prob.half_edf = (0..n).map(|j| edf(j, &theta) / 2.0).collect();
-        theta = prob.maximise(&all, &zero, Some(&theta));
-    }
+    let (prob, mut theta) = ml_with_edf(phi, y, edf0, edf, 4);
 
     // backward elimination
     let mut active = vec![true; k];

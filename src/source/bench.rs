@@ -143,7 +143,9 @@ impl SimBench {
             }
             counts.clear();
             temps.clear();
-            let n = self.sim.next_block_with_temp(block, &mut counts, &mut temps);
+            let n = self
+                .sim
+                .next_block_with_temp(block, &mut counts, &mut temps);
             if n == 0 {
                 break;
             }

@@ -76,6 +76,12 @@ pub enum ReplayError {
         rate_hz: f64,
         recorded_hz: f64,
     },
+    /// The capture holds no sample at all (no valid frame, or no `/gyro/raw`).
+    #[error(
+        "{}: no samples in this capture ({bytes_read} bytes read): is it a raw frame \
+         capture (.bin) or an MCAP recording made by `sagnac run`?", path.display()
+    )]
+    NoSamples { path: PathBuf, bytes_read: u64 },
     /// The pipeline stopped during the replay.
     #[error("replay of {}: {source}", path.display())]
     Pipeline {
@@ -115,7 +121,7 @@ pub fn probe(path: &Path) -> Result<CaptureKind, ReplayError> {
 pub fn probe_mcap_period_ns(path: &Path) -> Result<Option<u64>, ReplayError> {
     let mut found = None;
     let mut reader = RawReader::open(path)?;
-    while let Some(m) = reader.next()? {
+    while let Some(m) = reader.next_raw()? {
         if m.dt_ns > 0 {
             found = Some(m.dt_ns);
             break;
@@ -157,10 +163,7 @@ impl ReplayConfig {
             return Err(bad("rate_hz", self.rate_hz.to_string(), "must be > 0"));
         }
         let kind = probe(&self.path)?;
-        Ok(ReplaySource {
-            config: self,
-            kind,
-        })
+        Ok(ReplaySource { config: self, kind })
     }
 }
 
@@ -184,7 +187,11 @@ impl Pacer {
     fn new(rate_hz: f64, speed: f64) -> Self {
         Pacer {
             start: Instant::now(),
-            s_per_period: if speed > 0.0 { 1.0 / (rate_hz * speed) } else { 0.0 },
+            s_per_period: if speed > 0.0 {
+                1.0 / (rate_hz * speed)
+            } else {
+                0.0
+            },
         }
     }
 
@@ -234,8 +241,14 @@ impl ReplaySource {
             CaptureKind::Frames => self.replay_frames(&mut out, telemetry, &shutdown),
             CaptureKind::Mcap => self.replay_mcap(&mut out, telemetry, &shutdown),
         }?;
-        // Nothing is held by a lossless sender; close for symmetry.
+        // Nothing is held by a lossless sender.
         drop(out);
+        if report.samples == 0 && !shutdown.is_requested() {
+            return Err(ReplayError::NoSamples {
+                path,
+                bytes_read: report.bytes_read,
+            });
+        }
         tracing::info!(
             path = %path.display(),
             samples = report.samples,
@@ -264,29 +277,29 @@ impl ReplaySource {
             offset,
             source,
         };
-        let mut file = BufReader::with_capacity(
-            READ_CHUNK,
-            File::open(&cfg.path).map_err(|e| io_err(0, e))?,
-        );
+        let mut file = File::open(&cfg.path).map_err(|e| io_err(0, e))?;
         let pacer = Pacer::new(cfg.rate_hz, cfg.speed);
         let per_batch = pacer.batch_samples();
         let mut decoder = FrameDecoder::with_config(cfg.decoder);
         let mut asm = Assembler::new(cfg.rate_hz, cfg.limit_periods, telemetry);
-        let mut buf = BytesMut::with_capacity(READ_CHUNK);
-        let mut chunk = vec![0u8; READ_CHUNK];
+        let mut buf = BytesMut::with_capacity(2 * READ_CHUNK);
         let mut in_batch = 0usize;
         let mut eof = false;
         let mut stopped = false;
         while !eof && !stopped {
+            // Read straight into the decoder's buffer (no intermediate copy).
+            let have = buf.len();
+            buf.resize(have + READ_CHUNK, 0);
             let n = loop {
-                match file.read(&mut chunk) {
+                match file.read(&mut buf[have..]) {
                     Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
-                    r => break r.map_err(|e| io_err(decoder.stats().bytes_read, e))?,
+                    r => break r.map_err(|e| io_err(decoder.stats().bytes_read, e)),
                 }
             };
+            buf.truncate(have + *n.as_ref().unwrap_or(&0));
+            let n = n?;
             let now = wall_ns();
             eof = n == 0;
-            buf.extend_from_slice(&chunk[..n]);
             loop {
                 let item = if eof {
                     decoder.decode_eof(&mut buf)
@@ -346,7 +359,9 @@ impl ReplaySource {
             if shutdown.is_requested() {
                 break;
             }
-            let Some(mut raw) = reader.next()? else { break };
+            let Some(mut raw) = reader.next_raw()? else {
+                break;
+            };
             if !raw.counts.is_empty() && (raw.dt_ns as f64 - period_ns).abs() > 1.0 {
                 return Err(ReplayError::RateMismatch {
                     path: cfg.path.clone(),
@@ -374,8 +389,8 @@ impl ReplaySource {
             for (i, _) in raw.counts.iter().enumerate() {
                 while gi < raw.gaps.len() && raw.gaps[gi].index == i as u64 {
                     let g = raw.gaps[gi];
-                    let t_ns = raw.t0_ns
-                        + ((seq - raw.seq0) as f64 * raw.dt_ns as f64).round() as u64;
+                    let t_ns =
+                        raw.t0_ns + ((seq - raw.seq0) as f64 * raw.dt_ns as f64).round() as u64;
                     b.events.push(Event {
                         t_ns,
                         kind: EventKind::Gap { seq, lost: g.lost },
@@ -479,7 +494,7 @@ impl RawReader {
     }
 
     /// The next `/gyro/raw` message, `None` at the end (or at a break).
-    pub fn next(&mut self) -> Result<Option<RawBatch>, ReplayError> {
+    pub fn next_raw(&mut self) -> Result<Option<RawBatch>, ReplayError> {
         loop {
             if let Some(m) = self.queue.pop_front() {
                 return Ok(Some(m));
@@ -534,24 +549,22 @@ impl RawReader {
                         self.raw_channel = Some(c.id);
                     }
                 }
-                op::MESSAGE => {
-                    // Header: channel id u16, sequence u32, log and publish time u64.
-                    if data.len() >= 22 {
-                        let channel = u16::from_le_bytes([data[0], data[1]]);
-                        if Some(channel) == self.raw_channel {
-                            let sequence = u32::from_le_bytes([data[2], data[3], data[4], data[5]]);
-                            match SinkMessage::from_json(Topic::Raw, &data[22..]) {
-                                Ok(SinkMessage::Raw(m)) => self.queue.push_back(m),
-                                Ok(_) => {}
-                                Err(e) => {
-                                    return Err(ReplayError::Message {
-                                        path: self.path.clone(),
-                                        offset: self.offset,
-                                        sequence,
-                                        reason: e.to_string(),
-                                    });
-                                }
-                            }
+                // Header: channel id u16, sequence u32, log and publish time u64.
+                op::MESSAGE
+                    if data.len() >= 22
+                        && Some(u16::from_le_bytes([data[0], data[1]])) == self.raw_channel =>
+                {
+                    let sequence = u32::from_le_bytes([data[2], data[3], data[4], data[5]]);
+                    match SinkMessage::from_json(Topic::Raw, &data[22..]) {
+                        Ok(SinkMessage::Raw(m)) => self.queue.push_back(m),
+                        Ok(_) => {}
+                        Err(e) => {
+                            return Err(ReplayError::Message {
+                                path: self.path.clone(),
+                                offset: self.offset,
+                                sequence,
+                                reason: e.to_string(),
+                            });
                         }
                     }
                 }

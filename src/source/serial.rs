@@ -2,6 +2,11 @@
 //! `tokio-serial`, decoded by the sans-IO [`FrameDecoder`] and handed to the
 //! pipeline as [`SourceBatch`]es (live delivery: the port is never paused).
 //!
+//! Reads are coalesced into batches of at most 50 ms or 4096 samples (a USB
+//! adapter may deliver a few frames per read), so the bounded pipeline queue
+//! (`run.channel_capacity` batches) holds seconds of data while the pipeline
+//! thread runs an estimator update.
+//!
 //! # When the device goes away
 //! A serial stream ends with EOF (or a read error) when the device vanishes
 //! (USB adapter unplugged, pty closed). The source then
@@ -131,6 +136,18 @@ impl SerialConfig {
 
 /// Read buffer growth per read, bytes (tokio-serial zero-fills the spare capacity).
 const READ_RESERVE: usize = 4096;
+/// Longest time decoded samples wait to be handed to the pipeline.
+const COALESCE: Duration = Duration::from_millis(50);
+/// Most samples per batch.
+const MAX_BATCH: usize = 4096;
+
+/// Sleep until `t`, or forever when `None`.
+async fn sleep_until_opt(t: Option<tokio::time::Instant>) {
+    match t {
+        Some(t) => tokio::time::sleep_until(t).await,
+        None => std::future::pending().await,
+    }
+}
 
 impl SerialSource {
     /// Open the port now (inside a tokio runtime), so that a wrong path fails
@@ -174,6 +191,7 @@ impl SerialSource {
         let mut buf = BytesMut::with_capacity(READ_RESERVE);
         let mut report = SourceReport::default();
         let mut backoff = cfg.reconnect_initial;
+        let mut flush_at: Option<tokio::time::Instant> = None;
 
         'run: loop {
             let Some(p) = port.as_mut() else {
@@ -204,9 +222,19 @@ impl SerialSource {
                 continue;
             };
             buf.reserve(READ_RESERVE);
+            // read_buf is cancel safe: when another branch wins, nothing was read.
             let read = tokio::select! {
-                r = p.read_buf(&mut buf) => r,
+                r = p.read_buf(&mut buf) => Some(r),
+                () = sleep_until_opt(flush_at) => None,
                 () = shutdown.requested() => break 'run,
+            };
+            let Some(read) = read else {
+                // The coalescing delay is over: hand the batch to the pipeline.
+                flush_at = None;
+                if let Some(batch) = asm.take(Instant::now()) {
+                    out.send(batch).await.map_err(pipeline_err)?;
+                }
+                continue;
             };
             let now = wall_ns();
             let gone = match read {
@@ -221,7 +249,11 @@ impl SerialSource {
                 }
                 asm.sync_stats(decoder.stats());
                 report.disconnects += 1;
-                tracing::warn!(device, reason, "serial device went away; reconnecting with backoff");
+                tracing::warn!(
+                    device,
+                    reason,
+                    "serial device went away; reconnecting with backoff"
+                );
                 telemetry.device_connected.set(0);
                 asm.push_event(
                     now,
@@ -241,11 +273,23 @@ impl SerialSource {
                 }
                 asm.sync_stats(decoder.stats());
             }
-            if let Some(batch) = asm.take(Instant::now()) {
-                out.send(batch).await.map_err(pipeline_err)?;
+            // Coalesce reads (a USB adapter may deliver a few frames per read) into
+            // batches of at most COALESCE or MAX_BATCH samples, so the bounded
+            // pipeline queue holds seconds of data, not milliseconds.
+            let urgent = port.is_none() || asm.done() || asm.pending_samples() >= MAX_BATCH;
+            if urgent {
+                flush_at = None;
+                if let Some(batch) = asm.take(Instant::now()) {
+                    out.send(batch).await.map_err(pipeline_err)?;
+                }
+            } else if flush_at.is_none() && asm.has_pending() {
+                flush_at = Some(tokio::time::Instant::now() + COALESCE);
             }
             if asm.done() {
-                tracing::info!(periods = asm.periods(), "serial source: run duration reached");
+                tracing::info!(
+                    periods = asm.periods(),
+                    "serial source: run duration reached"
+                );
                 break;
             }
         }

@@ -54,9 +54,13 @@ pub fn scrape(addr: SocketAddr) -> Option<String> {
 
 /// The value of one series (exact name with labels, e.g. `a{b="c"}`).
 pub fn metric(text: &str, series: &str) -> Option<f64> {
-    text.lines()
-        .filter(|l| !l.starts_with('#'))
-        .find_map(|l| l.strip_prefix(series)?.strip_prefix(' ')?.trim().parse().ok())
+    text.lines().filter(|l| !l.starts_with('#')).find_map(|l| {
+        l.strip_prefix(series)?
+            .strip_prefix(' ')?
+            .trim()
+            .parse()
+            .ok()
+    })
 }
 
 /// Scrape until `series` reaches `want` (exactly), returning the scrape.
@@ -227,7 +231,10 @@ impl Socat {
 
     /// Open the writing end (the emulator's side).
     pub fn writer(&self) -> std::fs::File {
-        std::fs::OpenOptions::new().write(true).open(&self.a).unwrap()
+        std::fs::OpenOptions::new()
+            .write(true)
+            .open(&self.a)
+            .unwrap()
     }
 
     /// Terminate socat: both ptys vanish (the daemon's end reads EOF).
