@@ -75,13 +75,13 @@ fn cases() -> Vec<Case> {
         },
         Case {
             name: "arw_changed",
-            what: "ARW 0.0010 -> 0.00125 deg/sqrt(h), Q 0.6\"",
+            what: "ARW 0.0010 -> 0.00115 deg/sqrt(h), Q 0.6\"",
             fs: 2000.0,
             dur_s: 600.0,
             seed: 303,
             model: gyro(2000.0, 15.0, 0.6, 0.001, ""),
-            truth: gyro(2000.0, 15.0, 0.6, 0.00125, ""),
-            expect: Expect::Param("arw_dpsh", 0.00125),
+            truth: gyro(2000.0, 15.0, 0.6, 0.00115, ""),
+            expect: Expect::Param("arw_dpsh", 0.00115),
         },
         Case {
             name: "telegraph",
