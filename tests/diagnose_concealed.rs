@@ -94,6 +94,23 @@ fn cases() -> Vec<Case> {
             expect: Expect::GmToTelegraph(0.06, 20.0),
         },
         Case {
+            name: "thermal",
+            what: "bias 0.005 deg/h per deg C; temp_c 25 C + 0.5 C/h + 1 C sine (120 s); model has no thermal term",
+            fs: 100.0,
+            dur_s: 3600.0,
+            seed: 707,
+            model: gyro(100.0, 12.3, 0.35, 0.001, ""),
+            truth: gyro(
+                100.0,
+                12.3,
+                0.35,
+                0.001,
+                "[thermal]\ntemp_c0 = 25.0\nramp_c_per_h = 0.5\nsine_amplitude_c = 1.0\nsine_period_s = 120.0\n\
+                 bias_sensitivity_dph_per_c = 0.005\n",
+            ),
+            expect: Expect::Added("thermal", &[("bias_sensitivity_dph_per_c", 0.005)]),
+        },
+        Case {
             name: "null_paper",
             what: "matched: paper gyro",
             fs: 1000.0,
@@ -133,10 +150,11 @@ fn cases() -> Vec<Case> {
 fn simulate(model: &GyroModel, seed: u64, dur_s: f64) -> Recording {
     let mut sim = Simulator::new(model, seed, Some(dur_s)).unwrap();
     let mut counts = Vec::new();
-    sim.next_block(usize::MAX >> 1, &mut counts);
+    let mut temp = Vec::new();
+    sim.next_block_with_temp(usize::MAX >> 1, &mut counts, &mut temp);
     Recording {
         counts,
-        temp_c: None,
+        temp_c: (!temp.is_empty()).then_some(temp),
         sample_rate_hz: model.gyro.sample_rate_hz,
         pulse_arcsec: model.gyro.pulse_weight_arcsec,
     }
@@ -266,7 +284,11 @@ fn check(name: &str) {
             r.fit_after.chi2_per_dof
         );
         assert!(r.fit_after.chi2_per_dof < 1.5, "{name}: chi2/dof after {}", r.fit_after.chi2_per_dof);
-        assert!(!r.mismatch_regions.is_empty(), "{name}: no region located");
+        // a thermal sensitivity is found by regressing the rate on the recorded
+        // temperature, a test without a tau range; every other effect is located
+        if !matches!(case.expect, Expect::Added("thermal", _)) {
+            assert!(!r.mismatch_regions.is_empty(), "{name}: no region located");
+        }
         let m = o.diag.updated_model.as_ref().expect("an updated model");
         // the written model is valid and parses back
         let back = GyroModel::from_toml_str(&m.to_toml().unwrap(), "updated").unwrap();
@@ -292,6 +314,11 @@ fn arw_change_is_a_parameter_change_not_a_new_term() {
 #[test]
 fn random_telegraph_is_told_from_its_gauss_markov_twin() {
     check("telegraph");
+}
+
+#[test]
+fn thermal_sensitivity_is_found_from_the_temperature_channel() {
+    check("thermal");
 }
 
 #[test]
