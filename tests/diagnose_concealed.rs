@@ -74,6 +74,26 @@ fn cases() -> Vec<Case> {
             expect: Expect::Added("sinusoid", &[("amplitude_dph", 0.05), ("period_s", 0.8)]),
         },
         Case {
+            name: "gm_as_arw_b",
+            what: "Gauss-Markov, Tc 0.2 s, other rate/duration/Q",
+            fs: 500.0,
+            dur_s: 1200.0,
+            seed: 111,
+            model: gyro(500.0, 12.3, 0.5, 0.001, ""),
+            truth: gyro(500.0, 12.3, 0.5, 0.001, "[[noise.gauss_markov]]\nsigma_dph = 0.05\ntau_c_s = 0.2\n"),
+            expect: Expect::Added("gauss_markov", &[("sigma_dph", 0.05), ("tau_c_s", 0.2)]),
+        },
+        Case {
+            name: "sine_b",
+            what: "sinusoid 0.06 deg/h at 0.25 Hz, under QN",
+            fs: 500.0,
+            dur_s: 900.0,
+            seed: 212,
+            model: gyro(500.0, 12.3, 0.35, 0.001, ""),
+            truth: gyro(500.0, 12.3, 0.35, 0.001, "[[noise.sinusoid]]\namplitude_dph = 0.06\nperiod_s = 4.0\n"),
+            expect: Expect::Added("sinusoid", &[("amplitude_dph", 0.06), ("period_s", 4.0)]),
+        },
+        Case {
             name: "arw_changed",
             what: "ARW 0.0010 -> 0.00115 deg/sqrt(h), Q 0.6\"",
             fs: 2000.0,
@@ -304,6 +324,16 @@ fn gauss_markov_masquerading_as_arw_is_found() {
 #[test]
 fn sinusoid_buried_under_quantization_is_found() {
     check("sine_under_qn");
+}
+
+#[test]
+fn gauss_markov_at_another_rate_duration_and_magnitude_is_found() {
+    check("gm_as_arw_b");
+}
+
+#[test]
+fn slow_sinusoid_under_quantization_is_found() {
+    check("sine_b");
 }
 
 #[test]

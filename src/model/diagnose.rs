@@ -21,9 +21,11 @@
 //!    after dividing out the local continuum, with the counter's own harmonic
 //!    lines masked); the slope tests use 0.25 % each.
 //! 4. **Explain** ([`explain`]): lines become sinusoids (frequency and
-//!    amplitude from the whole record's Hann-windowed DFT, intervals from the
-//!    background PSD); a significant slope becomes a rate ramp or, when the
-//!    temperature explains it, a thermal sensitivity; the broadband residual is
+//!    amplitude from the whole record's Hann-windowed DFT; intervals from the
+//!    background PSD, widened to the parametric bootstrap's spread: the same
+//!    estimator re-run on each Monte-Carlo run of the updated model); a
+//!    significant slope becomes a rate ramp or, when the temperature explains
+//!    it, a thermal sensitivity; the broadband residual is
 //!    fitted on the wavelet variances by every catalog candidate (parameter
 //!    changes of existing terms; new Gauss-Markov, RRW, bias instability,
 //!    long-period sinusoid), chosen by AIC with parameter-only changes preferred
