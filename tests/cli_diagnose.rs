@@ -34,15 +34,22 @@ fn simulate(model: &Path, out: &Path, format: &str, dur: &str, seed: &str) {
     ok(&bin()
         .args(["simulate", "--model"])
         .arg(model)
-        .args(["--duration-s", dur, "--seed", seed, "--format", format, "--out"])
+        .args([
+            "--duration-s",
+            dur,
+            "--seed",
+            seed,
+            "--format",
+            format,
+            "--out",
+        ])
         .arg(out)
         .output()
         .unwrap());
 }
 
 fn num(v: &Value) -> f64 {
-    v.as_f64()
-        .unwrap_or_else(|| panic!("{v} is not a number"))
+    v.as_f64().unwrap_or_else(|| panic!("{v} is not a number"))
 }
 
 /// Every key and type of the contract.
@@ -136,7 +143,10 @@ fn csv_recording_with_a_hidden_gauss_markov_gives_the_contract_json_svg_and_mode
     assert!(num(&j["fit_after"]["chi2_per_dof"]) < num(&j["fit_before"]["chi2_per_dof"]));
     // the SVG report and the updated model, which parses and holds the new term
     let svg = std::fs::read_to_string(p.join("out.svg")).unwrap();
-    assert!(svg.starts_with("<svg") || svg.starts_with("<?xml"), "not an SVG");
+    assert!(
+        svg.starts_with("<svg") || svg.starts_with("<?xml"),
+        "not an SVG"
+    );
     assert!(svg.trim_end().ends_with("</svg>"));
     let new = std::fs::read_to_string(p.join("new.toml")).unwrap();
     let m = sagnac::model::GyroModel::from_toml_str(&new, "new.toml").unwrap();
@@ -148,7 +158,13 @@ fn matched_mcap_recording_is_consistent_and_json_goes_to_stdout() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path();
     std::fs::write(p.join("model.toml"), MODEL).unwrap();
-    simulate(&p.join("model.toml"), &p.join("rec.mcap"), "mcap", "120", "8");
+    simulate(
+        &p.join("model.toml"),
+        &p.join("rec.mcap"),
+        "mcap",
+        "120",
+        "8",
+    );
     let out = bin()
         .args(["diagnose", "--model"])
         .arg(p.join("model.toml"))

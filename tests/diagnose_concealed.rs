@@ -60,7 +60,13 @@ fn cases() -> Vec<Case> {
             dur_s: 1800.0,
             seed: 101,
             model: gyro(1000.0, 12.3, 0.35, 0.001, ""),
-            truth: gyro(1000.0, 12.3, 0.35, 0.001, "[[noise.gauss_markov]]\nsigma_dph = 0.035\ntau_c_s = 0.5\n"),
+            truth: gyro(
+                1000.0,
+                12.3,
+                0.35,
+                0.001,
+                "[[noise.gauss_markov]]\nsigma_dph = 0.035\ntau_c_s = 0.5\n",
+            ),
             expect: Expect::Added("gauss_markov", &[("sigma_dph", 0.035), ("tau_c_s", 0.5)]),
         },
         Case {
@@ -70,7 +76,13 @@ fn cases() -> Vec<Case> {
             dur_s: 1200.0,
             seed: 202,
             model: gyro(250.0, 12.3, 0.35, 0.001, ""),
-            truth: gyro(250.0, 12.3, 0.35, 0.001, "[[noise.sinusoid]]\namplitude_dph = 0.05\nperiod_s = 0.8\n"),
+            truth: gyro(
+                250.0,
+                12.3,
+                0.35,
+                0.001,
+                "[[noise.sinusoid]]\namplitude_dph = 0.05\nperiod_s = 0.8\n",
+            ),
             expect: Expect::Added("sinusoid", &[("amplitude_dph", 0.05), ("period_s", 0.8)]),
         },
         Case {
@@ -80,7 +92,13 @@ fn cases() -> Vec<Case> {
             dur_s: 900.0,
             seed: 111,
             model: gyro(2000.0, 12.3, 0.35, 0.001, ""),
-            truth: gyro(2000.0, 12.3, 0.35, 0.001, "[[noise.gauss_markov]]\nsigma_dph = 0.04\ntau_c_s = 0.5\n"),
+            truth: gyro(
+                2000.0,
+                12.3,
+                0.35,
+                0.001,
+                "[[noise.gauss_markov]]\nsigma_dph = 0.04\ntau_c_s = 0.5\n",
+            ),
             expect: Expect::Added("gauss_markov", &[("sigma_dph", 0.04), ("tau_c_s", 0.5)]),
         },
         Case {
@@ -90,7 +108,13 @@ fn cases() -> Vec<Case> {
             dur_s: 900.0,
             seed: 212,
             model: gyro(500.0, 12.3, 0.35, 0.001, ""),
-            truth: gyro(500.0, 12.3, 0.35, 0.001, "[[noise.sinusoid]]\namplitude_dph = 0.06\nperiod_s = 4.0\n"),
+            truth: gyro(
+                500.0,
+                12.3,
+                0.35,
+                0.001,
+                "[[noise.sinusoid]]\namplitude_dph = 0.06\nperiod_s = 4.0\n",
+            ),
             expect: Expect::Added("sinusoid", &[("amplitude_dph", 0.06), ("period_s", 4.0)]),
         },
         Case {
@@ -109,8 +133,20 @@ fn cases() -> Vec<Case> {
             fs: 200.0,
             dur_s: 3600.0,
             seed: 404,
-            model: gyro(200.0, 12.3, 0.7, 0.001, "[[noise.gauss_markov]]\nsigma_dph = 0.06\ntau_c_s = 10.0\n"),
-            truth: gyro(200.0, 12.3, 0.7, 0.001, "[[noise.random_telegraph]]\namplitude_dph = 0.06\nmean_dwell_s = 20.0\n"),
+            model: gyro(
+                200.0,
+                12.3,
+                0.7,
+                0.001,
+                "[[noise.gauss_markov]]\nsigma_dph = 0.06\ntau_c_s = 10.0\n",
+            ),
+            truth: gyro(
+                200.0,
+                12.3,
+                0.7,
+                0.001,
+                "[[noise.random_telegraph]]\namplitude_dph = 0.06\nmean_dwell_s = 20.0\n",
+            ),
             expect: Expect::GmToTelegraph(0.06, 20.0),
         },
         Case {
@@ -193,8 +229,16 @@ fn run(case: &Case) -> Outcome {
     let t = Instant::now();
     let diag = diagnose::diagnose(&model, &rec, &DiagnoseOptions::default()).unwrap();
     let secs = t.elapsed().as_secs_f64();
-    let n_raw = diag.before.iter().filter(|p| p.family == Family::RawAllan).count();
-    Outcome { raw_threshold: bonferroni_z(0.05, n_raw), diag, secs }
+    let n_raw = diag
+        .before
+        .iter()
+        .filter(|p| p.family == Family::RawAllan)
+        .count();
+    Outcome {
+        raw_threshold: bonferroni_z(0.05, n_raw),
+        diag,
+        secs,
+    }
 }
 
 /// The truth lies inside the 95 % interval widened by half around its centre
@@ -207,7 +251,11 @@ fn covers(ci: [f64; 2], v: f64) -> bool {
 }
 
 fn covers95(ci: [f64; 2], v: f64) -> &'static str {
-    if ci[0] <= v && v <= ci[1] { "in 95% CI" } else { "outside 95% CI, inside 3 sigma" }
+    if ci[0] <= v && v <= ci[1] {
+        "in 95% CI"
+    } else {
+        "outside 95% CI, inside 3 sigma"
+    }
 }
 
 /// The case's verdict in words, and whether it matches the expectation.
@@ -215,27 +263,45 @@ fn judge(case: &Case, o: &Outcome) -> (String, String, bool) {
     let r = &o.diag.report;
     match case.expect {
         Expect::Consistent => {
-            let ok = r.verdict == Verdict::Consistent && r.added_terms.is_empty() && r.parameter_changes.is_empty();
+            let ok = r.verdict == Verdict::Consistent
+                && r.added_terms.is_empty()
+                && r.parameter_changes.is_empty();
             ("consistent".into(), String::new(), ok)
         }
         Expect::Added(term, params) => {
             let found = r.added_terms.iter().find(|a| a.term == term);
-            let named = r.added_terms.iter().map(|a| a.term.as_str()).collect::<Vec<_>>().join("+");
+            let named = r
+                .added_terms
+                .iter()
+                .map(|a| a.term.as_str())
+                .collect::<Vec<_>>()
+                .join("+");
             let mut fits = Vec::new();
-            let mut ok = r.verdict == Verdict::Mismatch && found.is_some() && r.parameter_changes.is_empty();
+            let mut ok =
+                r.verdict == Verdict::Mismatch && found.is_some() && r.parameter_changes.is_empty();
             if let Some(a) = found {
                 for &(p, truth) in params {
                     let v = a.params.get(p).copied().unwrap_or(f64::NAN);
                     let ci = a.ci95.get(p).copied().unwrap_or([f64::NAN; 2]);
                     ok &= covers(ci, truth);
-                    fits.push(format!("{p} {v:.4} [{:.4}, {:.4}] (truth {truth}, {})", ci[0], ci[1], covers95(ci, truth)));
+                    fits.push(format!(
+                        "{p} {v:.4} [{:.4}, {:.4}] (truth {truth}, {})",
+                        ci[0],
+                        ci[1],
+                        covers95(ci, truth)
+                    ));
                 }
             }
             (named, fits.join("; "), ok)
         }
         Expect::Param(key, truth) => {
             let found = r.parameter_changes.iter().find(|c| c.term == key);
-            let named = r.parameter_changes.iter().map(|c| c.term.as_str()).collect::<Vec<_>>().join("+");
+            let named = r
+                .parameter_changes
+                .iter()
+                .map(|c| c.term.as_str())
+                .collect::<Vec<_>>()
+                .join("+");
             let ok = r.verdict == Verdict::Mismatch
                 && r.added_terms.is_empty()
                 && found.is_some_and(|c| covers(c.ci95, truth));
@@ -260,12 +326,21 @@ fn judge(case: &Case, o: &Outcome) -> (String, String, bool) {
             let ok = r.verdict == Verdict::Mismatch
                 && gm_off
                 && found.is_some_and(|t| {
-                    (t.params["amplitude_dph"] / a - 1.0).abs() < 1e-9 && (t.params["mean_dwell_s"] / dwell - 1.0).abs() < 1e-9
+                    (t.params["amplitude_dph"] / a - 1.0).abs() < 1e-9
+                        && (t.params["mean_dwell_s"] / dwell - 1.0).abs() < 1e-9
                 });
-            let named = r.added_terms.iter().map(|a| a.term.as_str()).collect::<Vec<_>>().join("+");
+            let named = r
+                .added_terms
+                .iter()
+                .map(|a| a.term.as_str())
+                .collect::<Vec<_>>()
+                .join("+");
             let k = o.diag.before.iter().find(|p| p.family == Family::Kurtosis);
             let fit = k.map_or(String::new(), |p| {
-                format!("kurtosis {:.2} vs GM model {:.2} +- {:.2} (z {:.1})", p.obs, p.model_mean, p.sd_log, p.z)
+                format!(
+                    "kurtosis {:.2} vs GM model {:.2} +- {:.2} (z {:.1})",
+                    p.obs, p.model_mean, p.sd_log, p.z
+                )
             });
             (format!("{named} replaces gauss_markov[0]"), fit, ok)
         }
@@ -287,7 +362,11 @@ fn check(name: &str) {
         r.fit_after.chi2_per_dof
     );
     eprintln!("{}", serde_json::to_string_pretty(r).unwrap());
-    assert!(ok, "{name}: expected {:?}, got {named} / {fit}", case.expect);
+    assert!(
+        ok,
+        "{name}: expected {:?}, got {named} / {fit}",
+        case.expect
+    );
     // concealed: the raw Allan deviation alone would not raise an alarm
     assert!(
         o.diag.raw_allan_max_z < o.raw_threshold,
@@ -303,7 +382,11 @@ fn check(name: &str) {
             r.fit_before.chi2_per_dof,
             r.fit_after.chi2_per_dof
         );
-        assert!(r.fit_after.chi2_per_dof < 1.5, "{name}: chi2/dof after {}", r.fit_after.chi2_per_dof);
+        assert!(
+            r.fit_after.chi2_per_dof < 1.5,
+            "{name}: chi2/dof after {}",
+            r.fit_after.chi2_per_dof
+        );
         // a thermal sensitivity is found by regressing the rate on the recorded
         // temperature, a test without a tau range; every other effect is located
         if !matches!(case.expect, Expect::Added("thermal", _)) {

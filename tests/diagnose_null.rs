@@ -115,7 +115,10 @@ fn false_alarm_rate_on_matched_simulations_is_below_5_percent_over_40_seeds() {
                 d.lines.len(),
                 d.ramp_z,
                 r.added_terms.iter().map(|a| &a.term).collect::<Vec<_>>(),
-                r.parameter_changes.iter().map(|c| &c.term).collect::<Vec<_>>()
+                r.parameter_changes
+                    .iter()
+                    .map(|c| &c.term)
+                    .collect::<Vec<_>>()
             );
             alarms.push(s);
         }
@@ -136,8 +139,5 @@ fn false_alarm_rate_on_matched_simulations_is_below_5_percent_over_40_seeds() {
     // the broadband statistic is not degenerate: under the null its maximum
     // sits well inside the threshold but is not zero
     let med = max_z[max_z.len() / 2];
-    assert!(
-        (0.2..1.0).contains(&med),
-        "median max|z| / threshold {med}"
-    );
+    assert!((0.2..1.0).contains(&med), "median max|z| / threshold {med}");
 }

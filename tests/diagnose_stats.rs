@@ -23,12 +23,22 @@ fn normals(n: usize, seed: u64) -> Vec<f64> {
 
 /// Check each level's mean square against `expected` within `k` standard
 /// deviations of a mean square of `n_coef` coefficients with `edf` degrees of freedom.
-fn check_levels(got: &[(u32, usize, f64)], expected: &[f64], edf: &dyn Fn(usize, usize) -> f64, k: f64, what: &str) {
+fn check_levels(
+    got: &[(u32, usize, f64)],
+    expected: &[f64],
+    edf: &dyn Fn(usize, usize) -> f64,
+    k: f64,
+    what: &str,
+) {
     for (i, &(level, n, v)) in got.iter().enumerate() {
         let nu = edf(i, n);
         let rel = (v / expected[i] - 1.0).abs();
         let tol = k * (2.0 / nu).sqrt();
-        assert!(rel < tol, "{what} level {level} ({n} coefs): {v} vs {} (rel {rel:.4}, tol {tol:.4})", expected[i]);
+        assert!(
+            rel < tol,
+            "{what} level {level} ({n} coefs): {v} vs {} (rel {rel:.4}, tol {tol:.4})",
+            expected[i]
+        );
     }
 }
 
@@ -52,7 +62,13 @@ fn wavelet_variances_of_white_rate_and_white_angle_match_wvar() {
     let want: Vec<f64> = lb.phi.iter().map(|r| q * q * r[0]).collect();
     // the EDF of a level of differenced white noise is below the coefficient
     // count (neighbouring coefficients correlate): LevelBasis gives it
-    check_levels(&got, &want, &|i, n| lb.edf(i, &[q * q], n as f64), 5.0, "white angle");
+    check_levels(
+        &got,
+        &want,
+        &|i, n| lb.edf(i, &[q * q], n as f64),
+        5.0,
+        "white angle",
+    );
 }
 
 #[test]
@@ -77,8 +93,20 @@ fn wavelet_variances_of_gauss_markov_and_sinusoid_match_the_basis() {
     let got = stats::dwt_level_mean_squares(&x, &lo, &hi, 12, 8);
     let shape = basis.gauss_markov(tc);
     let want: Vec<f64> = shape.iter().map(|p| sigma * sigma * p).collect();
-    let lb = LevelBasis::new(&lo, &hi, tau0, &levels, &[SpectralTerm::GaussMarkov { tau_c_s: tc }]);
-    check_levels(&got, &want, &|i, n| lb.edf(i, &[sigma * sigma], n as f64), 5.0, "gauss-markov");
+    let lb = LevelBasis::new(
+        &lo,
+        &hi,
+        tau0,
+        &levels,
+        &[SpectralTerm::GaussMarkov { tau_c_s: tc }],
+    );
+    check_levels(
+        &got,
+        &want,
+        &|i, n| lb.edf(i, &[sigma * sigma], n as f64),
+        5.0,
+        "gauss-markov",
+    );
     // a sinusoid averaged over each sample, amplitude 2, at 1.3 Hz and 0.11 Hz:
     // its power A^2/2 goes to the level whose band holds the frequency
     for &f in &[1.3, 0.11] {
@@ -96,11 +124,19 @@ fn wavelet_variances_of_gauss_markov_and_sinusoid_match_the_basis() {
         let total: f64 = got.iter().map(|g| g.2).sum();
         let want_total: f64 = phi.iter().map(|p| a * a * p).sum();
         // deterministic: only the finite record (phase at the ends) perturbs it
-        assert!((total / want_total - 1.0).abs() < 0.02, "sinusoid {f} Hz: total {total} vs {want_total}");
+        assert!(
+            (total / want_total - 1.0).abs() < 0.02,
+            "sinusoid {f} Hz: total {total} vs {want_total}"
+        );
         for (i, g) in got.iter().enumerate() {
             let w = a * a * phi[i];
             if w > 0.05 * want_total {
-                assert!((g.2 / w - 1.0).abs() < 0.05, "sinusoid {f} Hz level {}: {} vs {w}", g.0, g.2);
+                assert!(
+                    (g.2 / w - 1.0).abs() < 0.05,
+                    "sinusoid {f} Hz level {}: {} vs {w}",
+                    g.0,
+                    g.2
+                );
             }
         }
     }
@@ -119,7 +155,10 @@ fn welch_psd_obeys_parseval_and_the_white_level() {
     let interior = &p[10..2040];
     let mean = interior.iter().sum::<f64>() / interior.len() as f64;
     let want = 2.0 * sigma * sigma / fs;
-    assert!((mean / want - 1.0).abs() < 0.01, "white level {mean} vs {want}");
+    assert!(
+        (mean / want - 1.0).abs() < 0.01,
+        "white level {mean} vs {want}"
+    );
     // a sinusoid of amplitude 3 at 23.4 Hz: its integrated power is A^2/2
     let a = 3.0;
     let y: Vec<f64> = (0..n)
@@ -129,16 +168,32 @@ fn welch_psd_obeys_parseval_and_the_white_level() {
     let df = fs / 4096.0;
     let k0 = (23.4 / df).round() as usize;
     let power: f64 = py[k0 - 4..=k0 + 4].iter().sum::<f64>() * df;
-    assert!((power / (a * a / 2.0) - 1.0).abs() < 1e-3, "line power {power} vs {}", a * a / 2.0);
+    assert!(
+        (power / (a * a / 2.0) - 1.0).abs() < 1e-3,
+        "line power {power} vs {}",
+        a * a / 2.0
+    );
 }
 
 #[test]
 fn kurtosis_statistic_on_known_distributions() {
     let g = normals(200_000, 5);
-    assert!(stats::excess_kurtosis(&g).abs() < 0.05, "gaussian {}", stats::excess_kurtosis(&g));
-    let u: Vec<f64> = (0..200_000).map(|k| (k as f64 * 0.618_033_988_75).fract()).collect();
-    assert!((stats::excess_kurtosis(&u) + 1.2).abs() < 0.01, "uniform {}", stats::excess_kurtosis(&u));
-    let two: Vec<f64> = (0..1000).map(|k| if k % 2 == 0 { 1.0 } else { -1.0 }).collect();
+    assert!(
+        stats::excess_kurtosis(&g).abs() < 0.05,
+        "gaussian {}",
+        stats::excess_kurtosis(&g)
+    );
+    let u: Vec<f64> = (0..200_000)
+        .map(|k| (k as f64 * 0.618_033_988_75).fract())
+        .collect();
+    assert!(
+        (stats::excess_kurtosis(&u) + 1.2).abs() < 0.01,
+        "uniform {}",
+        stats::excess_kurtosis(&u)
+    );
+    let two: Vec<f64> = (0..1000)
+        .map(|k| if k % 2 == 0 { 1.0 } else { -1.0 })
+        .collect();
     assert!((stats::excess_kurtosis(&two) + 2.0).abs() < 1e-12);
     // a slow telegraph of amplitude 5 plus unit white noise, low-passed far
     // below the noise but above the switching: close to the two-point -2
@@ -172,7 +227,10 @@ fn chi_square_calibrated_z_and_trigamma() {
             let x = chi.inverse_cdf(p) / nu;
             // centre: the mean of ln x is e_ln; put it at mean_log = 2.0
             let z = gamma_z(x.ln() - e_ln + 2.0, 2.0, sd);
-            assert!((z - norm.inverse_cdf(p)).abs() < 1e-6, "nu {nu} p {p}: z {z}");
+            assert!(
+                (z - norm.inverse_cdf(p)).abs() < 1e-6,
+                "nu {nu} p {p}: z {z}"
+            );
         }
     }
 }
@@ -187,11 +245,21 @@ fn monte_carlo_reference_does_not_depend_on_threads() {
     .unwrap();
     let layout = StatLayout::new(60_000, 200.0, 1.21);
     let seeds = [11u64, 12, 13, 14, 15];
-    let job = McJob { model: &model, layout: &layout, temp_c: None, lp_cutoffs_hz: &[0.3], threads: 1, full: true };
+    let job = McJob {
+        model: &model,
+        layout: &layout,
+        temp_c: None,
+        lp_cutoffs_hz: &[0.3],
+        threads: 1,
+        full: true,
+    };
     let one = mc::run(&job, &seeds).unwrap();
     let two = mc::run(&McJob { threads: 2, ..job }, &seeds).unwrap();
     let three = mc::run(&McJob { threads: 3, ..job }, &seeds).unwrap();
     assert_eq!(one, two);
     assert_eq!(one, three);
-    assert!(one.iter().all(|s| s.wvar.len() == layout.levels.len() && s.kurtosis.len() == 1));
+    assert!(
+        one.iter()
+            .all(|s| s.wvar.len() == layout.levels.len() && s.kurtosis.len() == 1)
+    );
 }

@@ -776,8 +776,14 @@ fn bootstrap_sines(findings: &mut [Finding], probes: &[SineProbe], runs: &[StatS
         .map(|d| d.inverse_cdf(0.975))
         .unwrap_or(1.96);
     for (k, p) in probes.iter().enumerate() {
-        let amps: Vec<f64> = runs.iter().filter_map(|s| s.sines.get(k).map(|v| v.1)).collect();
-        let fs_: Vec<f64> = runs.iter().filter_map(|s| s.sines.get(k).map(|v| v.0)).collect();
+        let amps: Vec<f64> = runs
+            .iter()
+            .filter_map(|s| s.sines.get(k).map(|v| v.1))
+            .collect();
+        let fs_: Vec<f64> = runs
+            .iter()
+            .filter_map(|s| s.sines.get(k).map(|v| v.0))
+            .collect();
         if amps.len() < 2 {
             continue;
         }
@@ -981,8 +987,7 @@ pub fn diagnose(
     // background PSD under a line: the larger of the model's continuum and the
     // recording's own (median of the neighbouring usable bins, de-biased)
     let s_bg_at = |f: f64| -> f64 {
-        let k = ((f / layout.bin_width_hz()).round() as usize)
-            .clamp(layout.k_lo, layout.k_hi - 1);
+        let k = ((f / layout.bin_width_hz()).round() as usize).clamp(layout.k_lo, layout.k_hi - 1);
         let i = k - layout.k_lo;
         let median = |src: &[f64]| -> Option<f64> {
             let mut v: Vec<f64> = (i.saturating_sub(16)..(i + 17).min(src.len()))

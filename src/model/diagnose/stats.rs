@@ -692,7 +692,12 @@ pub fn hann_fft_magnitude(x: &[f64]) -> Vec<f64> {
     let mut buf: Vec<Complex64> = x
         .iter()
         .enumerate()
-        .map(|(k, &v)| Complex64::new(v * (0.5 - 0.5 * (2.0 * PI * k as f64 / n as f64).cos()), 0.0))
+        .map(|(k, &v)| {
+            Complex64::new(
+                v * (0.5 - 0.5 * (2.0 * PI * k as f64 / n as f64).cos()),
+                0.0,
+            )
+        })
         .collect();
     buf.resize(size, Complex64::new(0.0, 0.0));
     FftPlanner::new().plan_fft_forward(size).process(&mut buf);
