@@ -1,7 +1,7 @@
-//! `sagnac diagnose` end to end: the binary on a recording made by
-//! `sagnac simulate` (CSV and MCAP), the JSON contract of issue 6 (keys, types,
-//! term names that are model-file keys), the SVG report and the updated model
-//! file; and clear errors (exit code 2) on bad inputs.
+//! `sagnac diagnose` end to end: the binary on recordings made by
+//! `sagnac simulate` (CSV, MCAP, frame capture), the JSON contract of issue 6
+//! (keys, types, term names that are model-file keys), the SVG report and the
+//! updated model file; and clear errors (exit code 2) on bad inputs.
 
 use std::path::Path;
 use std::process::{Command, Output};
@@ -154,31 +154,27 @@ fn csv_recording_with_a_hidden_gauss_markov_gives_the_contract_json_svg_and_mode
 }
 
 #[test]
-fn matched_mcap_recording_is_consistent_and_json_goes_to_stdout() {
+fn matched_mcap_and_frame_recordings_are_consistent_and_json_goes_to_stdout() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path();
     std::fs::write(p.join("model.toml"), MODEL).unwrap();
-    simulate(
-        &p.join("model.toml"),
-        &p.join("rec.mcap"),
-        "mcap",
-        "120",
-        "8",
-    );
-    let out = bin()
-        .args(["diagnose", "--model"])
-        .arg(p.join("model.toml"))
-        .arg("--recording")
-        .arg(p.join("rec.mcap"))
-        .args(["--format", "mcap", "--json", "-"])
-        .output()
-        .unwrap();
-    ok(&out);
-    let j: Value = serde_json::from_slice(&out.stdout).unwrap();
-    check_contract(&j);
-    assert_eq!(j["verdict"], "consistent", "{j:#}");
-    assert!(j["added_terms"].as_array().unwrap().is_empty());
-    assert!(j["parameter_changes"].as_array().unwrap().is_empty());
+    for (format, file) in [("mcap", "rec.mcap"), ("frames", "rec.bin")] {
+        simulate(&p.join("model.toml"), &p.join(file), format, "120", "8");
+        let out = bin()
+            .args(["diagnose", "--model"])
+            .arg(p.join("model.toml"))
+            .arg("--recording")
+            .arg(p.join(file))
+            .args(["--format", format, "--json", "-"])
+            .output()
+            .unwrap();
+        ok(&out);
+        let j: Value = serde_json::from_slice(&out.stdout).unwrap();
+        check_contract(&j);
+        assert_eq!(j["verdict"], "consistent", "{format}: {j:#}");
+        assert!(j["added_terms"].as_array().unwrap().is_empty());
+        assert!(j["parameter_changes"].as_array().unwrap().is_empty());
+    }
 }
 
 fn fails_with(args: &[&std::ffi::OsStr], needle: &str) {

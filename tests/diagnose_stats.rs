@@ -252,6 +252,7 @@ fn monte_carlo_reference_does_not_depend_on_threads() {
         lp_cutoffs_hz: &[0.3],
         threads: 1,
         full: true,
+        sine_probes: &[],
     };
     let one = mc::run(&job, &seeds).unwrap();
     let two = mc::run(&McJob { threads: 2, ..job }, &seeds).unwrap();

@@ -42,6 +42,9 @@
 //! When nothing exceeds the thresholds the verdict is "consistent" and nothing
 //! is added.
 
+// `!(x > 0.0)` is used on purpose throughout: it also rejects NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod compare;
 pub mod explain;
 pub mod mc;
@@ -101,6 +104,9 @@ impl Default for DiagnoseOptions {
         }
     }
 }
+
+/// A unit conversion (internal units to the model file's).
+type UnitConv = fn(f64) -> f64;
 
 /// Family-wise false-alarm probability of the spectral line search.
 pub const ALPHA_LINES: f64 = 0.001;
@@ -1834,8 +1840,7 @@ fn broadband(
             (cur.k2 > 0.0, &phi_rrw, cur.k2, "rrw"),
         ] {
             let fit = explain::fit_amplitude(&data, phi, theta0, 0.0);
-            let (key, unit, conv, old, v): (&str, &str, fn(f64) -> f64, f64, f64) = if kind == "bi"
-            {
+            let (key, unit, conv, old, v): (&str, &str, UnitConv, f64, f64) = if kind == "bi" {
                 let c: fn(f64) -> f64 = units::arcsec_per_s_to_dph;
                 (
                     "bias_instability_dph",

@@ -425,6 +425,7 @@ pub struct LineHit {
 /// over its neighbourhood); a bin
 /// is a line when its upper-tail probability is below `alpha / n_bins`.
 /// Adjacent hits are merged into one line at the largest ratio.
+#[allow(clippy::too_many_arguments)] // the spectrum, its layout and the test level
 pub fn line_search(
     obs: &[f64],
     model_mean: &[f64],

@@ -40,11 +40,11 @@ impl LevelData {
     /// Log-likelihood of expectations `mu` (`-inf` if any is not positive).
     pub fn loglik(&self, mu: &[f64]) -> f64 {
         let mut l = 0.0;
-        for j in 0..self.y.len() {
-            if !(mu[j] > 0.0) {
+        for ((&m, &y), &nu) in mu.iter().zip(&self.y).zip(&self.nu) {
+            if !(m > 0.0) {
                 return f64::NEG_INFINITY;
             }
-            l -= 0.5 * self.nu[j] * (mu[j].ln() + self.y[j] / mu[j]);
+            l -= 0.5 * nu * (m.ln() + y / m);
         }
         l
     }
