@@ -148,6 +148,11 @@ fn csv_recording_with_a_hidden_gauss_markov_gives_the_contract_json_svg_and_mode
         "not an SVG"
     );
     assert!(svg.trim_end().ends_with("</svg>"));
+    // recording, old model (its Monte-Carlo band) and updated model on each panel
+    for legend in ["recording", "model (95 % MC band)", "updated model"] {
+        assert!(svg.matches(legend).count() >= 3, "legend {legend:?}");
+    }
+    assert!(svg.contains("opacity=\"0.15\""), "no shaded region");
     let new = std::fs::read_to_string(p.join("new.toml")).unwrap();
     let m = sagnac::model::GyroModel::from_toml_str(&new, "new.toml").unwrap();
     assert_eq!(m.noise.gauss_markov.len(), 1);
