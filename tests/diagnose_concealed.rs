@@ -167,6 +167,16 @@ fn cases() -> Vec<Case> {
             expect: Expect::Added("thermal", &[("bias_sensitivity_dph_per_c", 0.005)]),
         },
         Case {
+            name: "rate_ramp",
+            what: "rate ramp 0.02 deg/h/h",
+            fs: 200.0,
+            dur_s: 3600.0,
+            seed: 808,
+            model: gyro(200.0, 12.3, 0.35, 0.001, ""),
+            truth: gyro(200.0, 12.3, 0.35, 0.001, "rate_ramp_dphh = 0.02\n"),
+            expect: Expect::Added("rate_ramp_dphh", &[("rate_ramp_dphh", 0.02)]),
+        },
+        Case {
             name: "null_paper",
             what: "matched: paper gyro",
             fs: 1000.0,
@@ -353,11 +363,12 @@ fn check(name: &str) {
     let r = &o.diag.report;
     let (named, fit, ok) = judge(&case, &o);
     eprintln!(
-        "{name}: raw-AV max|z| {:.2} (threshold {:.2}); detection max|z| {:.2} (threshold {:.2}); {named}; {fit}; chi2/dof {:.2} -> {:.2}",
+        "{name}: raw-AV max|z| {:.2} (threshold {:.2}); detection max|z| {:.2} (threshold {:.2}), ramp z {:.2}; {named}; {fit}; chi2/dof {:.2} -> {:.2}",
         o.diag.raw_allan_max_z,
         o.raw_threshold,
         o.diag.max_abs_z,
         o.diag.z_crit,
+        o.diag.ramp_z,
         r.fit_before.chi2_per_dof,
         r.fit_after.chi2_per_dof
     );
@@ -375,9 +386,14 @@ fn check(name: &str) {
         o.raw_threshold
     );
     if !matches!(case.expect, Expect::Consistent) {
-        // the fit improves, and the updated model fits about as well as a matched one
+        // a thermal sensitivity (the rate regressed on the recorded temperature)
+        // and a rate ramp (the rate's slope) are found by tests without a tau
+        // range, and the chi2 points (wavelets, MDEV, spectrum) barely see them
+        let slope_found = matches!(case.expect, Expect::Added("thermal" | "rate_ramp_dphh", _));
+        // the fit improves (broadband effects), and the updated model fits
+        // about as well as a matched one (all)
         assert!(
-            r.fit_after.chi2_per_dof < r.fit_before.chi2_per_dof,
+            slope_found || r.fit_after.chi2_per_dof < r.fit_before.chi2_per_dof,
             "{name}: chi2/dof {} -> {}",
             r.fit_before.chi2_per_dof,
             r.fit_after.chi2_per_dof
@@ -387,9 +403,8 @@ fn check(name: &str) {
             "{name}: chi2/dof after {}",
             r.fit_after.chi2_per_dof
         );
-        // a thermal sensitivity is found by regressing the rate on the recorded
-        // temperature, a test without a tau range; every other effect is located
-        if !matches!(case.expect, Expect::Added("thermal", _)) {
+        // every broadband or line effect is located in tau
+        if !slope_found {
             assert!(!r.mismatch_regions.is_empty(), "{name}: no region located");
         }
         let m = o.diag.updated_model.as_ref().expect("an updated model");
@@ -432,6 +447,11 @@ fn random_telegraph_is_told_from_its_gauss_markov_twin() {
 #[test]
 fn thermal_sensitivity_is_found_from_the_temperature_channel() {
     check("thermal");
+}
+
+#[test]
+fn rate_ramp_is_found_by_the_slope_test() {
+    check("rate_ramp");
 }
 
 #[test]
