@@ -6,6 +6,7 @@ use clap::{Parser, Subcommand};
 
 pub mod allan;
 pub mod analyze;
+pub mod diagnose;
 pub mod run;
 pub mod simulate;
 
@@ -27,6 +28,8 @@ pub enum Command {
     Run(run::RunArgs),
     /// Simulate a gyro from a model file and write its pulse stream.
     Simulate(simulate::SimulateArgs),
+    /// Compare a recording with its gyro model: locate the mismatch, name and fit the missing physics.
+    Diagnose(diagnose::DiagnoseArgs),
 }
 
 /// Parse the command line, run, print the error chain and exit 2 on failure.
@@ -50,5 +53,6 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Analyze(args) => analyze::run(args),
         Command::Run(args) => run::run(args),
         Command::Simulate(args) => simulate::run(args),
+        Command::Diagnose(args) => diagnose::run(args),
     }
 }

@@ -23,6 +23,7 @@
 
 pub mod baseline;
 pub mod config;
+pub mod diagnose;
 pub mod estimate;
 pub mod fit;
 pub mod sim;

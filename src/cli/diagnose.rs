@@ -1,0 +1,261 @@
+//! `sagnac diagnose`: compare a recording with its gyro model, locate the
+//! mismatch, name and fit the missing physics, and show the fit improve
+//! (see [`crate::model::diagnose`] for the method).
+//!
+//! Inputs: the model TOML and a recording as CSV (`counts` column of pulse
+//! increments, optional `temp_c`), a raw frame capture (`frames`) or an MCAP
+//! recording (`mcap`, topic `/gyro/raw`). The sample rate and pulse weight come
+//! from the model's `[gyro]`, except that an MCAP recording's sample period
+//! (`dt_ns`) overrides the rate. Outputs: the JSON verdict (`--json`), an SVG
+//! report (`--report`) and the updated model (`--write-model`).
+
+use std::fs::File;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, bail};
+use clap::{Args, ValueEnum};
+
+use crate::model::GyroModel;
+use crate::model::diagnose::{self, DiagnoseOptions, Recording};
+use crate::sink::messages::SinkMessage;
+use crate::source::capture::CaptureReader;
+use crate::source::frame::{GapFiller, spread_increment};
+use crate::source::input::{InputError, InputFormat, SampleReader};
+
+/// Recording format.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum RecordingFormat {
+    /// CSV with a `counts` column (pulse increments) and optionally `temp_c`.
+    Csv,
+    /// Raw binary gyro frame capture (.bin).
+    Frames,
+    /// MCAP recording made by `sagnac run` (topic /gyro/raw).
+    Mcap,
+}
+
+/// Diagnose a recording against a gyro model.
+#[derive(Debug, Args)]
+pub struct DiagnoseArgs {
+    /// Gyro model (TOML).
+    #[arg(long)]
+    pub model: PathBuf,
+    /// The recording.
+    #[arg(long)]
+    pub recording: PathBuf,
+    /// Recording format.
+    #[arg(long, value_enum, default_value_t = RecordingFormat::Csv)]
+    pub format: RecordingFormat,
+    /// Where to write the JSON verdict ("-" = stdout).
+    #[arg(long)]
+    pub json: PathBuf,
+    /// Write an SVG report (recording, old and new model, mismatch shaded).
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Write the updated model TOML (only when the diagnosis changed the model).
+    #[arg(long)]
+    pub write_model: Option<PathBuf>,
+    /// Monte-Carlo runs of the model (confidence bands).
+    #[arg(long, default_value_t = DiagnoseOptions::default().runs)]
+    pub runs: usize,
+    /// Monte-Carlo runs of the updated model.
+    #[arg(long, default_value_t = DiagnoseOptions::default().runs_after)]
+    pub runs_after: usize,
+    /// Base seed of the Monte-Carlo runs.
+    #[arg(long, default_value_t = DiagnoseOptions::default().seed)]
+    pub seed: u64,
+}
+
+/// Run `sagnac diagnose`.
+pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
+    let model = GyroModel::load(&args.model).context("loading the gyro model")?;
+    let rec = match args.format {
+        RecordingFormat::Csv => read_csv(&args.recording, &model)?,
+        RecordingFormat::Frames => read_frames(&args.recording, &model)?,
+        RecordingFormat::Mcap => read_mcap(&args.recording, &model)?,
+    };
+    let opts = DiagnoseOptions {
+        runs: args.runs,
+        runs_after: args.runs_after,
+        seed: args.seed,
+        ..DiagnoseOptions::default()
+    };
+    let diag = diagnose::diagnose(&model, &rec, &opts).with_context(|| {
+        format!(
+            "diagnosing {} against {}",
+            args.recording.display(),
+            args.model.display()
+        )
+    })?;
+    let json = serde_json::to_string_pretty(&diag.report).context("serialising the verdict")?;
+    if args.json.as_os_str() == "-" {
+        println!("{json}");
+    } else {
+        std::fs::write(&args.json, json + "\n")
+            .with_context(|| format!("writing {}", args.json.display()))?;
+        let r = &diag.report;
+        println!(
+            "verdict: {:?}; chi2/dof {:.2} -> {:.2}",
+            r.verdict, r.fit_before.chi2_per_dof, r.fit_after.chi2_per_dof
+        );
+        for n in &diag.notes {
+            println!("  {n}");
+        }
+    }
+    if let Some(path) = &args.report {
+        let title = format!(
+            "sagnac diagnose: {} vs {}",
+            args.recording
+                .file_name()
+                .map_or("".into(), |f| f.to_string_lossy().into_owned()),
+            args.model
+                .file_name()
+                .map_or("".into(), |f| f.to_string_lossy().into_owned())
+        );
+        let svg = diagnose::svg::render(&diag, &title).context("drawing the report")?;
+        std::fs::write(path, svg).with_context(|| format!("writing {}", path.display()))?;
+    }
+    if let Some(path) = &args.write_model {
+        match &diag.updated_model {
+            Some(m) => {
+                let text = m.to_toml().context("serialising the updated model")?;
+                let mut f =
+                    File::create(path).with_context(|| format!("creating {}", path.display()))?;
+                writeln!(
+                    f,
+                    "# Updated by `sagnac diagnose` from {} against {}",
+                    args.model.display(),
+                    args.recording.display()
+                )
+                .and_then(|_| f.write_all(text.as_bytes()))
+                .with_context(|| format!("writing {}", path.display()))?;
+            }
+            None => println!(
+                "  (no model written to {}: the diagnosis made no change)",
+                path.display()
+            ),
+        }
+    }
+    Ok(())
+}
+
+fn recording(
+    model: &GyroModel,
+    counts: Vec<i64>,
+    temp_c: Option<Vec<f64>>,
+    rate: Option<f64>,
+) -> Recording {
+    Recording {
+        counts,
+        temp_c,
+        sample_rate_hz: rate.unwrap_or(model.gyro.sample_rate_hz),
+        pulse_arcsec: model.gyro.pulse_weight_arcsec,
+    }
+}
+
+/// A temperature channel carrying no information (constant) is dropped.
+fn informative(t: Vec<f64>) -> Option<Vec<f64>> {
+    let first = *t.first()?;
+    t.iter().any(|v| *v != first).then_some(t)
+}
+
+fn read_csv(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
+    let counts: Vec<i64> = SampleReader::open(path, InputFormat::Csv, Some("counts"))
+        .and_then(|r| r.require_integers(true).read_to_end())
+        .with_context(|| format!("reading the counts column of {}", path.display()))?
+        .into_iter()
+        .map(|v| v as i64)
+        .collect();
+    let temp = match SampleReader::open(path, InputFormat::Csv, Some("temp_c")) {
+        Ok(mut r) => Some(
+            r.read_to_end()
+                .with_context(|| format!("reading the temp_c column of {}", path.display()))?,
+        ),
+        Err(InputError::MissingColumn { .. }) => None,
+        Err(e) => return Err(e).with_context(|| format!("reading {}", path.display())),
+    };
+    if let Some(t) = &temp
+        && t.len() != counts.len()
+    {
+        bail!(
+            "{}: temp_c has {} values, counts {}",
+            path.display(),
+            t.len(),
+            counts.len()
+        );
+    }
+    Ok(recording(model, counts, temp.and_then(informative), None))
+}
+
+fn read_frames(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
+    let summary = CaptureReader::open(path)
+        .and_then(|r| r.read_all())
+        .with_context(|| format!("decoding the frame capture {}", path.display()))?;
+    let mut temps = Vec::with_capacity(summary.samples.len());
+    for s in &summary.samples {
+        for _ in 0..=s.lost_before {
+            temps.push(s.temp_c);
+        }
+    }
+    let counts: Vec<i64> = GapFiller::new(summary.samples.into_iter())
+        .map(|u| u.increment)
+        .collect();
+    temps.truncate(counts.len());
+    Ok(recording(model, counts, informative(temps), None))
+}
+
+fn read_mcap(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
+    let rec = crate::sink::reader::read_recording(path)
+        .with_context(|| format!("reading the MCAP recording {}", path.display()))?;
+    let mut counts = Vec::new();
+    let mut temps: Vec<f64> = Vec::new();
+    let mut any_temp = false;
+    let mut dt_ns: Option<u64> = None;
+    for m in rec.messages {
+        let SinkMessage::Raw(b) = m.message else {
+            continue;
+        };
+        if b.counts.is_empty() {
+            continue;
+        }
+        match dt_ns {
+            None => dt_ns = Some(b.dt_ns),
+            Some(d) if d != b.dt_ns => bail!(
+                "{}: /gyro/raw sample period changes from {d} ns to {} ns (at t = {} ns)",
+                path.display(),
+                b.dt_ns,
+                b.t0_ns
+            ),
+            _ => {}
+        }
+        any_temp |= b.temp_c.is_some();
+        let t = b.temp_c.unwrap_or(f64::NAN);
+        let mut gaps = b.gaps.iter().peekable();
+        for (i, &c) in b.counts.iter().enumerate() {
+            // a sample after `lost` missing ones carries the whole difference
+            // (as the frame decoder delivers it): spread it uniformly
+            match gaps.peek() {
+                Some(g) if g.index as usize == i => {
+                    let n = u32::try_from(g.lost + 1).unwrap_or(u32::MAX);
+                    counts.extend(spread_increment(c, n));
+                    temps.extend(std::iter::repeat_n(t, n as usize));
+                    gaps.next();
+                }
+                _ => {
+                    counts.push(c);
+                    temps.push(t);
+                }
+            }
+        }
+    }
+    if counts.is_empty() {
+        bail!("{}: no /gyro/raw samples in the recording", path.display());
+    }
+    let rate = dt_ns.filter(|d| *d > 0).map(|d| 1e9 / d as f64);
+    let temp = if any_temp && temps.iter().all(|t| t.is_finite()) {
+        informative(temps)
+    } else {
+        None
+    };
+    Ok(recording(model, counts, temp, rate))
+}

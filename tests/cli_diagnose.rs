@@ -1,0 +1,223 @@
+//! `sagnac diagnose` end to end: the binary on recordings made by
+//! `sagnac simulate` (CSV, MCAP, frame capture), the JSON contract of issue 6
+//! (keys, types, term names that are model-file keys), the SVG report and the
+//! updated model file; and clear errors (exit code 2) on bad inputs.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_sagnac"))
+}
+
+const MODEL: &str = "[gyro]\nsample_rate_hz = 500.0\npulse_weight_arcsec = 1.21\ninput_rate_dph = 12.3\n\
+[noise]\nquantization_arcsec = 0.35\narw_dpsh = 0.001\n";
+
+/// The model plus a short-correlation Gauss-Markov term the model lacks.
+const TRUTH: &str = "[gyro]\nsample_rate_hz = 500.0\npulse_weight_arcsec = 1.21\ninput_rate_dph = 12.3\n\
+[noise]\nquantization_arcsec = 0.35\narw_dpsh = 0.001\n\
+[[noise.gauss_markov]]\nsigma_dph = 0.06\ntau_c_s = 0.5\n";
+
+fn ok(o: &Output) {
+    assert!(
+        o.status.success(),
+        "status {:?}\nstdout: {}\nstderr: {}",
+        o.status,
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
+fn simulate(model: &Path, out: &Path, format: &str, dur: &str, seed: &str) {
+    ok(&bin()
+        .args(["simulate", "--model"])
+        .arg(model)
+        .args([
+            "--duration-s",
+            dur,
+            "--seed",
+            seed,
+            "--format",
+            format,
+            "--out",
+        ])
+        .arg(out)
+        .output()
+        .unwrap());
+}
+
+fn num(v: &Value) -> f64 {
+    v.as_f64().unwrap_or_else(|| panic!("{v} is not a number"))
+}
+
+/// Every key and type of the contract.
+fn check_contract(j: &Value) {
+    let obj = j.as_object().expect("top-level object");
+    for k in [
+        "verdict",
+        "mismatch_regions",
+        "parameter_changes",
+        "added_terms",
+        "fit_before",
+        "fit_after",
+    ] {
+        assert!(obj.contains_key(k), "missing key {k}");
+    }
+    let v = j["verdict"].as_str().unwrap();
+    assert!(v == "consistent" || v == "mismatch", "verdict {v}");
+    for r in j["mismatch_regions"].as_array().unwrap() {
+        let (a, b) = (num(&r["tau_min_s"]), num(&r["tau_max_s"]));
+        assert!(0.0 < a && a <= b, "region {r}");
+        assert!(num(&r["max_z"]).abs() > 0.0);
+    }
+    for c in j["parameter_changes"].as_array().unwrap() {
+        assert!(c["term"].is_string());
+        num(&c["model"]);
+        num(&c["fitted"]);
+        let ci = c["ci95"].as_array().unwrap();
+        assert_eq!(ci.len(), 2);
+        assert!(num(&ci[0]) <= num(&ci[1]));
+    }
+    for a in j["added_terms"].as_array().unwrap() {
+        let t = a["term"].as_str().unwrap();
+        assert!(
+            [
+                "gauss_markov",
+                "sinusoid",
+                "random_telegraph",
+                "rrw_dphsh",
+                "rate_ramp_dphh",
+                "bias_instability_dph",
+                "thermal"
+            ]
+            .iter()
+            .any(|k| t.starts_with(k)),
+            "term {t} is not a model-file key"
+        );
+        assert!(a["params"].as_object().is_some_and(|p| !p.is_empty()));
+        assert!(a["explanation"].as_str().is_some_and(|e| !e.is_empty()));
+    }
+    assert!(num(&j["fit_before"]["chi2_per_dof"]) > 0.0);
+    assert!(num(&j["fit_after"]["chi2_per_dof"]) > 0.0);
+}
+
+#[test]
+fn csv_recording_with_a_hidden_gauss_markov_gives_the_contract_json_svg_and_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path();
+    std::fs::write(p.join("model.toml"), MODEL).unwrap();
+    std::fs::write(p.join("truth.toml"), TRUTH).unwrap();
+    simulate(&p.join("truth.toml"), &p.join("rec.csv"), "csv", "600", "5");
+    let out = bin()
+        .args(["diagnose", "--model"])
+        .arg(p.join("model.toml"))
+        .arg("--recording")
+        .arg(p.join("rec.csv"))
+        .args(["--format", "csv", "--json"])
+        .arg(p.join("out.json"))
+        .arg("--report")
+        .arg(p.join("out.svg"))
+        .arg("--write-model")
+        .arg(p.join("new.toml"))
+        .output()
+        .unwrap();
+    ok(&out);
+    let j: Value =
+        serde_json::from_str(&std::fs::read_to_string(p.join("out.json")).unwrap()).unwrap();
+    check_contract(&j);
+    assert_eq!(j["verdict"], "mismatch", "{j:#}");
+    let gm = j["added_terms"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|a| a["term"] == "gauss_markov")
+        .unwrap_or_else(|| panic!("no gauss_markov added: {j:#}"));
+    // truth sigma 0.06 deg/h, tau_c 0.5 s: within a factor 1.5 (a 10-minute record)
+    let s = num(&gm["params"]["sigma_dph"]);
+    let tc = num(&gm["params"]["tau_c_s"]);
+    assert!((0.04..0.09).contains(&s), "sigma_dph {s}");
+    assert!((0.33..0.75).contains(&tc), "tau_c_s {tc}");
+    assert!(!j["mismatch_regions"].as_array().unwrap().is_empty());
+    assert!(num(&j["fit_after"]["chi2_per_dof"]) < num(&j["fit_before"]["chi2_per_dof"]));
+    // the SVG report and the updated model, which parses and holds the new term
+    let svg = std::fs::read_to_string(p.join("out.svg")).unwrap();
+    assert!(
+        svg.starts_with("<svg") || svg.starts_with("<?xml"),
+        "not an SVG"
+    );
+    assert!(svg.trim_end().ends_with("</svg>"));
+    // recording, old model (its Monte-Carlo band) and updated model on each panel
+    for legend in ["recording", "model (95 % MC band)", "updated model"] {
+        assert!(svg.matches(legend).count() >= 3, "legend {legend:?}");
+    }
+    assert!(svg.contains("opacity=\"0.15\""), "no shaded region");
+    let new = std::fs::read_to_string(p.join("new.toml")).unwrap();
+    let m = sagnac::model::GyroModel::from_toml_str(&new, "new.toml").unwrap();
+    assert_eq!(m.noise.gauss_markov.len(), 1);
+}
+
+#[test]
+fn matched_mcap_and_frame_recordings_are_consistent_and_json_goes_to_stdout() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path();
+    std::fs::write(p.join("model.toml"), MODEL).unwrap();
+    for (format, file) in [("mcap", "rec.mcap"), ("frames", "rec.bin")] {
+        simulate(&p.join("model.toml"), &p.join(file), format, "120", "8");
+        let out = bin()
+            .args(["diagnose", "--model"])
+            .arg(p.join("model.toml"))
+            .arg("--recording")
+            .arg(p.join(file))
+            .args(["--format", format, "--json", "-"])
+            .output()
+            .unwrap();
+        ok(&out);
+        let j: Value = serde_json::from_slice(&out.stdout).unwrap();
+        check_contract(&j);
+        assert_eq!(j["verdict"], "consistent", "{format}: {j:#}");
+        assert!(j["added_terms"].as_array().unwrap().is_empty());
+        assert!(j["parameter_changes"].as_array().unwrap().is_empty());
+    }
+}
+
+fn fails_with(args: &[&std::ffi::OsStr], needle: &str) {
+    let o = bin().arg("diagnose").args(args).output().unwrap();
+    assert_eq!(o.status.code(), Some(2), "{o:?}");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains(needle), "stderr lacks {needle:?}: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn bad_inputs_give_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path();
+    std::fs::write(p.join("model.toml"), MODEL).unwrap();
+    std::fs::write(p.join("short.csv"), "counts\n1\n0\n1\n").unwrap();
+    std::fs::write(p.join("bad.csv"), "counts\n1\nx\n").unwrap();
+    std::fs::write(p.join("bad.toml"), "[gyro]\nsample_rate_hz = -1\n").unwrap();
+    let m = p.join("model.toml");
+    let j = p.join("o.json");
+    let a = |v: &[&Path]| -> Vec<std::ffi::OsString> {
+        vec![
+            "--model".into(),
+            v[0].into(),
+            "--recording".into(),
+            v[1].into(),
+            "--json".into(),
+            v[2].into(),
+        ]
+    };
+    let run = |v: &[&Path], needle: &str| {
+        let args = a(v);
+        let refs: Vec<&std::ffi::OsStr> = args.iter().map(|s| s.as_os_str()).collect();
+        fails_with(&refs, needle);
+    };
+    run(&[&m, &p.join("missing.csv"), &j], "missing.csv");
+    run(&[&m, &p.join("short.csv"), &j], "at least 4096");
+    run(&[&m, &p.join("bad.csv"), &j], "bad.csv");
+    run(&[&p.join("bad.toml"), &p.join("short.csv"), &j], "model");
+    assert!(!j.exists());
+}

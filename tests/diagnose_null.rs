@@ -1,0 +1,143 @@
+//! Issue 6, null honesty: on recordings simulated from the model itself the
+//! diagnosis must say "consistent" (nothing added, nothing changed) in all but
+//! a few cases. Measured over 40 seeds spread over eight matched models that
+//! differ in sample rate (100 Hz .. 1 kHz), duration (60 .. 300 s), quantization,
+//! and catalog content (plain paper gyro, bias instability, Gauss-Markov,
+//! sinusoid, random walk, telegraph): the false-alarm rate must stay below 5 %
+//! (at most one alarm in 40). The design alpha is about 2 % (1 % broadband,
+//! 0.1 % lines, 2 x 0.25 % slopes, the kurtosis test).
+
+use std::time::Instant;
+
+use sagnac::model::diagnose::{self, DiagnoseOptions, Recording, Verdict};
+use sagnac::model::{GyroModel, Simulator};
+
+fn model(fs: f64, input_dph: f64, q: f64, n: f64, extra: &str) -> GyroModel {
+    let text = format!(
+        "[gyro]\nsample_rate_hz = {fs}\npulse_weight_arcsec = 1.21\ninput_rate_dph = {input_dph}\n\
+         [noise]\nquantization_arcsec = {q}\narw_dpsh = {n}\n{extra}"
+    );
+    GyroModel::from_toml_str(&text, "null").unwrap()
+}
+
+/// (model, duration s), one per family of seeds.
+fn matched() -> Vec<(GyroModel, f64)> {
+    vec![
+        (model(1000.0, 12.3, 0.35, 0.001, ""), 60.0),
+        (
+            model(500.0, 12.3, 0.35, 0.001, "bias_instability_dph = 0.002\n"),
+            120.0,
+        ),
+        (
+            model(
+                200.0,
+                -4.0,
+                0.5,
+                0.0015,
+                "[[noise.gauss_markov]]\nsigma_dph = 0.05\ntau_c_s = 5.0\n",
+            ),
+            300.0,
+        ),
+        (
+            model(
+                250.0,
+                12.3,
+                0.35,
+                0.001,
+                "[[noise.sinusoid]]\namplitude_dph = 0.03\nperiod_s = 2.0\n",
+            ),
+            200.0,
+        ),
+        (model(100.0, 30.0, 0.7, 0.002, "rrw_dphsh = 0.01\n"), 300.0),
+        (
+            model(
+                200.0,
+                12.3,
+                0.7,
+                0.001,
+                "[[noise.random_telegraph]]\namplitude_dph = 0.05\nmean_dwell_s = 5.0\n",
+            ),
+            300.0,
+        ),
+        (model(2000.0, 15.0, 0.6, 0.00125, ""), 30.0),
+        (
+            model(
+                400.0,
+                12.3,
+                0.35,
+                0.001,
+                "bias_instability_dph = 0.003\n[[noise.gauss_markov]]\nsigma_dph = 0.02\ntau_c_s = 0.3\n",
+            ),
+            150.0,
+        ),
+    ]
+}
+
+fn simulate(m: &GyroModel, seed: u64, dur_s: f64) -> Recording {
+    let mut sim = Simulator::new(m, seed, Some(dur_s)).unwrap();
+    let mut counts = Vec::new();
+    sim.next_block(usize::MAX >> 1, &mut counts);
+    Recording {
+        counts,
+        temp_c: None,
+        sample_rate_hz: m.gyro.sample_rate_hz,
+        pulse_arcsec: m.gyro.pulse_weight_arcsec,
+    }
+}
+
+#[test]
+fn false_alarm_rate_on_matched_simulations_is_below_5_percent_over_40_seeds() {
+    let models = matched();
+    let seeds = 40u64;
+    let mut alarms = Vec::new();
+    let mut max_z: Vec<f64> = Vec::new();
+    let t = Instant::now();
+    for s in 0..seeds {
+        let (m, dur) = &models[(s as usize) % models.len()];
+        let rec = simulate(m, 9000 + s, *dur);
+        let opts = DiagnoseOptions {
+            // the reference runs use other seeds than the recording
+            seed: 77_000 + 31 * s,
+            ..DiagnoseOptions::default()
+        };
+        let d = diagnose::diagnose(m, &rec, &opts).unwrap();
+        let r = &d.report;
+        let alarm = r.verdict == Verdict::Mismatch
+            || !r.added_terms.is_empty()
+            || !r.parameter_changes.is_empty();
+        max_z.push(d.max_abs_z / d.z_crit);
+        if alarm {
+            eprintln!(
+                "seed {s} (model {}): alarm, max|z| {:.2} / crit {:.2}, lines {}, ramp z {:.2}, added {:?}, changes {:?}",
+                s as usize % models.len(),
+                d.max_abs_z,
+                d.z_crit,
+                d.lines.len(),
+                d.ramp_z,
+                r.added_terms.iter().map(|a| &a.term).collect::<Vec<_>>(),
+                r.parameter_changes
+                    .iter()
+                    .map(|c| &c.term)
+                    .collect::<Vec<_>>()
+            );
+            alarms.push(s);
+        }
+    }
+    let rate = alarms.len() as f64 / seeds as f64;
+    max_z.sort_by(f64::total_cmp);
+    eprintln!(
+        "false alarms: {}/{seeds} = {:.1} % (seeds {alarms:?}); median max|z|/crit {:.2}; {:.1} s",
+        alarms.len(),
+        100.0 * rate,
+        max_z[max_z.len() / 2],
+        t.elapsed().as_secs_f64()
+    );
+    assert!(
+        rate < 0.05,
+        "false-alarm rate {rate} on matched recordings (alarms at seeds {alarms:?})"
+    );
+    // the broadband statistic is not degenerate: under the null its maximum
+    // sits well inside the threshold but is not zero
+    let med = max_z[max_z.len() / 2];
+    assert!((0.2..1.0).contains(&med), "median max|z| / threshold {med}");
+}
