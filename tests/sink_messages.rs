@@ -259,6 +259,76 @@ fn json_round_trip_is_exact() {
 }
 
 #[test]
+fn recorder_json_is_byte_identical_to_serde_json() {
+    // The recorder's direct formatting of the sample batches (write_json) against
+    // serde_json (to_json) on every message kind, awkward floats, negative and
+    // extreme counts, gaps, absent temperature, empty batches; exact bytes.
+    let mut rng = ChaCha8Rng::seed_from_u64(17);
+    let mut msgs = sink_common::stream(21, 3000);
+    let mut values: Vec<f64> = (0..5_000)
+        .map(|_| sink_common::awkward_f64(&mut rng))
+        .collect();
+    values.extend([
+        f64::MIN_POSITIVE,
+        5e-324,
+        f64::MAX,
+        -0.0,
+        0.0,
+        1.0,
+        -3.0,
+        1e21,
+        1e-7,
+    ]);
+    msgs.push(SinkMessage::Noise(RateBatch {
+        t0_ns: u64::MAX,
+        dt_ns: 1,
+        values,
+    }));
+    msgs.push(SinkMessage::Clean(RateBatch {
+        t0_ns: 0,
+        dt_ns: 0,
+        values: vec![],
+    }));
+    msgs.push(SinkMessage::Raw(RawBatch {
+        t0_ns: 1,
+        dt_ns: 1_000_000,
+        seq0: u64::MAX,
+        counts: vec![i64::MIN, -1, 0, 1, i64::MAX],
+        gaps: vec![
+            Gap { index: 0, lost: 1 },
+            Gap {
+                index: 5,
+                lost: u64::MAX,
+            },
+        ],
+        temp_c: None,
+        status: u32::MAX,
+    }));
+    msgs.push(SinkMessage::Raw(RawBatch {
+        t0_ns: 0,
+        dt_ns: 0,
+        seq0: 0,
+        counts: vec![],
+        gaps: vec![],
+        temp_c: Some(-0.0),
+        status: 0,
+    }));
+    let mut buf = b"stale".to_vec();
+    let mut kinds = std::collections::BTreeSet::new();
+    for m in &msgs {
+        m.write_json(&mut buf).unwrap();
+        assert_eq!(
+            String::from_utf8_lossy(&buf),
+            String::from_utf8_lossy(&m.to_json().unwrap()),
+            "{:?}",
+            m.topic()
+        );
+        kinds.insert(m.topic());
+    }
+    assert_eq!(kinds.len(), Topic::ALL.len());
+}
+
+#[test]
 fn event_json_shape() {
     let e = SinkMessage::Event(Event {
         t_ns: 5,

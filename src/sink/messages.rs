@@ -336,6 +336,23 @@ impl SinkMessage {
         }
     }
 
+    /// JSON payload written into `out` (cleared first): byte for byte what
+    /// [`SinkMessage::to_json`] gives. The sample batches (`/gyro/raw`,
+    /// `/gyro/clean`, `/gyro/noise`: nearly all the bytes of a recording) are
+    /// formatted directly, with the integer and shortest round-trip float
+    /// formatters serde_json itself uses, into the recorder's reused buffer.
+    pub fn write_json(&self, out: &mut Vec<u8>) -> Result<(), serde_json::Error> {
+        out.clear();
+        match self {
+            SinkMessage::Raw(m) => write_raw_batch(m, out),
+            SinkMessage::Clean(m) | SinkMessage::Noise(m) => write_rate_batch(m, out),
+            SinkMessage::Estimates(m) => serde_json::to_writer(&mut *out, m)?,
+            SinkMessage::Allan(m) => serde_json::to_writer(&mut *out, m)?,
+            SinkMessage::Event(m) => serde_json::to_writer(&mut *out, m)?,
+        }
+        Ok(())
+    }
+
     /// Decode a JSON payload of `topic`, and validate it.
     pub fn from_json(topic: Topic, payload: &[u8]) -> Result<SinkMessage, MessageError> {
         let decode_err = |e: serde_json::Error| MessageError::Decode {
@@ -445,6 +462,79 @@ impl SinkMessage {
             SinkMessage::Event(_) => Ok(()),
         }
     }
+}
+
+// ---- direct JSON formatting of the sample batches (serde_json's output, faster) ----
+
+fn put_u64(out: &mut Vec<u8>, v: u64) {
+    out.extend_from_slice(itoa::Buffer::new().format(v).as_bytes());
+}
+
+fn put_f64(out: &mut Vec<u8>, v: f64) {
+    // serde_json writes a non-finite float as null
+    if v.is_finite() {
+        out.extend_from_slice(zmij::Buffer::new().format_finite(v).as_bytes());
+    } else {
+        out.extend_from_slice(b"null");
+    }
+}
+
+fn write_raw_batch(m: &RawBatch, out: &mut Vec<u8>) {
+    out.reserve(96 + 3 * m.counts.len() + 32 * m.gaps.len());
+    out.extend_from_slice(b"{\"t0_ns\":");
+    put_u64(out, m.t0_ns);
+    out.extend_from_slice(b",\"dt_ns\":");
+    put_u64(out, m.dt_ns);
+    out.extend_from_slice(b",\"seq0\":");
+    put_u64(out, m.seq0);
+    out.extend_from_slice(b",\"counts\":[");
+    let mut buf = itoa::Buffer::new();
+    for (i, &c) in m.counts.iter().enumerate() {
+        if i > 0 {
+            out.push(b',');
+        }
+        out.extend_from_slice(buf.format(c).as_bytes());
+    }
+    out.extend_from_slice(b"],\"gaps\":[");
+    for (i, g) in m.gaps.iter().enumerate() {
+        if i > 0 {
+            out.push(b',');
+        }
+        out.extend_from_slice(b"{\"index\":");
+        put_u64(out, g.index);
+        out.extend_from_slice(b",\"lost\":");
+        put_u64(out, g.lost);
+        out.push(b'}');
+    }
+    out.extend_from_slice(b"],\"temp_c\":");
+    match m.temp_c {
+        Some(t) => put_f64(out, t),
+        None => out.extend_from_slice(b"null"),
+    }
+    out.extend_from_slice(b",\"status\":");
+    put_u64(out, u64::from(m.status));
+    out.push(b'}');
+}
+
+fn write_rate_batch(m: &RateBatch, out: &mut Vec<u8>) {
+    out.reserve(64 + 24 * m.values.len());
+    out.extend_from_slice(b"{\"t0_ns\":");
+    put_u64(out, m.t0_ns);
+    out.extend_from_slice(b",\"dt_ns\":");
+    put_u64(out, m.dt_ns);
+    out.extend_from_slice(b",\"values\":[");
+    let mut buf = zmij::Buffer::new();
+    for (i, &v) in m.values.iter().enumerate() {
+        if i > 0 {
+            out.push(b',');
+        }
+        if v.is_finite() {
+            out.extend_from_slice(buf.format_finite(v).as_bytes());
+        } else {
+            out.extend_from_slice(b"null");
+        }
+    }
+    out.extend_from_slice(b"]}");
 }
 
 fn finite(topic: &'static str, field: &str, value: f64) -> Result<(), MessageError> {
