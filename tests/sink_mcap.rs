@@ -165,7 +165,8 @@ fn recording_reads_back_exactly() {
     assert_eq!(read.file_len, file_len);
     assert_eq!(read.foreign_messages, 0);
     let got: Vec<SinkMessage> = read.messages.iter().map(|r| r.message.clone()).collect();
-    assert_eq!(got, sent);
+    // exact, with the rates on the recorder's 1e-6 deg/h grid
+    assert_eq!(got, sink_common::recorded(&sent));
     // Log and publish time are the sample time; sequences count per channel.
     let mut seq = std::collections::BTreeMap::new();
     for r in &read.messages {
@@ -215,7 +216,8 @@ fn flushed_recording(
         }
     }
     let path = rec.finish().unwrap().path;
-    (path, sent, marks)
+    // what the file holds: the messages with their rates on the 1e-6 deg/h grid
+    (path, sink_common::recorded(&sent), marks)
 }
 
 #[test]
@@ -311,7 +313,11 @@ fn damaged_bytes_never_panic() {
             .map(|m| m.1)
             .max()
             .unwrap_or(0);
-        assert!(got.len() >= before, "flip at {pos}: {} < {before} messages flushed before it", got.len());
+        assert!(
+            got.len() >= before,
+            "flip at {pos}: {} < {before} messages flushed before it",
+            got.len()
+        );
         if got.len() < sent.len() {
             damaged_chunks += 1;
         }
@@ -465,7 +471,7 @@ fn kill_9_loses_nothing_older_than_the_flush_interval() {
     let got: Vec<SinkMessage> = r.messages.into_iter().map(|m| m.message).collect();
     assert_eq!(
         got,
-        sink_common::stream(25, 90),
+        sink_common::recorded(&sink_common::stream(25, 90)),
         "all 90 messages survive kill -9"
     );
     // The strict reader calls it truncated.

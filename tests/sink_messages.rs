@@ -10,7 +10,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use sagnac::sink::messages::{
     AllanCurve, AllanUpdate, Event, EventKind, Gap, MessageError, RateBatch, RawBatch, SinkMessage,
-    Topic,
+    Topic, quantize_rate,
 };
 use serde_json::{Value, json};
 
@@ -232,30 +232,157 @@ fn validator_rejects_broken_messages() {
 
 #[test]
 fn json_round_trip_is_exact() {
-    // float_roundtrip: every f64 (random mantissas, exponents 1e-12..1e12) survives.
+    // float_roundtrip: every f64 (random mantissas, exponents 1e-12..1e12) survives,
+    // except the rate values, which come back on the 1e-6 deg/h grid.
     for m in sink_common::stream(12, 3000) {
         let back = SinkMessage::from_json(m.topic(), &m.to_json().unwrap()).expect("decode");
-        assert_eq!(back, m);
+        assert_eq!(back, m.recorded());
     }
     let mut rng = ChaCha8Rng::seed_from_u64(13);
     let mut values: Vec<f64> = (0..20_000)
         .map(|_| sink_common::awkward_f64(&mut rng))
         .collect();
     values.extend([f64::MIN_POSITIVE, 5e-324, f64::MAX, -0.0, 0.1 + 0.2, 1e-300]);
+    values.extend([2.25e9, -2.26e9, 1e10, 1e15, 0.5e-6, 1.5e-6, -2.5e-6]);
     let m = SinkMessage::Clean(RateBatch {
         t0_ns: u64::MAX,
         dt_ns: 1,
         values,
     });
-    let back = SinkMessage::from_json(Topic::Clean, &m.to_json().unwrap()).unwrap();
-    match (&back, &m) {
-        (SinkMessage::Clean(a), SinkMessage::Clean(b)) => {
-            for (x, y) in a.values.iter().zip(&b.values) {
-                assert_eq!(x.to_bits(), y.to_bits(), "{x} vs {y}");
+    for json in [m.to_json().unwrap(), {
+        let mut b = Vec::new();
+        m.write_json(&mut b).unwrap();
+        b
+    }] {
+        let back = SinkMessage::from_json(Topic::Clean, &json).unwrap();
+        match (&back, &m) {
+            (SinkMessage::Clean(a), SinkMessage::Clean(b)) => {
+                for (x, y) in a.values.iter().zip(&b.values) {
+                    assert_eq!(x.to_bits(), quantize_rate(*y).to_bits(), "{x} vs {y}");
+                    if y.abs() < 2.25e9 {
+                        // the documented resolution: within 0.5e-6 deg/h (plus the
+                        // rounding of y * 1e6 and of the decimal read back)
+                        assert!((x - y).abs() <= 0.5e-6 * (1.0 + 1e-9) + y.abs() * 1e-15);
+                        assert_eq!(quantize_rate(*x).to_bits(), x.to_bits(), "{x} on the grid");
+                    } else {
+                        assert_eq!(x.to_bits(), y.to_bits(), "{x} vs {y}: exact");
+                    }
+                }
             }
+            _ => unreachable!(),
         }
-        _ => unreachable!(),
     }
+}
+
+#[test]
+fn rates_are_written_with_six_decimals() {
+    let m = SinkMessage::Noise(RateBatch {
+        t0_ns: 5,
+        dt_ns: 1_000_000,
+        values: vec![
+            1.5,
+            -0.0,
+            0.0,
+            -0.4e-6,
+            -0.7e-6,
+            1234.5678904,
+            -1234.5678906,
+            1e-7,
+            7e12,
+            -1e300,
+            2_251_799_813.685_247,
+        ],
+    });
+    let mut b = Vec::new();
+    m.write_json(&mut b).unwrap();
+    assert_eq!(
+        String::from_utf8(b).unwrap(),
+        "{\"t0_ns\":5,\"dt_ns\":1000000,\"values\":[1.500000,0.000000,0.000000,0.000000,\
+         -0.000001,1234.567890,-1234.567891,0.000000,7000000000000.0,-1e+300,\
+         2251799813.685247]}"
+    );
+}
+
+#[test]
+fn recorder_json_equals_serde_json() {
+    // The recorder's direct formatting of the sample batches (write_json) against
+    // serde_json (to_json) on every message kind, awkward floats, negative and
+    // extreme counts, gaps, absent temperature, empty batches; exact bytes (for
+    // rate batches: equal JSON values, see rates_are_written_with_six_decimals).
+    let mut rng = ChaCha8Rng::seed_from_u64(17);
+    let mut msgs = sink_common::stream(21, 3000);
+    let mut values: Vec<f64> = (0..5_000)
+        .map(|_| sink_common::awkward_f64(&mut rng))
+        .collect();
+    values.extend([
+        f64::MIN_POSITIVE,
+        5e-324,
+        f64::MAX,
+        -0.0,
+        0.0,
+        1.0,
+        -3.0,
+        1e21,
+        1e-7,
+    ]);
+    msgs.push(SinkMessage::Noise(RateBatch {
+        t0_ns: u64::MAX,
+        dt_ns: 1,
+        values,
+    }));
+    msgs.push(SinkMessage::Clean(RateBatch {
+        t0_ns: 0,
+        dt_ns: 0,
+        values: vec![],
+    }));
+    msgs.push(SinkMessage::Raw(RawBatch {
+        t0_ns: 1,
+        dt_ns: 1_000_000,
+        seq0: u64::MAX,
+        counts: vec![i64::MIN, -1, 0, 1, i64::MAX],
+        gaps: vec![
+            Gap { index: 0, lost: 1 },
+            Gap {
+                index: 5,
+                lost: u64::MAX,
+            },
+        ],
+        temp_c: None,
+        status: u32::MAX,
+    }));
+    msgs.push(SinkMessage::Raw(RawBatch {
+        t0_ns: 0,
+        dt_ns: 0,
+        seq0: 0,
+        counts: vec![],
+        gaps: vec![],
+        temp_c: Some(-0.0),
+        status: 0,
+    }));
+    let mut buf = b"stale".to_vec();
+    let mut kinds = std::collections::BTreeSet::new();
+    for m in &msgs {
+        m.write_json(&mut buf).unwrap();
+        match m {
+            // rates: six fixed decimals where serde_json writes the shortest form
+            // of the same value on the 1e-6 deg/h grid: equal as JSON values
+            SinkMessage::Clean(_) | SinkMessage::Noise(_) => {
+                let a: Value = serde_json::from_slice(&buf).unwrap();
+                let b: Value = serde_json::from_slice(&m.to_json().unwrap()).unwrap();
+                assert_eq!(a, b, "{:?}", m.topic());
+                let back = SinkMessage::from_json(m.topic(), &buf).unwrap();
+                assert_eq!(back, m.recorded());
+            }
+            _ => assert_eq!(
+                String::from_utf8_lossy(&buf),
+                String::from_utf8_lossy(&m.to_json().unwrap()),
+                "{:?}",
+                m.topic()
+            ),
+        }
+        kinds.insert(m.topic());
+    }
+    assert_eq!(kinds.len(), Topic::ALL.len());
 }
 
 #[test]

@@ -51,6 +51,13 @@ pub const PAPER_GYRO_TOML: &str = include_str!("../../config/paper_gyro.toml");
 /// fast as the default 3 for files about 10 % larger (scripts/bench-pipeline).
 pub const ZSTD_LEVEL: u32 = 1;
 
+/// Uncompressed chunk size of the recording, bytes: 256 KiB costs about 4 % fewer
+/// instructions per sample than 1 MiB, 4 MiB or 16 MiB (callgrind, 200 s replay;
+/// 64 KiB and 128 KiB cost the same as 256 KiB) for the same file size (within
+/// 0.3 %), and keeps the compressor's working set small. At 1 kHz a chunk holds
+/// about 9 s of samples, so the 2 s flush interval closes chunks in live runs.
+pub const CHUNK_SIZE: u64 = 256 * 1024;
+
 /// Share of wall time estimator updates may take with a replay or the simulated
 /// bench (see [`crate::daemon::process`]).
 pub const UPDATE_BUDGET: f64 = 0.1;
@@ -313,6 +320,7 @@ impl Daemon {
                 record_dir: PathBuf::from(&config.record.dir),
                 flush_interval_s: config.record.flush_interval_s,
                 zstd_level: ZSTD_LEVEL,
+                chunk_size: CHUNK_SIZE,
                 ..RecorderConfig::default()
             };
             let r = tokio::task::spawn_blocking(move || Recorder::start(&rc))

@@ -392,6 +392,7 @@ impl Recorder {
             sequences: BTreeMap::new(),
             counts: Topic::ALL.iter().map(|t| (t.name(), 0)).collect(),
             flushes: 1,
+            payload: Vec::new(),
         };
         let thread = std::thread::Builder::new()
             .name("sagnac-mcap".into())
@@ -512,6 +513,8 @@ struct Worker {
     sequences: BTreeMap<Topic, u32>,
     counts: BTreeMap<&'static str, u64>,
     flushes: u64,
+    /// Reused JSON buffer of the message being written.
+    payload: Vec<u8>,
 }
 
 impl Worker {
@@ -576,11 +579,13 @@ impl Worker {
 
     fn write(&mut self, msg: &SinkMessage) -> Result<(), RecordError> {
         let topic = msg.topic();
-        let data = msg.to_json().map_err(|source| RecordError::Serialize {
-            path: self.path.to_path_buf(),
-            topic: topic.name(),
-            source,
-        })?;
+        let mut data = std::mem::take(&mut self.payload);
+        msg.write_json(&mut data)
+            .map_err(|source| RecordError::Serialize {
+                path: self.path.to_path_buf(),
+                topic: topic.name(),
+                source,
+            })?;
         let channel_id = self.channels[&topic];
         let sequence = self.sequences.entry(topic).or_insert(0);
         let header = ::mcap::records::MessageHeader {
@@ -590,9 +595,9 @@ impl Worker {
             publish_time: msg.time_ns(),
         };
         *sequence = sequence.wrapping_add(1);
-        self.writer
-            .write_to_known_channel(&header, &data)
-            .map_err(|e| self.mcap_err("writing a message", e))?;
+        let written = self.writer.write_to_known_channel(&header, &data);
+        self.payload = data; // the buffer is reused by the next message
+        written.map_err(|e| self.mcap_err("writing a message", e))?;
         *self.counts.entry(topic.name()).or_insert(0) += 1;
         Ok(())
     }

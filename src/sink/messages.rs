@@ -5,7 +5,8 @@
 //! hand-written JSON Schema (schema encoding `jsonschema`), so Foxglove and any
 //! other MCAP tool can open a recording without our code. The recorder
 //! ([`crate::sink::mcap`]) writes [`SinkMessage`]s; the reader
-//! ([`crate::sink::reader`]) gives them back, equal field for field.
+//! ([`crate::sink::reader`]) gives them back, equal field for field except for the
+//! fixed resolution of the rate values (see below).
 //!
 //! | topic | message | log time |
 //! |---|---|---|
@@ -17,9 +18,21 @@
 //! | `/gyro/events` | [`Event`]: gaps, resyncs, CRC errors, device changes, drops | `t_ns` |
 //!
 //! Times are nanoseconds; the daemon uses nanoseconds since the Unix epoch (host
-//! clock) so Foxglove shows wall time. JSON has no NaN or infinity: a message
-//! holding a non-finite number is refused by [`SinkMessage::validate`] rather than
-//! silently recorded as `null`. Quantities that may be absent are `Option`s
+//! clock) so Foxglove shows wall time.
+//!
+//! Rate values (`/gyro/clean`, `/gyro/noise`) are written with a fixed resolution
+//! of [`RATE_RESOLUTION_DPH`] = 1e-6 deg/h (six decimals, `%.6f`), not as
+//! shortest round-trip floats: one counter pulse at 1 kHz is about 1210 deg/h for
+//! the paper gyro, so the rounding (at most 0.5e-6 deg/h) is 1e-9 of a pulse,
+//! far below anything physical, while the dropped digits were most of the bytes
+//! (and of the compression work) of a recording. Replay and determinism rest on
+//! the integer counts of `/gyro/raw`, which are exact. [`quantize_rate`] gives the
+//! value a recording reads back; [`SinkMessage::recorded`] the whole message.
+//! Magnitudes of 2^51 * 1e-6 deg/h (about 2.25e9 deg/h) and more are written
+//! exactly (shortest round-trip), as are all other floats.
+//!
+//! JSON has no NaN or infinity: a message holding a non-finite number is refused
+//! by [`SinkMessage::validate`] rather than silently recorded as `null`. Quantities that may be absent are `Option`s
 //! (`null` in JSON).
 
 use std::collections::BTreeMap;
@@ -128,6 +141,8 @@ pub struct RawBatch {
 }
 
 /// `/gyro/clean` and `/gyro/noise`: a batch of rate values, deg/h, uniformly spaced.
+///
+/// Serialized with the values on the [`RATE_RESOLUTION_DPH`] grid ([`quantize_rate`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RateBatch {
@@ -135,8 +150,48 @@ pub struct RateBatch {
     pub t0_ns: u64,
     /// Spacing of the values, ns.
     pub dt_ns: u64,
-    /// Rates, deg/h.
+    /// Rates, deg/h (recorded to 1e-6 deg/h, see [`quantize_rate`]).
+    #[serde(serialize_with = "serialize_rates")]
     pub values: Vec<f64>,
+}
+
+/// Resolution of the recorded rate values (`/gyro/clean`, `/gyro/noise`), deg/h.
+pub const RATE_RESOLUTION_DPH: f64 = 1e-6;
+
+/// Recorded rates are multiples of 1e-6 deg/h below this magnitude, deg/h
+/// (2^51 micro-deg/h: the rounding below is exact there).
+const RATE_GRID_LIMIT_DPH: f64 = 2_251_799_813.685_248;
+
+/// `v` rounded to a multiple of 1e-6 deg/h (ties to even on `v * 1e6`), as an
+/// integer number of micro-deg/h; `None` for non-finite values and magnitudes of
+/// [`RATE_GRID_LIMIT_DPH`] and more (written exactly).
+#[inline]
+fn rate_micro(v: f64) -> Option<i64> {
+    if v.abs() < RATE_GRID_LIMIT_DPH {
+        // |x| < 2^51: adding and removing 1.5 * 2^52 rounds to an integer (ties to even)
+        const MAGIC: f64 = 6_755_399_441_055_744.0;
+        let x = v * 1e6;
+        Some(((x + MAGIC) - MAGIC) as i64)
+    } else {
+        None
+    }
+}
+
+/// The value a recording gives back for the rate `v` (deg/h): `v` rounded to
+/// the [`RATE_RESOLUTION_DPH`] grid (error at most 0.5e-6 deg/h plus one rounding
+/// of `v * 1e6`); non-finite values and magnitudes of about 2.25e9 deg/h and
+/// more unchanged.
+pub fn quantize_rate(v: f64) -> f64 {
+    match rate_micro(v) {
+        // |n| < 2^51: exact, and the division is correctly rounded, so this is the
+        // f64 nearest to the decimal the recorder writes
+        Some(n) => n as f64 / 1e6,
+        None => v,
+    }
+}
+
+fn serialize_rates<S: serde::Serializer>(values: &[f64], s: S) -> Result<S::Ok, S::Error> {
+    s.collect_seq(values.iter().map(|&v| quantize_rate(v)))
 }
 
 /// One noise coefficient with its 95 % confidence interval, in the unit its key names.
@@ -325,7 +380,23 @@ impl SinkMessage {
         }
     }
 
-    /// JSON payload (after [`SinkMessage::validate`], this round-trips exactly).
+    /// The message as a recording gives it back: rate values (`/gyro/clean`,
+    /// `/gyro/noise`) on the 1e-6 deg/h grid ([`quantize_rate`]), all else unchanged.
+    pub fn recorded(&self) -> SinkMessage {
+        let q = |m: &RateBatch| RateBatch {
+            t0_ns: m.t0_ns,
+            dt_ns: m.dt_ns,
+            values: m.values.iter().map(|&v| quantize_rate(v)).collect(),
+        };
+        match self {
+            SinkMessage::Clean(m) => SinkMessage::Clean(q(m)),
+            SinkMessage::Noise(m) => SinkMessage::Noise(q(m)),
+            other => other.clone(),
+        }
+    }
+
+    /// JSON payload (after [`SinkMessage::validate`], this decodes to
+    /// [`SinkMessage::recorded`]: exact except for the 1e-6 deg/h rate grid).
     pub fn to_json(&self) -> Result<Vec<u8>, serde_json::Error> {
         match self {
             SinkMessage::Raw(m) => serde_json::to_vec(m),
@@ -334,6 +405,24 @@ impl SinkMessage {
             SinkMessage::Allan(m) => serde_json::to_vec(m),
             SinkMessage::Event(m) => serde_json::to_vec(m),
         }
+    }
+
+    /// JSON payload written into `out` (cleared first): the same JSON value as
+    /// [`SinkMessage::to_json`] (byte for byte except that rate values are written
+    /// with six fixed decimals, `1.500000` where serde_json writes `1.5`). The
+    /// sample batches (`/gyro/raw`, `/gyro/clean`, `/gyro/noise`: nearly all the
+    /// bytes of a recording) are formatted directly into the recorder's reused
+    /// buffer: counts with serde_json's integer formatter, rates in fixed point.
+    pub fn write_json(&self, out: &mut Vec<u8>) -> Result<(), serde_json::Error> {
+        out.clear();
+        match self {
+            SinkMessage::Raw(m) => write_raw_batch(m, out),
+            SinkMessage::Clean(m) | SinkMessage::Noise(m) => write_rate_batch(m, out),
+            SinkMessage::Estimates(m) => serde_json::to_writer(&mut *out, m)?,
+            SinkMessage::Allan(m) => serde_json::to_writer(&mut *out, m)?,
+            SinkMessage::Event(m) => serde_json::to_writer(&mut *out, m)?,
+        }
+        Ok(())
     }
 
     /// Decode a JSON payload of `topic`, and validate it.
@@ -447,6 +536,109 @@ impl SinkMessage {
     }
 }
 
+// ---- direct JSON formatting of the sample batches (serde_json's output, faster) ----
+
+fn put_u64(out: &mut Vec<u8>, v: u64) {
+    out.extend_from_slice(itoa::Buffer::new().format(v).as_bytes());
+}
+
+fn put_f64(out: &mut Vec<u8>, v: f64) {
+    // serde_json writes a non-finite float as null
+    if v.is_finite() {
+        out.extend_from_slice(zmij::Buffer::new().format_finite(v).as_bytes());
+    } else {
+        out.extend_from_slice(b"null");
+    }
+}
+
+fn write_raw_batch(m: &RawBatch, out: &mut Vec<u8>) {
+    out.reserve(96 + 3 * m.counts.len() + 32 * m.gaps.len());
+    out.extend_from_slice(b"{\"t0_ns\":");
+    put_u64(out, m.t0_ns);
+    out.extend_from_slice(b",\"dt_ns\":");
+    put_u64(out, m.dt_ns);
+    out.extend_from_slice(b",\"seq0\":");
+    put_u64(out, m.seq0);
+    out.extend_from_slice(b",\"counts\":[");
+    let mut buf = itoa::Buffer::new();
+    for (i, &c) in m.counts.iter().enumerate() {
+        if i > 0 {
+            out.push(b',');
+        }
+        out.extend_from_slice(buf.format(c).as_bytes());
+    }
+    out.extend_from_slice(b"],\"gaps\":[");
+    for (i, g) in m.gaps.iter().enumerate() {
+        if i > 0 {
+            out.push(b',');
+        }
+        out.extend_from_slice(b"{\"index\":");
+        put_u64(out, g.index);
+        out.extend_from_slice(b",\"lost\":");
+        put_u64(out, g.lost);
+        out.push(b'}');
+    }
+    out.extend_from_slice(b"],\"temp_c\":");
+    match m.temp_c {
+        Some(t) => put_f64(out, t),
+        None => out.extend_from_slice(b"null"),
+    }
+    out.extend_from_slice(b",\"status\":");
+    put_u64(out, u64::from(m.status));
+    out.push(b'}');
+}
+
+fn write_rate_batch(m: &RateBatch, out: &mut Vec<u8>) {
+    out.reserve(64 + 24 * m.values.len());
+    out.extend_from_slice(b"{\"t0_ns\":");
+    put_u64(out, m.t0_ns);
+    out.extend_from_slice(b",\"dt_ns\":");
+    put_u64(out, m.dt_ns);
+    out.extend_from_slice(b",\"values\":[");
+    let mut buf = zmij::Buffer::new();
+    let mut int = itoa::Buffer::new();
+    for (i, &v) in m.values.iter().enumerate() {
+        if i > 0 {
+            out.push(b',');
+        }
+        match rate_micro(v) {
+            Some(n) => put_micro(out, &mut int, n),
+            None if v.is_finite() => out.extend_from_slice(buf.format_finite(v).as_bytes()),
+            None => out.extend_from_slice(b"null"),
+        }
+    }
+    out.extend_from_slice(b"]}");
+}
+
+/// Two-digit decimal table for the fixed-point rate formatter.
+const DIGIT_PAIRS: &[u8; 200] = b"\
+0001020304050607080910111213141516171819\
+2021222324252627282930313233343536373839\
+4041424344454647484950515253545556575859\
+6061626364656667686970717273747576777879\
+8081828384858687888990919293949596979899";
+
+/// `n` micro-units as `[-]int.dddddd`.
+#[inline]
+fn put_micro(out: &mut Vec<u8>, int: &mut itoa::Buffer, n: i64) {
+    let a = n.unsigned_abs();
+    if n < 0 {
+        out.push(b'-');
+    }
+    out.extend_from_slice(int.format(a / 1_000_000).as_bytes());
+    let f = (a % 1_000_000) as usize;
+    let (hi, mid, lo) = (f / 10_000, f / 100 % 100, f % 100);
+    out.extend_from_slice(&[
+        b'.',
+        DIGIT_PAIRS[2 * hi],
+        DIGIT_PAIRS[2 * hi + 1],
+        DIGIT_PAIRS[2 * mid],
+        DIGIT_PAIRS[2 * mid + 1],
+        DIGIT_PAIRS[2 * lo],
+        DIGIT_PAIRS[2 * lo + 1],
+    ]);
+}
+
 fn finite(topic: &'static str, field: &str, value: f64) -> Result<(), MessageError> {
     if value.is_finite() {
         Ok(())
@@ -530,7 +722,7 @@ fn rate_batch_schema(what: &str) -> Value {
         json!({
             "t0_ns": uint("time of the first value, ns since the Unix epoch"),
             "dt_ns": uint("spacing of the values, ns"),
-            "values": {"type": "array", "items": {"type": "number"}, "description": "rate, deg/h"},
+            "values": {"type": "array", "items": {"type": "number"}, "description": "rate, deg/h, recorded to 1e-6 deg/h (six decimals; one counter pulse at 1 kHz is about 1210 deg/h for the paper gyro)"},
         }),
     )
 }

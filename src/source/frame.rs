@@ -144,6 +144,68 @@ pub fn crc16(bytes: &[u8]) -> u16 {
     CRC16.checksum(bytes)
 }
 
+/// Position tables of the frame CRC: `CRC_POS[i][b]` is the CRC register (init 0)
+/// after a 14-byte message holding `b` at position `i` and zeros elsewhere.
+const CRC_POS: [[u16; 256]; 14] = crc_position_tables();
+/// The register after 14 zero bytes with the init value 0xFFFF.
+const CRC_INIT_14: u16 = crc_init_through(14);
+
+const fn crc_step_zero(crc: u16) -> u16 {
+    // one zero byte through the MSB-first register (poly 0x1021)
+    let mut c = crc;
+    let mut k = 0;
+    while k < 8 {
+        c = if c & 0x8000 != 0 {
+            (c << 1) ^ 0x1021
+        } else {
+            c << 1
+        };
+        k += 1;
+    }
+    c
+}
+
+const fn crc_init_through(n: usize) -> u16 {
+    let mut c = 0xFFFF;
+    let mut i = 0;
+    while i < n {
+        c = crc_step_zero(c);
+        i += 1;
+    }
+    c
+}
+
+const fn crc_position_tables() -> [[u16; 256]; 14] {
+    let mut t = [[0u16; 256]; 14];
+    let mut b = 0;
+    while b < 256 {
+        // byte b last (position 13): one step from register b << 8
+        let mut c = crc_step_zero((b as u16) << 8);
+        let mut i = 14;
+        while i > 0 {
+            i -= 1;
+            t[i][b] = c;
+            c = crc_step_zero(c); // one more zero byte after it
+        }
+        b += 1;
+    }
+    t
+}
+
+/// CRC-16/CCITT-FALSE of a frame's first 14 bytes, equal to
+/// `crc16(&head[..])`: the CRC is linear, so it is the init term XOR one table
+/// lookup per byte, independent of each other (the decoder's hot path).
+#[inline]
+pub fn crc16_frame(head: &[u8; 14]) -> u16 {
+    let mut c = CRC_INIT_14;
+    let mut i = 0;
+    while i < 14 {
+        c ^= CRC_POS[i][head[i] as usize];
+        i += 1;
+    }
+    c
+}
+
 /// Errors of the frame layer. Decoding itself never fails (bad bytes are
 /// skipped and counted); these come from encoding and from the I/O adapter.
 #[derive(Debug, thiserror::Error)]
@@ -232,7 +294,8 @@ pub fn check(buf: &[u8]) -> Result<(), NotAFrame> {
     if buf.len() < FRAME_LEN {
         return Err(NotAFrame::Incomplete { have: buf.len() });
     }
-    let computed = crc16(&buf[..14]);
+    let head: &[u8; 14] = buf[..14].try_into().expect("16 bytes checked above");
+    let computed = crc16_frame(head);
     let received = u16::from_le_bytes([buf[14], buf[15]]);
     if computed != received {
         return Err(NotAFrame::BadCrc { computed, received });

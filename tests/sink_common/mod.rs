@@ -165,3 +165,9 @@ pub fn stream(seed: u64, n: usize) -> Vec<SinkMessage> {
         })
         .collect()
 }
+
+/// What a recording of `msgs` gives back: the messages with their rate values on
+/// the 1e-6 deg/h grid of the recorder ([`SinkMessage::recorded`]).
+pub fn recorded(msgs: &[SinkMessage]) -> Vec<SinkMessage> {
+    msgs.iter().map(SinkMessage::recorded).collect()
+}

@@ -204,6 +204,22 @@ pub(crate) struct OctaveId<P: PhaseValue> {
     shift2: P,
     s_d1: SeriesSums,
     s_d2: SeriesSums,
+    /// Work buffers of the fast path, kept between calls (zeroed only when they
+    /// grow, instead of three zeroed tiles on the stack per call).
+    scratch: Scratch<P>,
+}
+
+#[derive(Clone, Default)]
+struct Scratch<P> {
+    d: Vec<P>,
+    u1: Vec<f64>,
+    u2: Vec<f64>,
+}
+
+impl<P> std::fmt::Debug for Scratch<P> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Scratch({} values)", self.u1.len())
+    }
 }
 
 impl<P: PhaseValue> Default for OctaveId<P> {
@@ -216,6 +232,7 @@ impl<P: PhaseValue> Default for OctaveId<P> {
             shift2: P::default(),
             s_d1: SeriesSums::default(),
             s_d2: SeriesSums::default(),
+            scratch: Scratch::default(),
         }
     }
 }
@@ -276,9 +293,14 @@ impl<P: PhaseValue> OctaveId<P> {
         let mut lanes2 = SumLanes::default();
         let (mut last1, mut last2) = (self.s_d1.last, self.s_d2.last);
         let added = (total - next) as u64;
-        let mut d = [P::default(); TILE];
-        let mut u1 = [0.0f64; TILE];
-        let mut u2 = [0.0f64; TILE];
+        let mut scratch = std::mem::take(&mut self.scratch);
+        let need = (total - next).min(TILE);
+        if scratch.u1.len() < need {
+            scratch.d.resize(need, P::default());
+            scratch.u1.resize(need, 0.0);
+            scratch.u2.resize(need, 0.0);
+        }
+        let (d, u1, u2) = (&mut scratch.d, &mut scratch.u1, &mut scratch.u2);
         while next < total {
             let t = (total - next).min(TILE);
             let tile = &src[next..next + t];
@@ -303,6 +325,7 @@ impl<P: PhaseValue> OctaveId<P> {
             self.d1 = d[t - 1];
             next += t;
         }
+        self.scratch = scratch;
         self.count += added;
         self.s_d1.fold(&lanes1, added, last1);
         self.s_d2.fold(&lanes2, added, last2);

@@ -289,16 +289,56 @@ impl FrameDecoder {
         if buf.len() > self.buffered {
             self.stats.bytes_read += (buf.len() - self.buffered) as u64;
         }
-        let out = loop {
-            if let Some(item) = self.queue.pop_front() {
-                break Some(item);
-            }
-            if !self.step(buf) {
-                break None;
-            }
+        let out = match self.next_in_sequence(buf) {
+            Some(sample) => Some(Decoded::Sample(sample)),
+            None => loop {
+                if let Some(item) = self.queue.pop_front() {
+                    break Some(item);
+                }
+                if !self.step(buf) {
+                    break None;
+                }
+            },
         };
         self.buffered = buf.len();
         out
+    }
+
+    /// Fast path for the common case: nothing queued, no open skip run, and a
+    /// valid frame at the front of `buf` that directly follows the last accepted
+    /// one with the same status. Consumes it and returns its sample, with exactly
+    /// the state and counts [`step`](Self::step) would leave; anything else is
+    /// left to `step` (`None`, nothing consumed).
+    #[inline]
+    fn next_in_sequence(&mut self, buf: &mut BytesMut) -> Option<Sample> {
+        if !self.queue.is_empty() || self.skip_run != 0 {
+            return None;
+        }
+        let last = self.last?;
+        check(buf).ok()?;
+        let raw = parse(buf)?;
+        if raw.seq != last.seq.wrapping_add(1) || self.last_status != Some(raw.status) {
+            return None;
+        }
+        let offset = self.offset;
+        buf.advance(FRAME_LEN);
+        self.offset += FRAME_LEN as u64;
+        self.stats.frames_decoded += 1;
+        if raw.reserved != 0 {
+            self.stats.reserved_nonzero += 1;
+        }
+        self.pending = None;
+        self.stats.samples += 1;
+        self.last = Some(Anchor::of(&raw, offset));
+        Some(Sample {
+            seq: raw.seq,
+            counter: raw.counter,
+            increment: increment_between(last.counter, raw.counter),
+            lost_before: 0,
+            temp_c: raw.temp_c(),
+            status: raw.status,
+            offset,
+        })
     }
 
     /// Like [`decode`](Self::decode), at end of stream: once no further item can
