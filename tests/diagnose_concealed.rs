@@ -333,12 +333,23 @@ fn judge(case: &Case, o: &Outcome) -> (String, String, bool) {
                 .parameter_changes
                 .iter()
                 .any(|c| c.term == "gauss_markov[0].sigma_dph" && c.fitted == 0.0);
-            let ok = r.verdict == Verdict::Mismatch
-                && gm_off
-                && found.is_some_and(|t| {
-                    (t.params["amplitude_dph"] / a - 1.0).abs() < 1e-9
-                        && (t.params["mean_dwell_s"] / dwell - 1.0).abs() < 1e-9
-                });
+            // the amplitude and dwell are fitted (not copied from the twin):
+            // their intervals cover the truth
+            let mut fits = Vec::new();
+            let mut ok = r.verdict == Verdict::Mismatch && gm_off && found.is_some();
+            if let Some(t) = found {
+                for (p, truth) in [("amplitude_dph", a), ("mean_dwell_s", dwell)] {
+                    let v = t.params.get(p).copied().unwrap_or(f64::NAN);
+                    let ci = t.ci95.get(p).copied().unwrap_or([f64::NAN; 2]);
+                    ok &= covers(ci, truth);
+                    fits.push(format!(
+                        "{p} {v:.4} [{:.4}, {:.4}] (truth {truth}, {})",
+                        ci[0],
+                        ci[1],
+                        covers95(ci, truth)
+                    ));
+                }
+            }
             let named = r
                 .added_terms
                 .iter()
@@ -346,12 +357,13 @@ fn judge(case: &Case, o: &Outcome) -> (String, String, bool) {
                 .collect::<Vec<_>>()
                 .join("+");
             let k = o.diag.before.iter().find(|p| p.family == Family::Kurtosis);
-            let fit = k.map_or(String::new(), |p| {
-                format!(
+            if let Some(p) = k {
+                fits.push(format!(
                     "kurtosis {:.2} vs GM model {:.2} +- {:.2} (z {:.1})",
                     p.obs, p.model_mean, p.sd_log, p.z
-                )
-            });
+                ));
+            }
+            let fit = fits.join("; ");
             (format!("{named} replaces gauss_markov[0]"), fit, ok)
         }
     }
