@@ -33,7 +33,12 @@
 //!    at 1 %, greedily up to three changes. A new Gauss-Markov term is then
 //!    tested against a random telegraph with the same second-order statistics
 //!    (sigma = a, Tc = dwell/2) by the excess kurtosis of the low-passed rate,
-//!    referenced to Monte-Carlo runs of both alternatives.
+//!    referenced to Monte-Carlo runs of both alternatives. Either way (a new
+//!    term, or a model Gauss-Markov term found two-level by the kurtosis
+//!    points) the telegraph's amplitude and mean dwell are those of the
+//!    Gauss-Markov term fitted on the wavelet variances (in place of the
+//!    model's twin, if any), converted as a = sigma, dwell = 2 Tc with their
+//!    95 % intervals.
 //! 5. **Show the fit improve**: the updated model is simulated again and
 //!    compared on the same points; chi-square per degree of freedom before and
 //!    after are reported, the model is written back as TOML and an SVG report
