@@ -33,7 +33,12 @@
 //!    at 1 %, greedily up to three changes. A new Gauss-Markov term is then
 //!    tested against a random telegraph with the same second-order statistics
 //!    (sigma = a, Tc = dwell/2) by the excess kurtosis of the low-passed rate,
-//!    referenced to Monte-Carlo runs of both alternatives.
+//!    referenced to Monte-Carlo runs of both alternatives. Either way (a new
+//!    term, or a model Gauss-Markov term found two-level by the kurtosis
+//!    points) the telegraph's amplitude and mean dwell are those of the
+//!    Gauss-Markov term fitted on the wavelet variances (in place of the
+//!    model's twin, if any), converted as a = sigma, dwell = 2 Tc with their
+//!    95 % intervals.
 //! 5. **Show the fit improve**: the updated model is simulated again and
 //!    compared on the same points; chi-square per degree of freedom before and
 //!    after are reported, the model is written back as TOML and an SVG report
@@ -291,8 +296,9 @@ enum Edit {
         period_s: f64,
     },
     Thermal(ThermalParams),
-    /// Replace gauss_markov[i] by a telegraph with the same spectrum.
-    GaussMarkovToTelegraph(usize),
+    /// Replace gauss_markov[i] by a telegraph (amplitude, mean dwell), fitted
+    /// on the recording's wavelet variances.
+    GaussMarkovToTelegraph(usize, f64, f64),
     /// Replace random_telegraph[i] by a Gauss-Markov term with the same spectrum.
     TelegraphToGaussMarkov(usize),
 }
@@ -349,14 +355,13 @@ impl Edit {
                 }
             }
             Edit::Thermal(t) => m.thermal = Some(t.clone()),
-            Edit::GaussMarkovToTelegraph(i) => {
-                let g = n.gauss_markov[*i].clone();
+            Edit::GaussMarkovToTelegraph(i, amplitude_dph, mean_dwell_s) => {
                 // zero amplitude keeps the indices of the other edits valid;
                 // zero terms are dropped by `tidy`
                 n.gauss_markov[*i].sigma_dph = 0.0;
                 n.random_telegraph.push(RandomTelegraphParams {
-                    amplitude_dph: g.sigma_dph,
-                    mean_dwell_s: 2.0 * g.tau_c_s,
+                    amplitude_dph: *amplitude_dph,
+                    mean_dwell_s: *mean_dwell_s,
                 });
             }
             Edit::TelegraphToGaussMarkov(i) => {
@@ -1281,6 +1286,31 @@ pub fn diagnose(
         });
     }
 
+    // --- the wavelet-level data of the fits (model expectation plus the lines found)
+    let basis = Basis::new(&layout.lo, &layout.hi, tau0, &layout.levels);
+    let wpts: Vec<&Point> = before
+        .iter()
+        .filter(|p| p.family == Family::Wavelet)
+        .collect();
+    let data0 = (wpts.len() == layout.levels.len()).then(|| {
+        let mut e0 = mc_mean.wvar.clone();
+        for &(f, amp) in &sine_findings {
+            let phi = basis.sinusoid(f);
+            for j in 0..e0.len() {
+                e0[j] += amp * amp * phi[j];
+            }
+        }
+        LevelData {
+            levels: layout.levels.clone(),
+            y: obs.wvar.clone(),
+            e0,
+            nu: wpts
+                .iter()
+                .map(|p| 2.0 / (p.sd_log * p.sd_log * (1.0 + 1.0 / r as f64)))
+                .collect(),
+        }
+    });
+
     // --- the model's Gauss-Markov / telegraph terms: right distribution?
     for p in before
         .iter()
@@ -1289,15 +1319,55 @@ pub fn diagnose(
         match kterms[p.index] {
             KTerm::GaussMarkov(i) if p.z < 0.0 => {
                 let g = &ref_model.noise.gauss_markov[i];
+                // A telegraph +-a with mean dwell T has the autocorrelation
+                // a^2 exp(-2|t|/T) of a Gauss-Markov bias with sigma = a,
+                // Tc = T/2: fit that Gauss-Markov term (in place of the
+                // model's) on the wavelet variances and convert.
+                let s2 = g.sigma_dph * g.sigma_dph;
+                let phi0 = basis.gauss_markov(g.tau_c_s);
+                let tc_grid = explain::log_grid(4.0 * tau0, dur / 3.0, 4);
+                let fit = data0.as_ref().and_then(|d| {
+                    explain::fit_shape(d, &tc_grid, &|t| basis.gauss_markov(t), Some((s2, &phi0)))
+                });
+                let (amp, dwell, ci) = match &fit {
+                    Some(f) if f.theta > 0.0 => {
+                        let tc = f.shape.unwrap_or(g.tau_c_s);
+                        let tci = f.shape_ci.unwrap_or((tc, tc));
+                        let mut ci = BTreeMap::new();
+                        ci.insert("amplitude_dph".to_string(), sqrt_ci(f.theta_ci, |x| x));
+                        ci.insert("mean_dwell_s".to_string(), [2.0 * tci.0, 2.0 * tci.1]);
+                        (f.theta.sqrt(), 2.0 * tc, ci)
+                    }
+                    _ => (g.sigma_dph, 2.0 * g.tau_c_s, BTreeMap::new()),
+                };
                 let t = Term::RandomTelegraph {
-                    amplitude_dph: g.sigma_dph,
-                    mean_dwell_s: 2.0 * g.tau_c_s,
+                    amplitude_dph: amp,
+                    mean_dwell_s: dwell,
+                };
+                let fitted = if ci.is_empty() {
+                    "The wavelet variances could not be refitted: amplitude and dwell are the Gauss-Markov \
+                     term's (amplitude = sigma, mean dwell = 2 Tc)."
+                        .to_string()
+                } else {
+                    let ca = ci["amplitude_dph"];
+                    let cd = ci["mean_dwell_s"];
+                    format!(
+                        "Fitted on the wavelet variances as the Gauss-Markov term with the same second-order \
+                         statistics (amplitude = sigma, mean dwell = 2 Tc): amplitude {} deg/h (95 % {}..{}), \
+                         mean dwell {} s (95 % {}..{}).",
+                        fmt_g(amp),
+                        fmt_g(ca[0]),
+                        fmt_g(ca[1]),
+                        fmt_g(dwell),
+                        fmt_g(cd[0]),
+                        fmt_g(cd[1])
+                    )
                 };
                 let expl = format!(
                     "{} The model's gauss_markov[{i}] (sigma {} deg/h, Tc {} s) has the right spectrum and Allan \
                      curve, but the low-passed rate (cut-off {} Hz) is two-level, not Gaussian: excess kurtosis \
-                     {:.2} against {:.2} +- {:.2} for the model (z = {:.1}). It is replaced by a random telegraph \
-                     with the same second-order statistics (amplitude = sigma, mean dwell = 2 Tc).",
+                     {:.2} against {:.2} +- {:.2} for the model (z = {:.1}). It is replaced by a random telegraph. \
+                     {fitted}",
                     t.explanation(),
                     fmt_g(g.sigma_dph),
                     fmt_g(g.tau_c_s),
@@ -1308,10 +1378,11 @@ pub fn diagnose(
                     p.z
                 );
                 let mut params = BTreeMap::new();
-                params.insert("amplitude_dph".to_string(), g.sigma_dph);
-                params.insert("mean_dwell_s".to_string(), 2.0 * g.tau_c_s);
+                params.insert("amplitude_dph".to_string(), amp);
+                params.insert("mean_dwell_s".to_string(), dwell);
+                let n_par = if ci.is_empty() { 0 } else { 2 };
                 findings.push(Finding {
-                    edit: Edit::GaussMarkovToTelegraph(i),
+                    edit: Edit::GaussMarkovToTelegraph(i, amp, dwell),
                     changes: vec![ParameterChange {
                         term: format!("gauss_markov[{i}].sigma_dph"),
                         model: g.sigma_dph,
@@ -1322,9 +1393,9 @@ pub fn diagnose(
                         term: "random_telegraph".into(),
                         params,
                         explanation: expl.clone(),
-                        ci95: BTreeMap::new(),
+                        ci95: ci,
                     }),
-                    n_par: 0,
+                    n_par,
                     note: expl,
                 });
             }
@@ -1373,30 +1444,11 @@ pub fn diagnose(
     }
 
     // --- broadband: wavelet-variance fits
-    let basis = Basis::new(&layout.lo, &layout.hi, tau0, &layout.levels);
-    let wpts: Vec<&Point> = before
-        .iter()
-        .filter(|p| p.family == Family::Wavelet)
-        .collect();
     let mut telegraph_pending: Option<usize> = None; // index into findings of a new GM
-    if !regions.is_empty() && wpts.len() == layout.levels.len() {
-        let mut e0 = mc_mean.wvar.clone();
-        for &(f, amp) in &sine_findings {
-            let phi = basis.sinusoid(f);
-            for j in 0..e0.len() {
-                e0[j] += amp * amp * phi[j];
-            }
-        }
-        let data0 = LevelData {
-            levels: layout.levels.clone(),
-            y: obs.wvar.clone(),
-            e0,
-            nu: wpts
-                .iter()
-                .map(|p| 2.0 / (p.sd_log * p.sd_log * (1.0 + 1.0 / r as f64)))
-                .collect(),
-        };
-        let found = broadband(&data0, &basis, &ref_model, &layout, &regions, dur);
+    if !regions.is_empty()
+        && let Some(data0) = &data0
+    {
+        let found = broadband(data0, &basis, &ref_model, &layout, &regions, dur);
         for (f, is_new_gm) in found {
             if is_new_gm {
                 telegraph_pending = Some(findings.len());

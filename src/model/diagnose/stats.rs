@@ -675,7 +675,22 @@ pub fn refine_sine(
     let t = n as f64 * tau0;
     // Hann: ENBW 1.5 bins
     let amp_sd = (1.5 * s_bg / t).sqrt() / sinc;
-    let f_sd = (1.5 * 3.0 * s_bg / (2.0 * PI * PI * amp.max(1e-300).powi(2) * t.powi(3))).sqrt();
+    // The peak of the Hann-windowed DFT, linearised about the true frequency
+    // (x = A cos(w n + phi) + e, white e of variance s2, n centred):
+    // var(w) = 2 s2 sum(n^2 w_n^2) / (A^2 (sum(n^2 w_n))^2) rad^2/sample^2,
+    // the Cramer-Rao bound 24 s2 / (A^2 N^3) for a flat window; the Hann
+    // window's is 2.34 times that. s2 = s_bg fs / 2 (one-sided PSD).
+    let (mut s_nw2, mut s_nw) = (0.0, 0.0);
+    let c = 0.5 * (n as f64 - 1.0);
+    for k in 0..n {
+        let w = 0.5 - 0.5 * (2.0 * PI * k as f64 / n as f64).cos();
+        let m2 = (k as f64 - c).powi(2);
+        s_nw2 += m2 * w * w;
+        s_nw += m2 * w;
+    }
+    let s2 = 0.5 * s_bg * fs;
+    let var_w = 2.0 * s2 * s_nw2 / (amp.max(1e-300).powi(2) * s_nw.max(1e-300).powi(2));
+    let f_sd = var_w.sqrt() / (2.0 * PI * tau0);
     SineFit {
         f_hz: f,
         amp,
