@@ -367,7 +367,7 @@ pub fn fit_shape(
         .enumerate()
         .max_by(|a, b| a.1.1.total_cmp(&b.1.1))?;
     // golden-section refinement of log s between the neighbours
-    let (mut a, mut b) = (
+    let (a, b) = (
         grid[ibest.saturating_sub(1)].ln(),
         grid[(ibest + 1).min(grid.len() - 1)].ln(),
     );
@@ -375,27 +375,7 @@ pub fn fit_shape(
         let phi = phi_of(ls.exp());
         fit_linear(data, &base, &phi, 0.0, 0.0)
     };
-    let g = 0.618_033_988_749_895;
-    let mut c = b - g * (b - a);
-    let mut d = a + g * (b - a);
-    let mut fc = eval(c).1;
-    let mut fd = eval(d).1;
-    for _ in 0..30 {
-        if fc > fd {
-            b = d;
-            d = c;
-            fd = fc;
-            c = b - g * (b - a);
-            fc = eval(c).1;
-        } else {
-            a = c;
-            c = d;
-            fc = fd;
-            d = a + g * (b - a);
-            fd = eval(d).1;
-        }
-    }
-    let mut s_best = (0.5 * (a + b)).exp();
+    let mut s_best = super::stats::golden_max(&|ls| eval(ls).1, a, b, 30).exp();
     let (mut theta, mut l) = eval(s_best.ln());
     if fits[ibest].1 > l {
         s_best = grid[ibest];

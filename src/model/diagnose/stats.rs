@@ -644,29 +644,9 @@ pub fn refine_sine(
             kb = k;
         }
     }
-    let (mut a, mut b) = ((kb as f64 - 1.0) * df, (kb as f64 + 1.0) * df);
+    let (a, b) = ((kb as f64 - 1.0) * df, (kb as f64 + 1.0) * df);
     let val = |f: f64| dft_hann(x, tau0, f).norm();
-    let g = 0.618_033_988_749_895;
-    let mut c = b - g * (b - a);
-    let mut d = a + g * (b - a);
-    let mut fc = val(c);
-    let mut fd = val(d);
-    for _ in 0..24 {
-        if fc > fd {
-            b = d;
-            d = c;
-            fd = fc;
-            c = b - g * (b - a);
-            fc = val(c);
-        } else {
-            a = c;
-            c = d;
-            fc = fd;
-            d = a + g * (b - a);
-            fd = val(d);
-        }
-    }
-    let f = 0.5 * (a + b);
+    let f = golden_max(&val, a, b, 24);
     let mag = val(f);
     let wsum = n as f64 / 2.0;
     let xarg = PI * f * tau0;
@@ -724,4 +704,29 @@ pub fn centred_rate(counts: &[i64], pulse_arcsec: f64, fs_hz: f64) -> Vec<f64> {
     let rate = counts_to_rate(counts, pulse_arcsec, fs_hz);
     let m = rate.iter().sum::<f64>() / rate.len().max(1) as f64;
     rate.into_iter().map(|v| v - m).collect()
+}
+
+/// Golden-section search for the maximum of a unimodal `f` on `[a, b]`:
+/// `iters` shrinking steps, then the midpoint of the last bracket.
+pub(crate) fn golden_max(f: &dyn Fn(f64) -> f64, mut a: f64, mut b: f64, iters: usize) -> f64 {
+    let g = 0.618_033_988_749_895;
+    let mut c = b - g * (b - a);
+    let mut d = a + g * (b - a);
+    let (mut fc, mut fd) = (f(c), f(d));
+    for _ in 0..iters {
+        if fc > fd {
+            b = d;
+            d = c;
+            fd = fc;
+            c = b - g * (b - a);
+            fc = f(c);
+        } else {
+            a = c;
+            c = d;
+            fc = fd;
+            d = a + g * (b - a);
+            fd = f(d);
+        }
+    }
+    0.5 * (a + b)
 }
