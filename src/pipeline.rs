@@ -134,6 +134,55 @@ struct LevelAccumulator {
     skip: u64,
     seen: Vec<u64>,
     sum_sq: Vec<f64>,
+    blocks: Option<BlockSums>,
+}
+
+/// Per-block sums of the detail squares of every level, for a batch-means
+/// variance of statistics built from them: the record is cut into blocks of
+/// `2^span_log2` samples (by coefficient index, so chunking cannot change
+/// them), at most `MAX_BLOCKS`, merged pairwise as the record grows.
+#[derive(Debug, Clone)]
+struct BlockSums {
+    span_log2: u32,
+    /// `sums[j][b]`: (sum of squares, coefficient count) of level j+1 in block b.
+    sums: Vec<Vec<(f64, u64)>>,
+}
+
+const MAX_BLOCKS: usize = 64;
+
+impl BlockSums {
+    fn add(&mut self, j: usize, first_index: u64, d: &[f64]) {
+        // level j+1 has one coefficient per 2^(j+1) samples
+        let shift = self.span_log2.saturating_sub(j as u32 + 1);
+        let per_block = 1u64 << shift;
+        let mut k = first_index;
+        let mut rest = d;
+        while !rest.is_empty() {
+            let b = (k >> shift) as usize;
+            let take = ((b as u64 + 1) * per_block - k).min(rest.len() as u64) as usize;
+            let s: f64 = rest[..take].iter().map(|v| v * v).sum();
+            let level = &mut self.sums[j];
+            if level.len() <= b {
+                level.resize(b + 1, (0.0, 0));
+            }
+            level[b].0 += s;
+            level[b].1 += take as u64;
+            k += take as u64;
+            rest = &rest[take..];
+        }
+        if self.sums[j].len() > MAX_BLOCKS {
+            self.merge();
+        }
+    }
+
+    fn merge(&mut self) {
+        self.span_log2 += 1;
+        for level in &mut self.sums {
+            let merged: Vec<(f64, u64)> =
+                level.chunks(2).map(|c| c.iter().fold((0.0, 0), |a, x| (a.0 + x.0, a.1 + x.1))).collect();
+            *level = merged;
+        }
+    }
 }
 
 impl LevelAccumulator {
@@ -150,7 +199,14 @@ impl LevelAccumulator {
             skip: w.len() as u64 - 1,
             seen: vec![0; levels as usize],
             sum_sq: vec![0.0; levels as usize],
+            blocks: None,
         })
+    }
+
+    /// Also keep per-block sums (for a batch-means variance).
+    fn with_blocks(mut self) -> Self {
+        self.blocks = Some(BlockSums { span_log2: 16, sums: vec![Vec::new(); self.seen.len()] });
+        self
     }
 
     fn push(&mut self, x: &[f64]) {
@@ -161,7 +217,7 @@ impl LevelAccumulator {
         self.first.push(x, &mut self.out1);
         let n1 = self.out1.details.len();
         for (j, d) in self.out1.details.iter().enumerate() {
-            Self::acc(self.skip, &mut self.seen[j], &mut self.sum_sq[j], d);
+            Self::acc(self.skip, &mut self.seen[j], &mut self.sum_sq[j], &mut self.blocks, j, d);
         }
         if let Some(second) = &mut self.second {
             self.out2.approx.clear();
@@ -170,20 +226,47 @@ impl LevelAccumulator {
             }
             second.push(&self.out1.approx, &mut self.out2);
             for (j, d) in self.out2.details.iter().enumerate() {
-                Self::acc(self.skip, &mut self.seen[n1 + j], &mut self.sum_sq[n1 + j], d);
+                Self::acc(self.skip, &mut self.seen[n1 + j], &mut self.sum_sq[n1 + j], &mut self.blocks, n1 + j, d);
             }
         }
     }
 
     #[inline]
-    fn acc(skip: u64, seen: &mut u64, sum: &mut f64, d: &[f64]) {
+    fn acc(skip: u64, seen: &mut u64, sum: &mut f64, blocks: &mut Option<BlockSums>, j: usize, d: &[f64]) {
         let start = skip.saturating_sub(*seen).min(d.len() as u64) as usize;
+        if let Some(b) = blocks {
+            b.add(j, *seen + start as u64, &d[start..]);
+        }
         *seen += d.len() as u64;
         let mut s = 0.0;
         for &v in &d[start..] {
             s += v * v;
         }
         *sum += s;
+    }
+
+    /// The per-block observations (blocks of equal length; a last block
+    /// shorter than half of them is left out).
+    fn block_observations(&self) -> Vec<Vec<LevelObs>> {
+        let Some(b) = &self.blocks else { return Vec::new() };
+        let n_blocks = b.sums.first().map_or(0, |l| l.len());
+        let full = 1u64 << b.span_log2.saturating_sub(1);
+        (0..n_blocks)
+            .filter(|&i| b.sums[0][i].1 * 2 >= full)
+            .map(|i| {
+                b.sums
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(j, l)| {
+                        l.get(i).filter(|x| x.1 > 0).map(|x| LevelObs {
+                            level: j as u32 + 1,
+                            n_coef: x.1 as f64,
+                            mean_sq: x.0 / x.1 as f64,
+                        })
+                    })
+                    .collect()
+            })
+            .collect()
     }
 
     fn observations(&self) -> Vec<LevelObs> {
@@ -244,7 +327,7 @@ impl Pipeline {
             clean_allan: OctaveAllan::freq(scfg(1.0))?,
             noise_allan: OctaveAllan::freq(scfg(1.0))?,
             rate_levels: LevelAccumulator::new(&wavelet, DEEP_LEVELS)?,
-            angle_levels: LevelAccumulator::new(&wavelet, (j + 2).min(MAX_LEVELS))?,
+            angle_levels: LevelAccumulator::new(&wavelet, (j + 2).min(MAX_LEVELS))?.with_blocks(),
             wavelet,
             ramp: RampAccumulator::default(),
             angle: 0.0,
@@ -328,6 +411,7 @@ impl Pipeline {
         };
         let levels = self.rate_levels.observations();
         let angle_levels = self.angle_levels.observations();
+        let angle_blocks = self.angle_levels.block_observations();
         let allan_obs: Vec<AllanObs> = raw_points
             .iter()
             .map(|p| AllanObs { m: p.m, n_phase: self.samples + 1, avar: p.avar, stride: p.stride, n_terms: p.n })
@@ -339,6 +423,7 @@ impl Pipeline {
             dec_hi: self.wavelet.dec_hi(),
             levels: &levels,
             angle_levels: &angle_levels,
+            angle_blocks: &angle_blocks,
             allan: &allan_obs,
             ramp: Some(self.ramp),
         };
@@ -362,4 +447,53 @@ impl Pipeline {
 
 fn to_points(p: &[StreamPoint]) -> Vec<AllanPoint> {
     p.iter().filter(|p| p.n > 0 && p.avar.is_finite()).map(AllanPoint::from).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn block_sums_add_up_to_the_levels_and_ignore_chunking() {
+        let w = Wavelet::by_name("sym8").unwrap();
+        let mut s = 0x9E37_79B9_7F4A_7C15_u64;
+        let x: Vec<f64> = (0..600_000)
+            .map(|_| {
+                s ^= s << 13;
+                s ^= s >> 7;
+                s ^= s << 17;
+                (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            })
+            .collect();
+        let mut one = LevelAccumulator::new(&w, 10).unwrap().with_blocks();
+        one.push(&x);
+        let mut many = LevelAccumulator::new(&w, 10).unwrap().with_blocks();
+        for c in x.chunks(7_919) {
+            many.push(c);
+        }
+        let (a, b) = (one.blocks.as_ref().unwrap(), many.blocks.as_ref().unwrap());
+        assert_eq!(a.span_log2, b.span_log2);
+        for j in 0..10 {
+            // every transient-free coefficient is in exactly one block
+            let n: u64 = a.sums[j].iter().map(|x| x.1).sum();
+            assert_eq!(n, one.seen[j] - one.skip, "level {}", j + 1);
+            let tot: f64 = a.sums[j].iter().map(|x| x.0).sum();
+            assert!((tot / one.sum_sq[j] - 1.0).abs() < 1e-12);
+            for (p, q) in a.sums[j].iter().zip(&b.sums[j]) {
+                assert_eq!(p.1, q.1);
+                assert!((p.0 - q.0).abs() <= 1e-12 * p.0.abs());
+            }
+        }
+        // 600 000 samples in blocks of 2^16: 9 full blocks and a short tail
+        assert_eq!(a.span_log2, 16);
+        assert_eq!(one.block_observations().len(), 9);
+        // more than MAX_BLOCKS blocks merge pairwise
+        let mut long = LevelAccumulator::new(&w, 2).unwrap().with_blocks();
+        for _ in 0..8 {
+            long.push(&x);
+        }
+        let l = long.blocks.as_ref().unwrap();
+        assert_eq!(l.span_log2, 17);
+        assert!(l.sums[0].len() <= MAX_BLOCKS);
+    }
 }

@@ -133,6 +133,9 @@ pub struct EstimatorInput<'a> {
     /// Detail-coefficient variances of the raw angle (cumulative counts x
     /// pulse weight), arcsec^2, for the fine levels (the QN band).
     pub angle_levels: &'a [LevelObs],
+    /// The same, per block of equal length (for a batch-means variance of Q;
+    /// may be empty).
+    pub angle_blocks: &'a [Vec<LevelObs>],
     /// Raw-rate overlapping Allan variances; only those beyond the deepest
     /// level are used.
     pub allan: &'a [AllanObs],
@@ -168,6 +171,9 @@ impl EstimatorOutput {
         }
     }
 }
+
+/// Blocks needed before their spread is trusted as a variance of Q^2.
+pub const MIN_BATCHES: usize = 8;
 
 /// Levels whose count of transient-free coefficients is at least this are used.
 pub const MIN_LEVEL_COEFS: f64 = 8.0;
@@ -233,6 +239,36 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
             var += w * w * 2.0 * l.mean_sq * l.mean_sq / l.n_coef;
         }
         let norm = 1.0 - 2f64.powi(-(jmax as i32));
+        // The chi-square variance assumes the QN energy is stationary. A
+        // counter read with little dither is not: the readout error's variance
+        // depends on where the true angle sits within a pulse, and a slowly
+        // moving angle visits few of those places. The spread of the same
+        // statistic over blocks of the record (batch means) sees that; the
+        // larger of the two variances is used.
+        let per_block: Vec<f64> = input
+            .angle_blocks
+            .iter()
+            .map(|blk| {
+                let mut q = 0.0;
+                for (j, l) in angle.iter().enumerate().take_while(|(_, l)| l.level <= jmax) {
+                    let lf: f64 = (1..terms.len()).map(|k| theta_lf[k] * b.phi[j][k]).sum();
+                    let ms = blk.iter().find(|x| x.level == l.level).map_or(l.mean_sq, |x| x.mean_sq);
+                    q += 2f64.powi(-(l.level as i32)) * (ms - lf);
+                }
+                q
+            })
+            .collect();
+        // Flyvbjerg-Petersen blocking: the batch-means variance grows with the
+        // block length until blocks outlast the correlation; take the largest
+        // over block lengths that still leave MIN_BATCHES blocks.
+        let mut batches = per_block;
+        while batches.len() >= MIN_BATCHES {
+            let k = batches.len() as f64;
+            let mean = batches.iter().sum::<f64>() / k;
+            let var_bm = batches.iter().map(|q| (q - mean).powi(2)).sum::<f64>() / (k * (k - 1.0));
+            var = var.max(var_bm);
+            batches = batches.chunks_exact(2).map(|p| 0.5 * (p[0] + p[1])).collect();
+        }
         (q2 / norm, var.sqrt() / norm)
     };
     let (q2, q2_sd);
