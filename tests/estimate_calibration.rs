@@ -140,3 +140,25 @@ fn qn_interval_covers_a_slow_dithered_counter() {
     assert!(rms_z < 1.3, "QN interval too narrow: rms z {rms_z:.2}");
     assert!(median(err) < 0.005);
 }
+
+#[test]
+fn a_record_shorter_than_the_qn_band_gives_honest_bounds() {
+    // 10 s of the paper's gyro: every wavelet level is quantization noise, so
+    // nothing separates ARW, flicker or RRW from it. The answer is upper
+    // bounds that hold (they used to collapse to ~1e-122), and QN itself.
+    let (q, n, b) = (0.35, 0.001, 0.002);
+    let model = format!(
+        "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 1.21\ninput_rate_dph = 12.3\n\
+         [noise]\nquantization_arcsec = {q}\narw_dpsh = {n}\nbias_instability_dph = {b}\n"
+    );
+    for seed in 0..5 {
+        let e = run(&model, 70 + seed, 10.0).estimates;
+        assert!(covers(&e.quantization_arcsec, q), "{:?}", e.quantization_arcsec);
+        for (name, c, truth) in [("N", &e.arw_dpsh, n), ("B", &e.bias_instability_dph, b)] {
+            assert!(c.value.is_none(), "{name} claimed from 10 s: {c:?}");
+            let u = c.upper95.expect("an upper bound");
+            // a real bound: above the truth, but within a few decades of it
+            assert!(u >= truth && u < 1e3 * truth, "{name} upper bound {u}");
+        }
+    }
+}

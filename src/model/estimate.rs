@@ -23,6 +23,7 @@
 //! fitted noise spectrum (`int S(nu) |W(nu)|^2 dnu`), not from a white-noise
 //! formula, so its interval stays honest under flicker and random walk.
 
+use statrs::distribution::{ChiSquared, ContinuousCDF};
 use std::f64::consts::PI;
 
 use serde::{Deserialize, Serialize};
@@ -338,9 +339,10 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
     while from > 0 {
         let j = from - 1;
         if from < levels_all.len() {
+            // z of the log variance ratio (near-normal, and unbounded: a
+            // level 60x its neighbour is significant even with few coefficients)
             let rise = |a: &LevelObs, b: &LevelObs| {
-                let r = a.mean_sq / b.mean_sq;
-                (r - 1.0) / (r * (2.0 / a.n_coef + 2.0 / b.n_coef).sqrt())
+                (a.mean_sq / b.mean_sq).ln() / (2.0 / a.n_coef + 2.0 / b.n_coef).sqrt()
             };
             // one deep level low by chance must not stop the walk (it would
             // also bias the kept levels low): the rise must hold over the level
@@ -352,6 +354,30 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         }
         from = j;
     }
+    // Fewer than two levels below the QN band: the record is too short to
+    // separate the low-frequency terms from QN. Each level's variance still
+    // bounds every term's share of it from above (all shares are positive):
+    // report those bounds only (one-sided chi-square, Bonferroni over levels).
+    let too_short = levels_all.len() - from < 2;
+    let level_bounds = {
+        let alpha = 0.05 / levels_all.len() as f64;
+        let mut up = [f64::INFINITY; 4];
+        for (j, l) in levels_all.iter().enumerate() {
+            let nu = l.n_coef.max(1.0);
+            let chi = ChiSquared::new(nu).map(|c| c.inverse_cdf(alpha)).unwrap_or(0.0);
+            if chi <= 0.0 {
+                continue;
+            }
+            let y_up = l.mean_sq * nu / chi;
+            for (k, u) in up.iter_mut().enumerate().skip(1) {
+                let p = basis_all.phi[j][k];
+                if p > 0.0 {
+                    *u = u.min(y_up / p);
+                }
+            }
+        }
+        up
+    };
     if levels_all.len() - from < 2 {
         from = levels_all.len().saturating_sub(2);
     }
@@ -379,15 +405,30 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
             break;
         }
     }
-    let (phi, y, edf0) = rows(from);
+    let (mut phi, y, edf0) = rows(from);
+    // With no more observations than the nuisance, ARW, flicker and RRW
+    // columns, the fit is saturated and its likelihood-ratio tests say
+    // nothing: fit ARW (and the nuisance) only, and bound the others.
+    let saturated = y.len() <= terms.len();
+    if saturated {
+        for r in &mut phi {
+            r[2] = 0.0;
+            r[3] = 0.0;
+        }
+    }
     let mut o = *opts;
     o.always_keep |= 1; // the white-angle nuisance stays out of model selection
     let fit = fit_rows(&phi, &y, &edf0, &edf_for(from, &phi), &o);
-    let theta_lf = [fit.terms[0].theta, fit.terms[1].theta, fit.terms[2].theta, fit.terms[3].theta];
+    let theta_lf = if too_short {
+        [0.0; 4]
+    } else {
+        let keep = |k: usize| if saturated && k >= 2 { 0.0 } else { fit.terms[k].theta };
+        [keep(0), keep(1), keep(2), keep(3)]
+    };
     let (a, b) = q_from_angle(&theta_lf);
     q2 = a;
     q2_sd = b;
-    let theta = [q2.max(0.0), fit.terms[1].theta, fit.terms[2].theta, fit.terms[3].theta];
+    let theta = [q2.max(0.0), theta_lf[1], theta_lf[2], theta_lf[3]];
 
     let conv: [fn(f64) -> f64; 4] = [
         |t: f64| t.sqrt(),
@@ -396,6 +437,11 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         |t: f64| units::arcsec_per_s_sqrt_s_to_dphsh(t.sqrt()),
     ];
     let coef = |i: usize| -> Coefficient {
+        if too_short || (saturated && i >= 2) {
+            let up = level_bounds[i];
+            let upper95 = up.is_finite().then(|| conv[i](up));
+            return Coefficient { value: None, ci95: None, upper95 };
+        }
         let t = &fit.terms[i];
         if t.included {
             let (lo, hi) = t.ci95.unwrap_or((t.theta, t.theta));
