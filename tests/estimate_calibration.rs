@@ -162,3 +162,26 @@ fn a_record_shorter_than_the_qn_band_gives_honest_bounds() {
         }
     }
 }
+
+#[test]
+fn two_minute_records_keep_their_intervals_calibrated() {
+    // The daemon's first minutes: QN dominates the Allan points there, which
+    // once read as a spurious bias instability (covered 2 of 20).
+    let (q, n, b) = (0.35, 0.001, 0.002);
+    let model = format!(
+        "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 1.21\ninput_rate_dph = 12.3\n\
+         [noise]\nquantization_arcsec = {q}\narw_dpsh = {n}\nbias_instability_dph = {b}\n"
+    );
+    let seeds = 20;
+    let (mut cq, mut cn, mut cb) = (0, 0, 0);
+    for seed in 0..seeds {
+        let e = run(&model, 300 + seed, 120.0).estimates;
+        cq += covers(&e.quantization_arcsec, q) as u32;
+        cn += covers(&e.arw_dpsh, n) as u32;
+        cb += covers(&e.bias_instability_dph, b) as u32;
+    }
+    println!("120 s records: coverage Q {cq}/{seeds}, N {cn}/{seeds}, B {cb}/{seeds}");
+    for (name, c) in [("Q", cq), ("N", cn), ("B", cb)] {
+        assert!(c as f64 >= 0.85 * seeds as f64, "{name} coverage {c}/{seeds}");
+    }
+}

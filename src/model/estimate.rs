@@ -285,8 +285,16 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
     let basis_all = LevelBasis::new(input.dec_lo, input.dec_hi, tau0, &ids_all, &terms);
     let deepest = ids_all.iter().copied().max().unwrap_or(0);
     let m_min = 1u64 << (deepest + 1).min(62);
-    let allan: Vec<AllanObs> =
-        input.allan.iter().copied().filter(|a| a.m >= m_min && a.avar > 0.0 && a.avar.is_finite() && a.n_terms > 0).collect();
+    // Allan points where quantization carries half the variance or more say
+    // nothing about the low-frequency terms (and QN-subtracted, they could
+    // leave a meaningless near-zero observation): left out.
+    let allan: Vec<AllanObs> = input
+        .allan
+        .iter()
+        .copied()
+        .filter(|a| a.m >= m_min && a.avar > 0.0 && a.avar.is_finite() && a.n_terms > 0)
+        .filter(|a| q2_first.max(0.0) * terms[0].allan_var(a.m, tau0) < 0.5 * a.avar)
+        .collect();
     // rows: levels[from..] then the Allan points
     let rows = |from: usize| -> (Vec<Vec<f64>>, Vec<f64>, Vec<f64>) {
         // quantization is measured in the angle domain; on these levels its
@@ -347,7 +355,12 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
             // one deep level low by chance must not stop the walk (it would
             // also bias the kept levels low): the rise must hold over the level
             // beyond it too (QN's rise only grows with the distance)
-            let confirmed = from + 1 >= levels_all.len() || rise(&levels_all[j], &levels_all[from + 1]) > CUT_RISE_Z;
+            // (the deepest pair has no level beyond: it must rise twice as clearly)
+            let confirmed = if from + 1 >= levels_all.len() {
+                rise(&levels_all[j], &levels_all[from]) > 2.0 * CUT_RISE_Z
+            } else {
+                rise(&levels_all[j], &levels_all[from + 1]) > CUT_RISE_Z
+            };
             if rise(&levels_all[j], &levels_all[from]) > CUT_RISE_Z && confirmed {
                 break;
             }
