@@ -165,7 +165,7 @@ fn recording_reads_back_exactly() {
     assert_eq!(read.file_len, file_len);
     assert_eq!(read.foreign_messages, 0);
     let got: Vec<SinkMessage> = read.messages.iter().map(|r| r.message.clone()).collect();
-    // exact, with the rates on the recorder's 1e-6 deg/h grid
+    // exact, with the rates on the recorder's 1e-3 deg/h grid
     assert_eq!(got, sink_common::recorded(&sent));
     // Log and publish time are the sample time; sequences count per channel.
     let mut seq = std::collections::BTreeMap::new();
@@ -216,7 +216,7 @@ fn flushed_recording(
         }
     }
     let path = rec.finish().unwrap().path;
-    // what the file holds: the messages with their rates on the 1e-6 deg/h grid
+    // what the file holds: the messages with their rates on the 1e-3 deg/h grid
     (path, sink_common::recorded(&sent), marks)
 }
 

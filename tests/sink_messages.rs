@@ -233,7 +233,7 @@ fn validator_rejects_broken_messages() {
 #[test]
 fn json_round_trip_is_exact() {
     // float_roundtrip: every f64 (random mantissas, exponents 1e-12..1e12) survives,
-    // except the rate values, which come back on the 1e-6 deg/h grid.
+    // except the rate values, which come back on the 1e-3 deg/h grid.
     for m in sink_common::stream(12, 3000) {
         let back = SinkMessage::from_json(m.topic(), &m.to_json().unwrap()).expect("decode");
         assert_eq!(back, m.recorded());
@@ -243,7 +243,7 @@ fn json_round_trip_is_exact() {
         .map(|_| sink_common::awkward_f64(&mut rng))
         .collect();
     values.extend([f64::MIN_POSITIVE, 5e-324, f64::MAX, -0.0, 0.1 + 0.2, 1e-300]);
-    values.extend([2.25e9, -2.26e9, 1e10, 1e15, 0.5e-6, 1.5e-6, -2.5e-6]);
+    values.extend([2.25e12, -2.26e12, 1e13, 1e15, 0.5e-3, 1.5e-3, -2.5e-3]);
     let m = SinkMessage::Clean(RateBatch {
         t0_ns: u64::MAX,
         dt_ns: 1,
@@ -259,10 +259,10 @@ fn json_round_trip_is_exact() {
             (SinkMessage::Clean(a), SinkMessage::Clean(b)) => {
                 for (x, y) in a.values.iter().zip(&b.values) {
                     assert_eq!(x.to_bits(), quantize_rate(*y).to_bits(), "{x} vs {y}");
-                    if y.abs() < 2.25e9 {
-                        // the documented resolution: within 0.5e-6 deg/h (plus the
-                        // rounding of y * 1e6 and of the decimal read back)
-                        assert!((x - y).abs() <= 0.5e-6 * (1.0 + 1e-9) + y.abs() * 1e-15);
+                    if y.abs() < 2.25e12 {
+                        // the documented resolution: within 0.5e-3 deg/h (plus the
+                        // rounding of y * 1e3 and of the decimal read back)
+                        assert!((x - y).abs() <= 0.5e-3 * (1.0 + 1e-9) + y.abs() * 1e-15);
                         assert_eq!(quantize_rate(*x).to_bits(), x.to_bits(), "{x} on the grid");
                     } else {
                         assert_eq!(x.to_bits(), y.to_bits(), "{x} vs {y}: exact");
@@ -275,7 +275,7 @@ fn json_round_trip_is_exact() {
 }
 
 #[test]
-fn rates_are_written_with_six_decimals() {
+fn rates_are_written_with_three_decimals() {
     let m = SinkMessage::Noise(RateBatch {
         t0_ns: 5,
         dt_ns: 1_000_000,
@@ -283,23 +283,23 @@ fn rates_are_written_with_six_decimals() {
             1.5,
             -0.0,
             0.0,
-            -0.4e-6,
-            -0.7e-6,
+            -0.4e-3,
+            -0.7e-3,
             1234.5678904,
-            -1234.5678906,
-            1e-7,
+            -1234.5676,
+            1e-4,
             7e12,
             -1e300,
-            2_251_799_813.685_247,
+            2_251_799_813_685.247,
         ],
     });
     let mut b = Vec::new();
     m.write_json(&mut b).unwrap();
     assert_eq!(
         String::from_utf8(b).unwrap(),
-        "{\"t0_ns\":5,\"dt_ns\":1000000,\"values\":[1.500000,0.000000,0.000000,0.000000,\
-         -0.000001,1234.567890,-1234.567891,0.000000,7000000000000.0,-1e+300,\
-         2251799813.685247]}"
+        "{\"t0_ns\":5,\"dt_ns\":1000000,\"values\":[1.500,0.000,0.000,0.000,\
+         -0.001,1234.568,-1234.568,0.000,7000000000000.0,-1e+300,\
+         2251799813685.247]}"
     );
 }
 
@@ -308,7 +308,7 @@ fn recorder_json_equals_serde_json() {
     // The recorder's direct formatting of the sample batches (write_json) against
     // serde_json (to_json) on every message kind, awkward floats, negative and
     // extreme counts, gaps, absent temperature, empty batches; exact bytes (for
-    // rate batches: equal JSON values, see rates_are_written_with_six_decimals).
+    // rate batches: equal JSON values, see rates_are_written_with_three_decimals).
     let mut rng = ChaCha8Rng::seed_from_u64(17);
     let mut msgs = sink_common::stream(21, 3000);
     let mut values: Vec<f64> = (0..5_000)
@@ -364,8 +364,8 @@ fn recorder_json_equals_serde_json() {
     for m in &msgs {
         m.write_json(&mut buf).unwrap();
         match m {
-            // rates: six fixed decimals where serde_json writes the shortest form
-            // of the same value on the 1e-6 deg/h grid: equal as JSON values
+            // rates: three fixed decimals where serde_json writes the shortest form
+            // of the same value on the 1e-3 deg/h grid: equal as JSON values
             SinkMessage::Clean(_) | SinkMessage::Noise(_) => {
                 let a: Value = serde_json::from_slice(&buf).unwrap();
                 let b: Value = serde_json::from_slice(&m.to_json().unwrap()).unwrap();

@@ -27,7 +27,9 @@
 // Rows, weights and coefficients are parallel arrays indexed together.
 #![allow(clippy::needless_range_loop)]
 
+use std::collections::HashMap;
 use std::f64::consts::PI;
+use std::sync::{Mutex, OnceLock};
 
 /// A noise term whose spectrum is known up to a scale `theta` (its squared
 /// IEEE 952 coefficient in arcsec/s units).
@@ -308,6 +310,76 @@ pub fn level_nodes(lo: &[f64], hi: &[f64], level: u32, extra_breaks: &[f64]) -> 
     nodes
 }
 
+/// Most levels [`LevelBasis::new_in`] keeps memoised; the cache is emptied when full.
+pub const BASIS_CACHE_ENTRIES: usize = 256;
+
+static LEVEL_CACHE: OnceLock<Mutex<HashMap<Vec<u64>, LevelQuadrature>>> = OnceLock::new();
+
+/// Everything one level's quadrature depends on, as exact bit patterns.
+fn level_key(lo: &[f64], hi: &[f64], tau0_s: f64, level: u32, terms: &[SpectralTerm], domain: Domain) -> Vec<u64> {
+    let mut k = Vec::with_capacity(lo.len() + hi.len() + 2 * terms.len() + 6);
+    k.push(lo.len() as u64);
+    k.extend(lo.iter().map(|x| x.to_bits()));
+    k.push(hi.len() as u64);
+    k.extend(hi.iter().map(|x| x.to_bits()));
+    k.push(tau0_s.to_bits());
+    k.push(domain as u64);
+    k.push(u64::from(level));
+    for t in terms {
+        let (tag, p) = match *t {
+            SpectralTerm::WhiteAngle => (0, 0.0),
+            SpectralTerm::WhiteRate => (1, 0.0),
+            SpectralTerm::Flicker { f_lo_hz } => (2, f_lo_hz),
+            SpectralTerm::RateRandomWalk => (3, 0.0),
+            SpectralTerm::GaussMarkov { tau_c_s } => (4, tau_c_s),
+        };
+        k.extend([tag, p.to_bits()]);
+    }
+    k
+}
+
+/// The spectral quadrature of one level: band integrals of the terms, their
+/// Gram matrix and the white-noise normalisation of the EDF.
+#[derive(Debug, Clone)]
+struct LevelQuadrature {
+    band: Vec<f64>,
+    gram: Vec<Vec<f64>>,
+    white_ratio: f64,
+}
+
+impl LevelQuadrature {
+    fn compute(lo: &[f64], hi: &[f64], tau0_s: f64, j: u32, terms: &[SpectralTerm], domain: Domain) -> Self {
+        let breaks: Vec<f64> = terms
+            .iter()
+            .filter_map(|t| match t {
+                SpectralTerm::Flicker { f_lo_hz } => Some(f_lo_hz * tau0_s),
+                _ => None,
+            })
+            .collect();
+        let nodes = level_nodes(lo, hi, j, &breaks);
+        let k = terms.len();
+        let mut row = vec![0.0; k];
+        let mut g = vec![vec![0.0; k]; k];
+        let mut p = vec![0.0; k];
+        let (mut w_int, mut w_int2) = (0.0, 0.0);
+        for &(nu, w, h2) in &nodes {
+            for (i, t) in terms.iter().enumerate() {
+                p[i] = t.psd_domain(nu, tau0_s, domain) * h2;
+                row[i] += w * p[i];
+            }
+            for a in 0..k {
+                for b in 0..k {
+                    g[a][b] += w * p[a] * p[b];
+                }
+            }
+            w_int += w * h2;
+            w_int2 += w * h2 * h2;
+        }
+        let scale = 2f64.powi(-(j as i32) - 1);
+        LevelQuadrature { band: row, gram: g, white_ratio: w_int * w_int / (scale * w_int2) }
+    }
+}
+
 /// The linear model of the detail variances: for each level and term, the
 /// variance per unit theta, plus what the EDF computation needs.
 #[derive(Debug, Clone)]
@@ -332,6 +404,13 @@ impl LevelBasis {
     }
 
     /// As [`LevelBasis::new`], for a DWT of the rate or of the angle.
+    ///
+    /// A level's quadrature depends only on the filters, the sample period, the
+    /// level and the terms, never on data, and costs tens of milliseconds: the
+    /// quadrature results are memoised per level, process-wide (at most
+    /// [`BASIS_CACHE_ENTRIES`] levels), so the daemon's periodic estimator updates
+    /// and the estimator's repeated fits reuse them. A memoised level is the one
+    /// computed here, bit for bit.
     pub fn new_in(
         lo: &[f64],
         hi: &[f64],
@@ -339,6 +418,18 @@ impl LevelBasis {
         levels: &[u32],
         terms: &[SpectralTerm],
         domain: Domain,
+    ) -> Self {
+        Self::build(lo, hi, tau0_s, levels, terms, domain, true)
+    }
+
+    fn build(
+        lo: &[f64],
+        hi: &[f64],
+        tau0_s: f64,
+        levels: &[u32],
+        terms: &[SpectralTerm],
+        domain: Domain,
+        memoise: bool,
     ) -> Self {
         let max_level = levels.iter().copied().max().unwrap_or(1);
         // exact variances for finite-support terms
@@ -351,42 +442,35 @@ impl LevelBasis {
         let mut white_ratio = Vec::with_capacity(levels.len());
         let mut band = Vec::with_capacity(levels.len());
         for &j in levels {
-            let breaks: Vec<f64> = terms
-                .iter()
-                .filter_map(|t| match t {
-                    SpectralTerm::Flicker { f_lo_hz } => Some(f_lo_hz * tau0_s),
-                    _ => None,
-                })
-                .collect();
-            let nodes = level_nodes(lo, hi, j, &breaks);
-            let k = terms.len();
-            let mut row = vec![0.0; k];
-            let mut g = vec![vec![0.0; k]; k];
-            let mut p = vec![0.0; k];
-            let (mut w_int, mut w_int2) = (0.0, 0.0);
-            for &(nu, w, h2) in &nodes {
-                for (i, t) in terms.iter().enumerate() {
-                    p[i] = t.psd_domain(nu, tau0_s, domain) * h2;
-                    row[i] += w * p[i];
-                }
-                for a in 0..k {
-                    for b in 0..k {
-                        g[a][b] += w * p[a] * p[b];
+            let q = if memoise {
+                let key = level_key(lo, hi, tau0_s, j, terms, domain);
+                let cache = LEVEL_CACHE.get_or_init(Default::default);
+                let hit = cache.lock().unwrap_or_else(|e| e.into_inner()).get(&key).cloned();
+                match hit {
+                    Some(q) => q,
+                    None => {
+                        let q = LevelQuadrature::compute(lo, hi, tau0_s, j, terms, domain);
+                        let mut map = cache.lock().unwrap_or_else(|e| e.into_inner());
+                        if map.len() >= BASIS_CACHE_ENTRIES {
+                            map.clear();
+                        }
+                        map.insert(key, q.clone());
+                        q
                     }
                 }
-                w_int += w * h2;
-                w_int2 += w * h2 * h2;
-            }
-            band.push(row.clone());
+            } else {
+                LevelQuadrature::compute(lo, hi, tau0_s, j, terms, domain)
+            };
+            let mut row = q.band.clone();
             for (i, f) in finite.iter().enumerate() {
                 if let Some(v) = f {
                     row[i] = v[j as usize - 1];
                 }
             }
-            let scale = 2f64.powi(-(j as i32) - 1);
-            white_ratio.push(w_int * w_int / (scale * w_int2));
+            band.push(q.band);
+            white_ratio.push(q.white_ratio);
             phi.push(row);
-            gram.push(g);
+            gram.push(q.gram);
         }
         LevelBasis { terms: terms.to_vec(), levels: levels.to_vec(), phi, gram, band, white_ratio }
     }
@@ -420,6 +504,28 @@ impl LevelBasis {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn memoised_basis_is_the_computed_one_and_keys_tell_terms_apart() {
+        let terms = [SpectralTerm::WhiteRate, SpectralTerm::Flicker { f_lo_hz: 1e-2 }, SpectralTerm::RateRandomWalk];
+        let levels = [3, 7, 12];
+        let fresh = LevelBasis::build(&SYM8_LO, &SYM8_HI, 1e-3, &levels, &terms, Domain::Angle, false);
+        for _ in 0..2 {
+            let b = LevelBasis::new_in(&SYM8_LO, &SYM8_HI, 1e-3, &levels, &terms, Domain::Angle);
+            for (r, s) in b.phi.iter().zip(&fresh.phi) {
+                assert_eq!(r.iter().map(|x| x.to_bits()).collect::<Vec<_>>(), s.iter().map(|x| x.to_bits()).collect::<Vec<_>>());
+            }
+            assert_eq!(b.edf(1, &[1.0, 2.0, 3.0], 1e4).to_bits(), fresh.edf(1, &[1.0, 2.0, 3.0], 1e4).to_bits());
+        }
+        // a different flicker corner, domain or period is a different basis
+        let other = [SpectralTerm::WhiteRate, SpectralTerm::Flicker { f_lo_hz: 2e-2 }, SpectralTerm::RateRandomWalk];
+        let k = |t: &[SpectralTerm], d, tau0| level_key(&SYM8_LO, &SYM8_HI, tau0, 7, t, d);
+        assert_ne!(k(&terms, Domain::Angle, 1e-3), k(&other, Domain::Angle, 1e-3));
+        assert_ne!(k(&terms, Domain::Angle, 1e-3), k(&terms, Domain::Rate, 1e-3));
+        assert_ne!(k(&terms, Domain::Angle, 1e-3), k(&terms, Domain::Angle, 2e-3));
+        let b = LevelBasis::new_in(&SYM8_LO, &SYM8_HI, 1e-3, &levels, &other, Domain::Angle);
+        assert_ne!(b.phi[2][1], fresh.phi[2][1]);
+    }
 
     // PyWavelets sym8 dec_lo / dec_hi (pywt 1.9, printed with repr()).
     pub(crate) const SYM8_LO: [f64; 16] = [

@@ -21,15 +21,21 @@
 //! clock) so Foxglove shows wall time.
 //!
 //! Rate values (`/gyro/clean`, `/gyro/noise`) are written with a fixed resolution
-//! of [`RATE_RESOLUTION_DPH`] = 1e-6 deg/h (six decimals, `%.6f`), not as
-//! shortest round-trip floats: one counter pulse at 1 kHz is about 1210 deg/h for
-//! the paper gyro, so the rounding (at most 0.5e-6 deg/h) is 1e-9 of a pulse,
-//! far below anything physical, while the dropped digits were most of the bytes
-//! (and of the compression work) of a recording. Replay and determinism rest on
-//! the integer counts of `/gyro/raw`, which are exact. [`quantize_rate`] gives the
-//! value a recording reads back; [`SinkMessage::recorded`] the whole message.
-//! Magnitudes of 2^51 * 1e-6 deg/h (about 2.25e9 deg/h) and more are written
-//! exactly (shortest round-trip), as are all other floats.
+//! of [`RATE_RESOLUTION_DPH`] = 1e-3 deg/h (three decimals, `%.3f`), not as
+//! shortest round-trip floats: the dropped digits were most of the bytes (and of
+//! the compression work) of a recording, and they carry nothing physical. One
+//! counter pulse at 1 kHz is about 1210 deg/h for the paper gyro, so the rounding
+//! (at most 0.5e-3 deg/h) is 4e-7 of a pulse; the per-sample scatter of the clean
+//! rate is tens of deg/h at 1 kHz (ARW 0.001 deg/rt(h) alone gives 1.9 deg/h), so
+//! the rounding error is uniform and white, of standard deviation 2.9e-4 deg/h:
+//! an extra angle random walk of 2.9e-4 * sqrt(tau0 / 1 s) / 60 deg/rt(h)
+//! (1.5e-7 deg/rt(h) at 1 kHz, 1.5e-6 at 10 Hz), whose variance is below 1e-5 of
+//! that of the best ring-laser gyros (ARW 1e-4 deg/rt(h)) at any sample rate
+//! above 1 Hz. Replay and determinism rest on the integer counts of `/gyro/raw`,
+//! which are exact. [`quantize_rate`] gives the value a recording reads back;
+//! [`SinkMessage::recorded`] the whole message. Magnitudes of 2^51 * 1e-3 deg/h
+//! (about 2.25e12 deg/h) and more are written exactly (shortest round-trip), as
+//! are all other floats.
 //!
 //! JSON has no NaN or infinity: a message holding a non-finite number is refused
 //! by [`SinkMessage::validate`] rather than silently recorded as `null`. Quantities that may be absent are `Option`s
@@ -150,27 +156,27 @@ pub struct RateBatch {
     pub t0_ns: u64,
     /// Spacing of the values, ns.
     pub dt_ns: u64,
-    /// Rates, deg/h (recorded to 1e-6 deg/h, see [`quantize_rate`]).
+    /// Rates, deg/h (recorded to 1e-3 deg/h, see [`quantize_rate`]).
     #[serde(serialize_with = "serialize_rates")]
     pub values: Vec<f64>,
 }
 
 /// Resolution of the recorded rate values (`/gyro/clean`, `/gyro/noise`), deg/h.
-pub const RATE_RESOLUTION_DPH: f64 = 1e-6;
+pub const RATE_RESOLUTION_DPH: f64 = 1e-3;
 
-/// Recorded rates are multiples of 1e-6 deg/h below this magnitude, deg/h
-/// (2^51 micro-deg/h: the rounding below is exact there).
-const RATE_GRID_LIMIT_DPH: f64 = 2_251_799_813.685_248;
+/// Recorded rates are multiples of [`RATE_RESOLUTION_DPH`] below this magnitude,
+/// deg/h (2^51 milli-deg/h: the rounding below is exact there).
+pub const RATE_GRID_LIMIT_DPH: f64 = 2_251_799_813_685.248;
 
-/// `v` rounded to a multiple of 1e-6 deg/h (ties to even on `v * 1e6`), as an
-/// integer number of micro-deg/h; `None` for non-finite values and magnitudes of
+/// `v` rounded to a multiple of 1e-3 deg/h (ties to even on `v * 1e3`), as an
+/// integer number of milli-deg/h; `None` for non-finite values and magnitudes of
 /// [`RATE_GRID_LIMIT_DPH`] and more (written exactly).
 #[inline]
-fn rate_micro(v: f64) -> Option<i64> {
+fn rate_milli(v: f64) -> Option<i64> {
     if v.abs() < RATE_GRID_LIMIT_DPH {
         // |x| < 2^51: adding and removing 1.5 * 2^52 rounds to an integer (ties to even)
         const MAGIC: f64 = 6_755_399_441_055_744.0;
-        let x = v * 1e6;
+        let x = v * 1e3;
         Some(((x + MAGIC) - MAGIC) as i64)
     } else {
         None
@@ -178,14 +184,14 @@ fn rate_micro(v: f64) -> Option<i64> {
 }
 
 /// The value a recording gives back for the rate `v` (deg/h): `v` rounded to
-/// the [`RATE_RESOLUTION_DPH`] grid (error at most 0.5e-6 deg/h plus one rounding
-/// of `v * 1e6`); non-finite values and magnitudes of about 2.25e9 deg/h and
+/// the [`RATE_RESOLUTION_DPH`] grid (error at most 0.5e-3 deg/h plus one rounding
+/// of `v * 1e3`); non-finite values and magnitudes of about 2.25e12 deg/h and
 /// more unchanged.
 pub fn quantize_rate(v: f64) -> f64 {
-    match rate_micro(v) {
+    match rate_milli(v) {
         // |n| < 2^51: exact, and the division is correctly rounded, so this is the
         // f64 nearest to the decimal the recorder writes
-        Some(n) => n as f64 / 1e6,
+        Some(n) => n as f64 / 1e3,
         None => v,
     }
 }
@@ -381,7 +387,7 @@ impl SinkMessage {
     }
 
     /// The message as a recording gives it back: rate values (`/gyro/clean`,
-    /// `/gyro/noise`) on the 1e-6 deg/h grid ([`quantize_rate`]), all else unchanged.
+    /// `/gyro/noise`) on the 1e-3 deg/h grid ([`quantize_rate`]), all else unchanged.
     pub fn recorded(&self) -> SinkMessage {
         let q = |m: &RateBatch| RateBatch {
             t0_ns: m.t0_ns,
@@ -396,7 +402,7 @@ impl SinkMessage {
     }
 
     /// JSON payload (after [`SinkMessage::validate`], this decodes to
-    /// [`SinkMessage::recorded`]: exact except for the 1e-6 deg/h rate grid).
+    /// [`SinkMessage::recorded`]: exact except for the 1e-3 deg/h rate grid).
     pub fn to_json(&self) -> Result<Vec<u8>, serde_json::Error> {
         match self {
             SinkMessage::Raw(m) => serde_json::to_vec(m),
@@ -409,7 +415,7 @@ impl SinkMessage {
 
     /// JSON payload written into `out` (cleared first): the same JSON value as
     /// [`SinkMessage::to_json`] (byte for byte except that rate values are written
-    /// with six fixed decimals, `1.500000` where serde_json writes `1.5`). The
+    /// with three fixed decimals, `1.500` where serde_json writes `1.5`). The
     /// sample batches (`/gyro/raw`, `/gyro/clean`, `/gyro/noise`: nearly all the
     /// bytes of a recording) are formatted directly into the recorder's reused
     /// buffer: counts with serde_json's integer formatter, rates in fixed point.
@@ -601,8 +607,8 @@ fn write_rate_batch(m: &RateBatch, out: &mut Vec<u8>) {
         if i > 0 {
             out.push(b',');
         }
-        match rate_micro(v) {
-            Some(n) => put_micro(out, &mut int, n),
+        match rate_milli(v) {
+            Some(n) => put_milli(out, &mut int, n),
             None if v.is_finite() => out.extend_from_slice(buf.format_finite(v).as_bytes()),
             None => out.extend_from_slice(b"null"),
         }
@@ -618,25 +624,17 @@ const DIGIT_PAIRS: &[u8; 200] = b"\
 6061626364656667686970717273747576777879\
 8081828384858687888990919293949596979899";
 
-/// `n` micro-units as `[-]int.dddddd`.
+/// `n` milli-units as `[-]int.ddd`.
 #[inline]
-fn put_micro(out: &mut Vec<u8>, int: &mut itoa::Buffer, n: i64) {
+fn put_milli(out: &mut Vec<u8>, int: &mut itoa::Buffer, n: i64) {
     let a = n.unsigned_abs();
     if n < 0 {
         out.push(b'-');
     }
-    out.extend_from_slice(int.format(a / 1_000_000).as_bytes());
-    let f = (a % 1_000_000) as usize;
-    let (hi, mid, lo) = (f / 10_000, f / 100 % 100, f % 100);
-    out.extend_from_slice(&[
-        b'.',
-        DIGIT_PAIRS[2 * hi],
-        DIGIT_PAIRS[2 * hi + 1],
-        DIGIT_PAIRS[2 * mid],
-        DIGIT_PAIRS[2 * mid + 1],
-        DIGIT_PAIRS[2 * lo],
-        DIGIT_PAIRS[2 * lo + 1],
-    ]);
+    out.extend_from_slice(int.format(a / 1000).as_bytes());
+    let f = (a % 1000) as usize;
+    let (hi, lo) = (f / 100, f % 100);
+    out.extend_from_slice(&[b'.', b'0' + hi as u8, DIGIT_PAIRS[2 * lo], DIGIT_PAIRS[2 * lo + 1]]);
 }
 
 fn finite(topic: &'static str, field: &str, value: f64) -> Result<(), MessageError> {
@@ -722,7 +720,7 @@ fn rate_batch_schema(what: &str) -> Value {
         json!({
             "t0_ns": uint("time of the first value, ns since the Unix epoch"),
             "dt_ns": uint("spacing of the values, ns"),
-            "values": {"type": "array", "items": {"type": "number"}, "description": "rate, deg/h, recorded to 1e-6 deg/h (six decimals; one counter pulse at 1 kHz is about 1210 deg/h for the paper gyro)"},
+            "values": {"type": "array", "items": {"type": "number"}, "description": "rate, deg/h, recorded to 1e-3 deg/h (three decimals; one counter pulse at 1 kHz is about 1210 deg/h for the paper gyro)"},
         }),
     )
 }

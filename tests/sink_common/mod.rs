@@ -167,7 +167,7 @@ pub fn stream(seed: u64, n: usize) -> Vec<SinkMessage> {
 }
 
 /// What a recording of `msgs` gives back: the messages with their rate values on
-/// the 1e-6 deg/h grid of the recorder ([`SinkMessage::recorded`]).
+/// the 1e-3 deg/h grid of the recorder ([`SinkMessage::recorded`]).
 pub fn recorded(msgs: &[SinkMessage]) -> Vec<SinkMessage> {
     msgs.iter().map(SinkMessage::recorded).collect()
 }
