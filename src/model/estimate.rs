@@ -186,14 +186,25 @@ pub const CUT_RISE_Z: f64 = 3.0;
 /// by this many standard deviations (low-frequency terms only: a non-white QN tail).
 pub const TRIM_EXCESS_Z: f64 = 4.0;
 
+/// The low-frequency corner of the fitted flicker term, cycles per sample: the
+/// power of two at or just below `1e-3 / n_samples`.
+pub fn flicker_corner_cycles(n_samples: u64) -> f64 {
+    (1e-3 / n_samples.max(1) as f64).log2().floor().exp2()
+}
+
 /// The terms fitted, in order: Q^2, N^2, B^2, K^2.
 pub fn standard_terms(n_samples: u64, tau0_s: f64) -> [SpectralTerm; 4] {
     [
         SpectralTerm::WhiteAngle,
         SpectralTerm::WhiteRate,
-        // flicker with no visible low-frequency corner: put it three decades
-        // below the record's lowest frequency
-        SpectralTerm::Flicker { f_lo_hz: 1e-3 / (n_samples.max(1) as f64 * tau0_s) },
+        // flicker with no visible low-frequency corner: put it about three
+        // decades below the record's lowest frequency, at a power of two in
+        // cycles per sample (between 2^-11 and 2^-10 of 1/N): the corner then
+        // falls on an octave break of the wavelet-level quadrature and stays put
+        // while the record grows within an octave, so the daemon's periodic
+        // updates reuse the memoised quadrature (the level variances move by
+        // far less than their uncertainty between such corners)
+        SpectralTerm::Flicker { f_lo_hz: flicker_corner_cycles(n_samples) / tau0_s },
         SpectralTerm::RateRandomWalk,
     ]
 }

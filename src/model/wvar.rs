@@ -29,7 +29,7 @@
 
 use std::collections::HashMap;
 use std::f64::consts::PI;
-use std::sync::{Mutex, OnceLock};
+use std::sync::{Arc, Mutex, OnceLock};
 
 /// A noise term whose spectrum is known up to a scale `theta` (its squared
 /// IEEE 952 coefficient in arcsec/s units).
@@ -313,6 +313,40 @@ pub fn level_nodes(lo: &[f64], hi: &[f64], level: u32, extra_breaks: &[f64]) -> 
 /// Most levels [`LevelBasis::new_in`] keeps memoised; the cache is emptied when full.
 pub const BASIS_CACHE_ENTRIES: usize = 256;
 
+static NODE_CACHE: OnceLock<Mutex<HashMap<Vec<u64>, Arc<Vec<(f64, f64, f64)>>>>> = OnceLock::new();
+
+/// [`level_nodes`], memoised (the filter responses at the nodes are most of a
+/// level's quadrature cost, and they do not depend on the terms unless a break
+/// falls between the octave breaks).
+fn memo_level_nodes(lo: &[f64], hi: &[f64], level: u32, extra_breaks: &[f64]) -> Arc<Vec<(f64, f64, f64)>> {
+    let mut key = Vec::with_capacity(lo.len() + hi.len() + extra_breaks.len() + 3);
+    key.push(lo.len() as u64);
+    key.extend(lo.iter().map(|x| x.to_bits()));
+    key.push(hi.len() as u64);
+    key.extend(hi.iter().map(|x| x.to_bits()));
+    key.push(u64::from(level));
+    // breaks on the octave grid or outside the band add no node: leave them out
+    let top = (2f64.powi(-(level as i32) + 4)).min(0.5);
+    let bottom = 2f64.powi(-(level as i32) - 14);
+    key.extend(
+        extra_breaks
+            .iter()
+            .filter(|&&e| e > bottom && e < top && e.log2().fract() != 0.0)
+            .map(|e| e.to_bits()),
+    );
+    let cache = NODE_CACHE.get_or_init(Default::default);
+    if let Some(n) = cache.lock().unwrap_or_else(|e| e.into_inner()).get(&key) {
+        return Arc::clone(n);
+    }
+    let nodes = Arc::new(level_nodes(lo, hi, level, extra_breaks));
+    let mut map = cache.lock().unwrap_or_else(|e| e.into_inner());
+    if map.len() >= BASIS_CACHE_ENTRIES {
+        map.clear();
+    }
+    map.insert(key, Arc::clone(&nodes));
+    nodes
+}
+
 static LEVEL_CACHE: OnceLock<Mutex<HashMap<Vec<u64>, LevelQuadrature>>> = OnceLock::new();
 
 /// Everything one level's quadrature depends on, as exact bit patterns.
@@ -356,13 +390,13 @@ impl LevelQuadrature {
                 _ => None,
             })
             .collect();
-        let nodes = level_nodes(lo, hi, j, &breaks);
+        let nodes = memo_level_nodes(lo, hi, j, &breaks);
         let k = terms.len();
         let mut row = vec![0.0; k];
         let mut g = vec![vec![0.0; k]; k];
         let mut p = vec![0.0; k];
         let (mut w_int, mut w_int2) = (0.0, 0.0);
-        for &(nu, w, h2) in &nodes {
+        for &(nu, w, h2) in nodes.iter() {
             for (i, t) in terms.iter().enumerate() {
                 p[i] = t.psd_domain(nu, tau0_s, domain) * h2;
                 row[i] += w * p[i];

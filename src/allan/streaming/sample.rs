@@ -216,19 +216,104 @@ fn sq_i64(z: i64) -> u128 {
     (w * w) as u128
 }
 
+/// Exact scalar kernel of the count path: every square in `u128`.
+#[inline(always)]
+fn sq_acc_i64_scalar(a: &[i64], b: &[i64], c: &[i64], total: &mut u128) {
+    let n = c.len();
+    let (a, b) = (&a[..n], &b[..n]);
+    let mut t = *total;
+    for ((&xa, &xb), &xc) in a.iter().zip(b).zip(c) {
+        t = t.saturating_add(sq_i64(d2_i64(xa, xb, xc)));
+    }
+    *total = t;
+}
+
+/// Elements per chunk of the vector count kernel: with every `|z| < 2^SMALL_Z_BITS`
+/// each of its 4 lanes sums `I64_CHUNK / 4` squares below `2^(2 SMALL_Z_BITS)`,
+/// i.e. below `2^62`: no `u64` lane can overflow.
+const I64_CHUNK: usize = 256;
+const SMALL_Z_BITS: u32 = 28;
+
+/// The count kernel with AVX2: second differences in 64-bit lanes, squared by the
+/// 32 x 32 -> 64-bit multiply and summed in `u64` lanes, exact whenever every
+/// `|z| < 2^28` in a chunk of 256 (a gyro's second differences are the pulse
+/// difference of two adjacent windows: noise-sized, far below that); a chunk with
+/// a larger `z` is redone by the exact `u128` scalar kernel. Same integer total
+/// as [`sq_acc_i64_scalar`], hence bitwise the same result.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn sq_acc_i64_avx2(a: &[i64], b: &[i64], c: &[i64], total: &mut u128) {
+    use std::arch::x86_64::*;
+    let n = c.len();
+    let (a, b) = (&a[..n], &b[..n]);
+    let whole = n / I64_CHUNK * I64_CHUNK;
+    let mut t = *total;
+    let mut k0 = 0;
+    while k0 < whole {
+        // SAFETY: k0 + I64_CHUNK <= n for all three slices; unaligned loads.
+        let (sum, out_of_range) = unsafe {
+            let bias = _mm256_set1_epi64x(1 << SMALL_Z_BITS);
+            let mut acc0 = _mm256_setzero_si256();
+            let mut acc1 = _mm256_setzero_si256();
+            let mut bad = _mm256_setzero_si256();
+            let (pa, pb, pc) = (a.as_ptr().add(k0), b.as_ptr().add(k0), c.as_ptr().add(k0));
+            let mut i = 0;
+            while i < I64_CHUNK {
+                macro_rules! step {
+                    ($acc:ident, $k:expr) => {{
+                        let xa = _mm256_loadu_si256(pa.add(i + $k) as *const __m256i);
+                        let xb = _mm256_loadu_si256(pb.add(i + $k) as *const __m256i);
+                        let xc = _mm256_loadu_si256(pc.add(i + $k) as *const __m256i);
+                        let z = _mm256_add_epi64(_mm256_sub_epi64(xc, _mm256_add_epi64(xb, xb)), xa);
+                        // |z| < 2^28 <=> 0 <= z + 2^28 < 2^29 (unsigned): no bit above 28
+                        bad = _mm256_or_si256(bad, _mm256_srli_epi64(_mm256_add_epi64(z, bias), SMALL_Z_BITS as i32 + 1));
+                        $acc = _mm256_add_epi64($acc, _mm256_mul_epi32(z, z));
+                    }};
+                }
+                step!(acc0, 0);
+                step!(acc1, 4);
+                i += 8;
+            }
+            let mut lanes = [0u64; 8];
+            _mm256_storeu_si256(lanes.as_mut_ptr() as *mut __m256i, acc0);
+            _mm256_storeu_si256(lanes.as_mut_ptr().add(4) as *mut __m256i, acc1);
+            let sum: u128 = lanes.iter().map(|&l| u128::from(l)).sum();
+            (sum, _mm256_testz_si256(bad, bad) == 0)
+        };
+        if out_of_range {
+            let r = k0..k0 + I64_CHUNK;
+            sq_acc_i64_scalar(&a[r.clone()], &b[r.clone()], &c[r], &mut t);
+        } else {
+            t = t.saturating_add(sum);
+        }
+        k0 += I64_CHUNK;
+    }
+    sq_acc_i64_scalar(&a[whole..], &b[whole..], &c[whole..], &mut t);
+    *total = t;
+}
+
+fn sq_acc_i64(a: &[i64], b: &[i64], c: &[i64], total: &mut u128) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2 (checked just above).
+            return unsafe { sq_acc_i64_avx2(a, b, c, total) };
+        }
+    }
+    sq_acc_i64_scalar(a, b, c, total)
+}
+
 impl PhaseValue for i64 {
     type Total = u128;
     type Partial = u128;
     type Lanes = u128;
 
+    #[inline]
     fn sq_acc(a: &[i64], b: &[i64], c: &[i64], lanes: &mut u128) {
-        let n = c.len();
-        let (a, b) = (&a[..n], &b[..n]);
-        let mut total = *lanes;
-        for ((&xa, &xb), &xc) in a.iter().zip(b).zip(c) {
-            total = total.saturating_add(sq_i64(d2_i64(xa, xb, xc)));
-        }
-        *lanes = total;
+        sq_acc_i64(a, b, c, lanes)
     }
     #[inline]
     fn lanes_partial(l: &u128) -> u128 {
@@ -288,6 +373,41 @@ mod tests {
                 + 8.0;
             let got = <f64 as PhaseValue>::lanes_partial(&a);
             assert!((got - plain).abs() <= 1e-12 * plain, "{got} vs {plain}");
+        }
+    }
+
+    #[test]
+    fn vector_count_kernel_is_the_exact_scalar_one() {
+        // small second differences (the vector path), huge ones (chunks redone in
+        // u128), wrapping cumulative counts, and every length around the chunk size
+        let mut s = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            s
+        };
+        for (scale, wrap) in [(3i64, 0i64), (1 << 20, 0), (1 << 27, 0), (1 << 40, 0), (5, i64::MAX - 1000)] {
+            let mut x = vec![wrap];
+            for _ in 0..3000 {
+                let inc = (next() % (2 * scale as u64 + 1)) as i64 - scale;
+                let last = *x.last().unwrap();
+                x.push(last.wrapping_add(inc));
+            }
+            // one isolated spike beyond 2^28 in the middle of a small-z stream
+            if scale == 3 {
+                x[1500] = x[1500].wrapping_add(1 << 30);
+            }
+            for len in [0, 1, 255, 256, 257, 511, 512, 1000, 2990] {
+                for m in [1usize, 4] {
+                    let (a, b, c) = (&x[..len], &x[m..m + len], &x[2 * m..2 * m + len]);
+                    let mut exact = 7u128;
+                    sq_acc_i64_scalar(a, b, c, &mut exact);
+                    let mut got = 7u128;
+                    sq_acc_i64(a, b, c, &mut got);
+                    assert_eq!(got, exact, "scale {scale} len {len} m {m}");
+                }
+            }
         }
     }
 
