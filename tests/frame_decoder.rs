@@ -487,3 +487,77 @@ fn reserved_field_nonzero_is_accepted_and_counted() {
     assert_eq!(samples(&items).len(), 1);
     assert_eq!(st.reserved_nonzero, 1);
 }
+
+/// `decode_run` (bulk runs) interleaved with `decode`, fed in uneven chunks:
+/// the same increments, the same events in the same places, the same last
+/// sample of every run and the same counts as decoding frame by frame.
+#[test]
+fn bulk_runs_decode_exactly_like_frame_by_frame() {
+    use sagnac::source::frame::inject::InjectorConfig;
+    // temperature and status vary (a status change ends a run), the counter wraps
+    let mut frames = Vec::new();
+    let mut counter = 0xFFFF_F000u32;
+    for k in 0..6000u32 {
+        let status = if (2000..2500).contains(&k) { 0b011 } else { 0b111 };
+        counter = counter.wrapping_add((k * 7919) % 41).wrapping_sub(20);
+        frames.push(encode_frame((65_000 + k) as u16, counter, (k % 300) as i16 - 150, status));
+    }
+    for seed in 0..6u64 {
+        let cfg = InjectorConfig { tail_max_len: 20, ..InjectorConfig::default() };
+        let bytes = inject(&frames, &FaultPlan::random(frames.len(), &cfg, seed)).bytes;
+        let (reference, ref_stats) = decode(&bytes);
+        let ref_samples = samples(&reference);
+        for max in [1usize, 7, 100_000] {
+            let mut dec = FrameDecoder::new();
+            let mut buf = BytesMut::new();
+            let (mut incs, mut evs, mut runs) = (Vec::new(), Vec::new(), 0usize);
+            let mut run = Vec::new();
+            let mut fed = 0;
+            let mut step = 1 + seed as usize * 37;
+            loop {
+                let eof = fed == bytes.len();
+                run.clear();
+                if let Some(end) = dec.decode_run(&mut buf, max, &mut run) {
+                    assert!(run.len() <= max && run.len() == end.samples);
+                    incs.extend_from_slice(&run);
+                    // the run's last sample is the reference's sample at that place
+                    let last = ref_samples[incs.len() - 1];
+                    assert_eq!((end.seq, end.status, end.temp_c.to_bits()), (last.seq, last.status, last.temp_c.to_bits()));
+                    runs += 1;
+                    continue;
+                }
+                let item = if eof { dec.decode_eof(&mut buf) } else { dec.decode(&mut buf) };
+                match item {
+                    Some(Decoded::Sample(s)) => {
+                        assert_eq!(s, ref_samples[incs.len()]);
+                        incs.push(s.increment);
+                    }
+                    Some(Decoded::Event(e)) => evs.push((incs.len(), e)),
+                    None if eof => break,
+                    None => {
+                        step = (step * 7 + 13) % 3001 + 1;
+                        let end = (fed + step).min(bytes.len());
+                        buf.extend_from_slice(&bytes[fed..end]);
+                        fed = end;
+                    }
+                }
+            }
+            assert!(runs > 0);
+            let ref_incs: Vec<i64> = ref_samples.iter().map(|s| s.increment).collect();
+            assert_eq!(incs, ref_incs, "seed {seed} max {max}");
+            let mut n = 0;
+            let ref_evs: Vec<(usize, DecodeEvent)> = reference
+                .iter()
+                .filter_map(|d| match d {
+                    Decoded::Sample(_) => {
+                        n += 1;
+                        None
+                    }
+                    Decoded::Event(e) => Some((n, *e)),
+                })
+                .collect();
+            assert_eq!(evs, ref_evs, "seed {seed} max {max}");
+            assert_eq!(*dec.stats(), ref_stats, "seed {seed} max {max}");
+        }
+    }
+}

@@ -37,7 +37,7 @@ use crate::daemon::telemetry::{
 };
 use crate::sink::messages::{Event, EventKind, Gap};
 use crate::sink::metrics::FrameErrorKind;
-use crate::source::frame::{DecodeEvent, Decoded, DecoderStats};
+use crate::source::frame::{DecodeEvent, Decoded, DecoderStats, RunEnd};
 
 /// Nanoseconds since the Unix epoch, host clock (0 if the clock is before 1970).
 pub fn wall_ns() -> u64 {
@@ -219,6 +219,39 @@ impl Assembler {
             }
             Decoded::Event(ev) => self.push_decode_event(ev, now_ns),
         }
+    }
+
+    /// Sample periods left before the period limit (`usize::MAX` without one).
+    pub fn room(&self) -> usize {
+        self.limit_periods.map_or(usize::MAX, |l| usize::try_from(l.saturating_sub(self.periods)).unwrap_or(usize::MAX))
+    }
+
+    /// A run of contiguous samples from [`FrameDecoder::decode_run`](crate::source::frame::FrameDecoder::decode_run):
+    /// the same as [`push`](Self::push)ing each as a sample with no loss before it.
+    /// The run must fit in [`room`](Self::room) (the caller bounds the decoder by it).
+    pub fn push_run(&mut self, increments: &[i64], end: &RunEnd, now_ns: u64) {
+        let n = increments.len();
+        debug_assert!(n <= self.room(), "run of {n} beyond the period limit");
+        if n == 0 || self.done() {
+            return;
+        }
+        let first = self
+            .next_seq
+            .unwrap_or(u64::from(end.seq.wrapping_sub((n - 1) as u16)));
+        if self.anchor.is_none() {
+            self.anchor = Some((first, now_ns));
+        }
+        if !self.batch_started {
+            self.batch.seq0 = first;
+            self.batch.t0_ns = self.time_of(first, now_ns);
+            self.batch.new_segment = std::mem::take(&mut self.next_new_segment);
+            self.batch_started = true;
+        }
+        self.batch.counts.extend_from_slice(increments);
+        self.batch.temp_c = Some(end.temp_c);
+        self.batch.status = Some(u32::from(end.status));
+        self.next_seq = Some(first + n as u64);
+        self.periods += n as u64;
     }
 
     fn push_decode_event(&mut self, ev: DecodeEvent, now_ns: u64) {

@@ -571,7 +571,12 @@ fn write_raw_batch(m: &RawBatch, out: &mut Vec<u8>) {
         if i > 0 {
             out.push(b',');
         }
-        out.extend_from_slice(buf.format(c).as_bytes());
+        // a static gyro's increments are nearly all single digits
+        if (0..10).contains(&c) {
+            out.push(b'0' + c as u8);
+        } else {
+            out.extend_from_slice(buf.format(c).as_bytes());
+        }
     }
     out.extend_from_slice(b"],\"gaps\":[");
     for (i, g) in m.gaps.iter().enumerate() {
@@ -602,13 +607,12 @@ fn write_rate_batch(m: &RateBatch, out: &mut Vec<u8>) {
     put_u64(out, m.dt_ns);
     out.extend_from_slice(b",\"values\":[");
     let mut buf = zmij::Buffer::new();
-    let mut int = itoa::Buffer::new();
     for (i, &v) in m.values.iter().enumerate() {
         if i > 0 {
             out.push(b',');
         }
         match rate_milli(v) {
-            Some(n) => put_milli(out, &mut int, n),
+            Some(n) => put_milli(out, n),
             None if v.is_finite() => out.extend_from_slice(buf.format_finite(v).as_bytes()),
             None => out.extend_from_slice(b"null"),
         }
@@ -624,17 +628,40 @@ const DIGIT_PAIRS: &[u8; 200] = b"\
 6061626364656667686970717273747576777879\
 8081828384858687888990919293949596979899";
 
-/// `n` milli-units as `[-]int.ddd`.
+/// `n` milli-units as `[-]int.ddd` (`|n| < 2^51`: at most 13 integer digits),
+/// formatted right to left in a stack buffer.
 #[inline]
-fn put_milli(out: &mut Vec<u8>, int: &mut itoa::Buffer, n: i64) {
-    let a = n.unsigned_abs();
-    if n < 0 {
-        out.push(b'-');
-    }
-    out.extend_from_slice(int.format(a / 1000).as_bytes());
+fn put_milli(out: &mut Vec<u8>, n: i64) {
+    let mut a = n.unsigned_abs();
+    let mut tmp = [0u8; 24];
+    let mut p = tmp.len();
     let f = (a % 1000) as usize;
-    let (hi, lo) = (f / 100, f % 100);
-    out.extend_from_slice(&[b'.', b'0' + hi as u8, DIGIT_PAIRS[2 * lo], DIGIT_PAIRS[2 * lo + 1]]);
+    a /= 1000;
+    p -= 4;
+    tmp[p] = b'.';
+    tmp[p + 1] = b'0' + (f / 100) as u8;
+    tmp[p + 2] = DIGIT_PAIRS[2 * (f % 100)];
+    tmp[p + 3] = DIGIT_PAIRS[2 * (f % 100) + 1];
+    while a >= 100 {
+        let d = (a % 100) as usize;
+        a /= 100;
+        p -= 2;
+        tmp[p] = DIGIT_PAIRS[2 * d];
+        tmp[p + 1] = DIGIT_PAIRS[2 * d + 1];
+    }
+    if a >= 10 {
+        p -= 2;
+        tmp[p] = DIGIT_PAIRS[2 * a as usize];
+        tmp[p + 1] = DIGIT_PAIRS[2 * a as usize + 1];
+    } else {
+        p -= 1;
+        tmp[p] = b'0' + a as u8;
+    }
+    if n < 0 {
+        p -= 1;
+        tmp[p] = b'-';
+    }
+    out.extend_from_slice(&tmp[p..]);
 }
 
 fn finite(topic: &'static str, field: &str, value: f64) -> Result<(), MessageError> {

@@ -113,7 +113,7 @@ mod fill;
 pub mod inject;
 
 pub use decoder::{
-    DecodeEvent, Decoded, DecoderConfig, DecoderStats, FrameDecoder, Sample, increment_between,
+    DecodeEvent, Decoded, DecoderConfig, DecoderStats, FrameDecoder, RunEnd, Sample, increment_between,
 };
 pub use encoder::{FrameEncoder, FrameWriter, encode_increments};
 pub use fill::{GapFiller, UniformSample, fill_gap, spread_increment};

@@ -55,6 +55,19 @@ pub struct Sample {
     pub offset: u64,
 }
 
+/// The last frame of a run consumed by [`FrameDecoder::decode_run`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RunEnd {
+    /// Frames (= samples) in the run.
+    pub samples: usize,
+    /// `seq` of its last frame.
+    pub seq: u16,
+    /// Temperature of its last frame, deg C.
+    pub temp_c: f64,
+    /// Status flags (the same for the whole run).
+    pub status: u16,
+}
+
 /// Something the decoder noticed. Offsets are absolute stream offsets.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum DecodeEvent {
@@ -339,6 +352,57 @@ impl FrameDecoder {
             status: raw.status,
             offset,
         })
+    }
+
+    /// Bulk form of the fast path: consume the longest run (at most `max`
+    /// frames) of valid frames at the front of `buf` that each directly follow
+    /// the previous accepted one with the same status, append their pulse
+    /// increments to `increments`, and return what the last of them carried.
+    /// Exactly the state, counts and samples that calling [`decode`](Self::decode)
+    /// once per frame would give (those calls would return only
+    /// [`Decoded::Sample`]s with `lost_before == 0`); `None`, with nothing
+    /// consumed, when the front of `buf` is anything else, which `decode` then
+    /// handles.
+    pub fn decode_run(&mut self, buf: &mut BytesMut, max: usize, increments: &mut Vec<i64>) -> Option<RunEnd> {
+        if !self.queue.is_empty() || self.skip_run != 0 || max == 0 {
+            return None;
+        }
+        let last = self.last?;
+        let status = self.last_status?;
+        let mut prev = last;
+        let mut reserved_nonzero = 0u64;
+        let mut n = 0usize;
+        let mut temp_raw = 0i16;
+        for frame in buf.chunks_exact(FRAME_LEN).take(max) {
+            if check(frame).is_err() {
+                break;
+            }
+            let raw = parse(frame)?;
+            if raw.seq != prev.seq.wrapping_add(1) || raw.status != status {
+                break;
+            }
+            increments.push(increment_between(prev.counter, raw.counter));
+            reserved_nonzero += u64::from(raw.reserved != 0);
+            temp_raw = raw.temp_raw;
+            prev = Anchor::of(&raw, self.offset + (n * FRAME_LEN) as u64);
+            n += 1;
+        }
+        if n == 0 {
+            return None;
+        }
+        if buf.len() > self.buffered {
+            self.stats.bytes_read += (buf.len() - self.buffered) as u64;
+        }
+        buf.advance(n * FRAME_LEN);
+        self.buffered = buf.len();
+        self.offset += (n * FRAME_LEN) as u64;
+        self.stats.frames_decoded += n as u64;
+        self.stats.samples += n as u64;
+        self.stats.reserved_nonzero += reserved_nonzero;
+        self.pending = None;
+        self.last = Some(prev);
+        let raw_last = RawFrame { seq: prev.seq, counter: prev.counter, temp_raw, status, reserved: 0, crc: 0 };
+        Some(RunEnd { samples: n, seq: prev.seq, temp_c: raw_last.temp_c(), status })
     }
 
     /// Like [`decode`](Self::decode), at end of stream: once no further item can
