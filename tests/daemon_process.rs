@@ -109,6 +109,7 @@ fn run(batches: Vec<SourceBatch>, dir: &Path) -> (ProcessReport, Telemetry, std:
     let outputs = Outputs {
         recorder: Some(recorder.sender()),
         telemetry: telemetry.clone(),
+        stop: None,
     };
     let h = std::thread::spawn(move || processor.run(rx, outputs));
     for b in batches {

@@ -545,20 +545,30 @@ impl BatchSender {
         });
     }
 
-    /// Flush what is held at the end of the stream: events are delivered (waiting
-    /// for room); dropped samples that no later sample can carry are lost.
+    /// Flush what is held at the end of the stream. The source reads no more, so
+    /// waiting for room in the queue costs nothing: held events are delivered, and
+    /// held (dropped) samples are delivered as a gap whose pulses ride on its last
+    /// period, exactly as after any gap: a shutdown in the middle of an overload
+    /// loses no angle either. (The dropped samples stay counted in
+    /// `sagnac_dropped_samples_total`; the last of them is the carrier, so the
+    /// recording shows one lost period fewer than were dropped.)
     pub async fn close(mut self) -> Result<(), PipelineClosed> {
         if let Some(h) = self.held.take() {
             let mut b = SourceBatch::new(Instant::now());
             b.seq0 = h.seq0;
             b.t0_ns = h.t0_ns;
+            b.new_segment = h.new_segment;
             b.events = h.events;
             if h.samples > 0 {
                 tracing::warn!(
                     samples = h.samples,
                     pulses = h.pulses,
-                    "samples dropped by backpressure at the end of the stream are lost"
+                    "samples dropped by backpressure at the end of the stream: delivered as a gap carried by its last period"
                 );
+                if h.periods > 1 {
+                    b.gaps.push(Gap { index: 0, lost: h.periods - 1 });
+                }
+                b.counts.push(h.pulses);
                 b.events.push(Event {
                     t_ns: h.t0_ns,
                     kind: EventKind::BackpressureDrop {
@@ -567,7 +577,7 @@ impl BatchSender {
                     },
                 });
             }
-            if !b.events.is_empty() {
+            if !b.is_empty() {
                 self.tx.send(b).await.map_err(|_| PipelineClosed)?;
             }
         }
@@ -726,6 +736,34 @@ mod tests {
         assert_eq!(b.gaps, vec![Gap { index: 0, lost: 3 }]);
         assert_eq!(b.seq0, 13);
         assert_eq!(b.t0_ns, 13_000);
+        assert!(b.events.iter().any(|e| e.kind
+            == EventKind::BackpressureDrop {
+                sink: "pipeline".into(),
+                dropped: 3
+            }));
+        assert_eq!(t.dropped_samples.get(), 3);
+    }
+
+    #[tokio::test]
+    async fn samples_dropped_at_the_end_of_the_stream_keep_their_pulses() {
+        let (tx, mut rx) = mpsc::channel(1);
+        let t = telemetry();
+        let mut s = BatchSender::new(tx, Delivery::Live, t.clone());
+        s.send(batch(10, vec![1, 2, 3])).await.unwrap(); // fills the channel
+        let mut dropped = batch(13, vec![4, 5]);
+        dropped.gaps.push(Gap { index: 1, lost: 2 }); // 2 lost before the 5
+        s.send(dropped).await.unwrap();
+        s.send(batch(17, vec![6])).await.unwrap();
+        assert_eq!(s.held_samples(), 3);
+        let closing = tokio::spawn(s.close());
+        assert_eq!(rx.recv().await.unwrap().counts, vec![1, 2, 3]);
+        let b = rx.recv().await.unwrap();
+        closing.await.unwrap().unwrap();
+        // 5 periods held (3 samples, 2 lost): a gap of 4 carried by the last one
+        assert_eq!(b.counts, vec![4 + 5 + 6]);
+        assert_eq!(b.gaps, vec![Gap { index: 0, lost: 4 }]);
+        assert_eq!(b.periods(), 5);
+        assert_eq!((b.seq0, b.t0_ns), (13, 13_000));
         assert!(b.events.iter().any(|e| e.kind
             == EventKind::BackpressureDrop {
                 sink: "pipeline".into(),

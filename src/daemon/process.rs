@@ -17,9 +17,10 @@
 //!   all its time estimating: with an `update_budget` (replays and the simulated
 //!   bench: 10 %), an update is skipped while less than `cost / budget` of wall
 //!   time has passed since the previous one started. At real-time pace (1 kHz,
-//!   5 s interval) no update is skipped; a live serial source never skips. The
-//!   final update after the end of the stream is always made, so final
-//!   estimates are deterministic.
+//!   5 s interval) no update is skipped; a live serial source never skips while
+//!   it runs. After a shutdown request the queued batches are drained without
+//!   intermediate updates. The final update after the end of the stream is
+//!   always made, so final estimates are deterministic.
 //! * Recording: lossless sources use the recorder's blocking `send`
 //!   (backpressure all the way to the source); live sources use `try_send`, and
 //!   what a full queue refuses is counted (`sagnac_dropped_messages_total
@@ -38,6 +39,8 @@ use std::collections::{BTreeMap, VecDeque};
 use std::time::{Duration, Instant};
 
 use tokio::sync::mpsc;
+
+use crate::daemon::shutdown::Shutdown;
 
 use crate::allan::AllanPoint;
 use crate::daemon::batch::{Delivery, SourceBatch};
@@ -132,6 +135,10 @@ pub struct Outputs {
     pub recorder: Option<RecordSender>,
     /// Metrics.
     pub telemetry: Telemetry,
+    /// The daemon's shutdown signal: once it is requested, the queued batches are
+    /// drained without intermediate estimator updates (the final update is always
+    /// made), so SIGTERM is prompt even when the pipeline is far behind.
+    pub stop: Option<Shutdown>,
 }
 
 impl std::fmt::Debug for Outputs {
@@ -566,12 +573,14 @@ impl Run<'_> {
             self.take_output();
             if self.pushed == self.next_update_at {
                 self.next_update_at += self.p.interval_samples;
-                let due = match (self.p.cfg.update_budget, self.last_update) {
-                    (Some(budget), Some((t, cost))) => {
-                        t.elapsed().as_secs_f64() * budget >= cost.as_secs_f64()
-                    }
-                    _ => true,
-                };
+                let draining = self.out.stop.as_ref().is_some_and(Shutdown::is_requested);
+                let due = !draining
+                    && match (self.p.cfg.update_budget, self.last_update) {
+                        (Some(budget), Some((t, cost))) => {
+                            t.elapsed().as_secs_f64() * budget >= cost.as_secs_f64()
+                        }
+                        _ => true,
+                    };
                 if due {
                     // when the sample that closed the interval arrived
                     let pushed = self.pushed;

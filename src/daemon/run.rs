@@ -343,6 +343,7 @@ impl Daemon {
         let outputs = Outputs {
             recorder: recorder.as_ref().map(Recorder::sender),
             telemetry: telemetry.clone(),
+            stop: Some(trigger.subscribe()),
         };
         let guard = drain_guard.clone();
         let process_task = tokio::task::spawn_blocking(move || {
