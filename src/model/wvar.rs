@@ -313,12 +313,34 @@ pub fn level_nodes(lo: &[f64], hi: &[f64], level: u32, extra_breaks: &[f64]) -> 
 /// Most levels [`LevelBasis::new_in`] keeps memoised; the cache is emptied when full.
 pub const BASIS_CACHE_ENTRIES: usize = 256;
 
-static NODE_CACHE: OnceLock<Mutex<HashMap<Vec<u64>, Arc<Vec<(f64, f64, f64)>>>>> = OnceLock::new();
+/// Quadrature nodes `(nu, weight, |H_j(nu)|^2)` of one level, shared.
+type Nodes = Arc<Vec<(f64, f64, f64)>>;
+
+/// A process-wide memo keyed by exact bit patterns.
+type Memo<V> = OnceLock<Mutex<HashMap<Vec<u64>, V>>>;
+
+static NODE_CACHE: Memo<Nodes> = OnceLock::new();
+
+/// The memoised value of `key`, computed (outside the lock) and kept if absent;
+/// the memo is emptied when it holds [`BASIS_CACHE_ENTRIES`] values.
+fn memoised<V: Clone>(memo: &Memo<V>, key: Vec<u64>, compute: impl FnOnce() -> V) -> V {
+    let map = memo.get_or_init(Default::default);
+    if let Some(v) = map.lock().unwrap_or_else(|e| e.into_inner()).get(&key) {
+        return v.clone();
+    }
+    let v = compute();
+    let mut m = map.lock().unwrap_or_else(|e| e.into_inner());
+    if m.len() >= BASIS_CACHE_ENTRIES {
+        m.clear();
+    }
+    m.insert(key, v.clone());
+    v
+}
 
 /// [`level_nodes`], memoised (the filter responses at the nodes are most of a
 /// level's quadrature cost, and they do not depend on the terms unless a break
 /// falls between the octave breaks).
-fn memo_level_nodes(lo: &[f64], hi: &[f64], level: u32, extra_breaks: &[f64]) -> Arc<Vec<(f64, f64, f64)>> {
+fn memo_level_nodes(lo: &[f64], hi: &[f64], level: u32, extra_breaks: &[f64]) -> Nodes {
     let mut key = Vec::with_capacity(lo.len() + hi.len() + extra_breaks.len() + 3);
     key.push(lo.len() as u64);
     key.extend(lo.iter().map(|x| x.to_bits()));
@@ -334,20 +356,10 @@ fn memo_level_nodes(lo: &[f64], hi: &[f64], level: u32, extra_breaks: &[f64]) ->
             .filter(|&&e| e > bottom && e < top && e.log2().fract() != 0.0)
             .map(|e| e.to_bits()),
     );
-    let cache = NODE_CACHE.get_or_init(Default::default);
-    if let Some(n) = cache.lock().unwrap_or_else(|e| e.into_inner()).get(&key) {
-        return Arc::clone(n);
-    }
-    let nodes = Arc::new(level_nodes(lo, hi, level, extra_breaks));
-    let mut map = cache.lock().unwrap_or_else(|e| e.into_inner());
-    if map.len() >= BASIS_CACHE_ENTRIES {
-        map.clear();
-    }
-    map.insert(key, Arc::clone(&nodes));
-    nodes
+    memoised(&NODE_CACHE, key, || Arc::new(level_nodes(lo, hi, level, extra_breaks)))
 }
 
-static LEVEL_CACHE: OnceLock<Mutex<HashMap<Vec<u64>, LevelQuadrature>>> = OnceLock::new();
+static LEVEL_CACHE: Memo<LevelQuadrature> = OnceLock::new();
 
 /// Everything one level's quadrature depends on, as exact bit patterns.
 fn level_key(lo: &[f64], hi: &[f64], tau0_s: f64, level: u32, terms: &[SpectralTerm], domain: Domain) -> Vec<u64> {
@@ -477,21 +489,9 @@ impl LevelBasis {
         let mut band = Vec::with_capacity(levels.len());
         for &j in levels {
             let q = if memoise {
-                let key = level_key(lo, hi, tau0_s, j, terms, domain);
-                let cache = LEVEL_CACHE.get_or_init(Default::default);
-                let hit = cache.lock().unwrap_or_else(|e| e.into_inner()).get(&key).cloned();
-                match hit {
-                    Some(q) => q,
-                    None => {
-                        let q = LevelQuadrature::compute(lo, hi, tau0_s, j, terms, domain);
-                        let mut map = cache.lock().unwrap_or_else(|e| e.into_inner());
-                        if map.len() >= BASIS_CACHE_ENTRIES {
-                            map.clear();
-                        }
-                        map.insert(key, q.clone());
-                        q
-                    }
-                }
+                memoised(&LEVEL_CACHE, level_key(lo, hi, tau0_s, j, terms, domain), || {
+                    LevelQuadrature::compute(lo, hi, tau0_s, j, terms, domain)
+                })
             } else {
                 LevelQuadrature::compute(lo, hi, tau0_s, j, terms, domain)
             };
