@@ -197,24 +197,19 @@ impl StreamingAnalysis {
             if input.len() % 2 == 1 {
                 st.pending = Some(input[input.len() - 1]);
             }
-            let base = st.e.len();
-            st.e.resize(base + np, 0.0);
-            st.o.resize(base + np, 0.0);
-            let (e, o) = (&mut st.e[base..base + np], &mut st.o[base..base + np]);
-            for (i, pair) in input[..2 * np].chunks_exact(2).enumerate() {
-                e[i] = pair[0];
-                o[i] = pair[1];
-            }
+            let pairs = input[..2 * np].chunks_exact(2);
+            st.e.extend(pairs.clone().map(|p| p[0]));
+            st.o.extend(pairs.map(|p| p[1]));
             let r = st.e.len() - h;
             let lo = &mut rest[0];
             let hi = &mut self.hi[j];
-            lo.clear();
-            hi.clear();
+            // the kernel overwrites all r outputs: resizing (not clearing) the
+            // reused buffers zero-fills only what they grow by
+            lo.resize(r, 0.0);
+            hi.resize(r, 0.0);
             if r == 0 {
                 continue;
             }
-            lo.resize(r, 0.0);
-            hi.resize(r, 0.0);
             self.isa.analysis(&self.taps, &st.e, &st.o, lo, hi);
             st.e.copy_within(r.., 0);
             st.e.truncate(h);

@@ -629,39 +629,44 @@ const DIGIT_PAIRS: &[u8; 200] = b"\
 8081828384858687888990919293949596979899";
 
 /// `n` milli-units as `[-]int.ddd` (`|n| < 2^51`: at most 13 integer digits),
-/// formatted right to left in a stack buffer.
+/// written in place into a fixed 24-byte extension of `out` that is then cut to
+/// length (no variable-length copy per value).
 #[inline]
 fn put_milli(out: &mut Vec<u8>, n: i64) {
-    let mut a = n.unsigned_abs();
-    let mut tmp = [0u8; 24];
-    let mut p = tmp.len();
-    let f = (a % 1000) as usize;
-    a /= 1000;
-    p -= 4;
-    tmp[p] = b'.';
-    tmp[p + 1] = b'0' + (f / 100) as u8;
-    tmp[p + 2] = DIGIT_PAIRS[2 * (f % 100)];
-    tmp[p + 3] = DIGIT_PAIRS[2 * (f % 100) + 1];
-    while a >= 100 {
-        let d = (a % 100) as usize;
-        a /= 100;
-        p -= 2;
-        tmp[p] = DIGIT_PAIRS[2 * d];
-        tmp[p + 1] = DIGIT_PAIRS[2 * d + 1];
+    let a = n.unsigned_abs();
+    let (int, f) = (a / 1000, (a % 1000) as usize);
+    let digits = match int {
+        0..=9 => 1,
+        10..=99 => 2,
+        100..=999 => 3,
+        1000..=9999 => 4,
+        _ => int.ilog10() as usize + 1,
+    };
+    let len = out.len();
+    out.extend_from_slice(&[0u8; 24]);
+    let buf = &mut out[len..];
+    let sign = usize::from(n < 0);
+    buf[0] = b'-';
+    let dot = sign + digits;
+    let (mut q, mut k) = (int, dot);
+    while q >= 100 {
+        let d = (q % 100) as usize;
+        q /= 100;
+        k -= 2;
+        buf[k] = DIGIT_PAIRS[2 * d];
+        buf[k + 1] = DIGIT_PAIRS[2 * d + 1];
     }
-    if a >= 10 {
-        p -= 2;
-        tmp[p] = DIGIT_PAIRS[2 * a as usize];
-        tmp[p + 1] = DIGIT_PAIRS[2 * a as usize + 1];
+    if q >= 10 {
+        buf[k - 2] = DIGIT_PAIRS[2 * q as usize];
+        buf[k - 1] = DIGIT_PAIRS[2 * q as usize + 1];
     } else {
-        p -= 1;
-        tmp[p] = b'0' + a as u8;
+        buf[k - 1] = b'0' + q as u8;
     }
-    if n < 0 {
-        p -= 1;
-        tmp[p] = b'-';
-    }
-    out.extend_from_slice(&tmp[p..]);
+    buf[dot] = b'.';
+    buf[dot + 1] = b'0' + (f / 100) as u8;
+    buf[dot + 2] = DIGIT_PAIRS[2 * (f % 100)];
+    buf[dot + 3] = DIGIT_PAIRS[2 * (f % 100) + 1];
+    out.truncate(len + dot + 4);
 }
 
 fn finite(topic: &'static str, field: &str, value: f64) -> Result<(), MessageError> {
