@@ -125,6 +125,27 @@ fn check_recording(
     v
 }
 
+/// Start `sagnac run` on the serial device `device` with config `cfg`, metrics on
+/// `addr` and recording into `rec_dir`; wait until /metrics answers.
+fn start_serial_daemon(dir: &Path, cfg: &Path, device: &Path, addr: std::net::SocketAddr, rec_dir: &Path) -> DaemonProc {
+    let daemon = DaemonProc::start(
+        &[
+            "run",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--serial",
+            device.to_str().unwrap(),
+            "--metrics-addr",
+            &addr.to_string(),
+            "--record-dir",
+            rec_dir.to_str().unwrap(),
+        ],
+        &dir.join("daemon.log"),
+    );
+    wait_for("/metrics", Duration::from_secs(20), || scrape(addr));
+    daemon
+}
+
 #[test]
 fn serial_pty_exact_counts_live_qn_promtool_sigterm_and_every_pulse_recorded() {
     let dir = tempfile::tempdir().unwrap();
@@ -138,21 +159,7 @@ fn serial_pty_exact_counts_live_qn_promtool_sigterm_and_every_pulse_recorded() {
     let addr = free_addr();
     let rec_dir = dir.path().join("rec");
     let cfg = config_file(dir.path());
-    let mut daemon = DaemonProc::start(
-        &[
-            "run",
-            "--config",
-            cfg.to_str().unwrap(),
-            "--serial",
-            socat.b.to_str().unwrap(),
-            "--metrics-addr",
-            &addr.to_string(),
-            "--record-dir",
-            rec_dir.to_str().unwrap(),
-        ],
-        &dir.path().join("daemon.log"),
-    );
-    wait_for("/metrics", Duration::from_secs(20), || scrape(addr));
+    let mut daemon = start_serial_daemon(dir.path(), &cfg, &socat.b, addr, &rec_dir);
 
     // The emulator: 60 s of 1 kHz frames at 20x real time.
     let mut w = socat.writer();
@@ -248,21 +255,7 @@ fn serial_device_vanishes_and_returns_angle_continuity_and_exact_loss() {
     let addr = free_addr();
     let rec_dir = dir.path().join("rec");
     let cfg = config_file(dir.path());
-    let mut daemon = DaemonProc::start(
-        &[
-            "run",
-            "--config",
-            cfg.to_str().unwrap(),
-            "--serial",
-            b_path.to_str().unwrap(),
-            "--metrics-addr",
-            &addr.to_string(),
-            "--record-dir",
-            rec_dir.to_str().unwrap(),
-        ],
-        &dir.path().join("daemon.log"),
-    );
-    wait_for("/metrics", Duration::from_secs(20), || scrape(addr));
+    let mut daemon = start_serial_daemon(dir.path(), &cfg, &b_path, addr, &rec_dir);
 
     let mut w = socat.writer();
     write_paced(&mut w, &injected.bytes[..split], RATE_HZ * 16.0 * SPEEDUP).unwrap();
@@ -349,21 +342,7 @@ fn serial_overload_drops_are_counted_recorded_and_lose_no_angle() {
         "[estimator]\ninterval_s = 0.01\n\n[run]\nchannel_capacity = 1\n\n[record]\nbatch_samples = 100\n",
     )
     .unwrap();
-    let mut daemon = DaemonProc::start(
-        &[
-            "run",
-            "--config",
-            cfg.to_str().unwrap(),
-            "--serial",
-            socat.b.to_str().unwrap(),
-            "--metrics-addr",
-            &addr.to_string(),
-            "--record-dir",
-            rec_dir.to_str().unwrap(),
-        ],
-        &dir.path().join("daemon.log"),
-    );
-    wait_for("/metrics", Duration::from_secs(20), || scrape(addr));
+    let mut daemon = start_serial_daemon(dir.path(), &cfg, &socat.b, addr, &rec_dir);
     let mut w = socat.writer();
     // 10 s of frames at 20x: far more estimator work than the pipeline can do
     let burst = 10_000 * 16;

@@ -196,15 +196,7 @@ impl Assembler {
                     .unwrap_or(u64::from(s.seq.wrapping_sub(s.lost_before)));
                 let lost = u64::from(s.lost_before);
                 let seq = first + lost;
-                if self.anchor.is_none() {
-                    self.anchor = Some((seq, now_ns));
-                }
-                if !self.batch_started {
-                    self.batch.seq0 = first;
-                    self.batch.t0_ns = self.time_of(first, now_ns);
-                    self.batch.new_segment = std::mem::take(&mut self.next_new_segment);
-                    self.batch_started = true;
-                }
+                self.start_batch(first, seq, now_ns);
                 if lost > 0 {
                     self.batch.gaps.push(Gap {
                         index: self.batch.counts.len() as u64,
@@ -218,6 +210,20 @@ impl Assembler {
                 self.periods += lost + 1;
             }
             Decoded::Event(ev) => self.push_decode_event(ev, now_ns),
+        }
+    }
+
+    /// Before the first sample of the batch (unwrapped period `first`, its first
+    /// received sample at `seq`): anchor the sample clock if needed, start the batch.
+    fn start_batch(&mut self, first: u64, seq: u64, now_ns: u64) {
+        if self.anchor.is_none() {
+            self.anchor = Some((seq, now_ns));
+        }
+        if !self.batch_started {
+            self.batch.seq0 = first;
+            self.batch.t0_ns = self.time_of(first, now_ns);
+            self.batch.new_segment = std::mem::take(&mut self.next_new_segment);
+            self.batch_started = true;
         }
     }
 
@@ -238,15 +244,7 @@ impl Assembler {
         let first = self
             .next_seq
             .unwrap_or(u64::from(end.seq.wrapping_sub((n - 1) as u16)));
-        if self.anchor.is_none() {
-            self.anchor = Some((first, now_ns));
-        }
-        if !self.batch_started {
-            self.batch.seq0 = first;
-            self.batch.t0_ns = self.time_of(first, now_ns);
-            self.batch.new_segment = std::mem::take(&mut self.next_new_segment);
-            self.batch_started = true;
-        }
+        self.start_batch(first, first, now_ns);
         self.batch.counts.extend_from_slice(increments);
         self.batch.temp_c = Some(end.temp_c);
         self.batch.status = Some(u32::from(end.status));

@@ -341,12 +341,7 @@ fn memoised<V: Clone>(memo: &Memo<V>, key: Vec<u64>, compute: impl FnOnce() -> V
 /// level's quadrature cost, and they do not depend on the terms unless a break
 /// falls between the octave breaks).
 fn memo_level_nodes(lo: &[f64], hi: &[f64], level: u32, extra_breaks: &[f64]) -> Nodes {
-    let mut key = Vec::with_capacity(lo.len() + hi.len() + extra_breaks.len() + 3);
-    key.push(lo.len() as u64);
-    key.extend(lo.iter().map(|x| x.to_bits()));
-    key.push(hi.len() as u64);
-    key.extend(hi.iter().map(|x| x.to_bits()));
-    key.push(u64::from(level));
+    let mut key = filter_level_key(lo, hi, level, extra_breaks.len());
     // breaks on the octave grid or outside the band add no node: leave them out
     let top = (2f64.powi(-(level as i32) + 4)).min(0.5);
     let bottom = 2f64.powi(-(level as i32) - 14);
@@ -361,16 +356,23 @@ fn memo_level_nodes(lo: &[f64], hi: &[f64], level: u32, extra_breaks: &[f64]) ->
 
 static LEVEL_CACHE: Memo<LevelQuadrature> = OnceLock::new();
 
-/// Everything one level's quadrature depends on, as exact bit patterns.
-fn level_key(lo: &[f64], hi: &[f64], tau0_s: f64, level: u32, terms: &[SpectralTerm], domain: Domain) -> Vec<u64> {
-    let mut k = Vec::with_capacity(lo.len() + hi.len() + 2 * terms.len() + 6);
+/// The filters and the level as exact bit patterns: the start of every memo key,
+/// with room for `more` further words.
+fn filter_level_key(lo: &[f64], hi: &[f64], level: u32, more: usize) -> Vec<u64> {
+    let mut k = Vec::with_capacity(lo.len() + hi.len() + 3 + more);
     k.push(lo.len() as u64);
     k.extend(lo.iter().map(|x| x.to_bits()));
     k.push(hi.len() as u64);
     k.extend(hi.iter().map(|x| x.to_bits()));
+    k.push(u64::from(level));
+    k
+}
+
+/// Everything one level's quadrature depends on, as exact bit patterns.
+fn level_key(lo: &[f64], hi: &[f64], tau0_s: f64, level: u32, terms: &[SpectralTerm], domain: Domain) -> Vec<u64> {
+    let mut k = filter_level_key(lo, hi, level, 2 + 2 * terms.len());
     k.push(tau0_s.to_bits());
     k.push(domain as u64);
-    k.push(u64::from(level));
     for t in terms {
         let (tag, p) = match *t {
             SpectralTerm::WhiteAngle => (0, 0.0),
@@ -465,18 +467,6 @@ impl LevelBasis {
         terms: &[SpectralTerm],
         domain: Domain,
     ) -> Self {
-        Self::build(lo, hi, tau0_s, levels, terms, domain, true)
-    }
-
-    fn build(
-        lo: &[f64],
-        hi: &[f64],
-        tau0_s: f64,
-        levels: &[u32],
-        terms: &[SpectralTerm],
-        domain: Domain,
-        memoise: bool,
-    ) -> Self {
         let max_level = levels.iter().copied().max().unwrap_or(1);
         // exact variances for finite-support terms
         let finite: Vec<Option<Vec<f64>>> = terms
@@ -488,13 +478,9 @@ impl LevelBasis {
         let mut white_ratio = Vec::with_capacity(levels.len());
         let mut band = Vec::with_capacity(levels.len());
         for &j in levels {
-            let q = if memoise {
-                memoised(&LEVEL_CACHE, level_key(lo, hi, tau0_s, j, terms, domain), || {
-                    LevelQuadrature::compute(lo, hi, tau0_s, j, terms, domain)
-                })
-            } else {
+            let q = memoised(&LEVEL_CACHE, level_key(lo, hi, tau0_s, j, terms, domain), || {
                 LevelQuadrature::compute(lo, hi, tau0_s, j, terms, domain)
-            };
+            });
             let mut row = q.band.clone();
             for (i, f) in finite.iter().enumerate() {
                 if let Some(v) = f {
@@ -543,14 +529,27 @@ mod tests {
     fn memoised_basis_is_the_computed_one_and_keys_tell_terms_apart() {
         let terms = [SpectralTerm::WhiteRate, SpectralTerm::Flicker { f_lo_hz: 1e-2 }, SpectralTerm::RateRandomWalk];
         let levels = [3, 7, 12];
-        let fresh = LevelBasis::build(&SYM8_LO, &SYM8_HI, 1e-3, &levels, &terms, Domain::Angle, false);
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         for _ in 0..2 {
             let b = LevelBasis::new_in(&SYM8_LO, &SYM8_HI, 1e-3, &levels, &terms, Domain::Angle);
-            for (r, s) in b.phi.iter().zip(&fresh.phi) {
-                assert_eq!(r.iter().map(|x| x.to_bits()).collect::<Vec<_>>(), s.iter().map(|x| x.to_bits()).collect::<Vec<_>>());
+            for (i, &j) in levels.iter().enumerate() {
+                // memoised nodes and quadrature are the ones computed afresh, bit for bit
+                let nodes = memo_level_nodes(&SYM8_LO, &SYM8_HI, j, &[1e-5]);
+                let fresh_nodes = level_nodes(&SYM8_LO, &SYM8_HI, j, &[1e-5]);
+                assert_eq!(nodes.len(), fresh_nodes.len());
+                for (a, f) in nodes.iter().zip(&fresh_nodes) {
+                    assert_eq!(bits(&[a.0, a.1, a.2]), bits(&[f.0, f.1, f.2]));
+                }
+                let q = LevelQuadrature::compute(&SYM8_LO, &SYM8_HI, 1e-3, j, &terms, Domain::Angle);
+                assert_eq!(bits(&b.phi[i]), bits(&q.band), "level {j}");
+                assert_eq!(bits(&b.band[i]), bits(&q.band), "level {j}");
+                for (g, h) in b.gram[i].iter().zip(&q.gram) {
+                    assert_eq!(bits(g), bits(h), "level {j}");
+                }
+                assert_eq!(b.white_ratio[i].to_bits(), q.white_ratio.to_bits());
             }
-            assert_eq!(b.edf(1, &[1.0, 2.0, 3.0], 1e4).to_bits(), fresh.edf(1, &[1.0, 2.0, 3.0], 1e4).to_bits());
         }
+        let fresh = LevelBasis::new_in(&SYM8_LO, &SYM8_HI, 1e-3, &levels, &terms, Domain::Angle);
         // a different flicker corner, domain or period is a different basis
         let other = [SpectralTerm::WhiteRate, SpectralTerm::Flicker { f_lo_hz: 2e-2 }, SpectralTerm::RateRandomWalk];
         let k = |t: &[SpectralTerm], d, tau0| level_key(&SYM8_LO, &SYM8_HI, tau0, 7, t, d);

@@ -557,12 +557,17 @@ fn put_f64(out: &mut Vec<u8>, v: f64) {
     }
 }
 
+/// `{"t0_ns":..,"dt_ns":..` (the start of every sample batch).
+fn put_batch_head(out: &mut Vec<u8>, t0_ns: u64, dt_ns: u64) {
+    out.extend_from_slice(b"{\"t0_ns\":");
+    put_u64(out, t0_ns);
+    out.extend_from_slice(b",\"dt_ns\":");
+    put_u64(out, dt_ns);
+}
+
 fn write_raw_batch(m: &RawBatch, out: &mut Vec<u8>) {
     out.reserve(96 + 3 * m.counts.len() + 32 * m.gaps.len());
-    out.extend_from_slice(b"{\"t0_ns\":");
-    put_u64(out, m.t0_ns);
-    out.extend_from_slice(b",\"dt_ns\":");
-    put_u64(out, m.dt_ns);
+    put_batch_head(out, m.t0_ns, m.dt_ns);
     out.extend_from_slice(b",\"seq0\":");
     put_u64(out, m.seq0);
     out.extend_from_slice(b",\"counts\":[");
@@ -601,10 +606,7 @@ fn write_raw_batch(m: &RawBatch, out: &mut Vec<u8>) {
 
 fn write_rate_batch(m: &RateBatch, out: &mut Vec<u8>) {
     out.reserve(64 + 24 * m.values.len());
-    out.extend_from_slice(b"{\"t0_ns\":");
-    put_u64(out, m.t0_ns);
-    out.extend_from_slice(b",\"dt_ns\":");
-    put_u64(out, m.dt_ns);
+    put_batch_head(out, m.t0_ns, m.dt_ns);
     out.extend_from_slice(b",\"values\":[");
     let mut buf = zmij::Buffer::new();
     for (i, &v) in m.values.iter().enumerate() {
@@ -635,13 +637,7 @@ const DIGIT_PAIRS: &[u8; 200] = b"\
 fn put_milli(out: &mut Vec<u8>, n: i64) {
     let a = n.unsigned_abs();
     let (int, f) = (a / 1000, (a % 1000) as usize);
-    let digits = match int {
-        0..=9 => 1,
-        10..=99 => 2,
-        100..=999 => 3,
-        1000..=9999 => 4,
-        _ => int.ilog10() as usize + 1,
-    };
+    let digits = int.checked_ilog10().map_or(1, |d| d as usize + 1);
     let len = out.len();
     out.extend_from_slice(&[0u8; 24]);
     let buf = &mut out[len..];

@@ -372,24 +372,21 @@ impl FrameDecoder {
         let mut prev = last;
         let mut reserved_nonzero = 0u64;
         let mut n = 0usize;
-        let mut temp_raw = 0i16;
+        let mut last_raw = None;
         for frame in buf.chunks_exact(FRAME_LEN).take(max) {
-            if check(frame).is_err() {
+            let Some(raw) = check(frame).ok().and_then(|()| parse(frame)) else {
                 break;
-            }
-            let raw = parse(frame)?;
+            };
             if raw.seq != prev.seq.wrapping_add(1) || raw.status != status {
                 break;
             }
             increments.push(increment_between(prev.counter, raw.counter));
             reserved_nonzero += u64::from(raw.reserved != 0);
-            temp_raw = raw.temp_raw;
             prev = Anchor::of(&raw, self.offset + (n * FRAME_LEN) as u64);
+            last_raw = Some(raw);
             n += 1;
         }
-        if n == 0 {
-            return None;
-        }
+        let last_raw = last_raw?;
         if buf.len() > self.buffered {
             self.stats.bytes_read += (buf.len() - self.buffered) as u64;
         }
@@ -401,8 +398,7 @@ impl FrameDecoder {
         self.stats.reserved_nonzero += reserved_nonzero;
         self.pending = None;
         self.last = Some(prev);
-        let raw_last = RawFrame { seq: prev.seq, counter: prev.counter, temp_raw, status, reserved: 0, crc: 0 };
-        Some(RunEnd { samples: n, seq: prev.seq, temp_c: raw_last.temp_c(), status })
+        Some(RunEnd { samples: n, seq: last_raw.seq, temp_c: last_raw.temp_c(), status })
     }
 
     /// Like [`decode`](Self::decode), at end of stream: once no further item can
