@@ -15,7 +15,7 @@
 //!   input was batched. One update (the ML fit with profile intervals) costs
 //!   0.03-0.3 s of CPU, so a source that runs faster than real time could spend
 //!   all its time estimating: with an `update_budget` (replays and the simulated
-//!   bench: 10 %), an update is skipped while less than `cost / budget` of wall
+//!   bench: 5 %), an update is skipped while less than `cost / budget` of wall
 //!   time has passed since the previous one started. At real-time pace (1 kHz,
 //!   5 s interval) no update is skipped; a live serial source never skips while
 //!   it runs. After a shutdown request the queued batches are drained without

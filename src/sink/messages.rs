@@ -566,24 +566,23 @@ fn put_batch_head(out: &mut Vec<u8>, t0_ns: u64, dt_ns: u64) {
 }
 
 fn write_raw_batch(m: &RawBatch, out: &mut Vec<u8>) {
-    out.reserve(96 + 3 * m.counts.len() + 32 * m.gaps.len());
+    out.reserve(96 + 32 * m.gaps.len());
     put_batch_head(out, m.t0_ns, m.dt_ns);
     out.extend_from_slice(b",\"seq0\":");
     put_u64(out, m.seq0);
     out.extend_from_slice(b",\"counts\":[");
     let mut buf = itoa::Buffer::new();
-    for (i, &c) in m.counts.iter().enumerate() {
-        if i > 0 {
-            out.push(b',');
-        }
+    put_slotted(out, &m.counts, |slot: &mut Slot, &c| {
         // a static gyro's increments are nearly all single digits
         if (0..10).contains(&c) {
-            out.push(b'0' + c as u8);
+            slot[0] = b'0' + c as u8;
+            slot[1] = b',';
+            2
         } else {
-            out.extend_from_slice(buf.format(c).as_bytes());
+            put_text(slot, buf.format(c).as_bytes())
         }
-    }
-    out.extend_from_slice(b"],\"gaps\":[");
+    });
+    out.extend_from_slice(b",\"gaps\":[");
     for (i, g) in m.gaps.iter().enumerate() {
         if i > 0 {
             out.push(b',');
@@ -605,21 +604,56 @@ fn write_raw_batch(m: &RawBatch, out: &mut Vec<u8>) {
 }
 
 fn write_rate_batch(m: &RateBatch, out: &mut Vec<u8>) {
-    out.reserve(64 + 24 * m.values.len());
     put_batch_head(out, m.t0_ns, m.dt_ns);
     out.extend_from_slice(b",\"values\":[");
     let mut buf = zmij::Buffer::new();
-    for (i, &v) in m.values.iter().enumerate() {
-        if i > 0 {
-            out.push(b',');
+    put_slotted(out, &m.values, |slot: &mut Slot, &v| match rate_milli(v) {
+        Some(n) => put_milli(slot, n),
+        None if v.is_finite() => put_text(slot, buf.format_finite(v).as_bytes()),
+        None => put_text(slot, b"null"),
+    });
+    out.push(b'}');
+}
+
+/// Room for one value of a sample batch and its separator: the longest texts
+/// are an `i64` (20 bytes) and a shortest-round-trip `f64` (24 bytes).
+const SLOT: usize = 32;
+type Slot = [u8; SLOT];
+
+/// Values per zero-filled extension of the output in [`put_slotted`].
+const SLOTS_PER_CHUNK: usize = 256;
+
+/// `values` as the elements of a JSON array (the `[` already written), and the
+/// closing `]`. `put` writes one value and a `,` at the start of its slot and
+/// returns the length written; values are formatted in place into one
+/// zero-filled extension of `out` per chunk, which is then cut to length (no
+/// capacity check or copy per value).
+#[inline(always)]
+fn put_slotted<T>(out: &mut Vec<u8>, values: &[T], mut put: impl FnMut(&mut Slot, &T) -> usize) {
+    for chunk in values.chunks(SLOTS_PER_CHUNK) {
+        let mut pos = out.len();
+        out.resize(pos + SLOT * chunk.len(), 0);
+        for v in chunk {
+            let slot: &mut Slot = (&mut out[pos..pos + SLOT])
+                .try_into()
+                .expect("a chunk has a slot for each value");
+            pos += put(slot, v);
         }
-        match rate_milli(v) {
-            Some(n) => put_milli(out, n),
-            None if v.is_finite() => out.extend_from_slice(buf.format_finite(v).as_bytes()),
-            None => out.extend_from_slice(b"null"),
-        }
+        out.truncate(pos);
     }
-    out.extend_from_slice(b"]}");
+    // the last separator becomes the closing bracket
+    match out.last_mut() {
+        Some(c) if !values.is_empty() => *c = b']',
+        _ => out.push(b']'),
+    }
+}
+
+/// `text` and a `,` at the start of `slot` (`text` is at most 24 bytes).
+#[inline]
+fn put_text(slot: &mut Slot, text: &[u8]) -> usize {
+    slot[..text.len()].copy_from_slice(text);
+    slot[text.len()] = b',';
+    text.len() + 1
 }
 
 /// Two-digit decimal table for the fixed-point rate formatter.
@@ -630,39 +664,35 @@ const DIGIT_PAIRS: &[u8; 200] = b"\
 6061626364656667686970717273747576777879\
 8081828384858687888990919293949596979899";
 
-/// `n` milli-units as `[-]int.ddd` (`|n| < 2^51`: at most 13 integer digits),
-/// written in place into a fixed 24-byte extension of `out` that is then cut to
-/// length (no variable-length copy per value).
-#[inline]
-fn put_milli(out: &mut Vec<u8>, n: i64) {
+/// `n` milli-units as `[-]int.ddd` and a `,` at the start of `slot`
+/// (`|n| < 2^51`: at most 13 integer digits, 19 bytes in all); returns the length.
+#[inline(always)]
+fn put_milli(slot: &mut Slot, n: i64) -> usize {
     let a = n.unsigned_abs();
     let (int, f) = (a / 1000, (a % 1000) as usize);
     let digits = int.checked_ilog10().map_or(1, |d| d as usize + 1);
-    let len = out.len();
-    out.extend_from_slice(&[0u8; 24]);
-    let buf = &mut out[len..];
-    let sign = usize::from(n < 0);
-    buf[0] = b'-';
-    let dot = sign + digits;
+    slot[0] = b'-';
+    let dot = usize::from(n < 0) + digits;
     let (mut q, mut k) = (int, dot);
     while q >= 100 {
         let d = (q % 100) as usize;
         q /= 100;
         k -= 2;
-        buf[k] = DIGIT_PAIRS[2 * d];
-        buf[k + 1] = DIGIT_PAIRS[2 * d + 1];
+        slot[k] = DIGIT_PAIRS[2 * d];
+        slot[k + 1] = DIGIT_PAIRS[2 * d + 1];
     }
     if q >= 10 {
-        buf[k - 2] = DIGIT_PAIRS[2 * q as usize];
-        buf[k - 1] = DIGIT_PAIRS[2 * q as usize + 1];
+        slot[k - 2] = DIGIT_PAIRS[2 * q as usize];
+        slot[k - 1] = DIGIT_PAIRS[2 * q as usize + 1];
     } else {
-        buf[k - 1] = b'0' + q as u8;
+        slot[k - 1] = b'0' + q as u8;
     }
-    buf[dot] = b'.';
-    buf[dot + 1] = b'0' + (f / 100) as u8;
-    buf[dot + 2] = DIGIT_PAIRS[2 * (f % 100)];
-    buf[dot + 3] = DIGIT_PAIRS[2 * (f % 100) + 1];
-    out.truncate(len + dot + 4);
+    slot[dot] = b'.';
+    slot[dot + 1] = b'0' + (f / 100) as u8;
+    slot[dot + 2] = DIGIT_PAIRS[2 * (f % 100)];
+    slot[dot + 3] = DIGIT_PAIRS[2 * (f % 100) + 1];
+    slot[dot + 4] = b',';
+    dot + 5
 }
 
 fn finite(topic: &'static str, field: &str, value: f64) -> Result<(), MessageError> {

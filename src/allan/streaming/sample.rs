@@ -157,9 +157,62 @@ unsafe fn sq_acc_f64_avx2(a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; LANES
     }
 }
 
+/// The same kernel with 512-bit vectors: lanes 0-7 and 8-15 in two registers,
+/// the same IEEE operations per lane (no FMA), hence the same bits.
+///
+/// # Safety
+/// The CPU must support AVX-512F.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn sq_acc_f64_avx512(a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; LANES]) {
+    use std::arch::x86_64::*;
+    let n = c.len();
+    let (a, b) = (&a[..n], &b[..n]);
+    let whole = n / LANES * LANES;
+    // SAFETY: AVX-512F is enabled for this function; every load reads 8 f64 at an
+    // offset `i + 8k` with `i + 16 <= whole <= n` from slices of length `n`, and the
+    // accumulator array has 16 elements.
+    unsafe {
+        let mut s0 = _mm512_loadu_pd(acc.as_ptr());
+        let mut s1 = _mm512_loadu_pd(acc.as_ptr().add(8));
+        let (pa, pb, pc) = (a.as_ptr(), b.as_ptr(), c.as_ptr());
+        let mut i = 0;
+        while i < whole {
+            macro_rules! lane {
+                ($s:ident, $k:expr) => {{
+                    let xa = _mm512_loadu_pd(pa.add(i + $k));
+                    let xb = _mm512_loadu_pd(pb.add(i + $k));
+                    let xc = _mm512_loadu_pd(pc.add(i + $k));
+                    let z = _mm512_add_pd(_mm512_sub_pd(xc, _mm512_add_pd(xb, xb)), xa);
+                    $s = _mm512_add_pd($s, _mm512_mul_pd(z, z));
+                }};
+            }
+            lane!(s0, 0);
+            lane!(s1, 8);
+            i += LANES;
+        }
+        _mm512_storeu_pd(acc.as_mut_ptr(), s0);
+        _mm512_storeu_pd(acc.as_mut_ptr().add(8), s1);
+    }
+    for (l, k) in (whole..n).enumerate() {
+        let z = (c[k] - (b[k] + b[k])) + a[k];
+        acc[l] += z * z;
+    }
+}
+
+/// Whether this CPU runs the 512-bit kernels.
+#[cfg(target_arch = "x86_64")]
+fn has_avx512() -> bool {
+    std::arch::is_x86_feature_detected!("avx512f")
+}
+
 fn sq_acc_f64(a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; LANES]) {
     #[cfg(target_arch = "x86_64")]
     {
+        if has_avx512() {
+            // SAFETY: the CPU supports AVX-512F (checked just above).
+            return unsafe { sq_acc_f64_avx512(a, b, c, acc) };
+        }
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2 (checked just above).
             return unsafe { sq_acc_f64_avx2(a, b, c, acc) };
@@ -295,9 +348,71 @@ unsafe fn sq_acc_i64_avx2(a: &[i64], b: &[i64], c: &[i64], total: &mut u128) {
     *total = t;
 }
 
+/// The count kernel with 512-bit vectors (8 lanes, two registers; each lane sums
+/// 16 squares of a chunk): exact under the same `|z| < 2^28` test, a chunk that
+/// fails it redone in `u128`.
+///
+/// # Safety
+/// The CPU must support AVX-512F.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn sq_acc_i64_avx512(a: &[i64], b: &[i64], c: &[i64], total: &mut u128) {
+    use std::arch::x86_64::*;
+    let n = c.len();
+    let (a, b) = (&a[..n], &b[..n]);
+    let whole = n / I64_CHUNK * I64_CHUNK;
+    let mut t = *total;
+    let mut k0 = 0;
+    while k0 < whole {
+        // SAFETY: k0 + I64_CHUNK <= n for all three slices; unaligned loads.
+        let (sum, out_of_range) = unsafe {
+            let bias = _mm512_set1_epi64(1 << SMALL_Z_BITS);
+            let mut acc0 = _mm512_setzero_si512();
+            let mut acc1 = _mm512_setzero_si512();
+            let mut bad = _mm512_setzero_si512();
+            let (pa, pb, pc) = (a.as_ptr().add(k0), b.as_ptr().add(k0), c.as_ptr().add(k0));
+            let mut i = 0;
+            while i < I64_CHUNK {
+                macro_rules! step {
+                    ($acc:ident, $k:expr) => {{
+                        let xa = _mm512_loadu_si512(pa.add(i + $k) as *const __m512i);
+                        let xb = _mm512_loadu_si512(pb.add(i + $k) as *const __m512i);
+                        let xc = _mm512_loadu_si512(pc.add(i + $k) as *const __m512i);
+                        let z = _mm512_add_epi64(_mm512_sub_epi64(xc, _mm512_add_epi64(xb, xb)), xa);
+                        // |z| < 2^28 <=> 0 <= z + 2^28 < 2^29 (unsigned): no bit above 28
+                        bad = _mm512_or_si512(bad, _mm512_srli_epi64::<{ SMALL_Z_BITS + 1 }>(_mm512_add_epi64(z, bias)));
+                        $acc = _mm512_add_epi64($acc, _mm512_mul_epi32(z, z));
+                    }};
+                }
+                step!(acc0, 0);
+                step!(acc1, 8);
+                i += 16;
+            }
+            let mut lanes = [0u64; 16];
+            _mm512_storeu_si512(lanes.as_mut_ptr() as *mut __m512i, acc0);
+            _mm512_storeu_si512(lanes.as_mut_ptr().add(8) as *mut __m512i, acc1);
+            let sum: u128 = lanes.iter().map(|&l| u128::from(l)).sum();
+            (sum, _mm512_test_epi64_mask(bad, bad) != 0)
+        };
+        if out_of_range {
+            let r = k0..k0 + I64_CHUNK;
+            sq_acc_i64_scalar(&a[r.clone()], &b[r.clone()], &c[r], &mut t);
+        } else {
+            t = t.saturating_add(sum);
+        }
+        k0 += I64_CHUNK;
+    }
+    sq_acc_i64_scalar(&a[whole..], &b[whole..], &c[whole..], &mut t);
+    *total = t;
+}
+
 fn sq_acc_i64(a: &[i64], b: &[i64], c: &[i64], total: &mut u128) {
     #[cfg(target_arch = "x86_64")]
     {
+        if has_avx512() {
+            // SAFETY: the CPU supports AVX-512F (checked just above).
+            return unsafe { sq_acc_i64_avx512(a, b, c, total) };
+        }
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2 (checked just above).
             return unsafe { sq_acc_i64_avx2(a, b, c, total) };
@@ -345,9 +460,47 @@ impl PhaseValue for i64 {
 mod tests {
     use super::*;
 
+    type F64Kernel = fn(&[f64], &[f64], &[f64], &mut [f64; LANES]);
+    type I64Kernel = fn(&[i64], &[i64], &[i64], &mut u128);
+
+    /// The dispatched kernels and every vector variant this CPU runs.
+    fn f64_kernels() -> Vec<(&'static str, F64Kernel)> {
+        #[allow(unused_mut)]
+        let mut k: Vec<(&'static str, F64Kernel)> = vec![("dispatched", sq_acc_f64)];
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU supports AVX2.
+                k.push(("avx2", |a, b, c, l| unsafe { sq_acc_f64_avx2(a, b, c, l) }));
+            }
+            if has_avx512() {
+                // SAFETY: the CPU supports AVX-512F.
+                k.push(("avx512", |a, b, c, l| unsafe { sq_acc_f64_avx512(a, b, c, l) }));
+            }
+        }
+        k
+    }
+
+    fn i64_kernels() -> Vec<(&'static str, I64Kernel)> {
+        #[allow(unused_mut)]
+        let mut k: Vec<(&'static str, I64Kernel)> = vec![("dispatched", sq_acc_i64)];
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU supports AVX2.
+                k.push(("avx2", |a, b, c, t| unsafe { sq_acc_i64_avx2(a, b, c, t) }));
+            }
+            if has_avx512() {
+                // SAFETY: the CPU supports AVX-512F.
+                k.push(("avx512", |a, b, c, t| unsafe { sq_acc_i64_avx512(a, b, c, t) }));
+            }
+        }
+        k
+    }
+
     #[test]
     fn dispatched_kernel_is_bitwise_the_portable_one() {
-        // Whatever path the CPU takes (AVX2 or not), every lane must hold the same bits.
+        // Whatever path the CPU takes (AVX-512, AVX2 or neither), every lane must hold the same bits.
         let mut s = 0x9e37_79b9_7f4a_7c15u64;
         let x: Vec<f64> = (0..5000)
             .map(|_| {
@@ -359,10 +512,12 @@ mod tests {
             .collect();
         for (len, m) in [(0usize, 1usize), (7, 2), (16, 3), (1023, 64), (4000, 256)] {
             let mut a = [0.5f64; 16];
-            let mut b = [0.5f64; 16];
             sq_acc_f64_body(&x[..len], &x[m..m + len], &x[2 * m..2 * m + len], &mut a);
-            sq_acc_f64(&x[..len], &x[m..m + len], &x[2 * m..2 * m + len], &mut b);
-            assert_eq!(a.map(f64::to_bits), b.map(f64::to_bits), "len {len} m {m}");
+            for (name, kernel) in f64_kernels() {
+                let mut b = [0.5f64; 16];
+                kernel(&x[..len], &x[m..m + len], &x[2 * m..2 * m + len], &mut b);
+                assert_eq!(a.map(f64::to_bits), b.map(f64::to_bits), "{name}: len {len} m {m}");
+            }
             // And the lanes hold the plain sum (1e-12 relative, different order).
             let plain: f64 = (0..len)
                 .map(|i| {
@@ -403,9 +558,11 @@ mod tests {
                     let (a, b, c) = (&x[..len], &x[m..m + len], &x[2 * m..2 * m + len]);
                     let mut exact = 7u128;
                     sq_acc_i64_scalar(a, b, c, &mut exact);
-                    let mut got = 7u128;
-                    sq_acc_i64(a, b, c, &mut got);
-                    assert_eq!(got, exact, "scale {scale} len {len} m {m}");
+                    for (name, kernel) in i64_kernels() {
+                        let mut got = 7u128;
+                        kernel(a, b, c, &mut got);
+                        assert_eq!(got, exact, "{name}: scale {scale} len {len} m {m}");
+                    }
                 }
             }
         }
