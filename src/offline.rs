@@ -188,11 +188,10 @@ pub fn run_capture(
 pub fn recording_period_ns(path: &Path) -> Result<Option<u64>, OfflineError> {
     let mut dt = None;
     scan_recording(path, false, &mut |m| {
-        if dt.is_none() {
-            if let SinkMessage::Raw(b) = &m.message {
+        if dt.is_none()
+            && let SinkMessage::Raw(b) = &m.message {
                 dt = Some(b.dt_ns);
             }
-        }
     })?;
     Ok(dt)
 }

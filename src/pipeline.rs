@@ -64,11 +64,10 @@ impl PipelineConfig {
         if !(self.rate_hz.is_finite() && self.rate_hz > 0.0) {
             return Err(PipelineError::Config { key: "rate_hz", value: self.rate_hz.to_string(), reason: "must be > 0" });
         }
-        if let Some(d) = self.pulse_arcsec {
-            if !(d.is_finite() && d > 0.0) {
+        if let Some(d) = self.pulse_arcsec
+            && !(d.is_finite() && d > 0.0) {
                 return Err(PipelineError::Config { key: "pulse_arcsec", value: d.to_string(), reason: "must be > 0" });
             }
-        }
         Ok(())
     }
 }

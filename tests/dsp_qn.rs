@@ -31,7 +31,7 @@ fn split(raw: &[f64], cfg: &QnConfig, blocks: &[usize]) -> (Vec<f64>, Vec<f64>, 
 
 fn even_blocks(n: usize, b: usize) -> Vec<usize> {
     let mut v = vec![b; n / b];
-    if n % b > 0 {
+    if !n.is_multiple_of(b) {
         v.push(n % b);
     }
     v

@@ -69,7 +69,7 @@ fn utc_names_match_python_datetime() {
 fn utc_dates_advance_one_day_at_a_time() {
     // Every day from 1970 to 2600 follows the previous one under the Gregorian
     // rules (leap years: divisible by 4, except centuries not divisible by 400).
-    let leap = |y: u32| y % 4 == 0 && (y % 100 != 0 || y % 400 == 0);
+    let leap = |y: u32| y.is_multiple_of(4) && (!y.is_multiple_of(100) || y.is_multiple_of(400));
     let days_in = |y: u32, m: u32| match m {
         2 if leap(y) => 29,
         2 => 28,

@@ -376,7 +376,7 @@ mod tests {
             }
             let big_m = n_phase - l + 1;
             let rho = |lag: u64| -> f64 {
-                if lag % m != 0 {
+                if !lag.is_multiple_of(m) {
                     return 0.0;
                 }
                 match lag / m {

@@ -617,7 +617,7 @@ impl Integrator {
         let mut k = k0;
         let mut i = 0;
         while i < ys.len() {
-            if k % q == 0 && ys.len() - i >= 4 * QUARTER {
+            if k.is_multiple_of(q) && ys.len() - i >= 4 * QUARTER {
                 let mut tmp = [0.0f64; 4 * QUARTER];
                 let mut pq = [0.0f64; 4];
                 let group = &ys[i..i + 4 * QUARTER];
@@ -645,7 +645,7 @@ impl Integrator {
             }
             let until = ys.len().min(i + (q - k % q) as usize);
             for &y in &ys[i..until] {
-                if k % q == 0 {
+                if k.is_multiple_of(q) {
                     self.base.add(self.p);
                     self.off = self.base.value();
                     self.p = 0.0;
@@ -698,15 +698,14 @@ impl OctaveAllan<f64> {
     /// consumed and an error naming its index is returned.
     pub fn push_block(&mut self, samples: &[f64]) -> Result<(), StreamError> {
         let mut rest = samples;
-        if self.kind == InputKind::Freq && self.samples == 0 {
-            if let Some(&y) = rest.first() {
+        if self.kind == InputKind::Freq && self.samples == 0
+            && let Some(&y) = rest.first() {
                 if !y.is_finite() {
                     return Err(StreamError::NonFinite { index: 0, value: y });
                 }
                 self.integ.y0 = y;
                 self.append_one(0.0);
             }
-        }
         while !rest.is_empty() {
             let take = self.room().min(rest.len());
             let (seg, tail) = rest.split_at(take);

@@ -55,11 +55,10 @@ pub enum AnalyzeFormat {
 const DEFAULT_RATE_HZ: f64 = 1000.0;
 
 pub fn run(args: AnalyzeArgs) -> Result<()> {
-    if let Some(r) = args.rate_hz {
-        if !(r.is_finite() && r > 0.0) {
+    if let Some(r) = args.rate_hz
+        && !(r.is_finite() && r > 0.0) {
             bail!("--rate-hz must be a positive number of Hz (got {r})");
         }
-    }
     if !(args.pulse_arcsec.is_finite() && args.pulse_arcsec > 0.0) {
         bail!("--pulse-arcsec must be a positive number of arcsec (got {})", args.pulse_arcsec);
     }

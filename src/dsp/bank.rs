@@ -185,14 +185,13 @@ impl StreamingAnalysis {
             let (prev, rest) = self.lo.split_at_mut(j);
             let mut input: &[f64] = if j == 0 { x } else { &prev[j - 1] };
             let st = &mut self.st[j];
-            if let Some(first) = st.pending {
-                if let Some((&x1, tail)) = input.split_first() {
+            if let Some(first) = st.pending
+                && let Some((&x1, tail)) = input.split_first() {
                     st.e.push(first);
                     st.o.push(x1);
                     st.pending = None;
                     input = tail;
                 }
-            }
             let np = input.len() / 2;
             if input.len() % 2 == 1 {
                 st.pending = Some(input[input.len() - 1]);
@@ -433,7 +432,7 @@ impl StreamingBank {
                 hook.approx(first, a);
                 self.apx.push(a);
             }
-            if self.ana.n_in % self.frame == 0 {
+            if self.ana.n_in.is_multiple_of(self.frame) {
                 hook.frame_end(self.ana.n_in / self.frame - 1);
                 self.synthesize_frame();
             }

@@ -121,7 +121,7 @@ pub fn idwt(ca: &[f64], cd: &[f64], w: &Wavelet, mode: Mode) -> Result<Vec<f64>>
                     for k in 0..l {
                         let u = (n as i64 + (l / 2) as i64 - 1 - k as i64).rem_euclid(n_out as i64)
                             as usize;
-                        if u % 2 == 0 {
+                        if u.is_multiple_of(2) {
                             s += glo[k] * ca[u / 2] + ghi[k] * cd[u / 2];
                         }
                     }

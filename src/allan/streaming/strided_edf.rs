@@ -116,7 +116,7 @@ fn check(alpha: i32, m: u64, stride: u64, n_terms: u64) -> Result<(), EdfError> 
     if m > 1 << 62 {
         return bad("m must be at most 2^62");
     }
-    if m % stride != 0 {
+    if !m.is_multiple_of(stride) {
         return bad("stride must divide m");
     }
     if n_terms == 0 {

@@ -494,7 +494,7 @@ impl FrameDecoder {
                 }
                 Err(NotAFrame::BadCrc { computed, received }) => {
                     let offset = self.offset;
-                    if self.skip_run % FRAME_LEN as u64 == 0 {
+                    if self.skip_run.is_multiple_of(FRAME_LEN as u64) {
                         self.stats.crc_errors += 1;
                         self.push(DecodeEvent::CrcError {
                             offset,

@@ -345,7 +345,7 @@ fn derive_expected(bytes: &[u8], intact: &[(usize, u16, usize)]) -> Expected {
     let scan = |e: &mut Expected, start: usize, end: usize| {
         for p in start..end {
             if p + FRAME_LEN <= len && bytes[p] == SYNC[0] && bytes[p + 1] == SYNC[1] {
-                if (p - start) % FRAME_LEN == 0 {
+                if (p - start).is_multiple_of(FRAME_LEN) {
                     e.crc_errors += 1;
                 } else {
                     e.false_syncs += 1;
