@@ -375,9 +375,9 @@ impl Pipeline {
         let n0 = out.clean_dph.len();
         self.splitter.push(&self.rate_buf, &mut out.clean_dph, &mut out.noise_dph);
         self.rate_levels.push(&self.rate_buf);
+        self.ramp.push_slice(&self.rate_buf);
         self.angle_buf.clear();
         for &r in &self.rate_buf {
-            self.ramp.push(r);
             self.angle += r * self.tau0_s;
             self.angle_buf.push(self.angle);
         }

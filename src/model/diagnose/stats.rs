@@ -481,9 +481,7 @@ pub fn compute(
     let psd: Vec<f64> = full[layout.k_lo..layout.k_hi].to_vec();
     let band_psd = band_means(layout, &psd);
     let mut ramp = RampAccumulator::default();
-    for &r in &rate {
-        ramp.push(r);
-    }
+    ramp.push_slice(&rate);
     let temp_slope = temp_c.map(|t| regression_slope(t, &rate));
     let kurtosis = lp_cutoffs_hz
         .iter()
