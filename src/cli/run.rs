@@ -72,19 +72,19 @@ pub struct RunArgs {
 }
 
 /// The config key a flag overrides (for error messages).
-fn flag_of(key: &str) -> Option<&'static str> {
+fn flag_of(args: &RunArgs, key: &str) -> Option<(&'static str, bool)> {
     Some(match key {
-        "source.serial_path" => "--serial",
-        "source.baud" => "--baud",
-        "source.replay_path" => "--replay",
-        "source.speed" => "--speed",
-        "source.model" => "--simulate",
-        "gyro.rate_hz" => "--rate-hz",
-        "gyro.pulse_arcsec" => "--pulse-arcsec",
-        "metrics.addr" => "--metrics-addr",
-        "record.dir" => "--record-dir",
-        "dsp.wavelet" => "--wavelet",
-        "run.duration_s" => "--duration-s",
+        "source.serial_path" => ("--serial", args.serial.is_some()),
+        "source.baud" => ("--baud", args.baud.is_some()),
+        "source.replay_path" => ("--replay", args.replay.is_some()),
+        "source.speed" => ("--speed", args.speed.is_some()),
+        "source.model" => ("--simulate", args.simulate.is_some()),
+        "gyro.rate_hz" => ("--rate-hz", args.rate_hz.is_some()),
+        "gyro.pulse_arcsec" => ("--pulse-arcsec", args.pulse_arcsec.is_some()),
+        "metrics.addr" => ("--metrics-addr", args.metrics_addr.is_some()),
+        "record.dir" => ("--record-dir", args.record_dir.is_some()),
+        "dsp.wavelet" => ("--wavelet", args.wavelet.is_some()),
+        "run.duration_s" => ("--duration-s", args.duration_s.is_some()),
         _ => return None,
     })
 }
@@ -169,33 +169,38 @@ fn init_logging(cfg: &Config) -> Result<()> {
     Ok(())
 }
 
-/// Name the flag next to the config key in a validation error.
-fn with_flag(e: DaemonError) -> anyhow::Error {
-    let flag = match &e {
-        DaemonError::Config(ConfigError::Invalid { key, .. }) => flag_of(key),
+/// Say where a bad configuration value came from: the flag that set it, or
+/// else the config file (the error itself names the key).
+fn with_flag(args: &RunArgs, e: DaemonError) -> anyhow::Error {
+    let origin = match &e {
+        DaemonError::Config(ConfigError::Invalid { key, .. }) => match (flag_of(args, key), &args.config) {
+            (Some((flag, true)), _) => Some(format!("bad value for {flag}")),
+            (_, Some(file)) => Some(format!("bad value in {}", file.display())),
+            _ => None,
+        },
         _ => None,
     };
-    match flag {
-        Some(f) => anyhow::Error::new(e).context(format!("bad value for {f}")),
+    match origin {
+        Some(o) => anyhow::Error::new(e).context(o),
         None => anyhow::Error::new(e),
     }
 }
 
 /// Run `sagnac run`.
 pub fn run(args: RunArgs) -> Result<()> {
-    let (cfg, explicit) = resolve(&args).map_err(|e| with_flag(DaemonError::Config(e)))?;
-    init_logging(&cfg)?;
-    let daemon = Daemon::build(cfg, explicit).map_err(with_flag)?;
+    // The signal handlers come first: a SIGTERM while the daemon is being built
+    // (tens of milliseconds) is a shutdown request like any other, not a kill.
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .thread_name("sagnac-rt")
         .build()
         .context("starting the tokio runtime")?;
-    let report = runtime.block_on(async move {
-        let (trigger, _) = shutdown::channel();
-        install_signal_handlers(trigger.clone())?;
-        daemon.run(trigger).await.map_err(anyhow::Error::new)
-    })?;
+    let (trigger, _) = shutdown::channel();
+    runtime.block_on(async { install_signal_handlers(trigger.clone()) })?;
+    let (cfg, explicit) = resolve(&args).map_err(|e| with_flag(&args, DaemonError::Config(e)))?;
+    init_logging(&cfg)?;
+    let daemon = Daemon::build(cfg, explicit).map_err(|e| with_flag(&args, e))?;
+    let report = runtime.block_on(async move { daemon.run(trigger).await.map_err(anyhow::Error::new) })?;
     // Do not wait for blocking threads still parked in the pool.
     runtime.shutdown_timeout(std::time::Duration::from_millis(100));
     if let Some(rec) = &report.recording {

@@ -342,13 +342,20 @@ impl Assembler {
                     self.telemetry
                         .metrics
                         .add_frame_errors(FrameErrorKind::Truncated, 1);
+                    let from = at_offset.saturating_sub(trailing_bytes);
+                    tracing::warn!(
+                        trailing_bytes,
+                        offset = from,
+                        "the stream ends in a partial frame: {trailing_bytes} bytes from byte \
+                         offset {from} ignored (counted as a truncated frame)"
+                    );
+                } else {
+                    tracing::debug!(
+                        skipped_bytes,
+                        at_offset,
+                        "end of stream inside skipped bytes"
+                    );
                 }
-                tracing::debug!(
-                    skipped_bytes,
-                    trailing_bytes,
-                    at_offset,
-                    "end of stream inside skipped bytes"
-                );
             }
         }
     }

@@ -70,19 +70,30 @@ pub fn wls_raw(points: &[AdevPoint]) -> BaselineEstimates {
         points.iter().map(|p| vec![3.0 / (p.tau_s * p.tau_s), 1.0 / p.tau_s, plateau, p.tau_s / 3.0]).collect();
     let y: Vec<f64> = points.iter().map(|p| p.adev * p.adev).collect();
     let w: Vec<f64> = points.iter().zip(&y).map(|(p, v)| p.edf / (2.0 * v * v)).collect();
+    // no points (a record too short for any Allan point): no coefficients
     let th = weighted_nnls(&phi, &y, &w);
-    let some = |v: f64| if v > 0.0 { Some(v.sqrt()) } else { None };
+    let some = |i: usize| th.get(i).copied().filter(|&v| v > 0.0).map(f64::sqrt);
     BaselineEstimates {
-        quantization_arcsec: some(th[0]),
-        arw_dpsh: some(th[1]).map(units::arcsec_per_sqrt_s_to_dpsh),
-        bias_instability_dph: some(th[2]).map(units::arcsec_per_s_to_dph),
-        rrw_dphsh: some(th[3]).map(units::arcsec_per_s_sqrt_s_to_dphsh),
+        quantization_arcsec: some(0),
+        arw_dpsh: some(1).map(units::arcsec_per_sqrt_s_to_dpsh),
+        bias_instability_dph: some(2).map(units::arcsec_per_s_to_dph),
+        rrw_dphsh: some(3).map(units::arcsec_per_s_sqrt_s_to_dphsh),
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn no_allan_points_give_no_coefficients() {
+        for b in [wls_raw(&[]), graphical(&[])] {
+            assert_eq!(b.quantization_arcsec, None);
+            assert_eq!(b.arw_dpsh, None);
+            assert_eq!(b.bias_instability_dph, None);
+            assert_eq!(b.rrw_dphsh, None);
+        }
+    }
 
     fn curve(q: f64, n: f64, b: f64, k: f64) -> Vec<AdevPoint> {
         let plateau = 2.0 * 2f64.ln() / std::f64::consts::PI;

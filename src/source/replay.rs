@@ -432,8 +432,13 @@ impl ReplaySource {
             out.blocking_send(b).map_err(self.pipeline_err())?;
         }
         report.bytes_read = reader.offset();
-        if let Some(reason) = reader.broken() {
-            tracing::warn!(path = %cfg.path.display(), reason, "recording is cut: replayed up to its last complete chunk");
+        if let Some((offset, reason)) = reader.broken() {
+            tracing::warn!(
+                path = %cfg.path.display(),
+                offset,
+                reason,
+                "recording is cut: unreadable from byte {offset}; replayed up to its last complete chunk"
+            );
         }
         Ok(report)
     }
@@ -466,7 +471,7 @@ pub struct RawReader {
     reader: LinearReader,
     raw_channel: Option<u16>,
     offset: u64,
-    broken: Option<String>,
+    broken: Option<(u64, String)>,
     done: bool,
     queue: std::collections::VecDeque<RawBatch>,
 }
@@ -500,9 +505,10 @@ impl RawReader {
         self.offset
     }
 
-    /// Why reading stopped early (a cut or damaged file), if it did.
-    pub fn broken(&self) -> Option<&str> {
-        self.broken.as_deref()
+    /// Where (bytes read when it happened) and why reading stopped early (a cut
+    /// or damaged file), if it did.
+    pub fn broken(&self) -> Option<(u64, &str)> {
+        self.broken.as_ref().map(|(offset, reason)| (*offset, reason.as_str()))
     }
 
     /// The next `/gyro/raw` message, `None` at the end (or at a break).
@@ -534,7 +540,7 @@ impl RawReader {
                         source: e,
                     });
                 }
-                self.broken = Some(e.to_string());
+                self.broken = Some((self.offset, e.to_string()));
                 self.done = true;
             }
             Ok(LinearReadEvent::ReadRequest(need)) => {
