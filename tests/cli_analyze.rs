@@ -123,3 +123,29 @@ fn bad_inputs_exit_2_with_a_clear_message() {
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("bad.csv") && err.contains('4'), "must name the file and line: {err}");
 }
+
+#[test]
+fn json_to_a_failing_stdout_is_an_error_not_a_panic() {
+    // `--json -` into a full device (and the diagnose summary likewise): exit 2
+    // with a message naming standard output, never a panic.
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("c.csv");
+    let bin = env!("CARGO_BIN_EXE_sagnac");
+    let model = concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml");
+    let sim = std::process::Command::new(bin)
+        .args(["simulate", "--model", model, "--duration-s", "3", "--seed", "2", "--format", "csv", "--out"])
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(sim.status.success(), "{}", String::from_utf8_lossy(&sim.stderr));
+    let full = || std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+    for args in [
+        vec!["analyze", "--input", csv.to_str().unwrap(), "--json", "-"],
+        vec!["allan", "--input", csv.to_str().unwrap(), "--format", "csv", "--data", "freq", "--tau0", "0.001", "--column", "counts", "--json", "-"],
+    ] {
+        let r = std::process::Command::new(bin).args(&args).stdout(full()).output().unwrap();
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains("writing to standard output") && !err.contains("panicked"), "{args:?}: {err}");
+    }
+}

@@ -154,7 +154,7 @@ pub fn run(args: AllanArgs) -> Result<()> {
         Some(out) => {
             let text = serde_json::to_string_pretty(&result).context("serialising the result")?;
             if out.as_os_str() == "-" {
-                println!("{text}");
+                super::write_stdout(&text)?;
             } else {
                 std::fs::write(out, text + "\n")
                     .with_context(|| format!("cannot write {}", out.display()))?;
@@ -219,7 +219,7 @@ fn run_streaming(args: &AllanArgs, kind: DataKind) -> Result<()> {
         Some(out) => {
             let text = serde_json::to_string_pretty(&result).context("serialising the result")?;
             if out.as_os_str() == "-" {
-                println!("{text}");
+                super::write_stdout(&text)?;
             } else {
                 std::fs::write(out, text + "\n").with_context(|| format!("cannot write {}", out.display()))?;
             }

@@ -114,7 +114,7 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
         Some(path) => {
             let text = serde_json::to_string_pretty(&analysis).context("serialising the analysis")?;
             if path.as_os_str() == "-" {
-                println!("{text}");
+                super::write_stdout(&text)?;
             } else {
                 std::fs::write(path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
             }

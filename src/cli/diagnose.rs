@@ -89,18 +89,19 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
     })?;
     let json = serde_json::to_string_pretty(&diag.report).context("serialising the verdict")?;
     if args.json.as_os_str() == "-" {
-        println!("{json}");
+        super::write_stdout(&json)?;
     } else {
         std::fs::write(&args.json, json + "\n")
             .with_context(|| format!("writing {}", args.json.display()))?;
         let r = &diag.report;
-        println!(
+        let mut summary = format!(
             "verdict: {:?}; chi2/dof {:.2} -> {:.2}",
             r.verdict, r.fit_before.chi2_per_dof, r.fit_after.chi2_per_dof
         );
         for n in &diag.notes {
-            println!("  {n}");
+            summary.push_str(&format!("\n  {n}"));
         }
+        super::write_stdout(&summary)?;
     }
     if let Some(path) = &args.report {
         let title = format!(
@@ -130,7 +131,8 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
                 .and_then(|_| f.write_all(text.as_bytes()))
                 .with_context(|| format!("writing {}", path.display()))?;
             }
-            None => println!(
+            // a note, on stderr: stdout may be carrying the JSON (`--json -`)
+            None => eprintln!(
                 "  (no model written to {}: the diagnosis made no change)",
                 path.display()
             ),

@@ -56,3 +56,14 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Diagnose(args) => diagnose::run(args),
     }
 }
+
+/// `text` and a newline on standard output: a closed pipe or a full disk is an
+/// error naming standard output, not a panic (as `println!` would make it).
+pub(crate) fn write_stdout(text: &str) -> anyhow::Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes())
+        .and_then(|()| out.write_all(b"\n"))
+        .and_then(|()| out.flush())
+        .map_err(|e| anyhow::anyhow!("writing to standard output: {e}"))
+}
