@@ -393,7 +393,8 @@ fn read_csv_header(
             path: path.to_path_buf(),
         });
     }
-    let line = &st.buf;
+    // a UTF-8 byte-order mark (spreadsheet exports) is not part of the first name
+    let line = st.buf.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(&st.buf);
     let delim = [b',', b';', b'\t']
         .into_iter()
         .find(|d| line.contains(d))
@@ -658,6 +659,9 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("line 3"), "{e}");
+        // a spreadsheet's UTF-8 byte-order mark before the first name
+        let (_d, p) = tmp("bom.csv", b"\xEF\xBB\xBFcounts,t\n5,0\n-2,1\n");
+        assert_eq!(read_all(&p, InputFormat::Csv, Some("counts")).unwrap(), vec![5.0, -2.0]);
     }
 
     #[test]
