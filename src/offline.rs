@@ -49,7 +49,19 @@ pub enum OfflineError {
     Empty { path: PathBuf },
     #[error("{path}: /gyro/raw batches disagree on the sample period ({first_ns} ns, then {other_ns} ns)")]
     MixedRate { path: PathBuf, first_ns: u64, other_ns: u64 },
+    #[error(
+        "{path}: the /gyro/raw batch at t0 = {t0_ns} ns has a gap of {lost} lost samples \
+         (more than {MAX_GAP_SAMPLES}: not a recording of a gyro that kept running)"
+    )]
+    ImplausibleGap { path: PathBuf, t0_ns: u64, lost: u64 },
+    #[error("{path}: no samples before the file becomes unreadable at byte {offset}: {reason}")]
+    BrokenBeforeSamples { path: PathBuf, offset: u64, reason: String },
 }
+
+/// Longest gap (lost samples) a recording may hold: 4.7 h at 1 kHz. The frame
+/// decoder never reports more than 4096; a gap this long would have to be filled
+/// with that many made-up samples.
+pub const MAX_GAP_SAMPLES: u64 = 1 << 24;
 
 /// Called with (samples so far, total expected if known) as input is read.
 pub type Progress<'a> = &'a mut dyn FnMut(u64, Option<u64>);
@@ -197,15 +209,28 @@ pub fn recording_period_ns(path: &Path) -> Result<Option<u64>, OfflineError> {
 }
 
 /// Feed the `/gyro/raw` channel of an MCAP recording (truncated files are read
-/// up to their last complete chunk); gaps are filled.
-pub fn run_recording(path: &Path, cfg: &PipelineConfig, progress: Progress) -> Result<Pipeline, OfflineError> {
+/// up to their last complete chunk); gaps are filled. Returns the pipeline and,
+/// for a cut or damaged file, where reading stopped.
+pub fn run_recording(
+    path: &Path,
+    cfg: &PipelineConfig,
+    progress: Progress,
+) -> Result<(Pipeline, Option<crate::sink::reader::Break>), OfflineError> {
     let mut pipe = Pipeline::new(cfg)?;
     let mut out = PipelineOutput::default();
     let mut counts: Vec<i64> = Vec::new();
     let mut first_dt: Option<u64> = None;
     let mut mixed: Option<u64> = None;
-    scan_recording(path, false, &mut |m| {
+    let mut implausible: Option<(u64, u64)> = None;
+    let report = scan_recording(path, false, &mut |m| {
+        if implausible.is_some() {
+            return;
+        }
         if let SinkMessage::Raw(b) = m.message {
+            if let Some(g) = b.gaps.iter().find(|g| g.lost > MAX_GAP_SAMPLES) {
+                implausible = Some((b.t0_ns, g.lost));
+                return;
+            }
             match first_dt {
                 None => first_dt = Some(b.dt_ns),
                 Some(d) if d != b.dt_ns && !b.counts.is_empty() => mixed = Some(b.dt_ns),
@@ -225,13 +250,19 @@ pub fn run_recording(path: &Path, cfg: &PipelineConfig, progress: Progress) -> R
             progress(pipe.samples(), None);
         }
     })?;
+    if let Some((t0_ns, lost)) = implausible {
+        return Err(OfflineError::ImplausibleGap { path: path.to_path_buf(), t0_ns, lost });
+    }
     if let (Some(a), Some(b)) = (first_dt, mixed) {
         return Err(OfflineError::MixedRate { path: path.to_path_buf(), first_ns: a, other_ns: b });
     }
     if pipe.samples() == 0 {
-        return Err(OfflineError::Empty { path: path.to_path_buf() });
+        return Err(match report.break_at {
+            Some(b) => OfflineError::BrokenBeforeSamples { path: path.to_path_buf(), offset: b.offset, reason: b.reason },
+            None => OfflineError::Empty { path: path.to_path_buf() },
+        });
     }
     out.clear();
     pipe.finish(&mut out);
-    Ok(pipe)
+    Ok((pipe, report.break_at))
 }

@@ -149,3 +149,68 @@ fn json_to_a_failing_stdout_is_an_error_not_a_panic() {
         assert!(err.contains("writing to standard output") && !err.contains("panicked"), "{args:?}: {err}");
     }
 }
+
+#[test]
+fn damaged_inputs_are_reported_not_silently_dropped() {
+    use sagnac::sink::mcap::{Recorder, RecorderConfig};
+    use sagnac::sink::messages::{Gap, RawBatch, SinkMessage};
+    let dir = tempfile::tempdir().unwrap();
+    let bin = env!("CARGO_BIN_EXE_sagnac");
+    let analyze = |args: &[&str]| Command::new(bin).arg("analyze").args(args).output().unwrap();
+    let cfg = RecorderConfig {
+        record_dir: dir.path().to_path_buf(),
+        flush_interval_s: 600.0,
+        queue_capacity: 64,
+        chunk_size: 64 * 1024,
+        zstd_level: 0,
+    };
+    let batch = |k: u64, gaps: Vec<Gap>| {
+        SinkMessage::Raw(RawBatch {
+            t0_ns: k * 1_000_000_000,
+            dt_ns: 1_000_000,
+            seq0: k * 1000,
+            counts: (0..1000).map(|i| (i * 7 % 5) as i64 - 2).collect(),
+            gaps,
+            temp_c: Some(25.0),
+            status: 7,
+        })
+    };
+    // 1. A recording cut in its second half: analysed up to the break, with a warning.
+    let rec = Recorder::start(&cfg).unwrap();
+    for k in 0..400 {
+        rec.send(batch(k, vec![])).unwrap();
+    }
+    let full = rec.finish().unwrap().path;
+    let bytes = std::fs::read(&full).unwrap();
+    let cut = dir.path().join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
+    let r = analyze(&["--format", "mcap", "--input", cut.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    assert!(err.contains("warning: ") && err.contains("cut.mcap: unreadable from byte"), "{err}");
+    // 2. A gap no running gyro could leave: an error, not a huge allocation.
+    std::fs::remove_file(&full).unwrap();
+    let rec = Recorder::start(&cfg).unwrap();
+    rec.send(batch(0, vec![Gap { index: 500, lost: 1 << 40 }])).unwrap();
+    let huge = rec.finish().unwrap().path;
+    let r = analyze(&["--format", "mcap", "--input", huge.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert!(err.contains("gap of 1099511627776 lost samples") && !err.contains("panicked"), "{err}");
+    // 3. A frame capture with lost frames: the decoder's counts on stderr.
+    let cap = dir.path().join("cap.bin");
+    let sim = Command::new(bin)
+        .args(["simulate", "--model", concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml")])
+        .args(["--duration-s", "2", "--seed", "4", "--format", "frames", "--out"])
+        .arg(&cap)
+        .output()
+        .unwrap();
+    assert!(sim.status.success());
+    let mut frames = std::fs::read(&cap).unwrap();
+    frames.drain(16 * 100..16 * 103); // three frames lost
+    std::fs::write(&cap, &frames).unwrap();
+    let r = analyze(&["--format", "frames", "--input", cap.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    assert!(err.contains("3 samples lost in 1 gaps"), "{err}");
+}

@@ -92,9 +92,24 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
         AnalyzeFormat::Frames => {
             let rate = args.rate_hz.unwrap_or(DEFAULT_RATE_HZ);
             let cfg = PipelineConfig::counts(rate, args.pulse_arcsec);
-            offline::run_capture(input, &cfg, &mut progress)
-                .with_context(|| format!("analysing frame capture {}", input.display()))?
-                .0
+            let (pipe, stats) = offline::run_capture(input, &cfg, &mut progress)
+                .with_context(|| format!("analysing frame capture {}", input.display()))?;
+            if stats.lost_samples + stats.bytes_skipped + stats.crc_errors + stats.duplicates + stats.out_of_sequence > 0 {
+                eprintln!(
+                    "note: {}: {} frames decoded; {} samples lost in {} gaps (filled, the angle kept); \
+                     {} CRC errors, {} false syncs, {} bytes skipped; {} duplicate and {} out-of-sequence frames",
+                    input.display(),
+                    stats.frames_decoded,
+                    stats.lost_samples,
+                    stats.gaps,
+                    stats.crc_errors,
+                    stats.false_syncs,
+                    stats.bytes_skipped,
+                    stats.duplicates,
+                    stats.out_of_sequence
+                );
+            }
+            pipe
         }
         AnalyzeFormat::Mcap => {
             let dt = offline::recording_period_ns(input).with_context(|| format!("reading {}", input.display()))?;
@@ -104,8 +119,18 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
                 _ => DEFAULT_RATE_HZ,
             };
             let cfg = PipelineConfig::counts(rate, args.pulse_arcsec);
-            offline::run_recording(input, &cfg, &mut progress)
-                .with_context(|| format!("analysing recording {}", input.display()))?
+            let (pipe, broken) = offline::run_recording(input, &cfg, &mut progress)
+                .with_context(|| format!("analysing recording {}", input.display()))?;
+            if let Some(b) = broken {
+                eprintln!(
+                    "warning: {}: unreadable from byte {} ({}); analysed the {} samples before it",
+                    input.display(),
+                    b.offset,
+                    b.reason,
+                    pipe.samples()
+                );
+            }
+            pipe
         }
     };
     bar.finish_and_clear();

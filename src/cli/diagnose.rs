@@ -238,6 +238,16 @@ fn read_mcap(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
             // (as the frame decoder delivers it): spread it uniformly
             match gaps.peek() {
                 Some(g) if g.index as usize == i => {
+                    if g.lost > crate::offline::MAX_GAP_SAMPLES {
+                        bail!(
+                            "{}: the /gyro/raw batch at t0 = {} ns has a gap of {} lost samples (more than {}: \
+                             not a recording of a gyro that kept running)",
+                            path.display(),
+                            b.t0_ns,
+                            g.lost,
+                            crate::offline::MAX_GAP_SAMPLES
+                        );
+                    }
                     let n = u32::try_from(g.lost + 1).unwrap_or(u32::MAX);
                     counts.extend(spread_increment(c, n));
                     temps.extend(std::iter::repeat_n(t, n as usize));
