@@ -132,3 +132,35 @@ fn bad_durations_exit_2() {
     assert_eq!(r.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&r.stderr).contains("duration_s = 0"));
 }
+
+#[test]
+fn mcap_output_only_replaces_a_regular_file_in_an_existing_directory() {
+    let dir = tempfile::tempdir().unwrap();
+    let bin = env!("CARGO_BIN_EXE_sagnac");
+    let model = concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml");
+    let sim = |out: &std::path::Path| {
+        std::process::Command::new(bin)
+            .args(["simulate", "--model", model, "--duration-s", "1", "--seed", "1", "--format", "mcap", "--out"])
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    let missing = dir.path().join("no_such_dir");
+    let r = sim(&missing.join("x.mcap"));
+    assert_eq!(r.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("is not an existing directory"));
+    assert!(!missing.exists(), "the directory must not be created");
+    let link = dir.path().join("link.mcap");
+    std::os::unix::fs::symlink(dir.path().join("target.mcap"), &link).unwrap();
+    let r = sim(&link);
+    assert_eq!(r.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("not a regular file"));
+    assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink(), "the link is left alone");
+    let ok = dir.path().join("ok.mcap");
+    assert!(sim(&ok).status.success());
+    // nothing left behind but the outputs
+    let mut names: Vec<String> =
+        std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    names.sort();
+    assert_eq!(names, ["link.mcap", "ok.mcap"]);
+}

@@ -140,6 +140,19 @@ fn write_mcap(sim: &mut Simulator, out: &Path) -> anyhow::Result<u64> {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
     };
+    // The rename replaces what is at `out`: only a regular file (or nothing), and
+    // the directory must exist (the recorder would create it).
+    if !dir.is_dir() {
+        bail!("cannot write {}: {} is not an existing directory", out.display(), dir.display());
+    }
+    if let Ok(m) = std::fs::symlink_metadata(out)
+        && !m.file_type().is_file()
+    {
+        bail!(
+            "cannot write {}: it exists and is not a regular file (an MCAP file is written beside it and renamed)",
+            out.display()
+        );
+    }
     let config = RecorderConfig {
         record_dir: dir,
         ..RecorderConfig::default()
@@ -176,7 +189,9 @@ fn write_mcap(sim: &mut Simulator, out: &Path) -> anyhow::Result<u64> {
     // finish() reports the writer's first error, which explains a failed send.
     let summary = recorder.finish()?;
     sent?;
-    std::fs::rename(&path, out)
-        .with_context(|| format!("renaming {} to {}", path.display(), out.display()))?;
+    if let Err(e) = std::fs::rename(&path, out) {
+        let _ = std::fs::remove_file(&path);
+        return Err(e).with_context(|| format!("renaming {} to {}", path.display(), out.display()));
+    }
     Ok(summary.messages())
 }
