@@ -221,3 +221,43 @@ fn bad_inputs_give_clear_errors() {
     run(&[&p.join("bad.toml"), &p.join("short.csv"), &j], "model");
     assert!(!j.exists());
 }
+
+#[test]
+fn a_model_is_written_only_when_it_fits_better() {
+    // A readout-only model against the paper gyro: the diagnosis may propose
+    // changes, but `--write-model` gets a model only if its chi2/dof is not worse.
+    let dir = tempfile::tempdir().unwrap();
+    let bin = env!("CARGO_BIN_EXE_sagnac");
+    let csv = dir.path().join("c10.csv");
+    let sim = std::process::Command::new(bin)
+        .args(["simulate", "--model", concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml")])
+        .args(["--duration-s", "10", "--seed", "1", "--format", "csv", "--out"])
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(sim.status.success());
+    let model = dir.path().join("g.toml");
+    std::fs::write(&model, "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 1.21\n").unwrap();
+    let (json, new) = (dir.path().join("out.json"), dir.path().join("new.toml"));
+    let r = std::process::Command::new(bin)
+        .arg("diagnose")
+        .arg("--model")
+        .arg(&model)
+        .arg("--recording")
+        .arg(&csv)
+        .arg("--json")
+        .arg(&json)
+        .arg("--write-model")
+        .arg(&new)
+        .output()
+        .unwrap();
+    let (out, err) = (String::from_utf8_lossy(&r.stdout), String::from_utf8_lossy(&r.stderr));
+    assert!(r.status.success(), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let before = v["fit_before"]["chi2_per_dof"].as_f64().unwrap();
+    let after = v["fit_after"]["chi2_per_dof"].as_f64().unwrap();
+    assert_eq!(new.exists(), after <= before, "chi2/dof {before} -> {after}; stdout {out}; stderr {err}");
+    if after > before {
+        assert!(out.contains("fits worse than the original") && err.contains("no model written"), "{out}\n{err}");
+    }
+}

@@ -133,7 +133,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
             }
             // a note, on stderr: stdout may be carrying the JSON (`--json -`)
             None => eprintln!(
-                "  (no model written to {}: the diagnosis made no change)",
+                "  (no model written to {}: the diagnosis found no change that fits better)",
                 path.display()
             ),
         }

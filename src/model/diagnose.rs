@@ -1630,7 +1630,15 @@ pub fn diagnose(
         // restore the user's readout in the written model
         m_new.gyro = model.gyro.clone();
         tidy(&mut m_new);
-        updated = Some(m_new);
+        if chi2_after > chi2_before {
+            // an update that fits worse is reported, never handed out as the better model
+            notes.push(format!(
+                "The updated model fits worse than the original (chi2/dof {chi2_before:.2} -> {chi2_after:.2}): \
+                 it is not offered as a replacement; the changes listed are candidates only."
+            ));
+        } else {
+            updated = Some(m_new);
+        }
     }
 
     for f in &findings {
