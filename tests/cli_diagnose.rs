@@ -225,7 +225,8 @@ fn bad_inputs_give_clear_errors() {
 #[test]
 fn a_model_is_written_only_when_it_fits_better() {
     // A readout-only model against the paper gyro: the diagnosis may propose
-    // changes, but `--write-model` gets a model only if its chi2/dof is not worse.
+    // changes, but `--write-model` gets no model whose chi2/dof is worse than the
+    // original's and above an acceptable fit.
     let dir = tempfile::tempdir().unwrap();
     let bin = env!("CARGO_BIN_EXE_sagnac");
     let csv = dir.path().join("c10.csv");
@@ -256,8 +257,10 @@ fn a_model_is_written_only_when_it_fits_better() {
     let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
     let before = v["fit_before"]["chi2_per_dof"].as_f64().unwrap();
     let after = v["fit_after"]["chi2_per_dof"].as_f64().unwrap();
-    assert_eq!(new.exists(), after <= before, "chi2/dof {before} -> {after}; stdout {out}; stderr {err}");
-    if after > before {
+    // (an update whose chi2/dof rises but stays acceptable, <= 1.5, is still offered)
+    let withheld = after > before && after > 1.5;
+    assert_eq!(new.exists(), !withheld, "chi2/dof {before} -> {after}; stdout {out}; stderr {err}");
+    if withheld {
         assert!(out.contains("fits worse than the original") && err.contains("no model written"), "{out}\n{err}");
     }
 }
