@@ -264,3 +264,23 @@ fn a_model_is_written_only_when_it_fits_better() {
         assert!(out.contains("fits worse than the original") && err.contains("no model written"), "{out}\n{err}");
     }
 }
+
+#[test]
+fn a_constant_recording_is_refused_not_called_consistent() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("dead.csv");
+    let mut text = String::from("counts\n");
+    for _ in 0..20_000 {
+        text.push_str("0\n");
+    }
+    std::fs::write(&csv, text).unwrap();
+    let r = std::process::Command::new(env!("CARGO_BIN_EXE_sagnac"))
+        .args(["diagnose", "--model", concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml"), "--recording"])
+        .arg(&csv)
+        .args(["--json", "-"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert!(err.contains("dead.csv: all 20000 increments are 0") && !err.contains("panicked"), "{err}");
+}

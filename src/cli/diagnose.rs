@@ -74,6 +74,18 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
         RecordingFormat::Frames => read_frames(&args.recording, &model)?,
         RecordingFormat::Mcap => read_mcap(&args.recording, &model)?,
     };
+    // A series without any variation has no noise to compare: a dead gyro or a
+    // stuck counter, not a gyro consistent with every noise model.
+    if let Some(&c0) = rec.counts.first()
+        && rec.counts.len() > 1
+        && rec.counts.iter().all(|&c| c == c0)
+    {
+        bail!(
+            "{}: all {} increments are {c0}: no noise to compare with the model (a dead gyro or a stuck counter?)",
+            args.recording.display(),
+            rec.counts.len()
+        );
+    }
     let opts = DiagnoseOptions {
         runs: args.runs,
         runs_after: args.runs_after,
