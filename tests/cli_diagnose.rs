@@ -228,19 +228,13 @@ fn a_model_is_written_only_when_it_fits_better() {
     // changes, but `--write-model` gets no model whose chi2/dof is worse than the
     // original's and above an acceptable fit.
     let dir = tempfile::tempdir().unwrap();
-    let bin = env!("CARGO_BIN_EXE_sagnac");
     let csv = dir.path().join("c10.csv");
-    let sim = std::process::Command::new(bin)
-        .args(["simulate", "--model", concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml")])
-        .args(["--duration-s", "10", "--seed", "1", "--format", "csv", "--out"])
-        .arg(&csv)
-        .output()
-        .unwrap();
-    assert!(sim.status.success());
+    let paper = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/paper_gyro.toml");
+    simulate(&paper, &csv, "csv", "10", "1");
     let model = dir.path().join("g.toml");
     std::fs::write(&model, "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 1.21\n").unwrap();
     let (json, new) = (dir.path().join("out.json"), dir.path().join("new.toml"));
-    let r = std::process::Command::new(bin)
+    let r = bin()
         .arg("diagnose")
         .arg("--model")
         .arg(&model)
@@ -274,7 +268,7 @@ fn a_constant_recording_is_refused_not_called_consistent() {
         text.push_str("0\n");
     }
     std::fs::write(&csv, text).unwrap();
-    let r = std::process::Command::new(env!("CARGO_BIN_EXE_sagnac"))
+    let r = bin()
         .args(["diagnose", "--model", concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml"), "--recording"])
         .arg(&csv)
         .args(["--json", "-"])
