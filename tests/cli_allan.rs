@@ -366,6 +366,20 @@ fn bad_inputs_exit_2_naming_file_and_line() {
         ],
         &["nan.txt", "line 3", "not finite"],
     );
+    // finite but huge: its square would overflow the variances
+    let huge = write(d, "huge.txt", b"1\n2\n3\n1e300\n");
+    fails_with(
+        &[
+            "allan",
+            "--input",
+            p(&huge),
+            "--data",
+            "phase",
+            "--tau0",
+            "1",
+        ],
+        &["huge.txt", "line 4", "out of range", "1e300"],
+    );
     let frac = write(d, "frac.txt", b"1\n2\n3\n4.5\n");
     fails_with(
         &[

@@ -165,6 +165,22 @@ fn out_of_range_values_name_key_and_value() {
             "gyro.pulse_weight_arcsec = -1.21",
         ),
         ("temp_c0 = 25.0", "temp_c0 = -inf", "thermal.temp_c0 = -inf"),
+        // finite but absurd values that would overflow or never finish
+        (
+            "pulse_weight_arcsec = 1.21",
+            "pulse_weight_arcsec = 1e300",
+            "gyro.pulse_weight_arcsec = 1e300: must be in",
+        ),
+        (
+            "sample_rate_hz = 1000.0",
+            "sample_rate_hz = 1e12",
+            "gyro.sample_rate_hz = 1e12: must be in",
+        ),
+        (
+            "input_rate_dph = 12.3",
+            "input_rate_dph = -1e200",
+            "gyro.input_rate_dph = -1e200: must be in",
+        ),
     ];
     for (from, to, expect) in cases {
         let msg = err_of(&BASE.replacen(from, to, 1));
@@ -178,6 +194,14 @@ fn out_of_range_values_name_key_and_value() {
         msg.contains("d/sqrt(12)") && msg.contains("0.349297"),
         "{msg}"
     );
+    // a telegraph dwell far below the sample period (1 ms at 1 kHz)
+    let tg = "[[noise.random_telegraph]]\namplitude_dph = 0.05\nmean_dwell_s = ";
+    let msg = err_of(&format!("{BASE}\n{tg}1e-300\n"));
+    assert!(
+        msg.contains("noise.random_telegraph[0].mean_dwell_s = 1e-300") && msg.contains(">= 1e-5 s"),
+        "{msg}"
+    );
+    GyroModel::from_toml_str(&format!("{BASE}\n{tg}1e-5\n"), "m.toml").expect("1/100 sample is allowed");
     // a thermal sine without a period
     let msg = err_of(&BASE.replacen(
         "temp_c0 = 25.0",

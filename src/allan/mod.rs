@@ -234,9 +234,15 @@ impl Phase {
     }
 }
 
-/// Reject tau0 that is not a finite positive number of seconds.
+/// Shortest sample period accepted, s (1 ps: far below any gyro's, and
+/// `1 / tau0^2` stays finite).
+pub const TAU0_MIN_S: f64 = 1e-12;
+/// Longest sample period accepted, s (about 32 years).
+pub const TAU0_MAX_S: f64 = 1e9;
+
+/// Reject tau0 outside [`TAU0_MIN_S`, `TAU0_MAX_S`] (NaN included).
 pub fn check_tau0(tau0_s: f64) -> Result<(), AllanError> {
-    if tau0_s.is_finite() && tau0_s > 0.0 {
+    if (TAU0_MIN_S..=TAU0_MAX_S).contains(&tau0_s) {
         Ok(())
     } else {
         Err(AllanError::BadTau0 { tau0_s })
@@ -336,7 +342,7 @@ pub struct AllanResult {
 /// Errors of the Allan module.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum AllanError {
-    #[error("tau0 must be a finite number of seconds > 0 (got {tau0_s})")]
+    #[error("tau0 must be a number of seconds in [1e-12, 1e9] (got {tau0_s})")]
     BadTau0 { tau0_s: f64 },
     #[error("{n_phase} phase points are too few (need at least {need})")]
     TooFewPoints { n_phase: u64, need: u64 },
@@ -415,10 +421,16 @@ mod tests {
 
     #[test]
     fn phase_from_samples_validates() {
-        assert!(matches!(
-            Phase::from_samples(&[1.0, 2.0], DataKind::Phase, 0.0),
-            Err(AllanError::BadTau0 { .. })
-        ));
+        for bad in [0.0, -1.0, 1e-320, 1e-13, 2e9, f64::NAN, f64::INFINITY] {
+            assert!(
+                matches!(
+                    Phase::from_samples(&[1.0, 2.0], DataKind::Phase, bad),
+                    Err(AllanError::BadTau0 { .. })
+                ),
+                "tau0 {bad}"
+            );
+        }
+        assert!(check_tau0(1e-12).is_ok() && check_tau0(1e9).is_ok());
         assert!(matches!(
             Phase::from_samples(&[1.0, f64::NAN], DataKind::Phase, 1.0),
             Err(AllanError::NonFinite { index: 1, .. })

@@ -147,6 +147,15 @@ fn byte_to_line_col(text: &str, byte: usize) -> (usize, usize) {
     (line, col)
 }
 
+/// Highest sample rate a model may have, Hz.
+pub const MAX_SAMPLE_RATE_HZ: f64 = 1e7;
+/// Largest pulse weight, arcsec (one turn).
+pub const MAX_PULSE_WEIGHT_ARCSEC: f64 = 1_296_000.0;
+/// Largest input rate, deg/h (1e9 deg/h is about 77 000 turns per second).
+pub const MAX_RATE_DPH: f64 = 1e9;
+/// Shortest telegraph mean dwell, in sample periods.
+pub const MIN_DWELL_PER_SAMPLE: f64 = 0.01;
+
 impl GyroModel {
     /// Parse and validate a model from TOML text; `origin` names the source in errors.
     pub fn from_toml_str(text: &str, origin: &str) -> Result<Self, ModelError> {
@@ -215,31 +224,58 @@ impl GyroModel {
 
     /// Check every value; errors name the key (with its table path) and the value.
     pub fn validate(&self) -> Result<(), ModelError> {
+        // tiny and huge values in exponent form, not 300 digits
+        fn show(v: f64) -> String {
+            if v != 0.0 && v.is_finite() && !(1e-4..1e9).contains(&v.abs()) {
+                format!("{v:e}")
+            } else {
+                v.to_string()
+            }
+        }
         fn finite(key: &str, v: f64) -> Result<(), ModelError> {
             if v.is_finite() {
                 Ok(())
             } else {
-                Err(ModelError::invalid(key, v, "must be finite"))
+                Err(ModelError::invalid(key, show(v), "must be finite"))
             }
         }
         fn nonneg(key: &str, v: f64) -> Result<(), ModelError> {
             if v.is_finite() && v >= 0.0 {
                 Ok(())
             } else {
-                Err(ModelError::invalid(key, v, "must be finite and >= 0"))
+                Err(ModelError::invalid(key, show(v), "must be finite and >= 0"))
             }
         }
         fn positive(key: &str, v: f64) -> Result<(), ModelError> {
             if v.is_finite() && v > 0.0 {
                 Ok(())
             } else {
-                Err(ModelError::invalid(key, v, "must be finite and > 0"))
+                Err(ModelError::invalid(key, show(v), "must be finite and > 0"))
+            }
+        }
+        fn within(key: &str, v: f64, lo: f64, hi: f64, unit: &str) -> Result<(), ModelError> {
+            if (lo..=hi).contains(&v) {
+                Ok(())
+            } else {
+                Err(ModelError::invalid(key, show(v), format!("must be in [{lo:e}, {hi:e}] {unit}")))
             }
         }
         let g = &self.gyro;
-        positive("gyro.sample_rate_hz", g.sample_rate_hz)?;
-        positive("gyro.pulse_weight_arcsec", g.pulse_weight_arcsec)?;
-        finite("gyro.input_rate_dph", g.input_rate_dph)?;
+        within("gyro.sample_rate_hz", g.sample_rate_hz, 1e-6, MAX_SAMPLE_RATE_HZ, "Hz")?;
+        within(
+            "gyro.pulse_weight_arcsec",
+            g.pulse_weight_arcsec,
+            1e-9,
+            MAX_PULSE_WEIGHT_ARCSEC,
+            "arcsec (at most one turn)",
+        )?;
+        within(
+            "gyro.input_rate_dph",
+            g.input_rate_dph,
+            -MAX_RATE_DPH,
+            MAX_RATE_DPH,
+            "deg/h",
+        )?;
 
         let n = &self.noise;
         if let Some(q) = n.quantization_arcsec {
@@ -297,10 +333,16 @@ impl GyroModel {
                 &format!("noise.random_telegraph[{i}].amplitude_dph"),
                 t.amplitude_dph,
             )?;
-            positive(
-                &format!("noise.random_telegraph[{i}].mean_dwell_s"),
-                t.mean_dwell_s,
-            )?;
+            // the simulator draws each switch: a dwell far below the sample
+            // period would cost unbounded work per sample (and is white noise)
+            let min_dwell = MIN_DWELL_PER_SAMPLE / g.sample_rate_hz;
+            if !(t.mean_dwell_s.is_finite() && t.mean_dwell_s >= min_dwell) {
+                return Err(ModelError::invalid(
+                    &format!("noise.random_telegraph[{i}].mean_dwell_s"),
+                    show(t.mean_dwell_s),
+                    format!("must be finite and >= {min_dwell:e} s (1/100 of the sample period)"),
+                ));
+            }
         }
         if let Some(th) = &self.thermal {
             finite("thermal.temp_c0", th.temp_c0)?;

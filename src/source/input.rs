@@ -93,6 +93,15 @@ pub enum InputError {
         at: Location,
         text: String,
     },
+    #[error(
+        "{}: {at}: value \"{text}\" is out of range (|x| must be below 1e150: its square must not overflow the variances)",
+        path.display()
+    )]
+    OutOfRange {
+        path: PathBuf,
+        at: Location,
+        text: String,
+    },
     #[error("{}: {at}: not an integer pulse count: \"{text}\"", path.display())]
     NotInteger {
         path: PathBuf,
@@ -443,6 +452,10 @@ fn parse_value(text: &[u8], path: &Path, at: Location, ints: bool) -> Result<f64
     check_value(v, path, at, ints, || quote(text))
 }
 
+/// Largest magnitude accepted for an input value: squares and sums of squares
+/// of such values stay far from overflow.
+pub const MAX_ABS_VALUE: f64 = 1e150;
+
 fn check_value(
     v: f64,
     path: &Path,
@@ -452,6 +465,13 @@ fn check_value(
 ) -> Result<f64, InputError> {
     if !v.is_finite() {
         return Err(InputError::NonFinite {
+            path: path.to_path_buf(),
+            at,
+            text: text(),
+        });
+    }
+    if !(v.abs() < MAX_ABS_VALUE) {
+        return Err(InputError::OutOfRange {
             path: path.to_path_buf(),
             at,
             text: text(),
