@@ -214,3 +214,27 @@ fn damaged_inputs_are_reported_not_silently_dropped() {
     assert!(r.status.success(), "{err}");
     assert!(err.contains("3 samples lost in 1 gaps"), "{err}");
 }
+
+/// A stuck counter (every increment the same) has no noise: nothing may be
+/// reported as found (a fit would "find" round-off-sized terms), the bounds are
+/// 0, and a warning says why.
+#[test]
+fn a_constant_recording_finds_nothing_and_says_why() {
+    let d = tempfile::tempdir().unwrap();
+    let csv = d.path().join("stuck.csv");
+    let mut text = String::from("counts\n");
+    for _ in 0..50_000 {
+        text.push_str("3\n");
+    }
+    std::fs::write(&csv, text).unwrap();
+    let out = sagnac(&["analyze", "--input", csv.to_str().unwrap(), "--json", "-"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("stuck.csv") && err.contains("stuck counter"), "{err}");
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    for name in ["quantization_arcsec", "arw_dpsh", "bias_instability_dph", "rrw_dphsh", "rate_ramp_dphh"] {
+        let c = &v["estimates"][name];
+        assert!(c["value"].is_null(), "{name}: {c}");
+        assert_eq!(c["upper95"].as_f64(), Some(0.0), "{name}: {c}");
+    }
+}

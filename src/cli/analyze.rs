@@ -135,6 +135,13 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
     };
     bar.finish_and_clear();
     let analysis = pipe.analysis();
+    if !analysis.allan.raw.is_empty() && analysis.allan.raw.iter().all(|p| p.dev == 0.0) {
+        eprintln!(
+            "warning: {}: the raw Allan deviation is 0 at every tau (every increment equal: a stuck counter \
+             or a dead gyro?); nothing can be estimated",
+            input.display()
+        );
+    }
     match &args.json {
         Some(path) => {
             let text = serde_json::to_string_pretty(&analysis).context("serialising the analysis")?;

@@ -226,6 +226,21 @@ pub struct EstimatorOutput {
 }
 
 impl EstimatorOutput {
+    /// A record without noise: nothing found, every upper bound 0.
+    pub fn no_noise() -> Self {
+        let zero = Coefficient { value: None, ci95: None, upper95: Some(0.0) };
+        let mut out = Self::insufficient();
+        out.estimates = NoiseEstimates {
+            quantization_arcsec: zero,
+            arw_dpsh: zero,
+            bias_instability_dph: zero,
+            rrw_dphsh: zero,
+            rate_ramp_dphh: zero,
+        };
+        out.ramp_arcsec_s2 = Some((0.0, 0.0));
+        out
+    }
+
     /// Every coefficient unknown: too little data.
     pub fn insufficient() -> Self {
         let none = Coefficient { value: None, ci95: None, upper95: None };
@@ -295,6 +310,12 @@ pub fn standard_terms(n_samples: u64, tau0_s: f64) -> [SpectralTerm; 4] {
 ///    Allan points, with a free white-angle nuisance term so that QN leakage
 ///    is absorbed when it is white and costs nothing when it is not.
 pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
+    // No noise at all (a stuck counter, a dead gyro): the raw Allan variance of
+    // integer counts is then exactly 0 at every tau. Nothing is found (a fit
+    // would "find" terms at round-off size); every bound is 0.
+    if !input.allan.is_empty() && input.allan.iter().all(|a| a.avar == 0.0) {
+        return EstimatorOutput::no_noise();
+    }
     let tau0 = input.tau0_s;
     let terms = standard_terms(input.n_samples, tau0);
     let usable = |l: &LevelObs| l.n_coef >= MIN_LEVEL_COEFS && l.mean_sq > 0.0 && l.mean_sq.is_finite();
