@@ -338,7 +338,7 @@ impl GyroModel {
             let min_dwell = MIN_DWELL_PER_SAMPLE / g.sample_rate_hz;
             if !(t.mean_dwell_s.is_finite() && t.mean_dwell_s >= min_dwell) {
                 return Err(ModelError::invalid(
-                    &format!("noise.random_telegraph[{i}].mean_dwell_s"),
+                    format!("noise.random_telegraph[{i}].mean_dwell_s"),
                     show(t.mean_dwell_s),
                     format!("must be finite and >= {min_dwell:e} s (1/100 of the sample period)"),
                 ));

@@ -470,7 +470,7 @@ fn check_value(
             text: text(),
         });
     }
-    if !(v.abs() < MAX_ABS_VALUE) {
+    if v.abs() >= MAX_ABS_VALUE {
         return Err(InputError::OutOfRange {
             path: path.to_path_buf(),
             at,
