@@ -278,3 +278,39 @@ fn a_constant_recording_is_refused_not_called_consistent() {
     assert_eq!(r.status.code(), Some(2), "{err}");
     assert!(err.contains("dead.csv: all 20000 increments are 0") && !err.contains("panicked"), "{err}");
 }
+
+/// A recording whose sample rate (from the MCAP's dt_ns) differs from the
+/// model's: the diagnosis runs at the recording's rate, says so, and a written
+/// model carries the rate it was fitted at (not the model file's).
+#[test]
+fn a_recording_at_another_rate_is_noted_and_the_written_model_has_its_rate() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path();
+    std::fs::write(p.join("model.toml"), MODEL.replace("500.0", "100.0")).unwrap();
+    std::fs::write(p.join("truth.toml"), TRUTH).unwrap();
+    simulate(&p.join("truth.toml"), &p.join("rec.mcap"), "mcap", "300", "8");
+    let out = bin()
+        .args(["diagnose", "--model"])
+        .arg(p.join("model.toml"))
+        .arg("--recording")
+        .arg(p.join("rec.mcap"))
+        .args(["--format", "mcap", "--json"])
+        .arg(p.join("out.json"))
+        .arg("--write-model")
+        .arg(p.join("new.toml"))
+        .output()
+        .unwrap();
+    ok(&out);
+    // the notes go to stdout when the JSON goes to a file
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("sample rate (500 Hz) differs from the model's (100 Hz)"),
+        "{text}"
+    );
+    let j: Value =
+        serde_json::from_str(&std::fs::read_to_string(p.join("out.json")).unwrap()).unwrap();
+    assert_eq!(j["verdict"], "mismatch", "{j:#}");
+    let new = std::fs::read_to_string(p.join("new.toml")).unwrap();
+    let m = sagnac::model::GyroModel::from_toml_str(&new, "new.toml").unwrap();
+    assert_eq!(m.gyro.sample_rate_hz, 500.0, "{new}");
+}

@@ -1024,6 +1024,15 @@ pub fn diagnose(
 
     let mut findings: Vec<Finding> = Vec::new();
     let mut notes: Vec<String> = Vec::new();
+    let model_fs = model.gyro.sample_rate_hz;
+    if (fs - model_fs).abs() > 1e-9 * model_fs {
+        notes.push(format!(
+            "The recording's sample rate ({} Hz) differs from the model's ({} Hz): the model was simulated, \
+             and an updated model is written, at the recording's rate.",
+            fmt_g(fs),
+            fmt_g(model_fs)
+        ));
+    }
     let welch_f_min = layout.bin_hz(layout.k_lo);
     let mut sine_findings: Vec<(f64, f64)> = Vec::new(); // (f, amp) for the wavelet expectation
     let mut model_sine_handled = vec![false; ref_model.noise.sinusoid.len()];
@@ -1721,8 +1730,9 @@ pub fn diagnose(
             after = after_try;
             chi2_after = chi2_try;
         }
-        // restore the user's readout in the written model
+        // restore the user's readout in the written model (at the rate it was fitted at)
         m_new.gyro = model.gyro.clone();
+        m_new.gyro.sample_rate_hz = fs;
         tidy(&mut m_new);
         // An update that fits worse and not acceptably is reported, never handed out
         // as the better model. (A ramp or a thermal sensitivity is found by tests the
