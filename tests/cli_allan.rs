@@ -366,6 +366,13 @@ fn bad_inputs_exit_2_naming_file_and_line() {
         ],
         &["nan.txt", "line 3", "not finite"],
     );
+    // --column on a one-value-per-line text file is a mistake, not ignored
+    fails_with(
+        &[
+            "allan", "--input", p(&nan), "--format", "text", "--column", "x", "--data", "phase", "--tau0", "1",
+        ],
+        &["--column applies to CSV input only"],
+    );
     // finite but huge: its square would overflow the variances
     let huge = write(d, "huge.txt", b"1\n2\n3\n1e300\n");
     fails_with(

@@ -238,3 +238,16 @@ fn a_constant_recording_finds_nothing_and_says_why() {
         assert_eq!(c["upper95"].as_f64(), Some(0.0), "{name}: {c}");
     }
 }
+
+#[test]
+fn column_is_refused_for_frame_and_mcap_input() {
+    let d = tempfile::tempdir().unwrap();
+    let bin = d.path().join("cap.bin");
+    std::fs::write(&bin, [0u8; 32]).unwrap();
+    for format in ["frames", "mcap"] {
+        let out = sagnac(&["analyze", "--input", bin.to_str().unwrap(), "--format", format, "--column", "counts"]);
+        assert_eq!(out.status.code(), Some(2), "{format}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("--column applies to CSV input only"), "{format}: {err}");
+    }
+}

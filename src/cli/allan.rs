@@ -133,6 +133,9 @@ pub fn run(args: AllanArgs) -> Result<()> {
     if !(args.confidence > 0.0 && args.confidence < 1.0) {
         bail!("--confidence must be in (0, 1) (got {})", args.confidence);
     }
+    if args.column.is_some() && !matches!(args.format, FormatArg::Csv) {
+        bail!("--column applies to CSV input only (use --format csv)");
+    }
     let kind = DataKind::from(args.data);
     if args.engine == EngineArg::Streaming {
         return run_streaming(&args, kind);

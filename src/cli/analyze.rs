@@ -62,6 +62,9 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
     if !(args.pulse_arcsec.is_finite() && args.pulse_arcsec > 0.0) {
         bail!("--pulse-arcsec must be a positive number of arcsec (got {})", args.pulse_arcsec);
     }
+    if args.column.is_some() && args.format != AnalyzeFormat::Csv {
+        bail!("--column applies to CSV input only (frame captures and MCAP recordings hold pulse counts)");
+    }
     let started = Instant::now();
     let bar = ProgressBar::hidden();
     let mut shown = false;

@@ -116,11 +116,15 @@ pub enum InputError {
     },
     #[error("{}: the CSV file has several columns ({available}); choose one with --column", path.display())]
     ColumnNeeded { path: PathBuf, available: String },
-    #[error("{}: line {line}: row has {fields} field(s), column \"{column}\" is field {index}", path.display())]
-    ShortRow {
+    #[error(
+        "{}: line {line}: row has {fields} field(s), the header has {expected} (column \"{column}\" is field {index})",
+        path.display()
+    )]
+    RaggedRow {
         path: PathBuf,
         line: u64,
         fields: usize,
+        expected: usize,
         column: String,
         index: usize,
     },
@@ -161,7 +165,8 @@ struct LineState {
     line: u64,
     buf: Vec<u8>,
     /// `Some((index, delimiter))` for CSV.
-    csv: Option<(usize, u8, String)>,
+    /// Column index, delimiter, column name, fields per row (the header's).
+    csv: Option<(usize, u8, String, usize)>,
 }
 
 struct BinState {
@@ -396,7 +401,7 @@ fn read_csv_header(
     st: &mut LineState,
     path: &Path,
     column: Option<&str>,
-) -> Result<(usize, u8, String), InputError> {
+) -> Result<(usize, u8, String, usize), InputError> {
     if !next_line(st, path)? {
         return Err(InputError::Empty {
             path: path.to_path_buf(),
@@ -437,7 +442,7 @@ fn read_csv_header(
             });
         }
     };
-    Ok((idx, delim, names[idx].clone()))
+    Ok((idx, delim, names[idx].clone(), names.len()))
 }
 
 fn parse_value(text: &[u8], path: &Path, at: Location, ints: bool) -> Result<f64, InputError> {
@@ -502,16 +507,19 @@ fn read_lines(
         let v =
             match &st.csv {
                 None => parse_value(&st.buf, path, at, ints)?,
-                Some((idx, delim, name)) => {
-                    let field = st.buf.split(|b| b == delim).nth(*idx).ok_or_else(|| {
-                        InputError::ShortRow {
+                Some((idx, delim, name, width)) => {
+                    let fields = st.buf.split(|b| b == delim).count();
+                    if fields != *width {
+                        return Err(InputError::RaggedRow {
                             path: path.to_path_buf(),
                             line: st.line,
-                            fields: st.buf.split(|b| b == delim).count(),
+                            fields,
+                            expected: *width,
                             column: name.clone(),
                             index: idx + 1,
-                        }
-                    })?;
+                        });
+                    }
+                    let field = st.buf.split(|b| b == delim).nth(*idx).expect("the row has the header's width");
                     let f = field.trim_ascii();
                     let f = f.strip_prefix(b"\"").unwrap_or(f);
                     let f = f.strip_suffix(b"\"").unwrap_or(f);
@@ -608,6 +616,27 @@ mod tests {
         let p = dir.path().join(name);
         std::fs::write(&p, bytes).unwrap();
         (dir, p)
+    }
+
+    #[test]
+    fn ragged_csv_rows_are_errors_naming_the_line() {
+        for (name, text, line, fields, header) in [
+            ("short.csv", &b"counts,temp_c\n1,20\n2\n3,20\n"[..], "line 3", 1, 2),
+            ("long.csv", &b"counts\n1\n2,5\n"[..], "line 3", 2, 1),
+            // the wanted column present, but a field missing after it
+            ("tail.csv", &b"a,counts,b\n1,2,3\n4,5\n"[..], "line 3", 2, 3),
+        ] {
+            let (_d, p) = tmp(name, text);
+            let e = read_all(&p, InputFormat::Csv, Some("counts")).unwrap_err();
+            assert!(matches!(e, InputError::RaggedRow { .. }), "{name}: {e}");
+            let e = e.to_string();
+            assert!(
+                e.contains(name)
+                    && e.contains(line)
+                    && e.contains(&format!("row has {fields} field(s), the header has {header}")),
+                "{e}"
+            );
+        }
     }
 
     #[test]
