@@ -555,3 +555,29 @@ fn streaming_engine_equals_batch_oadev() {
         }
     }
 }
+
+#[test]
+fn both_engines_accept_the_same_inputs_and_taus() {
+    // the streaming engine follows the batch engine's tau range (AllanTools'
+    // stop ratio): too few points is the same error, and the largest m agrees
+    let dir = tempfile::tempdir().unwrap();
+    for n in [3usize, 5] {
+        let few = write(dir.path(), &format!("few{n}.txt"), text_of(&samples(n)).as_bytes());
+        for engine in ["batch", "streaming"] {
+            fails_with(
+                &["allan", "--input", p(&few), "--data", "phase", "--tau0", "1", "--engine", engine],
+                &["phase points are too few (need at least 6)"],
+            );
+        }
+    }
+    for n in [6usize, 7, 100, 1000] {
+        let f = write(dir.path(), &format!("n{n}.txt"), text_of(&samples(n)).as_bytes());
+        let base = ["allan", "--input", p(&f), "--data", "phase", "--tau0", "1"];
+        let (b, _) = run_json(&base, dir.path(), &format!("b{n}"));
+        let mut sa = base.to_vec();
+        sa.extend_from_slice(&["--engine", "streaming"]);
+        let (s, _) = run_json(&sa, dir.path(), &format!("s{n}"));
+        let ms = |j: &Value| -> Vec<u64> { j["points"].as_array().unwrap().iter().map(|q| q["m"].as_u64().unwrap()).collect() };
+        assert_eq!(ms(&b), ms(&s), "n = {n}");
+    }
+}

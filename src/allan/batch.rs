@@ -218,7 +218,8 @@ pub fn compute_at(
     })
 }
 
-fn min_points(stat: Stat) -> u64 {
+/// Fewest phase points for which `stat` has at least one averaging factor.
+pub fn min_points(stat: Stat) -> u64 {
     // smallest N for which max_m(stat, N) >= 1
     (2..64).find(|&n| max_m(stat, n) >= 1).unwrap_or(64)
 }

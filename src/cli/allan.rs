@@ -210,13 +210,17 @@ fn run_streaming(args: &AllanArgs, kind: DataKind) -> Result<()> {
         Acc::F(a) => (a.points(args.confidence)?, a.phase_points()),
         Acc::C(a) => (a.points(args.confidence)?, a.phase_points()),
     };
-    if n_phase < 3 {
-        bail!("{}: too few samples for an Allan deviation ({n_phase} phase points)", args.input.display());
+    // the batch engine's tau range (AllanTools' stop ratio), so both engines
+    // accept the same inputs and report the same taus
+    let m_max = allan::batch::max_m(Stat::Oadev, n_phase);
+    if m_max == 0 {
+        return Err(allan::AllanError::TooFewPoints { n_phase, need: allan::batch::min_points(Stat::Oadev) })
+            .with_context(|| format!("cannot compute oadev of {}", args.input.display()));
     }
     let result = AllanResult {
         stat: Stat::Oadev,
         tau0_s: args.tau0,
-        points: points.iter().filter(|p| p.n > 0).map(allan::AllanPoint::from).collect(),
+        points: points.iter().filter(|p| p.n > 0 && p.m <= m_max).map(allan::AllanPoint::from).collect(),
     };
     match &args.json {
         Some(out) => {
