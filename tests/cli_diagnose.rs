@@ -219,6 +219,9 @@ fn bad_inputs_give_clear_errors() {
     run(&[&m, &p.join("short.csv"), &j], "at least 4096");
     run(&[&m, &p.join("bad.csv"), &j], "bad.csv");
     run(&[&p.join("bad.toml"), &p.join("short.csv"), &j], "model");
+    // unusable output paths are refused before the diagnosis runs
+    run(&[&m, &p.join("short.csv"), p], "is a directory");
+    run(&[&m, &p.join("short.csv"), &p.join("no/such/o.json")], "does not exist");
     assert!(!j.exists());
 }
 

@@ -68,6 +68,13 @@ pub struct DiagnoseArgs {
 
 /// Run `sagnac diagnose`.
 pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
+    // the outputs are checked before a diagnosis that may take a minute
+    let outputs = [("--json", Some(&args.json)), ("--report", args.report.as_ref()), ("--write-model", args.write_model.as_ref())];
+    for (flag, path) in outputs {
+        if let Some(p) = path {
+            check_output_path(flag, p)?;
+        }
+    }
     let model = GyroModel::load(&args.model).context("loading the gyro model")?;
     let rec = match args.format {
         RecordingFormat::Csv => read_csv(&args.recording, &model)?,
@@ -282,4 +289,23 @@ fn read_mcap(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
         None
     };
     Ok(recording(model, counts, temp, rate))
+}
+
+/// An output path must be `-` (JSON only), or name a file (not a directory)
+/// in an existing directory.
+fn check_output_path(flag: &str, p: &Path) -> anyhow::Result<()> {
+    if flag == "--json" && p.as_os_str() == "-" {
+        return Ok(());
+    }
+    if p.is_dir() {
+        anyhow::bail!("{flag} {}: is a directory, not a file", p.display());
+    }
+    let parent = match p.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !parent.is_dir() {
+        anyhow::bail!("{flag} {}: the directory {} does not exist", p.display(), parent.display());
+    }
+    Ok(())
 }
