@@ -48,9 +48,10 @@
 //!    rounds, until they move by less than a quarter of their 95 % half-width:
 //!    a large change is not linear (more ARW turns the counter's sawtooth
 //!    quantization white) and the first step subtracts a large Monte-Carlo
-//!    share. Chi-square per degree of freedom before and
-//!    after are reported (one parameter change per parameter), the model is written back as TOML and an SVG report
-//!    ([`svg`]) overlays recording, old and new model with the regions shaded.
+//!    share. Chi-square per degree of freedom before and after are reported
+//!    (one parameter change per parameter), the model is written back as TOML
+//!    and an SVG report ([`svg`]) overlays recording, old and new model with
+//!    the regions shaded.
 //!
 //! When nothing exceeds the thresholds the verdict is "consistent" and nothing
 //! is added.
