@@ -21,7 +21,11 @@
 //! of each variance, model selection by likelihood ratio, profile intervals).
 //! The ramp is a least-squares slope whose variance is computed from the
 //! fitted noise spectrum (`int S(nu) |W(nu)|^2 dnu`), not from a white-noise
-//! formula, so its interval stays honest under flicker and random walk.
+//! formula, so its interval stays honest under flicker and random walk. The
+//! long-tau Allan points also see a ramp (R^2 tau^2 / 2): they get a ramp
+//! column in the fit (0 on the wavelet levels), so that power does not go
+//! into K, and a ramp is reported only when the slope's z test passes and
+//! the fit keeps that column.
 
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 use std::f64::consts::PI;
@@ -398,6 +402,13 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         .filter(|a| a.m >= m_min && a.avar > 0.0 && a.avar.is_finite() && a.n_terms > 0)
         .filter(|a| q2_first.max(0.0) * terms[0].allan_var(a.m, tau0) < 0.5 * a.avar)
         .collect();
+    // A rate ramp R is invisible on the wavelet levels (vanishing moments) but
+    // adds R^2 tau^2 / 2 to the long-tau Allan points; without a column for it
+    // the fit would put that power into RRW (and the slope's spread under the
+    // inflated K would hide the ramp). With Allan points, a ramp column (theta
+    // = R^2, (arcsec/s^2)^2; 0 on the levels) takes it. It is selected like the
+    // noise terms; the reported ramp stays the least-squares slope below.
+    let ramp_col = !allan.is_empty();
     // rows: levels[from..] then the Allan points
     let rows = |from: usize| -> (Vec<Vec<f64>>, Vec<f64>, Vec<f64>) {
         // quantization is measured in the angle domain; on these levels its
@@ -405,6 +416,11 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         // QN band (the Lorentzian tails of a sawtooth's broadened lines are white
         // in angle), so the boundary levels need not be cut exactly
         let mut phi: Vec<Vec<f64>> = basis_all.phi[from..].to_vec();
+        if ramp_col {
+            for r in &mut phi {
+                r.push(0.0);
+            }
+        }
         let mut y: Vec<f64> = levels_all[from..].iter().map(|l| l.mean_sq).collect();
         let mut edf0: Vec<f64> = levels_all[from..].iter().map(|l| l.n_coef).collect();
         for a in &allan {
@@ -412,6 +428,10 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
             let mut row: Vec<f64> = terms.iter().map(|t| t.allan_var(a.m, tau0)).collect();
             let qn = q2_first.max(0.0) * row[0];
             row[0] = 0.0;
+            if ramp_col {
+                let tau = a.m as f64 * tau0;
+                row.push(0.5 * tau * tau);
+            }
             phi.push(row);
             y.push((a.avar - qn).max(1e-300));
             edf0.push(a.edf(0));
@@ -425,7 +445,7 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         let phi = phi.to_vec();
         move |j: usize, theta: &[f64]| -> f64 {
             if j < nl {
-                basis_all.edf(from + j, theta, levels_all[from + j].n_coef)
+                basis_all.edf(from + j, &theta[..terms.len()], levels_all[from + j].n_coef)
             } else {
                 let a = &allan[j - nl];
                 let tau = a.m as f64 * tau0;
@@ -510,7 +530,7 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         let mut th = theta.clone();
         th[0] = 0.0;
         let mu = basis_all.mean(from, &th);
-        let nu = basis_all.edf(from, &th, levels_all[from].n_coef);
+        let nu = basis_all.edf(from, &th[..terms.len()], levels_all[from].n_coef);
         // the prediction is itself uncertain: about as much as a variance
         // measured on all the deeper levels' coefficients together
         let n_deeper: f64 = levels_all[from + 1..].iter().map(|l| l.n_coef).sum();
@@ -528,8 +548,9 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
     let saturated = y.len() <= terms.len();
     if saturated {
         for r in &mut phi {
-            r[2] = 0.0;
-            r[3] = 0.0;
+            for c in r.iter_mut().skip(2) {
+                *c = 0.0;
+            }
         }
     }
     let mut o = *opts;
@@ -585,8 +606,11 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         Some((s, sd)) => {
             let to = units::arcsec_per_s2_to_dphh;
             // a signed parameter: include when the likelihood-ratio (z^2) test
-            // passes at 5 % (chi2_1 = 3.84)
-            if sd > 0.0 && (s / sd).powi(2) >= opts.ci_lr {
+            // passes at 5 % (chi2_1 = 3.84) and, where the long-tau Allan points
+            // had a ramp column, the fit kept it (the tau^2 growth is there: a
+            // slope alone can come from low-frequency noise the fit left out)
+            let allan_agrees = !ramp_col || fit.terms.get(4).is_some_and(|t| t.included);
+            if sd > 0.0 && (s / sd).powi(2) >= opts.ci_lr && allan_agrees {
                 Coefficient { value: Some(to(s)), ci95: Some([to(s - z * sd), to(s + z * sd)]), upper95: None }
             } else {
                 Coefficient { value: None, ci95: None, upper95: Some(to(s.abs() + z * sd)) }
