@@ -22,7 +22,7 @@ use crate::dsp::qn::{QnConfig, QnSplitter};
 use crate::dsp::wavelet::Wavelet;
 use crate::dsp::DspError;
 use crate::model::baseline::{self, AdevPoint, BaselineEstimates};
-use crate::model::estimate::{self, AllanObs, EstimatorInput, NoiseEstimates, RampAccumulator};
+use crate::model::estimate::{self, AllanObs, EstimatorInput, EstimatorOutput, NoiseEstimates, RampAccumulator};
 use crate::model::fit::{FitOptions, LevelObs};
 
 /// Errors building or running the pipeline.
@@ -400,14 +400,23 @@ impl Pipeline {
         self.feed_channels(n0, out);
     }
 
-    /// Estimates and curves from everything pushed so far.
-    pub fn analysis(&self) -> Analysis {
+    fn raw_points(&self) -> Vec<StreamPoint> {
         let conf = allan::DEFAULT_CONFIDENCE;
-        let raw_points: Vec<StreamPoint> = match (&self.raw_counts, &self.raw_rate) {
+        match (&self.raw_counts, &self.raw_rate) {
             (Some(a), _) => a.points(conf).unwrap_or_default(),
             (_, Some(a)) => a.points(conf).unwrap_or_default(),
             _ => Vec::new(),
-        };
+        }
+    }
+
+    /// The estimator's full output (coefficients, the fit behind them, the
+    /// rate slope and its spread under the fitted spectrum) from everything
+    /// pushed so far.
+    pub fn estimator_output(&self) -> EstimatorOutput {
+        self.estimate_from(&self.raw_points())
+    }
+
+    fn estimate_from(&self, raw_points: &[StreamPoint]) -> EstimatorOutput {
         let levels = self.rate_levels.observations();
         let angle_levels = self.angle_levels.observations();
         let angle_blocks = self.angle_levels.block_observations();
@@ -426,7 +435,14 @@ impl Pipeline {
             allan: &allan_obs,
             ramp: Some(self.ramp),
         };
-        let est = estimate::estimate(&input, &FitOptions::default());
+        estimate::estimate(&input, &FitOptions::default())
+    }
+
+    /// Estimates and curves from everything pushed so far.
+    pub fn analysis(&self) -> Analysis {
+        let conf = allan::DEFAULT_CONFIDENCE;
+        let raw_points = self.raw_points();
+        let est = self.estimate_from(&raw_points);
         let adev: Vec<AdevPoint> =
             raw_points.iter().filter(|p| p.n > 0).map(|p| AdevPoint { tau_s: p.tau_s, adev: p.dev, edf: p.edf }).collect();
         Analysis {

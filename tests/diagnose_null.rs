@@ -205,3 +205,30 @@ fn a_large_arw_excess_is_not_also_called_a_rate_ramp() {
     // 95 % intervals: at most one miss in six
     assert!(missed.len() <= 1, "ARW intervals missing 0.05: {missed:?}");
 }
+
+/// A bias instability near the detection limit may be named as another
+/// low-frequency shape (here, at seed 3, a short Gauss-Markov term); the slope
+/// test must still judge the record's slope against the low-frequency noise the
+/// record has (the spread under its own estimator's fit), not against the
+/// small spread of the term it was named as. Before, this record also got a
+/// spurious rate ramp, -0.29 deg/h/h at z -8.
+#[test]
+fn a_misnamed_bias_instability_does_not_bring_a_spurious_ramp() {
+    let m = model(200.0, 12.3, 0.35, 0.001, "");
+    let truth = model(200.0, 12.3, 0.35, 0.001, "bias_instability_dph = 0.02\n");
+    let rec = simulate(&truth, 3, 1200.0);
+    let d = diagnose::diagnose(&m, &rec, &DiagnoseOptions::default()).unwrap();
+    let r = &d.report;
+    eprintln!(
+        "ramp z {:.2}, added {:?}",
+        d.ramp_z,
+        r.added_terms.iter().map(|a| &a.term).collect::<Vec<_>>()
+    );
+    assert_eq!(r.verdict, Verdict::Mismatch);
+    assert!(
+        !r.added_terms.iter().any(|a| a.term == "rate_ramp_dphh"),
+        "spurious ramp (z {:.2})",
+        d.ramp_z
+    );
+    assert!(d.ramp_z.abs() < 3.0, "ramp z {:.2}", d.ramp_z);
+}

@@ -39,9 +39,11 @@
 //!    Gauss-Markov term fitted on the wavelet variances (in place of the
 //!    model's twin, if any), converted as a = sigma, dwell = 2 Tc with their
 //!    95 % intervals. The slope tests run after the broadband fit: their
-//!    spread is that of the model's runs, widened to the analytic spread under
-//!    the model with the broadband changes (a recording with far more ARW than
-//!    the model has far larger random slopes).
+//!    spread is that of the model's runs, widened to the larger analytic
+//!    spread under the model with the broadband changes (a recording with far
+//!    more ARW than the model has far larger random slopes) or under the
+//!    spectrum the recording's own estimator fits (low-frequency noise the
+//!    broadband fit missed or named wrongly).
 //! 5. **Show the fit improve**: the updated model is simulated again and
 //!    compared on the same points. Its broadband parameters (Q, ARW, bias
 //!    instability, RRW) are then refitted about its own runs, up to three
@@ -1372,8 +1374,14 @@ pub fn diagnose(
         }
         m
     };
+    // ... and at least the spread under the spectrum the recording's own
+    // estimator (the analyze pipeline) fits to it, ramp column included: it
+    // catches low-frequency noise the broadband fit missed or named wrongly (a
+    // bias instability taken for a short Gauss-Markov term has far smaller
+    // random slopes)
+    let slope_sd_rec = recording_slope_sd(rec, fs, d).unwrap_or(0.0);
     let spread_scale = {
-        let sd_now = slope_sd_for(&noise_model, n as u64, tau0);
+        let sd_now = slope_sd_for(&noise_model, n as u64, tau0).max(slope_sd_rec);
         if slope_sd_an > 0.0 && sd_now > slope_sd_an {
             sd_now / slope_sd_an
         } else {
@@ -2029,6 +2037,22 @@ fn refine_broadband(
             })
             .collect(),
     )
+}
+
+/// Standard deviation of the recording's least-squares rate slope
+/// (arcsec/s^2) under the noise spectrum its own estimator fits: the
+/// streaming pipeline `sagnac analyze` runs.
+fn recording_slope_sd(rec: &Recording, fs: f64, d: f64) -> Option<f64> {
+    use crate::pipeline::{Pipeline, PipelineConfig, PipelineOutput};
+    let mut pipe = Pipeline::new(&PipelineConfig::counts(fs, d)).ok()?;
+    let mut out = PipelineOutput::default();
+    for block in rec.counts.chunks(1 << 16) {
+        pipe.push_counts(block, &mut out);
+        out.clear();
+    }
+    pipe.finish(&mut out);
+    let (_, sd) = pipe.estimator_output().ramp_arcsec_s2?;
+    sd.is_finite().then_some(sd)
 }
 
 /// Standard deviation of the least-squares rate slope (arcsec/s^2) over `n`
