@@ -197,6 +197,16 @@ fn damaged_inputs_are_reported_not_silently_dropped() {
     let err = String::from_utf8_lossy(&r.stderr);
     assert_eq!(r.status.code(), Some(2), "{err}");
     assert!(err.contains("gap of 1099511627776 lost samples") && !err.contains("panicked"), "{err}");
+    // ... and the same error from diagnose, which reads the recording itself
+    let model = concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml");
+    let r = Command::new(bin)
+        .args(["diagnose", "--model", model, "--format", "mcap", "--json", "-", "--recording"])
+        .arg(&huge)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert!(err.contains("gap of 1099511627776 lost samples") && !err.contains("panicked"), "{err}");
     // 3. A frame capture with lost frames: the decoder's counts on stderr.
     let cap = dir.path().join("cap.bin");
     let sim = Command::new(bin)

@@ -221,7 +221,7 @@ fn bad_inputs_give_clear_errors() {
     run(&[&p.join("bad.toml"), &p.join("short.csv"), &j], "model");
     // unusable output paths are refused before the diagnosis runs
     run(&[&m, &p.join("short.csv"), p], "is a directory");
-    run(&[&m, &p.join("short.csv"), &p.join("no/such/o.json")], "does not exist");
+    run(&[&m, &p.join("short.csv"), &p.join("no/such/o.json")], "is not an existing directory");
     assert!(!j.exists());
 }
 

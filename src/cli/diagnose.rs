@@ -258,14 +258,12 @@ fn read_mcap(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
             match gaps.peek() {
                 Some(g) if g.index as usize == i => {
                     if g.lost > crate::offline::MAX_GAP_SAMPLES {
-                        bail!(
-                            "{}: the /gyro/raw batch at t0 = {} ns has a gap of {} lost samples (more than {}: \
-                             not a recording of a gyro that kept running)",
-                            path.display(),
-                            b.t0_ns,
-                            g.lost,
-                            crate::offline::MAX_GAP_SAMPLES
-                        );
+                        return Err(crate::offline::OfflineError::ImplausibleGap {
+                            path: path.to_path_buf(),
+                            t0_ns: b.t0_ns,
+                            lost: g.lost,
+                        }
+                        .into());
                     }
                     let n = u32::try_from(g.lost + 1).unwrap_or(u32::MAX);
                     counts.extend(spread_increment(c, n));
@@ -300,12 +298,6 @@ fn check_output_path(flag: &str, p: &Path) -> anyhow::Result<()> {
     if p.is_dir() {
         anyhow::bail!("{flag} {}: is a directory, not a file", p.display());
     }
-    let parent = match p.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    if !parent.is_dir() {
-        anyhow::bail!("{flag} {}: the directory {} does not exist", p.display(), parent.display());
-    }
+    super::output_dir(p).with_context(|| format!("bad {flag}"))?;
     Ok(())
 }

@@ -67,3 +67,16 @@ pub(crate) fn write_stdout(text: &str) -> anyhow::Result<()> {
         .and_then(|()| out.flush())
         .map_err(|e| anyhow::anyhow!("writing to standard output: {e}"))
 }
+
+/// The directory an output file goes into (`.` for a bare name); an error
+/// naming both when it is not an existing directory (nothing creates it).
+pub(crate) fn output_dir(out: &std::path::Path) -> anyhow::Result<std::path::PathBuf> {
+    let dir = match out.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => std::path::PathBuf::from("."),
+    };
+    if !dir.is_dir() {
+        anyhow::bail!("cannot write {}: {} is not an existing directory", out.display(), dir.display());
+    }
+    Ok(dir)
+}

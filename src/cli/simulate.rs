@@ -136,15 +136,9 @@ const MCAP_BATCH: usize = 1000;
 fn write_mcap(sim: &mut Simulator, out: &Path) -> anyhow::Result<u64> {
     // The recorder names its file by time in a directory: write next to `out`
     // under that name, then rename.
-    let dir = match out.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    // The rename replaces what is at `out`: only a regular file (or nothing), and
-    // the directory must exist (the recorder would create it).
-    if !dir.is_dir() {
-        bail!("cannot write {}: {} is not an existing directory", out.display(), dir.display());
-    }
+    // The directory must exist (the recorder would create it), and the rename
+    // replaces what is at `out`: only a regular file (or nothing).
+    let dir = super::output_dir(out)?;
     if let Ok(m) = std::fs::symlink_metadata(out)
         && !m.file_type().is_file()
     {
