@@ -405,6 +405,44 @@ struct Finding {
     note: String,
 }
 
+impl Finding {
+    /// A one-parameter finding: a change of the model's parameter when the
+    /// model `had` the term, else a new term. `keys` = (the change's term, the
+    /// added term's name, its parameter's key).
+    fn scalar(
+        edit: Edit,
+        had: bool,
+        keys: (&str, &str, &str),
+        model: f64,
+        fitted: f64,
+        ci95: [f64; 2],
+        note: String,
+    ) -> Finding {
+        let (change, term, key) = keys;
+        Finding {
+            edit,
+            changes: if had {
+                vec![ParameterChange {
+                    term: change.into(),
+                    model,
+                    fitted,
+                    ci95,
+                }]
+            } else {
+                vec![]
+            },
+            added: (!had).then(|| AddedTerm {
+                term: term.into(),
+                params: BTreeMap::from([(key.to_string(), fitted)]),
+                explanation: note.clone(),
+                ci95: BTreeMap::from([(key.to_string(), ci95)]),
+            }),
+            n_par: 1,
+            note,
+        }
+    }
+}
+
 fn fmt_g(v: f64) -> String {
     if v == 0.0 {
         "0".into()
@@ -1428,35 +1466,16 @@ pub fn diagnose(
                 ""
             }
         );
-        let mut params = BTreeMap::new();
-        params.insert("bias_sensitivity_dph_per_c".to_string(), s_dph);
-        let mut ci = BTreeMap::new();
-        ci.insert(
-            "bias_sensitivity_dph_per_c".to_string(),
-            [s_dph - 1.96 * sd_dph, s_dph + 1.96 * sd_dph],
-        );
-        let had = ref_model.thermal.is_some();
-        findings.push(Finding {
-            edit: Edit::Thermal(th),
-            changes: if had {
-                vec![ParameterChange {
-                    term: "thermal.bias_sensitivity_dph_per_c".into(),
-                    model: units::arcsec_per_s_to_dph(s0),
-                    fitted: s_dph,
-                    ci95: [s_dph - 1.96 * sd_dph, s_dph + 1.96 * sd_dph],
-                }]
-            } else {
-                vec![]
-            },
-            added: (!had).then(|| AddedTerm {
-                term: "thermal".into(),
-                params,
-                explanation: expl.clone(),
-                ci95: ci,
-            }),
-            n_par: 1,
-            note: expl,
-        });
+        let ci = [s_dph - 1.96 * sd_dph, s_dph + 1.96 * sd_dph];
+        findings.push(Finding::scalar(
+            Edit::Thermal(th),
+            ref_model.thermal.is_some(),
+            ("thermal.bias_sensitivity_dph_per_c", "thermal", "bias_sensitivity_dph_per_c"),
+            units::arcsec_per_s_to_dph(s0),
+            s_dph,
+            ci,
+            expl,
+        ));
         thermal_found = Some((obs_s - s0, t_vs_time));
     }
     let ramp_resid_z = match thermal_found {
@@ -1480,31 +1499,15 @@ pub fn diagnose(
             fmt_g(fitted),
             ramp_resid_z
         );
-        let mut params = BTreeMap::new();
-        params.insert("rate_ramp_dphh".to_string(), fitted);
-        let mut cim = BTreeMap::new();
-        cim.insert("rate_ramp_dphh".to_string(), ci);
-        findings.push(Finding {
-            edit: Edit::RateRamp(fitted),
-            changes: if had {
-                vec![ParameterChange {
-                    term: "rate_ramp_dphh".into(),
-                    model: ref_model.noise.rate_ramp_dphh.unwrap_or(0.0),
-                    fitted,
-                    ci95: ci,
-                }]
-            } else {
-                vec![]
-            },
-            added: (!had).then(|| AddedTerm {
-                term: "rate_ramp_dphh".into(),
-                params,
-                explanation: expl.clone(),
-                ci95: cim,
-            }),
-            n_par: 1,
-            note: expl,
-        });
+        findings.push(Finding::scalar(
+            Edit::RateRamp(fitted),
+            had,
+            ("rate_ramp_dphh", "rate_ramp_dphh", "rate_ramp_dphh"),
+            ref_model.noise.rate_ramp_dphh.unwrap_or(0.0),
+            fitted,
+            ci,
+            expl,
+        ));
     }
 
     let verdict_mismatch = !regions.is_empty()
