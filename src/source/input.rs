@@ -164,8 +164,7 @@ struct LineState {
     reader: Box<dyn BufRead + Send>,
     line: u64,
     buf: Vec<u8>,
-    /// `Some((index, delimiter))` for CSV.
-    /// Column index, delimiter, column name, fields per row (the header's).
+    /// For CSV: column index, delimiter, column name, fields per row (the header's).
     csv: Option<(usize, u8, String, usize)>,
 }
 
@@ -508,7 +507,14 @@ fn read_lines(
             match &st.csv {
                 None => parse_value(&st.buf, path, at, ints)?,
                 Some((idx, delim, name, width)) => {
-                    let fields = st.buf.split(|b| b == delim).count();
+                    // one pass: the wanted field, and the row's width
+                    let (mut field, mut fields) = (&st.buf[..0], 0);
+                    for (i, f) in st.buf.split(|b| b == delim).enumerate() {
+                        if i == *idx {
+                            field = f;
+                        }
+                        fields += 1;
+                    }
                     if fields != *width {
                         return Err(InputError::RaggedRow {
                             path: path.to_path_buf(),
@@ -519,7 +525,6 @@ fn read_lines(
                             index: idx + 1,
                         });
                     }
-                    let field = st.buf.split(|b| b == delim).nth(*idx).expect("the row has the header's width");
                     let f = field.trim_ascii();
                     let f = f.strip_prefix(b"\"").unwrap_or(f);
                     let f = f.strip_suffix(b"\"").unwrap_or(f);
