@@ -48,6 +48,19 @@ fn simulate(model: &Path, out: &Path, format: &str, dur: &str, seed: &str) {
         .unwrap());
 }
 
+/// `sagnac diagnose` of `dir/recording` against `dir/model.toml`, the JSON
+/// verdict to `dir/out.json`.
+fn diagnose(dir: &Path, recording: &str, format: &str) -> Command {
+    let mut c = bin();
+    c.args(["diagnose", "--model"])
+        .arg(dir.join("model.toml"))
+        .arg("--recording")
+        .arg(dir.join(recording))
+        .args(["--format", format, "--json"])
+        .arg(dir.join("out.json"));
+    c
+}
+
 fn num(v: &Value) -> f64 {
     v.as_f64().unwrap_or_else(|| panic!("{v} is not a number"))
 }
@@ -110,13 +123,7 @@ fn csv_recording_with_a_hidden_gauss_markov_gives_the_contract_json_svg_and_mode
     std::fs::write(p.join("model.toml"), MODEL).unwrap();
     std::fs::write(p.join("truth.toml"), TRUTH).unwrap();
     simulate(&p.join("truth.toml"), &p.join("rec.csv"), "csv", "600", "5");
-    let out = bin()
-        .args(["diagnose", "--model"])
-        .arg(p.join("model.toml"))
-        .arg("--recording")
-        .arg(p.join("rec.csv"))
-        .args(["--format", "csv", "--json"])
-        .arg(p.join("out.json"))
+    let out = diagnose(p, "rec.csv", "csv")
         .arg("--report")
         .arg(p.join("out.svg"))
         .arg("--write-model")
@@ -292,13 +299,7 @@ fn a_recording_at_another_rate_is_noted_and_the_written_model_has_its_rate() {
     std::fs::write(p.join("model.toml"), MODEL.replace("500.0", "100.0")).unwrap();
     std::fs::write(p.join("truth.toml"), TRUTH).unwrap();
     simulate(&p.join("truth.toml"), &p.join("rec.mcap"), "mcap", "300", "8");
-    let out = bin()
-        .args(["diagnose", "--model"])
-        .arg(p.join("model.toml"))
-        .arg("--recording")
-        .arg(p.join("rec.mcap"))
-        .args(["--format", "mcap", "--json"])
-        .arg(p.join("out.json"))
+    let out = diagnose(p, "rec.mcap", "mcap")
         .arg("--write-model")
         .arg(p.join("new.toml"))
         .output()
