@@ -22,7 +22,7 @@ use crate::dsp::qn::{QnConfig, QnSplitter};
 use crate::dsp::wavelet::Wavelet;
 use crate::dsp::DspError;
 use crate::model::baseline::{self, AdevPoint, BaselineEstimates};
-use crate::model::estimate::{self, AllanObs, EstimatorInput, EstimatorOutput, NoiseEstimates, RampAccumulator};
+use crate::model::estimate::{self, AllanObs, EstimatorInput, EstimatorOutput, FilterEstimate, NoiseEstimates, RampAccumulator};
 use crate::model::fit::{FitOptions, LevelObs};
 
 /// Errors building or running the pipeline.
@@ -108,6 +108,11 @@ pub struct Baselines {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct FitSummary {
     pub chi2_per_dof: f64,
+    /// Degrees of freedom of the chi-square (observations less fitted parameters).
+    pub dof: f64,
+    /// False when the noise model does not describe the record (chi-square
+    /// beyond its 99.9 % point; the intervals are then widened by the misfit).
+    pub ok: bool,
     pub observations: usize,
 }
 
@@ -119,6 +124,8 @@ pub struct Analysis {
     pub samples: u64,
     pub duration_s: f64,
     pub fit: FitSummary,
+    /// The readout filter the data show, or `null`.
+    pub readout_filter: Option<FilterEstimate>,
     pub baselines: Baselines,
 }
 
@@ -454,7 +461,13 @@ impl Pipeline {
             },
             samples: self.samples,
             duration_s: self.samples as f64 * self.tau0_s,
-            fit: FitSummary { chi2_per_dof: est.fit.chi2_per_dof, observations: est.fit.edf.len() },
+            fit: FitSummary {
+                chi2_per_dof: est.quality.chi2_per_dof,
+                dof: est.quality.dof,
+                ok: est.quality.ok,
+                observations: est.fit.edf.len(),
+            },
+            readout_filter: est.readout_filter,
             baselines: Baselines { graphical: baseline::graphical(&adev), wls_raw: baseline::wls_raw(&adev) },
         }
     }

@@ -145,6 +145,9 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
             input.display()
         );
     }
+    if !analysis.fit.ok {
+        eprintln!("warning: {}: {}", input.display(), misfit_message(&analysis));
+    }
     match &args.json {
         Some(path) => {
             let text = serde_json::to_string_pretty(&analysis).context("serialising the analysis")?;
@@ -168,10 +171,35 @@ fn fmt_coef(c: &Coefficient) -> String {
     }
 }
 
+/// What a failed fit means, for stderr and the table.
+fn misfit_message(a: &Analysis) -> String {
+    format!(
+        "the noise model does not describe this recording (fit chi2/dof {:.2} on {} degrees of freedom); \
+         intervals widened by sqrt(chi2/dof); run `sagnac diagnose`",
+        a.fit.chi2_per_dof, a.fit.dof
+    )
+}
+
 fn print_table(a: &Analysis) -> Result<()> {
     let mut o = std::io::stdout().lock();
     let e = &a.estimates;
     writeln!(o, "{} samples, {:.1} s; fit chi2/dof {:.2}", a.samples, a.duration_s, a.fit.chi2_per_dof)?;
+    if !a.fit.ok {
+        writeln!(o, "WARNING: {}", misfit_message(a))?;
+    }
+    match &a.readout_filter {
+        Some(f) => writeln!(
+            o,
+            "readout filter: {}{}, corner {:.4} Hz [{:.4}, {:.4}], delay {:.4} s",
+            f.kind.name(),
+            f.length.map_or(String::new(), |l| format!(" of {l} samples")),
+            f.corner_hz,
+            f.ci95[0],
+            f.ci95[1],
+            f.delay_s
+        )?,
+        None => writeln!(o, "readout filter: none found")?,
+    }
     writeln!(o, "{:<32} {:<12} 95 % interval", "coefficient", "value")?;
     for (name, c) in [
         ("quantization Q, arcsec", &e.quantization_arcsec),

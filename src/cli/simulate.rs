@@ -17,6 +17,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, bail};
 use clap::{Args, ValueEnum};
 
+use crate::model::config::OutputKind;
 use crate::model::{GyroModel, Simulator, sim};
 use crate::sink::mcap::{Recorder, RecorderConfig};
 use crate::sink::messages::{RawBatch, SinkMessage};
@@ -63,6 +64,17 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     let model = GyroModel::load(&args.model).context("loading the gyro model")?;
     let mut simulator = Simulator::new(&model, args.seed, Some(args.duration_s))
         .with_context(|| format!("setting up the simulator for {}", args.model.display()))?;
+    if simulator.output() == OutputKind::Rate && args.format != SimFormat::Csv {
+        bail!(
+            "{}: gyro.output = \"rate\" is written as CSV (column rate_dps, deg/s); --format {} carries \
+             pulse counts",
+            args.model.display(),
+            match args.format {
+                SimFormat::Frames => "frames",
+                _ => "mcap",
+            }
+        );
+    }
     match args.format {
         SimFormat::Csv => {}
         SimFormat::Frames => {

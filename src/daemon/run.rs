@@ -162,6 +162,14 @@ impl Daemon {
                     origin: origin.clone(),
                     source,
                 })?;
+                if model.gyro.output != crate::model::config::OutputKind::Counts {
+                    return Err(DaemonError::Config(ConfigError::Invalid {
+                        key: "source.model",
+                        value: origin.clone(),
+                        message: "gyro.output = \"rate\": the simulated bench sends pulse-counter frames; simulate a \
+                         rate gyro with `sagnac simulate` (CSV) instead",
+                    }));
+                }
                 let (rate, pulse) = (model.gyro.sample_rate_hz, model.gyro.pulse_weight_arcsec);
                 if explicit.rate_hz && config.gyro.rate_hz != rate {
                     return Err(mismatch(

@@ -6,6 +6,9 @@
 //! sample_rate_hz = 1000.0
 //! pulse_weight_arcsec = 1.21      # angle per counter pulse, d
 //! input_rate_dph = 12.3           # constant input (e.g. Earth rate on the axis); default 0
+//! # output = "rate"               # "counts" (RLG pulse counter, the default) or "rate" (FOG/MEMS)
+//! # rate_lsb_dps = 0.0005         # rate output: rate-word quantum, deg/s (absent or 0: unquantised);
+//! #                               # then pulse_weight_arcsec is left out
 //!
 //! [noise]                         # IEEE 952 coefficients; an absent key = the term is absent
 //! quantization_arcsec = 0.35      # total white-angle Q seen by the Allan variance (>= d/sqrt(12))
@@ -33,6 +36,18 @@
 //! bias_sensitivity_dph_per_c = 0.001   # rate bias per degree away from temp_c0 (default 0)
 //! ```
 //!
+//! ```toml
+//! [readout_filter]                # optional: what the electronics do to the rate before output
+//! kind = "moving_average"         # or "first_order"
+//! length = 5                      # samples (moving_average)
+//! # corner_hz = 30.0              # -3 dB frequency, Hz (first_order)
+//! ```
+//!
+//! Rate output: the sensor outputs the (filtered) rate, rounded to a multiple of
+//! `rate_lsb_dps`; that rounding is white *rate* noise of variance `lsb^2 / 12`
+//! per sample (not the angle QN of a counter). A `quantization_arcsec` on a rate
+//! gyro is a white angle error (as seen through the rate's first difference).
+//!
 //! Quantization: the counter alone gives a white angle error of `d/sqrt(12)`; a
 //! `quantization_arcsec` above that is reached by adding a white Gaussian angle
 //! error (the dither residual) of `sqrt(Q^2 - d^2/12)` before the counter. A value
@@ -53,6 +68,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use super::ModelError;
+use super::filter::{ReadoutFilter, ReadoutFilterParams};
 use super::terms::{DEFAULT_FLICKER_F_LO_HZ, Term};
 
 /// A complete gyro model.
@@ -64,6 +80,36 @@ pub struct GyroModel {
     pub noise: NoiseParams,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub thermal: Option<ThermalParams>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub readout_filter: Option<ReadoutFilterParams>,
+}
+
+/// What the sensor outputs.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OutputKind {
+    /// An RLG's cumulative up/down pulse counter: one integer increment per sample.
+    #[default]
+    Counts,
+    /// A rate word (FOG, MEMS): one rate per sample, deg/s, quantised to `rate_lsb_dps`.
+    Rate,
+}
+
+impl OutputKind {
+    pub fn name(&self) -> &'static str {
+        match self {
+            OutputKind::Counts => "counts",
+            OutputKind::Rate => "rate",
+        }
+    }
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+
+fn is_counts(v: &OutputKind) -> bool {
+    *v == OutputKind::Counts
 }
 
 /// The readout: sample rate, pulse weight and the constant input rate.
@@ -71,7 +117,15 @@ pub struct GyroModel {
 #[serde(deny_unknown_fields)]
 pub struct GyroParams {
     pub sample_rate_hz: f64,
+    /// What the sensor outputs (default: counts).
+    #[serde(default, skip_serializing_if = "is_counts")]
+    pub output: OutputKind,
+    /// Angle per counter pulse, arcsec (counts output only; required there).
+    #[serde(default, skip_serializing_if = "is_zero")]
     pub pulse_weight_arcsec: f64,
+    /// Rate-word quantum, deg/s (rate output only); 0 or absent = unquantised.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub rate_lsb_dps: f64,
     #[serde(default)]
     pub input_rate_dph: f64,
 }
@@ -215,6 +269,11 @@ impl GyroModel {
         (q * q - c * c).max(0.0).sqrt()
     }
 
+    /// The readout filter, when the model has one (validated by [`GyroModel::validate`]).
+    pub fn readout_filter(&self) -> Option<ReadoutFilter> {
+        self.readout_filter.as_ref().and_then(|f| f.filter(self.tau0_s()).ok())
+    }
+
     /// Low edge of the flicker band, Hz.
     pub fn flicker_f_lo_hz(&self) -> f64 {
         self.noise
@@ -262,13 +321,37 @@ impl GyroModel {
         }
         let g = &self.gyro;
         within("gyro.sample_rate_hz", g.sample_rate_hz, 1e-6, MAX_SAMPLE_RATE_HZ, "Hz")?;
-        within(
-            "gyro.pulse_weight_arcsec",
-            g.pulse_weight_arcsec,
-            1e-9,
-            MAX_PULSE_WEIGHT_ARCSEC,
-            "arcsec (at most one turn)",
-        )?;
+        match g.output {
+            OutputKind::Counts => {
+                within(
+                    "gyro.pulse_weight_arcsec",
+                    g.pulse_weight_arcsec,
+                    1e-9,
+                    MAX_PULSE_WEIGHT_ARCSEC,
+                    "arcsec (at most one turn)",
+                )?;
+                if g.rate_lsb_dps != 0.0 {
+                    return Err(ModelError::invalid(
+                        "gyro.rate_lsb_dps",
+                        show(g.rate_lsb_dps),
+                        "only for output = \"rate\" (a counter's quantum is gyro.pulse_weight_arcsec)",
+                    ));
+                }
+            }
+            OutputKind::Rate => {
+                if g.pulse_weight_arcsec != 0.0 {
+                    return Err(ModelError::invalid(
+                        "gyro.pulse_weight_arcsec",
+                        show(g.pulse_weight_arcsec),
+                        "only for output = \"counts\" (a rate word's quantum is gyro.rate_lsb_dps)",
+                    ));
+                }
+                within("gyro.rate_lsb_dps", g.rate_lsb_dps, 0.0, MAX_RATE_DPH / 3600.0, "deg/s")?;
+            }
+        }
+        if let Some(f) = &self.readout_filter {
+            f.filter(self.tau0_s())?;
+        }
         within(
             "gyro.input_rate_dph",
             g.input_rate_dph,

@@ -270,6 +270,23 @@ pub fn ml_theta(phi: &[Vec<f64>], y: &[f64], edf0: &[f64], edf: &dyn Fn(usize, &
     ml_with_edf(phi, y, edf0, edf, 2).1
 }
 
+/// Maximum-likelihood strengths and the log-likelihood they reach with the
+/// EDFs held at `edf` (so that models differing in a nonlinear parameter,
+/// such as a readout filter's corner, are compared on one likelihood).
+pub fn ml_loglik_fixed_edf(phi: &[Vec<f64>], y: &[f64], edf: &[f64]) -> (Vec<f64>, f64) {
+    let k = phi.first().map_or(0, |r| r.len());
+    let prob = Problem { phi, y: y.to_vec(), half_edf: edf.iter().map(|e| e / 2.0).collect(), k };
+    let theta = prob.maximise(&vec![true; k], &vec![0.0; k], None);
+    let l = prob.loglik(&theta);
+    (theta, l)
+}
+
+/// The EDFs the ML fit converges to (see [`ml_theta`]).
+pub fn ml_edf(phi: &[Vec<f64>], y: &[f64], edf0: &[f64], edf: &dyn Fn(usize, &[f64]) -> f64) -> Vec<f64> {
+    let (prob, _) = ml_with_edf(phi, y, edf0, edf, 2);
+    prob.half_edf.iter().map(|h| 2.0 * h).collect()
+}
+
 /// Maximise the likelihood, re-deriving the EDFs from the fitted spectrum
 /// `rounds` times; returns the problem (with its final EDFs) and theta.
 fn ml_with_edf<'a>(

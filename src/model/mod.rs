@@ -13,6 +13,8 @@
 //!   angle, adds the white dither residual and quantises it with a cumulative
 //!   pulse counter, exactly as an RLG readout does.
 //!
+//! * [`filter`]: readout filters (moving average, first order) that a sensor's
+//!   electronics apply to the rate before output, with their exact responses.
 //! * [`wvar`], [`fit`], [`estimate`]: automatic estimation of the IEEE 952
 //!   coefficients from the wavelet variances and Allan curves, with model
 //!   selection and profile-likelihood intervals; [`baseline`] holds the
@@ -25,6 +27,7 @@ pub mod baseline;
 pub mod config;
 pub mod diagnose;
 pub mod estimate;
+pub mod filter;
 pub mod fit;
 pub mod sim;
 pub mod terms;

@@ -34,6 +34,15 @@
 //! ([`super::terms::counter_readout_avar`] gives the exact curve); this is what a
 //! real counter does, and the simulator reproduces it.
 //!
+//! **Rate-output sensors** (`output = "rate"`, FOG/MEMS) have no counter: the
+//! output is the rate over each period, `(theta_k - theta_{k-1} + e_k - e_{k-1}) / tau0`,
+//! rounded to a multiple of `rate_lsb_dps` (white rate noise of variance
+//! `lsb^2/12` when the noise spans several LSBs).
+//!
+//! A **readout filter** (`[readout_filter]`, [`super::filter`]) acts on the true
+//! rate before the readout: the angle increments are filtered (moving average or
+//! one pole, unit DC gain), then counted or output as a rate.
+//!
 //! # Streaming
 //! [`Simulator::next_block`] appends the next `n` pulse increments; the stream is
 //! identical whatever the block sizes (each term draws from its own ChaCha8 stream
@@ -50,7 +59,8 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Exp1, StandardNormal};
 
 use super::ModelError;
-use super::config::GyroModel;
+use super::config::{GyroModel, OutputKind};
+use super::filter::FilterState;
 use super::terms::FlickerBank;
 use crate::units;
 
@@ -204,6 +214,11 @@ pub struct Simulator {
     flicker: Option<FlickerBank>,
     buf_dtheta: Vec<f64>,
     buf_e: Vec<f64>,
+    output: OutputKind,
+    rate_lsb_dps: f64,
+    filter: Option<FilterState>,
+    /// Rate output: the previous sample's white angle error (arcsec).
+    e_prev: f64,
 }
 
 impl Simulator {
@@ -345,13 +360,18 @@ impl Simulator {
         } else {
             0.0
         };
-        let counter = (frac + e0 / d).floor() as i64;
+        let output = model.gyro.output;
+        let counter = match output {
+            OutputKind::Counts => (frac + e0 / d).floor() as i64,
+            OutputKind::Rate => 0,
+        };
+        let input_inc = units::dph_to_arcsec_per_s(model.gyro.input_rate_dph) * tau0;
         Ok(Simulator {
             fs,
             tau0,
             d,
-            inv_d: 1.0 / d,
-            input_inc: units::dph_to_arcsec_per_s(model.gyro.input_rate_dph) * tau0,
+            inv_d: if d > 0.0 { 1.0 / d } else { 0.0 },
+            input_inc,
             total,
             k: 0,
             whole: 0,
@@ -370,9 +390,21 @@ impl Simulator {
             flicker,
             buf_dtheta: vec![0.0; CHUNK],
             buf_e: vec![0.0; CHUNK],
+            output,
+            rate_lsb_dps: model.gyro.rate_lsb_dps,
+            filter: model.readout_filter().map(|f| f.state(input_inc)),
+            e_prev: e0,
         })
     }
 
+    /// What the simulated sensor outputs.
+    pub fn output(&self) -> OutputKind {
+        self.output
+    }
+    /// Rate-word quantum, deg/s (0: unquantised or counts output).
+    pub fn rate_lsb_dps(&self) -> f64 {
+        self.rate_lsb_dps
+    }
     /// Sample rate, Hz.
     pub fn sample_rate_hz(&self) -> f64 {
         self.fs
@@ -451,6 +483,43 @@ impl Simulator {
         self.generate(n, counts, Some(temp_c), Some(truth))
     }
 
+    /// Samples the next block may hold: `n`, or fewer at the end of a finite run.
+    fn block_len(&self, n: usize) -> usize {
+        match self.remaining() {
+            Some(r) => n.min(usize::try_from(r).unwrap_or(usize::MAX)),
+            None => n,
+        }
+    }
+
+    /// Append the next `n` output rates (deg/s; fewer at the end of a finite run)
+    /// of a rate-output model to `rates_dps`, and the temperatures to `temp_c`
+    /// when the model has a thermal section. Returns how many were appended;
+    /// 0 for a counts-output model (use [`Simulator::next_block`]).
+    pub fn next_block_rates(&mut self, n: usize, rates_dps: &mut Vec<f64>, temp_c: &mut Vec<f64>) -> usize {
+        if self.output != OutputKind::Rate {
+            return 0;
+        }
+        let n = self.block_len(n);
+        let mut done = 0;
+        while done < n {
+            let m = (n - done).min(CHUNK);
+            self.fill_chunk(m);
+            let (to_dps, lsb) = (1.0 / (self.tau0 * units::ARCSEC_PER_DEG), self.rate_lsb_dps);
+            for i in 0..m {
+                let e = self.buf_e[i];
+                let r = (self.buf_dtheta[i] + e - self.e_prev) * to_dps;
+                self.e_prev = e;
+                rates_dps.push(if lsb > 0.0 { (r / lsb).round() * lsb } else { r });
+            }
+            if let Some(th) = self.thermal.as_ref() {
+                temp_c.extend((0..m).map(|i| th.temp_at((self.k + i as u64 + 1) as f64 * self.tau0)));
+            }
+            self.k += m as u64;
+            done += m;
+        }
+        n
+    }
+
     fn generate(
         &mut self,
         n: usize,
@@ -458,10 +527,10 @@ impl Simulator {
         mut temp_c: Option<&mut Vec<f64>>,
         mut truth: Option<&mut Truth>,
     ) -> usize {
-        let n = match self.remaining() {
-            Some(r) => n.min(usize::try_from(r).unwrap_or(usize::MAX)),
-            None => n,
-        };
+        if self.output != OutputKind::Counts {
+            return 0;
+        }
+        let n = self.block_len(n);
         counts.reserve(n.min(1 << 20));
         let mut done = 0;
         while done < n {
@@ -575,6 +644,9 @@ impl Simulator {
                 *v += s * normal(white_rng);
             }
         }
+        if let Some(f) = self.filter.as_mut() {
+            f.apply(dth);
+        }
         if self.dither_sigma > 0.0 {
             let s = self.dither_sigma;
             for v in e.iter_mut() {
@@ -627,7 +699,8 @@ fn push_fixed4(buf: &mut Vec<u8>, v: f64) {
 }
 
 /// Run the simulator to its end and write CSV: header `counts` (or `counts,temp_c`
-/// with a thermal model; temperatures with 4 decimals), one row per sample.
+/// with a thermal model; temperatures with 4 decimals), one row per sample; for a
+/// rate-output model, `rate_dps` (deg/s) instead of `counts`.
 /// Returns the number of rows. The simulator must have a finite duration.
 pub fn write_csv<W: Write>(sim: &mut Simulator, out: W) -> Result<u64, ModelError> {
     if sim.samples_total().is_none() {
@@ -640,6 +713,9 @@ pub fn write_csv<W: Write>(sim: &mut Simulator, out: W) -> Result<u64, ModelErro
     const BLOCK: usize = 65_536;
     let mut out = std::io::BufWriter::with_capacity(1 << 20, out);
     let thermal = sim.has_temperature();
+    if sim.output() == OutputKind::Rate {
+        return write_rate_csv(sim, &mut out, thermal);
+    }
     out.write_all(if thermal {
         b"counts,temp_c\n"
     } else {
@@ -660,6 +736,37 @@ pub fn write_csv<W: Write>(sim: &mut Simulator, out: W) -> Result<u64, ModelErro
         }
         for i in 0..n {
             push_i64(&mut buf, counts[i]);
+            if thermal {
+                buf.push(b',');
+                push_fixed4(&mut buf, temps[i]);
+            }
+            buf.push(b'\n');
+        }
+        out.write_all(&buf).map_err(ModelError::Write)?;
+        rows += n as u64;
+    }
+    out.flush().map_err(ModelError::Write)?;
+    Ok(rows)
+}
+
+/// [`write_csv`] for a rate-output model: header `rate_dps` (or `rate_dps,temp_c`),
+/// rates in deg/s written as the shortest decimal that reads back exactly.
+fn write_rate_csv<W: Write>(sim: &mut Simulator, out: &mut W, thermal: bool) -> Result<u64, ModelError> {
+    const BLOCK: usize = 65_536;
+    let header: &[u8] = if thermal { b"rate_dps,temp_c\n" } else { b"rate_dps\n" };
+    out.write_all(header).map_err(ModelError::Write)?;
+    let (mut rates, mut temps, mut buf) = (Vec::with_capacity(BLOCK), Vec::with_capacity(BLOCK), Vec::new());
+    let mut rows = 0u64;
+    loop {
+        rates.clear();
+        temps.clear();
+        buf.clear();
+        let n = sim.next_block_rates(BLOCK, &mut rates, &mut temps);
+        if n == 0 {
+            break;
+        }
+        for i in 0..n {
+            write!(buf, "{}", rates[i]).map_err(ModelError::Write)?;
             if thermal {
                 buf.push(b',');
                 push_fixed4(&mut buf, temps[i]);

@@ -31,6 +31,8 @@ use std::collections::HashMap;
 use std::f64::consts::PI;
 use std::sync::{Arc, Mutex, OnceLock};
 
+use super::filter::ReadoutFilter;
+
 /// A noise term whose spectrum is known up to a scale `theta` (its squared
 /// IEEE 952 coefficient in arcsec/s units).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -48,6 +50,9 @@ pub enum SpectralTerm {
     /// First-order Gauss-Markov rate with correlation time `tau_c_s`,
     /// stationary variance `theta` (arcsec/s)^2.
     GaussMarkov { tau_c_s: f64 },
+    /// White rate noise through a readout filter (`theta` = N^2 of the
+    /// unfiltered band, arcsec^2/s; the filter has unit DC gain).
+    FilteredWhiteRate { filter: ReadoutFilter },
 }
 
 /// Which signal the DWT analyses: the rate (arcsec/s) or the angle (arcsec,
@@ -93,6 +98,7 @@ impl SpectralTerm {
                 let c = (2.0 * PI * nu).cos();
                 2.0 * (1.0 - phi * phi) / (1.0 + phi * phi - 2.0 * phi * c)
             }
+            SpectralTerm::FilteredWhiteRate { filter } => 2.0 / tau0_s * filter.power(nu),
         }
     }
 
@@ -110,6 +116,9 @@ impl SpectralTerm {
                 Some(vec![2.0 / (tau0_s * tau0_s), -1.0 / (tau0_s * tau0_s)])
             }
             SpectralTerm::WhiteRate => Some(vec![1.0 / tau0_s]),
+            SpectralTerm::FilteredWhiteRate { filter } => {
+                filter.finite_autocorr().map(|r| r.iter().map(|v| v / tau0_s).collect())
+            }
             _ => None,
         }
     }
@@ -144,7 +153,15 @@ impl SpectralTerm {
                 let split = (64.0 / mf).min(0.5);
                 let mut total = 0.0;
                 // resolved part: panels of width 1/(4m) in nu
-                let panels = ((split - nu_lo).max(0.0) * 4.0 * mf).ceil() as usize;
+                let mut panels = ((split - nu_lo).max(0.0) * 4.0 * mf).ceil() as usize;
+                if let SpectralTerm::FilteredWhiteRate { filter } = self {
+                    // resolve the filter's own structure (a moving average's lobes)
+                    let lobes = match filter {
+                        ReadoutFilter::MovingAverage { length } => *length as usize,
+                        ReadoutFilter::FirstOrder { .. } => 8,
+                    };
+                    panels = panels.max(16 * lobes);
+                }
                 if panels > 0 {
                     let h = (split - nu_lo) / panels as f64;
                     for p in 0..panels {
@@ -181,7 +198,7 @@ impl SpectralTerm {
     pub fn alpha_at(&self, tau_s: f64) -> i32 {
         match *self {
             SpectralTerm::WhiteAngle => 2,
-            SpectralTerm::WhiteRate => 0,
+            SpectralTerm::WhiteRate | SpectralTerm::FilteredWhiteRate { .. } => 0,
             SpectralTerm::Flicker { .. } => -1,
             SpectralTerm::RateRandomWalk => -2,
             SpectralTerm::GaussMarkov { tau_c_s } => {
@@ -380,6 +397,10 @@ fn level_key(lo: &[f64], hi: &[f64], tau0_s: f64, level: u32, terms: &[SpectralT
             SpectralTerm::Flicker { f_lo_hz } => (2, f_lo_hz),
             SpectralTerm::RateRandomWalk => (3, 0.0),
             SpectralTerm::GaussMarkov { tau_c_s } => (4, tau_c_s),
+            SpectralTerm::FilteredWhiteRate { filter } => {
+                let (kind, bits) = filter.key();
+                (4 + kind, f64::from_bits(bits))
+            }
         };
         k.extend([tag, p.to_bits()]);
     }

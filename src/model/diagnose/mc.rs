@@ -38,6 +38,13 @@ pub fn run(job: &McJob, seeds: &[u64]) -> Result<Vec<StatSet>, ModelError> {
     let fs = job.layout.fs_hz;
     // validate once up front so workers cannot fail on the model
     Simulator::new(job.model, 0, Some(n as f64 / fs))?;
+    if job.model.gyro.output != crate::model::config::OutputKind::Counts {
+        return Err(ModelError::invalid(
+            "gyro.output",
+            "rate",
+            "the diagnosis compares pulse-counter recordings; rate-output gyros are not diagnosed yet",
+        ));
+    }
     let next = AtomicUsize::new(0);
     let slots: Mutex<Vec<Option<StatSet>>> = Mutex::new(vec![None; seeds.len()]);
     let err: Mutex<Option<ModelError>> = Mutex::new(None);

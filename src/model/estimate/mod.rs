@@ -32,9 +32,14 @@ use std::f64::consts::PI;
 
 use serde::{Deserialize, Serialize};
 
-use super::fit::{FitOptions, LevelFit, LevelObs, fit_rows};
-use super::wvar::{Domain, GL8, LevelBasis, SpectralTerm};
+use super::filter::{FilterKind, ReadoutFilter};
+use super::fit::{FitOptions, LevelFit, LevelObs, TermFit, fit_rows};
+use super::wvar::{GL8, SpectralTerm};
 use crate::units;
+
+pub mod filter_search;
+mod lf;
+mod quantization;
 
 /// One overlapping Allan variance point of the raw rate.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -227,6 +232,78 @@ pub struct EstimatorOutput {
     pub theta: [f64; 4],
     /// Rate slope (arcsec/s^2) and its standard deviation.
     pub ramp_arcsec_s2: Option<(f64, f64)>,
+    /// The readout filter the data show (`None`: none).
+    pub readout_filter: Option<FilterEstimate>,
+    /// Whether the fitted noise model describes the record.
+    pub quality: FitQuality,
+}
+
+/// A fitted readout filter, as reported (JSON `readout_filter`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FilterEstimate {
+    pub kind: FilterKind,
+    /// -3 dB frequency, Hz.
+    pub corner_hz: f64,
+    /// 95 % interval of `corner_hz`.
+    pub ci95: [f64; 2],
+    /// Moving-average length, samples.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub length: Option<u32>,
+    /// Group delay at DC, s.
+    pub delay_s: f64,
+}
+
+impl FilterEstimate {
+    fn new(c: &filter_search::FilterChoice, tau0_s: f64) -> Self {
+        let length = match c.filter {
+            ReadoutFilter::MovingAverage { length } => Some(length),
+            ReadoutFilter::FirstOrder { .. } => None,
+        };
+        FilterEstimate {
+            kind: c.filter.kind(),
+            corner_hz: c.filter.corner_hz(tau0_s),
+            ci95: [c.corner_ci_cycles.0 / tau0_s, c.corner_ci_cycles.1 / tau0_s],
+            length,
+            delay_s: c.filter.delay_samples() * tau0_s,
+        }
+    }
+}
+
+/// Goodness of the final fit: Pearson chi-square against its degrees of freedom.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FitQuality {
+    pub chi2_per_dof: f64,
+    pub dof: f64,
+    /// False when the chi-square is beyond its 99.9 % point: the noise model
+    /// does not describe the record, and every interval is widened.
+    pub ok: bool,
+}
+
+/// Chi-square tail probability below which a fit is reported as not describing the record.
+pub const MISFIT_P: f64 = 1e-3;
+
+impl FitQuality {
+    /// Quality of `fit` on `n_obs` observations, with `extra_params` fitted
+    /// outside the linear terms (a readout filter's shape).
+    pub fn of(fit: &LevelFit, n_obs: usize, extra_params: usize) -> Self {
+        let n_par = fit.terms.iter().filter(|t| t.included).count() + extra_params;
+        let dof = (n_obs as f64 - n_par as f64).max(1.0);
+        // LevelFit's chi2_per_dof counts only the linear terms
+        let chi2 = fit.chi2_per_dof * (n_obs as f64 - (n_par - extra_params) as f64).max(1.0);
+        let ok = !chi2.is_finite()
+            || ChiSquared::new(dof).map(|d| 1.0 - d.cdf(chi2) >= MISFIT_P).unwrap_or(true);
+        FitQuality { chi2_per_dof: chi2 / dof, dof, ok: ok || !chi2.is_finite() }
+    }
+
+    /// A fit with no observations (too short a record, or no noise).
+    pub fn none() -> Self {
+        FitQuality { chi2_per_dof: f64::NAN, dof: 0.0, ok: true }
+    }
+
+    /// The factor intervals are widened by: `sqrt(chi2/dof)` for a misfit, else 1.
+    pub fn widening(&self) -> f64 {
+        if self.ok { 1.0 } else { self.chi2_per_dof.sqrt().max(1.0) }
+    }
 }
 
 impl EstimatorOutput {
@@ -259,6 +336,8 @@ impl EstimatorOutput {
             fit: LevelFit { terms: Vec::new(), loglik: 0.0, edf: Vec::new(), fitted: Vec::new(), chi2_per_dof: f64::NAN },
             theta: [0.0; 4],
             ramp_arcsec_s2: None,
+            readout_filter: None,
+            quality: FitQuality::none(),
         }
     }
 }
@@ -302,17 +381,17 @@ pub fn standard_terms(n_samples: u64, tau0_s: f64) -> [SpectralTerm; 4] {
 /// Run the estimator.
 ///
 /// 1. Quantization, read from the noise component as the paper does, made
-///    exact: QN is white-or-periodic noise in *angle*, so its variance is the
-///    high-frequency energy of the angle signal, `Q^2 = sum_j 2^{-j} v_j` over
-///    the angle-domain detail levels (Parseval for an orthonormal DWT), minus
-///    the small contribution of the low-frequency terms. This holds whatever
-///    the shape of the readout error: white (a well-dithered counter) or the
-///    sawtooth of a slowly moving angle read by an integer counter, whose Allan
-///    variance oscillates around `3Q^2/tau^2` instead of following it.
-/// 2. The low-frequency terms (N, B, K) from the rate-domain levels where a
-///    white QN of that Q would carry at most half the variance, plus long-tau
-///    Allan points, with a free white-angle nuisance term so that QN leakage
-///    is absorbed when it is white and costs nothing when it is not.
+///    exact ([`quantization`]): QN is white-or-periodic noise in *angle*, so
+///    its variance is the high-frequency energy of the angle signal.
+/// 2. The low-frequency terms (N, B, K) from the rate-domain levels below the
+///    QN band ([`lf`]) plus long-tau Allan points, with a free white-angle
+///    nuisance term so that QN leakage is absorbed when it is white and costs
+///    nothing when it is not; the white rate passes through a readout filter
+///    when the data show one ([`filter_search`]).
+/// 3. The fit's honesty: a chi-square far above its degrees of freedom marks
+///    the fit as not describing the record, and every interval is widened by
+///    the misfit.
+/// 4. The ramp, a least-squares slope with its spread under the fitted spectrum.
 pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
     // No noise at all (a stuck counter, a dead gyro): the raw Allan variance of
     // integer counts is then exactly 0 at every tau. Nothing is found (a fit
@@ -321,314 +400,162 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         return EstimatorOutput::no_noise();
     }
     let tau0 = input.tau0_s;
-    let terms = standard_terms(input.n_samples, tau0);
-    let usable = |l: &LevelObs| l.n_coef >= MIN_LEVEL_COEFS && l.mean_sq > 0.0 && l.mean_sq.is_finite();
-
-    // --- 1. quantization from the angle-domain levels (first pass without LF correction)
-    let angle: Vec<LevelObs> = input.angle_levels.iter().copied().filter(usable).collect();
-    let q_from_angle = |theta_lf: &[f64]| -> (f64, f64) {
-        if angle.is_empty() {
-            return (0.0, f64::INFINITY);
-        }
-        let ids: Vec<u32> = angle.iter().map(|l| l.level).collect();
-        let b = LevelBasis::new_in(input.dec_lo, input.dec_hi, tau0, &ids, &terms, Domain::Angle);
-        let mut jmax = 1u32;
-        let (mut q2, mut var) = (0.0, 0.0);
-        for (j, l) in angle.iter().enumerate() {
-            let w = 2f64.powi(-(l.level as i32));
-            // low-frequency terms' share of this level (theta_lf[0], the white-angle nuisance, excluded)
-            let lf: f64 = (1..terms.len()).map(|k| theta_lf[k] * b.phi[j][k]).sum();
-            if lf > 0.5 * l.mean_sq && l.level > 1 {
-                // beyond the QN band: the angle here is mostly random walk
-                break;
-            }
-            q2 += w * (l.mean_sq - lf);
-            jmax = l.level;
-            var += w * w * 2.0 * l.mean_sq * l.mean_sq / l.n_coef;
-        }
-        let norm = 1.0 - 2f64.powi(-(jmax as i32));
-        // The chi-square variance assumes the QN energy is stationary. A
-        // counter read with little dither is not: the readout error's variance
-        // depends on where the true angle sits within a pulse, and a slowly
-        // moving angle visits few of those places. The spread of the same
-        // statistic over blocks of the record (batch means) sees that; the
-        // larger of the two variances is used.
-        let per_block: Vec<f64> = input
-            .angle_blocks
-            .iter()
-            .map(|blk| {
-                let mut q = 0.0;
-                for (j, l) in angle.iter().enumerate().take_while(|(_, l)| l.level <= jmax) {
-                    let lf: f64 = (1..terms.len()).map(|k| theta_lf[k] * b.phi[j][k]).sum();
-                    let ms = blk.iter().find(|x| x.level == l.level).map_or(l.mean_sq, |x| x.mean_sq);
-                    q += 2f64.powi(-(l.level as i32)) * (ms - lf);
-                }
-                q
-            })
-            .collect();
-        // Flyvbjerg-Petersen blocking: the batch-means variance grows with the
-        // block length until blocks outlast the correlation; take the largest
-        // over block lengths that still leave MIN_BATCHES blocks.
-        let mut batches = per_block;
-        while batches.len() >= MIN_BATCHES {
-            let k = batches.len() as f64;
-            let mean = batches.iter().sum::<f64>() / k;
-            let var_bm = batches.iter().map(|q| (q - mean).powi(2)).sum::<f64>() / (k * (k - 1.0));
-            var = var.max(var_bm);
-            batches = batches.chunks_exact(2).map(|p| 0.5 * (p[0] + p[1])).collect();
-        }
-        (q2 / norm, var.sqrt() / norm)
-    };
-    let (q2, q2_sd);
-    let q2_first = q_from_angle(&[0.0; 4]).0;
-
-    // --- 2. low-frequency terms
-    let levels_all: Vec<LevelObs> = input.levels.iter().copied().filter(usable).collect();
-    if levels_all.len() < 2 {
-        // too short a record for any estimate (a few seconds at most)
+    let std_terms = standard_terms(input.n_samples, tau0).to_vec();
+    let q2_first = quantization::q_from_angle(input, &std_terms, &[0.0; 4]).0;
+    let Some(lf) = lf_setup(input, q2_first) else {
         return EstimatorOutput::insufficient();
+    };
+    let std_basis = lf.basis(&std_terms);
+    let cut = lf.qn_cut();
+    // Fewer than two levels below the QN band: the record is too short to
+    // separate the low-frequency terms from QN; bounds only.
+    let too_short = lf.levels.len() - cut < 2;
+    let level_bounds = lf.level_bounds(&std_basis, 4);
+    let mut from = if too_short { lf.levels.len().saturating_sub(2) } else { cut };
+    from = lf.trim(&std_terms, &std_basis, from);
+    // With no more observations than the nuisance, ARW, flicker and RRW
+    // columns, the fit is saturated and its likelihood-ratio tests say
+    // nothing: fit ARW (and the nuisance) only, and bound the others.
+    let saturated = lf.rows(&std_terms, &std_basis, from).y.len() <= std_terms.len();
+    let choice = if too_short || saturated { None } else { filter_search::search(&lf, input.n_samples, from, opts.ci_lr) };
+    let terms = match &choice {
+        Some(c) => filter_search::filtered_terms(input.n_samples, tau0, c.filter),
+        None => std_terms,
+    };
+    let basis = lf.basis(&terms);
+    let mut rows = lf.rows(&terms, &basis, from);
+    filter_search::saturate_rows(&mut rows, saturated);
+    let mut o = *opts;
+    o.always_keep |= 1; // the white-angle nuisance stays out of model selection
+    let fit = fit_rows(&rows.phi, &rows.y, &rows.edf0, &lf.edf(&terms, &basis, from, &rows.phi), &o);
+    let quality = FitQuality::of(&fit, rows.y.len(), usize::from(choice.is_some()));
+    let theta_lf: Vec<f64> = (0..terms.len())
+        .map(|k| if too_short || (saturated && k >= 2) { 0.0 } else { fit.terms[k].theta })
+        .collect();
+    let (q2, q2_sd) = quantization::q_from_angle(input, &terms, &theta_lf);
+    let widen = quality.widening();
+    let theta = [q2.max(0.0), theta_lf[1], theta_lf[2], theta_lf[3]];
+    let coef = |i: usize| -> Coefficient {
+        if too_short || (saturated && i >= 2) {
+            return Coefficient { value: None, ci95: None, upper95: level_bounds[i].is_finite().then(|| CONV[i](level_bounds[i])) };
+        }
+        let mut t = fit.terms[i];
+        if i == 1 {
+            if let (Some(c), Some((lo, hi))) = (&choice, t.ci95.as_mut()) {
+                *lo = lo.min(c.n2_range.0);
+                *hi = hi.max(c.n2_range.1);
+            }
+        }
+        term_coefficient(&widen_term(t, widen), CONV[i])
+    };
+    let ramp_term = fit.terms.get(terms.len()).filter(|_| lf.ramp_col);
+    let ramp = ramp_slope(input, &terms, &theta_lf).map(|(s, sd)| (s, sd * widen));
+    EstimatorOutput {
+        estimates: NoiseEstimates {
+            quantization_arcsec: quantization::coefficient(q2, q2_sd * widen),
+            arw_dpsh: coef(1),
+            bias_instability_dph: coef(2),
+            rrw_dphsh: coef(3),
+            rate_ramp_dphh: ramp_coefficient(ramp, lf.ramp_col, ramp_term.is_some_and(|t| t.included), opts.ci_lr),
+        },
+        fit,
+        theta,
+        ramp_arcsec_s2: ramp,
+        readout_filter: choice.map(|c| FilterEstimate::new(&c, tau0)),
+        quality,
     }
-    let ids_all: Vec<u32> = levels_all.iter().map(|l| l.level).collect();
-    let basis_all = LevelBasis::new(input.dec_lo, input.dec_hi, tau0, &ids_all, &terms);
-    let deepest = ids_all.iter().copied().max().unwrap_or(0);
+}
+
+/// Conversions from theta (arcsec/s units, squared) to the reported units of Q, N, B, K.
+const CONV: [fn(f64) -> f64; 4] = [
+    |t: f64| t.sqrt(),
+    |t: f64| units::arcsec_per_sqrt_s_to_dpsh(t.sqrt()),
+    |t: f64| units::arcsec_per_s_to_dph(t.sqrt()),
+    |t: f64| units::arcsec_per_s_sqrt_s_to_dphsh(t.sqrt()),
+];
+
+/// The low-frequency fit's inputs: usable levels, and the long-tau Allan
+/// points beyond the deepest level where quantization carries less than half
+/// the variance (QN-dominated points say nothing about the low-frequency
+/// terms, and QN-subtracted they could leave a meaningless near-zero
+/// observation). `None` when fewer than two levels are usable.
+fn lf_setup<'a>(input: &EstimatorInput<'a>, q2_first: f64) -> Option<lf::Lf<'a>> {
+    let tau0 = input.tau0_s;
+    let levels: Vec<LevelObs> = input.levels.iter().copied().filter(usable).collect();
+    if levels.len() < 2 {
+        return None;
+    }
+    let deepest = levels.iter().map(|l| l.level).max().unwrap_or(0);
     let m_min = 1u64 << (deepest + 1).min(62);
-    // Allan points where quantization carries half the variance or more say
-    // nothing about the low-frequency terms (and QN-subtracted, they could
-    // leave a meaningless near-zero observation): left out.
+    let qn = SpectralTerm::WhiteAngle;
     let allan: Vec<AllanObs> = input
         .allan
         .iter()
         .copied()
         .filter(|a| a.m >= m_min && a.avar > 0.0 && a.avar.is_finite() && a.n_terms > 0)
-        .filter(|a| q2_first.max(0.0) * terms[0].allan_var(a.m, tau0) < 0.5 * a.avar)
+        .filter(|a| q2_first.max(0.0) * qn.allan_var(a.m, tau0) < 0.5 * a.avar)
         .collect();
     // A rate ramp R is invisible on the wavelet levels (vanishing moments) but
     // adds R^2 tau^2 / 2 to the long-tau Allan points; without a column for it
-    // the fit would put that power into RRW (and the slope's spread under the
-    // inflated K would hide the ramp). With Allan points, a ramp column (theta
-    // = R^2, (arcsec/s^2)^2; 0 on the levels) takes it. It is selected like the
-    // noise terms; the reported ramp stays the least-squares slope below.
+    // the fit would put that power into RRW. With Allan points, a ramp column
+    // (theta = R^2, (arcsec/s^2)^2; 0 on the levels) takes it.
     let ramp_col = !allan.is_empty();
-    // rows: levels[from..] then the Allan points
-    let rows = |from: usize| -> (Vec<Vec<f64>>, Vec<f64>, Vec<f64>) {
-        // quantization is measured in the angle domain; on these levels its
-        // white-angle column is a free nuisance that absorbs what leaks below the
-        // QN band (the Lorentzian tails of a sawtooth's broadened lines are white
-        // in angle), so the boundary levels need not be cut exactly
-        let mut phi: Vec<Vec<f64>> = basis_all.phi[from..].to_vec();
-        if ramp_col {
-            for r in &mut phi {
-                r.push(0.0);
-            }
-        }
-        let mut y: Vec<f64> = levels_all[from..].iter().map(|l| l.mean_sq).collect();
-        let mut edf0: Vec<f64> = levels_all[from..].iter().map(|l| l.n_coef).collect();
-        for a in &allan {
-            // long-tau Allan points do see QN (3 Q^2 / tau^2): use the angle-domain Q
-            let mut row: Vec<f64> = terms.iter().map(|t| t.allan_var(a.m, tau0)).collect();
-            let qn = q2_first.max(0.0) * row[0];
-            row[0] = 0.0;
-            if ramp_col {
-                let tau = a.m as f64 * tau0;
-                row.push(0.5 * tau * tau);
-            }
-            phi.push(row);
-            y.push((a.avar - qn).max(1e-300));
-            edf0.push(a.edf(0));
-        }
-        (phi, y, edf0)
-    };
-    let (levels_ref, basis_ref, allan_ref, terms_ref) = (&levels_all, &basis_all, &allan, &terms);
-    let edf_for = |from: usize, phi: &[Vec<f64>]| {
-        let (levels_all, basis_all, allan, terms) = (levels_ref, basis_ref, allan_ref, terms_ref);
-        let nl = levels_all.len() - from;
-        let phi = phi.to_vec();
-        move |j: usize, theta: &[f64]| -> f64 {
-            if j < nl {
-                basis_all.edf(from + j, &theta[..terms.len()], levels_all[from + j].n_coef)
-            } else {
-                let a = &allan[j - nl];
-                let tau = a.m as f64 * tau0;
-                let dom = (0..terms.len())
-                    .max_by(|&p, &q| {
-                        (theta[p] * phi[j][p]).partial_cmp(&(theta[q] * phi[j][q])).unwrap_or(std::cmp::Ordering::Equal)
-                    })
-                    .unwrap_or(1);
-                a.edf(terms[dom].alpha_at(tau))
-            }
-        }
-    };
-    // Which levels carry only low-frequency noise? Every term of the low-
-    // frequency model gives detail variances that are flat (ARW) or fall
-    // towards the fine levels (flicker, RRW, Gauss-Markov); quantization noise,
-    // white (rate PSD ~ f^2) or periodic (a sawtooth's lines), makes them rise.
-    // Walk from the deepest level towards the fine ones and stop at the first
-    // level that is significantly (CUT_RISE_Z sigma) above its deeper neighbour: it and
-    // every finer level belong to QN. Model-free, so a Gauss-Markov hump the
-    // model lacks does not push real ARW levels out.
-    let mut from = levels_all.len();
-    while from > 0 {
-        let j = from - 1;
-        if from < levels_all.len() {
-            // z of the log variance ratio (near-normal, and unbounded: a
-            // level 60x its neighbour is significant even with few coefficients)
-            let rise = |a: &LevelObs, b: &LevelObs| {
-                (a.mean_sq / b.mean_sq).ln() / (2.0 / a.n_coef + 2.0 / b.n_coef).sqrt()
-            };
-            // one deep level low by chance must not stop the walk (it would
-            // also bias the kept levels low): the rise must hold over the level
-            // beyond it too (QN's rise only grows with the distance)
-            // (the deepest pair has no level beyond: it must rise twice as clearly)
-            let confirmed = if from + 1 >= levels_all.len() {
-                rise(&levels_all[j], &levels_all[from]) > 2.0 * CUT_RISE_Z
-            } else {
-                rise(&levels_all[j], &levels_all[from + 1]) > CUT_RISE_Z
-            };
-            if rise(&levels_all[j], &levels_all[from]) > CUT_RISE_Z && confirmed {
-                break;
-            }
-        }
-        from = j;
-    }
-    // Fewer than two levels below the QN band: the record is too short to
-    // separate the low-frequency terms from QN. Each level's variance still
-    // bounds every term's share of it from above (all shares are positive):
-    // report those bounds only (one-sided chi-square, Bonferroni over levels).
-    let too_short = levels_all.len() - from < 2;
-    let level_bounds = {
-        let alpha = 0.05 / levels_all.len() as f64;
-        let mut up = [f64::INFINITY; 4];
-        for (j, l) in levels_all.iter().enumerate() {
-            let nu = l.n_coef.max(1.0);
-            let chi = ChiSquared::new(nu).map(|c| c.inverse_cdf(alpha)).unwrap_or(0.0);
-            if chi <= 0.0 {
-                continue;
-            }
-            let y_up = l.mean_sq * nu / chi;
-            for (k, u) in up.iter_mut().enumerate().skip(1) {
-                let p = basis_all.phi[j][k];
-                if p > 0.0 {
-                    *u = u.min(y_up / p);
-                }
-            }
-        }
-        up
-    };
-    if levels_all.len() - from < 2 {
-        from = levels_all.len().saturating_sub(2);
-    }
-    // The neighbour test can miss a QN tail of ~10 % at the boundary level (its
-    // neighbour is noisy too) that is not white in angle. Check the finest kept level against the fit of
-    // the deeper ones and drop it while it carries a significant excess (at
-    // most twice: a misspecified low-frequency model must not eat the levels).
-    for _ in 0..2 {
-        if levels_all.len() - from < 3 {
-            break;
-        }
-        let (phi, y, edf0) = rows(from + 1);
-        let theta = super::fit::ml_theta(&phi, &y, &edf0, &edf_for(from + 1, &phi));
-        let mut th = theta.clone();
-        th[0] = 0.0;
-        let mu = basis_all.mean(from, &th);
-        let nu = basis_all.edf(from, &th[..terms.len()], levels_all[from].n_coef);
-        // the prediction is itself uncertain: about as much as a variance
-        // measured on all the deeper levels' coefficients together
-        let n_deeper: f64 = levels_all[from + 1..].iter().map(|l| l.n_coef).sum();
-        let z = (levels_all[from].mean_sq / mu - 1.0) / (2.0 / nu + 2.0 / n_deeper).sqrt();
-        if mu > 0.0 && z > TRIM_EXCESS_Z {
-            from += 1;
-        } else {
-            break;
-        }
-    }
-    let (mut phi, y, edf0) = rows(from);
-    // With no more observations than the nuisance, ARW, flicker and RRW
-    // columns, the fit is saturated and its likelihood-ratio tests say
-    // nothing: fit ARW (and the nuisance) only, and bound the others.
-    let saturated = y.len() <= terms.len();
-    if saturated {
-        for r in &mut phi {
-            for c in r.iter_mut().skip(2) {
-                *c = 0.0;
-            }
-        }
-    }
-    let mut o = *opts;
-    o.always_keep |= 1; // the white-angle nuisance stays out of model selection
-    let fit = fit_rows(&phi, &y, &edf0, &edf_for(from, &phi), &o);
-    let theta_lf = if too_short {
-        [0.0; 4]
-    } else {
-        let keep = |k: usize| if saturated && k >= 2 { 0.0 } else { fit.terms[k].theta };
-        [keep(0), keep(1), keep(2), keep(3)]
-    };
-    let (a, b) = q_from_angle(&theta_lf);
-    q2 = a;
-    q2_sd = b;
-    let theta = [q2.max(0.0), theta_lf[1], theta_lf[2], theta_lf[3]];
+    Some(lf::Lf { tau0, dec_lo: input.dec_lo, dec_hi: input.dec_hi, levels, allan, q2_first, ramp_col })
+}
 
-    let conv: [fn(f64) -> f64; 4] = [
-        |t: f64| t.sqrt(),
-        |t: f64| units::arcsec_per_sqrt_s_to_dpsh(t.sqrt()),
-        |t: f64| units::arcsec_per_s_to_dph(t.sqrt()),
-        |t: f64| units::arcsec_per_s_sqrt_s_to_dphsh(t.sqrt()),
-    ];
-    let coef = |i: usize| -> Coefficient {
-        if too_short || (saturated && i >= 2) {
-            let up = level_bounds[i];
-            let upper95 = up.is_finite().then(|| conv[i](up));
-            return Coefficient { value: None, ci95: None, upper95 };
-        }
-        let t = &fit.terms[i];
-        if t.included {
-            let (lo, hi) = t.ci95.unwrap_or((t.theta, t.theta));
-            Coefficient { value: Some(conv[i](t.theta)), ci95: Some([conv[i](lo), conv[i](hi)]), upper95: None }
-        } else {
-            Coefficient { value: None, ci95: None, upper95: Some(conv[i](t.upper95.unwrap_or(0.0))) }
-        }
-    };
-    // QN is a variance estimate with a near-normal sampling law (thousands of coefficients)
-    let z = 1.959_964;
-    let quantization = if q2 > z * q2_sd {
-        Coefficient { value: Some(q2.sqrt()), ci95: Some([(q2 - z * q2_sd).max(0.0).sqrt(), (q2 + z * q2_sd).sqrt()]), upper95: None }
-    } else {
-        Coefficient { value: None, ci95: None, upper95: Some((q2.max(0.0) + 1.644_854 * q2_sd).sqrt()) }
-    };
+/// A level with enough transient-free coefficients and a finite positive variance.
+pub(super) fn usable(l: &LevelObs) -> bool {
+    l.n_coef >= MIN_LEVEL_COEFS && l.mean_sq > 0.0 && l.mean_sq.is_finite()
+}
 
-    // ramp: LS slope with its variance under the fitted spectrum
-    let ramp = input.ramp.filter(|r| r.count() > 2).map(|r| {
+/// Widen a term's interval (or bound) about its estimate by `s >= 1`.
+fn widen_term(mut t: TermFit, s: f64) -> TermFit {
+    if s > 1.0 {
+        if let Some((lo, hi)) = t.ci95.as_mut() {
+            *lo = (t.theta - s * (t.theta - *lo)).max(0.0);
+            *hi = t.theta + s * (*hi - t.theta);
+        }
+        if let Some(u) = t.upper95.as_mut() {
+            *u *= s;
+        }
+    }
+    t
+}
+
+/// A fitted term as a reported coefficient (value and interval, or a bound).
+fn term_coefficient(t: &TermFit, conv: fn(f64) -> f64) -> Coefficient {
+    if t.included {
+        let (lo, hi) = t.ci95.unwrap_or((t.theta, t.theta));
+        Coefficient { value: Some(conv(t.theta)), ci95: Some([conv(lo), conv(hi)]), upper95: None }
+    } else {
+        Coefficient { value: None, ci95: None, upper95: Some(conv(t.upper95.unwrap_or(0.0))) }
+    }
+}
+
+/// The least-squares rate slope (arcsec/s^2) and its spread under the fitted spectrum.
+fn ramp_slope(input: &EstimatorInput, terms: &[SpectralTerm], theta: &[f64]) -> Option<(f64, f64)> {
+    let tau0 = input.tau0_s;
+    input.ramp.filter(|r| r.count() > 2).map(|r| {
         let n = r.count();
-        let slope = r.slope_per_sample() / tau0; // arcsec/s per s
-        let var: f64 = terms.iter().zip(&theta).map(|(t, th)| th * slope_var_per_theta(t, n, tau0)).sum();
+        let slope = r.slope_per_sample() / tau0;
+        let var: f64 = terms.iter().zip(theta).map(|(t, th)| th * slope_var_per_theta(t, n, tau0)).sum();
         (slope, var.max(0.0).sqrt())
-    });
-    let ramp_coef = match ramp {
-        Some((s, sd)) => {
-            let to = units::arcsec_per_s2_to_dphh;
-            // a signed parameter: include when the likelihood-ratio (z^2) test
-            // passes at 5 % (chi2_1 = 3.84) and, where the long-tau Allan points
-            // had a ramp column, the fit kept it (the tau^2 growth is there: a
-            // slope alone can come from low-frequency noise the fit left out)
-            let allan_agrees = !ramp_col || fit.terms.get(4).is_some_and(|t| t.included);
-            if sd > 0.0 && (s / sd).powi(2) >= opts.ci_lr && allan_agrees {
-                Coefficient { value: Some(to(s)), ci95: Some([to(s - z * sd), to(s + z * sd)]), upper95: None }
-            } else {
-                Coefficient { value: None, ci95: None, upper95: Some(to(s.abs() + z * sd)) }
-            }
+    })
+}
+
+/// The reported ramp: a signed parameter, included when its likelihood-ratio
+/// (z^2) test passes and, where the long-tau Allan points had a ramp column,
+/// the fit kept it (the tau^2 growth is there: a slope alone can come from
+/// low-frequency noise the fit left out).
+fn ramp_coefficient(ramp: Option<(f64, f64)>, ramp_col: bool, col_kept: bool, ci_lr: f64) -> Coefficient {
+    let z = 1.959_964;
+    let to = units::arcsec_per_s2_to_dphh;
+    match ramp {
+        Some((s, sd)) if sd > 0.0 && (s / sd).powi(2) >= ci_lr && (!ramp_col || col_kept) => {
+            Coefficient { value: Some(to(s)), ci95: Some([to(s - z * sd), to(s + z * sd)]), upper95: None }
         }
+        Some((s, sd)) => Coefficient { value: None, ci95: None, upper95: Some(to(s.abs() + z * sd)) },
         None => Coefficient { value: None, ci95: None, upper95: None },
-    };
-    EstimatorOutput {
-        estimates: NoiseEstimates {
-            quantization_arcsec: quantization,
-            arw_dpsh: coef(1),
-            bias_instability_dph: coef(2),
-            rrw_dphsh: coef(3),
-            rate_ramp_dphh: ramp_coef,
-        },
-        fit,
-        theta,
-        ramp_arcsec_s2: ramp,
     }
 }
 

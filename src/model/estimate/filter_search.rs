@@ -1,0 +1,199 @@
+//! Readout-filter detection and fit.
+//!
+//! A readout filter (anti-alias, dither stripping, averaging) attenuates the
+//! white rate noise at the fine wavelet levels. Read with an unfiltered model,
+//! those falling levels look like flicker or rate random walk and the
+//! flat part is misread: ARW too low, B or K invented. Here the
+//! white-rate column of the low-frequency model is replaced by a *filtered*
+//! white rate (exact level variances and Allan signature of
+//! [`SpectralTerm::FilteredWhiteRate`]), and an unfiltered white-rate nuisance
+//! column takes what the electronics add after the filter (a rate word's
+//! LSB rounding).
+//!
+//! The filter's shape is a nonlinear parameter: the likelihood is profiled
+//! over moving averages of 2 ..= [`MAX_MA`] samples and over first-order
+//! corners on a log grid (refined by golden section), every candidate on the
+//! same rows with the EDFs held at those of the unfiltered fit, so that the
+//! log-likelihoods compare. A filter is reported when it beats no filter by
+//! [`FILTER_LR`] in deviance. Its corner's 95 % interval is the set of
+//! candidates (of either kind) within `ci_lr` of the best, and the ARW
+//! interval is widened to cover the ARW of every such candidate.
+
+use super::lf::{Lf, Rows, saturate};
+use super::standard_terms;
+use crate::model::filter::ReadoutFilter;
+use crate::model::fit::{ml_edf, ml_loglik_fixed_edf};
+use crate::model::wvar::SpectralTerm;
+
+/// Longest moving average searched, samples.
+pub const MAX_MA: u32 = 32;
+/// First-order corners searched: this many, log-spaced over [`FO_LO`, `FO_HI`] cycles/sample.
+const FO_GRID: usize = 28;
+const FO_LO: f64 = 0.004;
+const FO_HI: f64 = 0.49;
+/// Deviance a filter must explain over no filter to be reported (chi-square
+/// with 2 degrees of freedom at 1e-3: the shape adds a kind and a corner, and
+/// the search runs over many candidates).
+pub const FILTER_LR: f64 = 13.8;
+
+/// The terms of the low-frequency fit with white rate through `filter`:
+/// Q^2 (nuisance), N^2 (filtered), B^2, K^2, and the unfiltered white rate
+/// added after the filter.
+pub fn filtered_terms(n_samples: u64, tau0_s: f64, filter: ReadoutFilter) -> Vec<SpectralTerm> {
+    let mut t = standard_terms(n_samples, tau0_s).to_vec();
+    t[1] = SpectralTerm::FilteredWhiteRate { filter };
+    t.push(SpectralTerm::WhiteRate);
+    t
+}
+
+/// One candidate's profile value.
+#[derive(Debug, Clone, Copy)]
+struct Candidate {
+    filter: ReadoutFilter,
+    loglik: f64,
+    /// ML N^2 (unfiltered band), arcsec^2/s.
+    n2: f64,
+}
+
+/// The chosen filter, its corner interval and what it does to ARW.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FilterChoice {
+    pub filter: ReadoutFilter,
+    /// 95 % interval of the -3 dB frequency, cycles per sample.
+    pub corner_ci_cycles: (f64, f64),
+    /// Range of the ML N^2 over the candidates within the corner interval.
+    pub n2_range: (f64, f64),
+    /// Deviance of the filter against none.
+    pub lr: f64,
+}
+
+/// Profile the likelihood over readout filters; `None` when no filter beats
+/// the unfiltered model by [`FILTER_LR`].
+pub(super) fn search(lf: &Lf, n_samples: u64, from: usize, ci_lr: f64) -> Option<FilterChoice> {
+    let none_terms = standard_terms(n_samples, lf.tau0).to_vec();
+    let none_basis = lf.basis(&none_terms);
+    let r0 = lf.rows(&none_terms, &none_basis, from);
+    // the filter adds a column and a shape: leave at least two spare rows
+    if r0.y.len() < none_terms.len() + 4 {
+        return None;
+    }
+    let edf = ml_edf(&r0.phi, &r0.y, &r0.edf0, &lf.edf(&none_terms, &none_basis, from, &r0.phi));
+    let l_none = ml_loglik_fixed_edf(&r0.phi, &r0.y, &edf).1;
+    let eval = |f: ReadoutFilter| -> Candidate {
+        let terms = filtered_terms(n_samples, lf.tau0, f);
+        let basis = lf.basis(&terms);
+        let Rows { phi, y, .. } = lf.rows(&terms, &basis, from);
+        let (theta, loglik) = ml_loglik_fixed_edf(&phi, &y, &edf);
+        Candidate { filter: f, loglik, n2: theta[1] }
+    };
+    let mut cands: Vec<Candidate> = (2..=MAX_MA).filter_map(|l| ReadoutFilter::moving_average(l).ok()).map(eval).collect();
+    let fo: Vec<Candidate> = fo_grid().into_iter().map(|p| eval(ReadoutFilter::FirstOrder { pole: p })).collect();
+    cands.extend(refine_first_order(&fo, &eval));
+    cands.extend(fo);
+    let best = *cands.iter().max_by(|a, b| a.loglik.total_cmp(&b.loglik))?;
+    let lr = 2.0 * (best.loglik - l_none);
+    if !(lr >= FILTER_LR) {
+        return None;
+    }
+    let inside: Vec<&Candidate> = cands.iter().filter(|c| 2.0 * (best.loglik - c.loglik) <= ci_lr).collect();
+    let mut lo = inside.iter().map(|c| c.filter.corner_cycles()).fold(f64::INFINITY, f64::min);
+    let mut hi = inside.iter().map(|c| c.filter.corner_cycles()).fold(0.0, f64::max);
+    if let ReadoutFilter::FirstOrder { .. } = best.filter {
+        let (a, b) = first_order_ci(&best, &eval, ci_lr);
+        lo = lo.min(a);
+        hi = hi.max(b);
+    }
+    let n2_lo = inside.iter().map(|c| c.n2).fold(f64::INFINITY, f64::min);
+    let n2_hi = inside.iter().map(|c| c.n2).fold(0.0, f64::max);
+    Some(FilterChoice { filter: best.filter, corner_ci_cycles: (lo, hi), n2_range: (n2_lo, n2_hi), lr })
+}
+
+/// Poles of the first-order grid (log-spaced corners).
+fn fo_grid() -> Vec<f64> {
+    (0..FO_GRID)
+        .map(|i| {
+            let c = FO_LO * (FO_HI / FO_LO).powf(i as f64 / (FO_GRID - 1) as f64);
+            pole_of(c)
+        })
+        .collect()
+}
+
+/// The pole of a one-pole filter with -3 dB at `c` cycles per sample.
+fn pole_of(c: f64) -> f64 {
+    let b = 2.0 - (2.0 * std::f64::consts::PI * c).cos();
+    b - (b * b - 1.0).sqrt()
+}
+
+fn corner_of(c: &Candidate) -> f64 {
+    c.filter.corner_cycles()
+}
+
+/// Golden-section refinement of the best first-order grid point over the
+/// log corner between its neighbours; returns the points evaluated.
+fn refine_first_order(grid: &[Candidate], eval: &dyn Fn(ReadoutFilter) -> Candidate) -> Vec<Candidate> {
+    let Some(ib) = (0..grid.len()).max_by(|&a, &b| grid[a].loglik.total_cmp(&grid[b].loglik)) else {
+        return Vec::new();
+    };
+    let (mut a, mut b) = (
+        corner_of(&grid[ib.saturating_sub(1)]).ln(),
+        corner_of(&grid[(ib + 1).min(grid.len() - 1)]).ln(),
+    );
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let at = |x: f64| eval(ReadoutFilter::FirstOrder { pole: pole_of(x.exp()) });
+    let mut out = Vec::new();
+    let (mut x1, mut x2) = (b - g * (b - a), a + g * (b - a));
+    let (mut f1, mut f2) = (at(x1), at(x2));
+    for _ in 0..14 {
+        if f1.loglik >= f2.loglik {
+            out.push(f2);
+            b = x2;
+            (x2, f2) = (x1, f1);
+            x1 = b - g * (b - a);
+            f1 = at(x1);
+        } else {
+            out.push(f1);
+            a = x1;
+            (x1, f1) = (x2, f2);
+            x2 = a + g * (b - a);
+            f2 = at(x2);
+        }
+    }
+    out.extend([f1, f2]);
+    out
+}
+
+/// The profile-likelihood interval of a first-order corner: from the best
+/// corner, step out in log corner until the deviance passes `ci_lr`, then
+/// bisect; cycles per sample.
+fn first_order_ci(best: &Candidate, eval: &dyn Fn(ReadoutFilter) -> Candidate, ci_lr: f64) -> (f64, f64) {
+    let x0 = corner_of(best).ln();
+    let dev = |x: f64| 2.0 * (best.loglik - eval(ReadoutFilter::FirstOrder { pole: pole_of(x.exp()) }).loglik);
+    let bound = |dir: f64| -> f64 {
+        let limit = if dir > 0.0 { FO_HI.ln() } else { (FO_LO / 4.0).ln() };
+        let (mut inside, mut step) = (x0, 0.02);
+        loop {
+            let x = (inside + dir * step).clamp(limit.min(x0), limit.max(x0));
+            if dev(x) > ci_lr {
+                let (mut a, mut b) = (inside, x);
+                for _ in 0..20 {
+                    let m = 0.5 * (a + b);
+                    if dev(m) > ci_lr { b = m } else { a = m }
+                }
+                return (0.5 * (a + b)).exp();
+            }
+            if x == limit {
+                return limit.exp();
+            }
+            inside = x;
+            step *= 2.0;
+        }
+    };
+    (bound(-1.0), bound(1.0))
+}
+
+/// Saturation is decided on the unfiltered rows; the filtered rows follow it.
+pub(super) fn saturate_rows(r: &mut Rows, saturated: bool) {
+    if saturated {
+        saturate(&mut r.phi);
+    }
+}
