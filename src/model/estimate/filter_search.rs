@@ -56,13 +56,14 @@ struct Candidate {
 }
 
 /// The chosen filter, its corner interval and what it does to ARW.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct FilterChoice {
     pub filter: ReadoutFilter,
     /// 95 % interval of the -3 dB frequency, cycles per sample.
     pub corner_ci_cycles: (f64, f64),
-    /// Range of the ML N^2 over the candidates within the corner interval.
-    pub n2_range: (f64, f64),
+    /// `(ML N^2, deviance against the best)` of the candidates within the
+    /// corner interval (the best included, and the interval's ends).
+    pub n2_inside: Vec<(f64, f64)>,
     /// Deviance of the filter against none.
     pub lr: f64,
 }
@@ -95,17 +96,26 @@ pub(super) fn search(lf: &Lf, n_samples: u64, from: usize, ci_lr: f64) -> Option
     if !(lr >= FILTER_LR) {
         return None;
     }
-    let inside: Vec<&Candidate> = cands.iter().filter(|c| 2.0 * (best.loglik - c.loglik) <= ci_lr).collect();
-    let mut lo = inside.iter().map(|c| c.filter.corner_cycles()).fold(f64::INFINITY, f64::min);
-    let mut hi = inside.iter().map(|c| c.filter.corner_cycles()).fold(0.0, f64::max);
+    let mut inside: Vec<Candidate> = cands.iter().copied().filter(|c| 2.0 * (best.loglik - c.loglik) <= ci_lr).collect();
     if let ReadoutFilter::FirstOrder { .. } = best.filter {
-        let (a, b) = first_order_ci(&best, &eval, ci_lr);
-        lo = lo.min(a);
-        hi = hi.max(b);
+        inside.extend(first_order_ci(&best, &eval, ci_lr));
     }
-    let n2_lo = inside.iter().map(|c| c.n2).fold(f64::INFINITY, f64::min);
-    let n2_hi = inside.iter().map(|c| c.n2).fold(0.0, f64::max);
-    Some(FilterChoice { filter: best.filter, corner_ci_cycles: (lo, hi), n2_range: (n2_lo, n2_hi), lr })
+    let lo = inside.iter().map(corner_of).fold(f64::INFINITY, f64::min);
+    let hi = inside.iter().map(corner_of).fold(0.0, f64::max);
+    let n2_inside = inside.iter().map(|c| (c.n2, (2.0 * (best.loglik - c.loglik)).max(0.0))).collect();
+    Some(FilterChoice { filter: best.filter, corner_ci_cycles: (lo, hi), n2_inside, lr })
+}
+
+/// The interval of N^2 over the filter's confidence set: each candidate's own
+/// profile interval, approximated as the best filter's interval `(lo, hi)`
+/// about `n2_best`, shrunk by `sqrt(1 - deviance / ci_lr)` and centred on the
+/// candidate's N^2; the union over candidates.
+pub fn n2_interval(c: &FilterChoice, n2_best: f64, (lo, hi): (f64, f64), ci_lr: f64) -> (f64, f64) {
+    let (dl, dh) = (n2_best - lo, hi - n2_best);
+    c.n2_inside.iter().fold((lo, hi), |(a, b), &(n2, dev)| {
+        let s = (1.0 - dev / ci_lr).max(0.0).sqrt();
+        (a.min(n2 - s * dl).max(0.0), b.max(n2 + s * dh))
+    })
 }
 
 /// Poles of the first-order grid (log-spaced corners).
@@ -162,33 +172,41 @@ fn refine_first_order(grid: &[Candidate], eval: &dyn Fn(ReadoutFilter) -> Candid
     out
 }
 
-/// The profile-likelihood interval of a first-order corner: from the best
-/// corner, step out in log corner until the deviance passes `ci_lr`, then
-/// bisect; cycles per sample.
-fn first_order_ci(best: &Candidate, eval: &dyn Fn(ReadoutFilter) -> Candidate, ci_lr: f64) -> (f64, f64) {
+/// The ends of the profile-likelihood interval of a first-order corner: from
+/// the best corner, step out in log corner until the deviance passes `ci_lr`,
+/// then bisect; the candidates at both ends.
+fn first_order_ci(best: &Candidate, eval: &dyn Fn(ReadoutFilter) -> Candidate, ci_lr: f64) -> [Candidate; 2] {
     let x0 = corner_of(best).ln();
-    let dev = |x: f64| 2.0 * (best.loglik - eval(ReadoutFilter::FirstOrder { pole: pole_of(x.exp()) }).loglik);
-    let bound = |dir: f64| -> f64 {
+    let at = |x: f64| eval(ReadoutFilter::FirstOrder { pole: pole_of(x.exp()) });
+    let dev = |c: &Candidate| 2.0 * (best.loglik - c.loglik);
+    let bound = |dir: f64| -> Candidate {
         let limit = if dir > 0.0 { FO_HI.ln() } else { (FO_LO / 4.0).ln() };
-        let (mut inside, mut step) = (x0, 0.02);
+        let (mut inside, mut step) = (*best, 0.02);
+        let mut x_in = x0;
         loop {
-            let x = (inside + dir * step).clamp(limit.min(x0), limit.max(x0));
-            if dev(x) > ci_lr {
-                let (mut a, mut b) = (inside, x);
+            let x = (x_in + dir * step).clamp(limit.min(x0), limit.max(x0));
+            let c = at(x);
+            if dev(&c) > ci_lr {
+                let (mut a, mut b) = (x_in, x);
                 for _ in 0..20 {
                     let m = 0.5 * (a + b);
-                    if dev(m) > ci_lr { b = m } else { a = m }
+                    let cm = at(m);
+                    if dev(&cm) > ci_lr {
+                        b = m;
+                    } else {
+                        (a, inside) = (m, cm);
+                    }
                 }
-                return (0.5 * (a + b)).exp();
+                return inside;
             }
             if x == limit {
-                return limit.exp();
+                return c;
             }
-            inside = x;
+            (x_in, inside) = (x, c);
             step *= 2.0;
         }
     };
-    (bound(-1.0), bound(1.0))
+    [bound(-1.0), bound(1.0)]
 }
 
 /// Saturation is decided on the unfiltered rows; the filtered rows follow it.

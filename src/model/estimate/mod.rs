@@ -441,9 +441,8 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         }
         let mut t = fit.terms[i];
         if i == 1 {
-            if let (Some(c), Some((lo, hi))) = (&choice, t.ci95.as_mut()) {
-                *lo = lo.min(c.n2_range.0);
-                *hi = hi.max(c.n2_range.1);
+            if let (Some(c), Some(ci)) = (&choice, t.ci95.as_mut()) {
+                *ci = filter_search::n2_interval(c, t.theta, *ci, opts.ci_lr);
             }
         }
         term_coefficient(&widen_term(t, widen), CONV[i])
