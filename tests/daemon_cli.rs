@@ -181,7 +181,7 @@ fn short_and_cut_captures_end_cleanly() {
         }
         if frames >= 2 {
             let a = Command::new(env!("CARGO_BIN_EXE_sagnac"))
-                .args(["analyze", "--format", "frames", "--input", p])
+                .args(["analyze", "--format", "frames", "--rate-hz", "1000", "--pulse-arcsec", "1.21", "--input", p])
                 .output()
                 .unwrap();
             let err = String::from_utf8_lossy(&a.stderr);
