@@ -25,6 +25,10 @@ Summary keys:
   last_estimates        payload of the /gyro/estimates message with the largest
                         log time (the final estimates of a `sagnac run`), or null
   gap_lost_total        sum of "lost" over the gap events on /gyro/events
+  metadata              name -> key-value map of each Metadata record (the
+                        `sagnac` record: sample_rate_hz, output, pulse_arcsec,
+                        model or config, sagnac_version), read through the
+                        summary's metadata index
 """
 
 import json
@@ -69,6 +73,7 @@ def main() -> int:
             if summary is not None and summary.statistics is not None
             else None
         )
+        metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
         for schema, channel, message in reader.iter_messages(log_time_order=False):
             messages += 1
             topic = channel.topic
@@ -127,6 +132,7 @@ def main() -> int:
                 "schema_invalid": schema_invalid,
                 "last_estimates": last_estimates,
                 "gap_lost_total": gap_lost_total,
+                "metadata": metadata,
             },
             sort_keys=True,
         )

@@ -13,7 +13,8 @@ use std::path::{Path, PathBuf};
 
 use crate::pipeline::{Pipeline, PipelineConfig, PipelineError, PipelineOutput};
 use crate::sink::messages::SinkMessage;
-use crate::sink::reader::{ReadError, scan_recording};
+use crate::sink::meta::{AGREE_REL, Contradiction, GyroOutput, check_flag};
+use crate::sink::reader::{ReadError, read_metadata, scan_recording};
 use crate::source::capture::{CaptureError, CaptureReader};
 use crate::source::frame::spread_increment;
 use crate::source::input::{InputError, InputFormat, SampleReader};
@@ -56,6 +57,15 @@ pub enum OfflineError {
     ImplausibleGap { path: PathBuf, t0_ns: u64, lost: u64 },
     #[error("{path}: no samples before the file becomes unreadable at byte {offset}: {reason}")]
     BrokenBeforeSamples { path: PathBuf, offset: u64, reason: String },
+    /// A value the input does not carry and no flag gave.
+    #[error("{flag} is required: {} carries no {what}", path.display())]
+    FlagRequired { flag: &'static str, path: PathBuf, what: &'static str },
+    /// A flag that contradicts the recording.
+    #[error(transparent)]
+    Contradiction(#[from] Contradiction),
+    /// A recording of rate samples, which this reader does not convert.
+    #[error("{}: its metadata says output = rate (rate samples, not pulse counts): not supported here yet", path.display())]
+    RateOutput { path: PathBuf },
 }
 
 /// Longest gap (lost samples) a recording may hold: 4.7 h at 1 kHz. The frame
@@ -194,6 +204,55 @@ pub fn run_capture(
     out.clear();
     pipe.finish(&mut out);
     Ok((pipe, *reader.stats()))
+}
+
+/// The sample rate and pulse weight an MCAP recording's counts are read with.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RecordingGyro {
+    /// Sample rate, Hz.
+    pub rate_hz: f64,
+    /// Angle of one pulse, arcsec.
+    pub pulse_arcsec: f64,
+}
+
+/// The rate and pulse weight of the recording `path`, given the flags
+/// `--rate-hz` and `--pulse-arcsec` (`None` when absent): the recording's
+/// `sagnac` metadata record supplies what a flag leaves out, and a flag that
+/// contradicts it is an error naming the flag, the file and both values. An
+/// older recording without the record gives its rate as the sample period of
+/// `/gyro/raw` (a flag must agree within 1 ns of period) and no pulse weight.
+/// What neither gives is an error naming the flag.
+pub fn recording_gyro(
+    path: &Path,
+    rate_flag: Option<f64>,
+    pulse_flag: Option<f64>,
+) -> Result<RecordingGyro, OfflineError> {
+    let (rate, pulse) = match read_metadata(path)? {
+        Some(meta) => {
+            if meta.output == GyroOutput::Rate {
+                return Err(OfflineError::RateOutput { path: path.to_path_buf() });
+            }
+            let origin = "in its sagnac metadata record";
+            (
+                check_flag("--rate-hz", rate_flag, Some(meta.sample_rate_hz), path, origin, AGREE_REL)?,
+                check_flag("--pulse-arcsec", pulse_flag, meta.pulse_arcsec, path, origin, AGREE_REL)?,
+            )
+        }
+        None => {
+            let dt = recording_period_ns(path)?.filter(|dt| *dt > 0);
+            let recorded = dt.map(|dt| 1e9 / dt as f64);
+            let tol = dt.map_or(0.0, |dt| 1.0 / dt as f64);
+            (
+                check_flag("--rate-hz", rate_flag, recorded, path, "as the sample period of /gyro/raw", tol)?,
+                pulse_flag,
+            )
+        }
+    };
+    let required = |flag, what| OfflineError::FlagRequired { flag, path: path.to_path_buf(), what };
+    Ok(RecordingGyro {
+        rate_hz: rate.ok_or_else(|| required("--rate-hz", "sample rate (no metadata record, no /gyro/raw sample)"))?,
+        pulse_arcsec: pulse.ok_or_else(|| required("--pulse-arcsec", "pulse weight (no sagnac metadata record)"))?,
+    })
 }
 
 /// Sample period (ns) of the first `/gyro/raw` batch of a recording, if any.

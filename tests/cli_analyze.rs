@@ -42,7 +42,7 @@ fn json_contract_and_values_on_a_simulated_run() {
     let dir = tempfile::tempdir().unwrap();
     let csv = simulate(dir.path(), "600");
     let out = dir.path().join("a.json");
-    let o = sagnac(&["analyze", "--input", csv.to_str().unwrap(), "--json", out.to_str().unwrap()]);
+    let o = sagnac(&["analyze", "--input", csv.to_str().unwrap(), "--rate-hz", "1000", "--pulse-arcsec", "1.21", "--json", out.to_str().unwrap()]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
     for k in ["quantization_arcsec", "arw_dpsh", "bias_instability_dph", "rrw_dphsh", "rate_ramp_dphh"] {
@@ -61,7 +61,7 @@ fn json_contract_and_values_on_a_simulated_run() {
     assert!((q / 0.35 - 1.0).abs() < 0.01, "Q {q}");
     assert!((n / 0.0015 - 1.0).abs() < 0.1, "N {n}");
     // the readable table
-    let o = sagnac(&["analyze", "--input", csv.to_str().unwrap()]);
+    let o = sagnac(&["analyze", "--input", csv.to_str().unwrap(), "--rate-hz", "1000", "--pulse-arcsec", "1.21"]);
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success() && text.contains("angle random walk") && text.contains("clean ADEV"), "{text}");
 }
@@ -104,9 +104,9 @@ fn bad_inputs_exit_2_with_a_clear_message() {
     let dir = tempfile::tempdir().unwrap();
     let csv = simulate(dir.path(), "5");
     let cases: Vec<(Vec<&str>, &str)> = vec![
-        (vec!["--column", "rate"], "rate"),
-        (vec!["--rate-hz", "-5"], "--rate-hz"),
-        (vec!["--pulse-arcsec", "0"], "--pulse-arcsec"),
+        (vec!["--column", "rate", "--rate-hz", "1000", "--pulse-arcsec", "1.21"], "no CSV column named \"rate\""),
+        (vec!["--rate-hz", "-5", "--pulse-arcsec", "1.21"], "--rate-hz"),
+        (vec!["--rate-hz", "1000", "--pulse-arcsec", "0"], "--pulse-arcsec"),
     ];
     for (extra, needle) in cases {
         let mut a = vec!["analyze", "--input", csv.to_str().unwrap(), "--json", "-"];
@@ -118,7 +118,7 @@ fn bad_inputs_exit_2_with_a_clear_message() {
     }
     let bad = dir.path().join("bad.csv");
     std::fs::write(&bad, "counts\n1\n2\nthree\n4\n").unwrap();
-    let o = sagnac(&["analyze", "--input", bad.to_str().unwrap(), "--json", "-"]);
+    let o = sagnac(&["analyze", "--input", bad.to_str().unwrap(), "--rate-hz", "1000", "--pulse-arcsec", "1.21", "--json", "-"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("bad.csv") && err.contains('4'), "must name the file and line: {err}");
@@ -140,7 +140,7 @@ fn json_to_a_failing_stdout_is_an_error_not_a_panic() {
     assert!(sim.status.success(), "{}", String::from_utf8_lossy(&sim.stderr));
     let full = || std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
     for args in [
-        vec!["analyze", "--input", csv.to_str().unwrap(), "--json", "-"],
+        vec!["analyze", "--input", csv.to_str().unwrap(), "--rate-hz", "1000", "--pulse-arcsec", "1.21", "--json", "-"],
         vec!["allan", "--input", csv.to_str().unwrap(), "--format", "csv", "--data", "freq", "--tau0", "0.001", "--column", "counts", "--json", "-"],
     ] {
         let r = std::process::Command::new(bin).args(&args).stdout(full()).output().unwrap();
@@ -184,7 +184,8 @@ fn damaged_inputs_are_reported_not_silently_dropped() {
     let bytes = std::fs::read(&full).unwrap();
     let cut = dir.path().join("cut.mcap");
     std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
-    let r = analyze(&["--format", "mcap", "--input", cut.to_str().unwrap()]);
+    // (recorded without a metadata record: the rate from /gyro/raw, the pulse weight by flag)
+    let r = analyze(&["--format", "mcap", "--pulse-arcsec", "1.21", "--input", cut.to_str().unwrap()]);
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(r.status.success(), "{err}");
     assert!(err.contains("warning: ") && err.contains("cut.mcap: unreadable from byte"), "{err}");
@@ -193,7 +194,7 @@ fn damaged_inputs_are_reported_not_silently_dropped() {
     let rec = Recorder::start(&cfg).unwrap();
     rec.send(batch(0, vec![Gap { index: 500, lost: 1 << 40 }])).unwrap();
     let huge = rec.finish().unwrap().path;
-    let r = analyze(&["--format", "mcap", "--input", huge.to_str().unwrap()]);
+    let r = analyze(&["--format", "mcap", "--pulse-arcsec", "1.21", "--input", huge.to_str().unwrap()]);
     let err = String::from_utf8_lossy(&r.stderr);
     assert_eq!(r.status.code(), Some(2), "{err}");
     assert!(err.contains("gap of 1099511627776 lost samples") && !err.contains("panicked"), "{err}");
@@ -219,7 +220,7 @@ fn damaged_inputs_are_reported_not_silently_dropped() {
     let mut frames = std::fs::read(&cap).unwrap();
     frames.drain(16 * 100..16 * 103); // three frames lost
     std::fs::write(&cap, &frames).unwrap();
-    let r = analyze(&["--format", "frames", "--input", cap.to_str().unwrap()]);
+    let r = analyze(&["--format", "frames", "--rate-hz", "1000", "--pulse-arcsec", "1.21", "--input", cap.to_str().unwrap()]);
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(r.status.success(), "{err}");
     assert!(err.contains("3 samples lost in 1 gaps"), "{err}");
@@ -237,7 +238,7 @@ fn a_constant_recording_finds_nothing_and_says_why() {
         text.push_str("3\n");
     }
     std::fs::write(&csv, text).unwrap();
-    let out = sagnac(&["analyze", "--input", csv.to_str().unwrap(), "--json", "-"]);
+    let out = sagnac(&["analyze", "--input", csv.to_str().unwrap(), "--rate-hz", "1000", "--pulse-arcsec", "1.21", "--json", "-"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("stuck.csv") && err.contains("stuck counter"), "{err}");
@@ -260,4 +261,117 @@ fn column_is_refused_for_frame_and_mcap_input() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(err.contains("--column applies to CSV input only"), "{format}: {err}");
     }
+}
+
+/// Issue 13 ("no silent defaults"): a CSV file and a frame capture carry no
+/// sample rate and no pulse weight, so the flags are required (exit 2 naming
+/// the flag and the file), where 1000 Hz and 1.21" used to be assumed.
+#[test]
+fn issue_13_csv_and_frames_need_the_rate_and_pulse_flags() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = simulate(dir.path(), "5");
+    let c = csv.to_str().unwrap();
+    let cap = dir.path().join("cap.bin");
+    let model = dir.path().join("m.toml");
+    let o = sagnac(&["simulate", "--model", model.to_str().unwrap(), "--duration-s", "2", "--seed", "1", "--format", "frames", "--out", cap.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let b = cap.to_str().unwrap();
+    let cases: Vec<(Vec<&str>, String)> = vec![
+        (vec!["--input", c, "--pulse-arcsec", "1.21"], format!("--rate-hz is required: {c} carries no sample rate")),
+        (vec!["--input", c, "--rate-hz", "1000"], format!("--pulse-arcsec is required: {c} carries no pulse weight")),
+        (vec!["--input", c], "--rate-hz is required".to_string()),
+        (vec!["--format", "frames", "--input", b, "--pulse-arcsec", "1.21"], format!("--rate-hz is required: {b} carries no sample rate")),
+        (vec!["--format", "frames", "--input", b, "--rate-hz", "1000"], format!("--pulse-arcsec is required: {b} carries no pulse weight")),
+    ];
+    for (args, needle) in cases {
+        let o = Command::new(env!("CARGO_BIN_EXE_sagnac")).arg("analyze").args(&args).args(["--json", "-"]).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(&needle) && !err.contains("panicked"), "{args:?}: {err}");
+    }
+    // a rate column needs no pulse weight
+    let o = sagnac(&["analyze", "--input", c, "--rate-hz", "1000", "--unit", "dph", "--json", "-"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// Issue 13: an MCAP recording from `simulate --format mcap` carries its rate and
+/// pulse weight in its metadata record; analysed without flags it uses them (the
+/// same result as with the matching flags, at the model's 400 Hz, not 1000), and
+/// a flag that contradicts it is an error naming the flag, the file and both values.
+#[test]
+fn issue_13_an_mcap_recording_carries_its_rate_and_pulse_weight() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("m.toml");
+    std::fs::write(
+        &model,
+        "[gyro]\nsample_rate_hz = 400.0\npulse_weight_arcsec = 0.9\ninput_rate_dph = 12.3\n\
+         [noise]\nquantization_arcsec = 0.26\narw_dpsh = 0.002\n",
+    )
+    .unwrap();
+    let mcap = dir.path().join("sim.mcap");
+    let m = mcap.to_str().unwrap();
+    let o = sagnac(&["simulate", "--model", model.to_str().unwrap(), "--duration-s", "120", "--seed", "3", "--format", "mcap", "--out", m]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // the metadata record, as the library reads it
+    let meta = sagnac::sink::reader::read_metadata(&mcap).unwrap().expect("a sagnac metadata record");
+    assert_eq!((meta.sample_rate_hz, meta.pulse_arcsec), (400.0, Some(0.9)));
+    assert_eq!(meta.model.as_deref(), Some(std::fs::read_to_string(&model).unwrap().as_str()));
+    assert_eq!(meta.sagnac_version, env!("CARGO_PKG_VERSION"));
+
+    let bare = sagnac(&["analyze", "--format", "mcap", "--input", m, "--json", "-"]);
+    assert!(bare.status.success(), "{}", String::from_utf8_lossy(&bare.stderr));
+    let v: Value = serde_json::from_slice(&bare.stdout).unwrap();
+    assert_eq!(v["samples"], 48_000);
+    assert!((v["duration_s"].as_f64().unwrap() - 120.0).abs() < 1e-9, "{}", v["duration_s"]);
+    // truth Q 0.26" (a pulse weight of 1.21" would scale it to 0.35")
+    let q = v["estimates"]["quantization_arcsec"]["value"].as_f64().unwrap();
+    assert!((q / 0.26 - 1.0).abs() < 0.03, "Q {q}");
+    let flagged = sagnac(&["analyze", "--format", "mcap", "--input", m, "--rate-hz", "400", "--pulse-arcsec", "0.9", "--json", "-"]);
+    assert!(flagged.status.success(), "{}", String::from_utf8_lossy(&flagged.stderr));
+    assert_eq!(bare.stdout, flagged.stdout, "the metadata's values are the flags' values");
+
+    for (flag, value, recorded) in [("--rate-hz", "1000", "400"), ("--pulse-arcsec", "1.21", "0.9")] {
+        let o = sagnac(&["analyze", "--format", "mcap", "--input", m, flag, value, "--json", "-"]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{flag}: {err}");
+        let want = format!("{flag} {value} contradicts {m}: the recording says {recorded} in its sagnac metadata record");
+        assert!(err.contains(&want), "{flag}: {err}");
+    }
+}
+
+/// Issue 13: an MCAP recording without the metadata record (made before it
+/// existed) gives its rate by its sample period; the pulse weight must be given.
+#[test]
+fn issue_13_an_mcap_recording_without_metadata_needs_the_pulse_flag() {
+    use sagnac::sink::mcap::{Recorder, RecorderConfig};
+    use sagnac::sink::messages::{RawBatch, SinkMessage};
+    let dir = tempfile::tempdir().unwrap();
+    let rec = Recorder::start(&RecorderConfig { record_dir: dir.path().to_path_buf(), ..RecorderConfig::default() }).unwrap();
+    for k in 0..60u64 {
+        rec.send(SinkMessage::Raw(RawBatch {
+            t0_ns: k * 1_000_000_000,
+            dt_ns: 5_000_000, // 200 Hz
+            seq0: k * 200,
+            counts: (0..200).map(|i| ((i * 7 + k as i64) % 5) - 2).collect(),
+            gaps: vec![],
+            temp_c: None,
+            status: 7,
+        }))
+        .unwrap();
+    }
+    let path = rec.finish().unwrap().path;
+    let p = path.to_str().unwrap();
+    assert_eq!(sagnac::sink::reader::read_metadata(&path).unwrap(), None);
+    let o = sagnac(&["analyze", "--format", "mcap", "--input", p, "--json", "-"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains(&format!("--pulse-arcsec is required: {p} carries no pulse weight")), "{err}");
+    let o = sagnac(&["analyze", "--format", "mcap", "--input", p, "--pulse-arcsec", "1.21", "--json", "-"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!((v["duration_s"].as_f64().unwrap() - 60.0).abs() < 1e-9, "200 Hz from dt_ns: {}", v["duration_s"]);
+    let o = sagnac(&["analyze", "--format", "mcap", "--input", p, "--pulse-arcsec", "1.21", "--rate-hz", "1000", "--json", "-"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("--rate-hz 1000 contradicts") && err.contains("says 200 as the sample period of /gyro/raw"), "{err}");
 }

@@ -181,7 +181,7 @@ fn short_and_cut_captures_end_cleanly() {
         }
         if frames >= 2 {
             let a = Command::new(env!("CARGO_BIN_EXE_sagnac"))
-                .args(["analyze", "--format", "frames", "--input", p])
+                .args(["analyze", "--format", "frames", "--rate-hz", "1000", "--pulse-arcsec", "1.21", "--input", p])
                 .output()
                 .unwrap();
             let err = String::from_utf8_lossy(&a.stderr);
@@ -352,4 +352,45 @@ fn duration_limit_ends_the_run_and_logs_are_json() {
     }
     let v = read_mcap_py(&only_recording(&dir.path().join("rec")));
     assert_eq!(v["raw_samples"], 3000);
+}
+
+/// Issue 13: a replayed MCAP recording says its rate and pulse weight in its
+/// metadata record; the daemon uses them, a flag that contradicts them exits 2
+/// naming the flag, the file and both values, and the daemon's own recording
+/// carries the metadata record too (rate, pulse weight, its config).
+#[test]
+fn issue_13_a_replayed_recording_supplies_its_rate_and_pulse_weight() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("m.toml");
+    std::fs::write(&model, "[gyro]\nsample_rate_hz = 500.0\npulse_weight_arcsec = 0.9\ninput_rate_dph = 12.3\n[noise]\narw_dpsh = 0.002\n").unwrap();
+    let mcap = dir.path().join("sim.mcap");
+    let sim = Command::new(env!("CARGO_BIN_EXE_sagnac"))
+        .args(["simulate", "--model"])
+        .arg(&model)
+        .args(["--duration-s", "20", "--seed", "2", "--format", "mcap", "--out"])
+        .arg(&mcap)
+        .output()
+        .unwrap();
+    assert!(sim.status.success(), "{}", String::from_utf8_lossy(&sim.stderr));
+    let m = mcap.to_str().unwrap();
+    for (flag, value, recorded) in [("--rate-hz", "1000", "500"), ("--pulse-arcsec", "1.21", "0.9")] {
+        let r = run(&["--replay", m, flag, value, "--record-dir", "", "--metrics-addr", ""]);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(2), "{flag}: {err}");
+        assert!(err.contains(&format!("bad value for {flag}")), "{flag}: {err}");
+        assert!(err.contains(&format!("{value} contradicts {m}: the recording says {recorded} in its sagnac metadata record")), "{flag}: {err}");
+    }
+    // agreeing flags, and none: the recording's values
+    let rec = dir.path().join("rec");
+    let r = run(&["--replay", m, "--rate-hz", "500", "--record-dir", rec.to_str().unwrap(), "--metrics-addr", ""]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    assert!(err.contains("rate_hz=500") && err.contains("pulse_arcsec=0.9"), "{err}");
+    let made: Vec<_> = std::fs::read_dir(&rec).unwrap().map(|e| e.unwrap().path()).collect();
+    assert_eq!(made.len(), 1, "{made:?}");
+    let meta = sagnac::sink::reader::read_metadata(&made[0]).unwrap().expect("the daemon writes a metadata record");
+    assert_eq!((meta.sample_rate_hz, meta.pulse_arcsec), (500.0, Some(0.9)));
+    let config = meta.config.expect("the daemon's config");
+    assert!(config.contains("rate_hz = 500") && config.contains("replay_path"), "{config}");
+    assert_eq!(meta.model, None);
 }

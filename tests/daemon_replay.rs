@@ -131,12 +131,15 @@ fn replays_are_exact_deterministic_and_equal_the_offline_pipeline() {
     assert_eq!(raw1, raw2);
     assert_eq!(raw2, raw3);
 
-    // `sagnac analyze` on the same capture, and on the daemon's recording of it.
-    for (format, input) in [("frames", &bin), ("mcap", &rec1)] {
+    // `sagnac analyze` on the same capture (which carries no rate or pulse weight:
+    // the flags), and on the daemon's recording of it (its metadata record says them).
+    let frame_flags: &[&str] = &["--rate-hz", "1000", "--pulse-arcsec", "1.21"];
+    for (format, input, flags) in [("frames", &bin, frame_flags), ("mcap", &rec1, &[][..])] {
         let out = dir.path().join(format!("analyze-{format}.json"));
         let r = std::process::Command::new(env!("CARGO_BIN_EXE_sagnac"))
             .args(["analyze", "--format", format, "--input"])
             .arg(input)
+            .args(flags)
             .arg("--json")
             .arg(&out)
             .output()

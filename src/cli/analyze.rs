@@ -4,6 +4,11 @@
 //!
 //! Thin: reading is `offline`, the numerics are `pipeline` (the same chain the
 //! daemon runs live).
+//!
+//! No silent defaults: a CSV file and a frame capture carry no sample rate and
+//! no pulse weight, so `--rate-hz` (and `--pulse-arcsec` for pulse counts) are
+//! required; an MCAP recording carries both in its `sagnac` metadata record
+//! ([`crate::sink::meta`]), and a flag that contradicts it is an error.
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -14,7 +19,7 @@ use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::model::estimate::Coefficient;
-use crate::offline::{self, RateUnit};
+use crate::offline::{self, OfflineError, RateUnit};
 use crate::pipeline::{Analysis, PipelineConfig};
 use crate::source::input::InputFormat;
 
@@ -27,12 +32,14 @@ pub struct AnalyzeArgs {
     /// Input format.
     #[arg(long, value_enum, default_value = "csv")]
     pub format: AnalyzeFormat,
-    /// Sample rate, Hz (MCAP recordings carry their own).
+    /// Sample rate, Hz: required for CSV and frame captures; an MCAP recording
+    /// carries its own (the flag must then agree with it).
     #[arg(long, value_name = "F", allow_negative_numbers = true)]
     pub rate_hz: Option<f64>,
-    /// Angle of one counter pulse, arcsec (for pulse counts).
-    #[arg(long, value_name = "D", default_value_t = 1.21, allow_negative_numbers = true)]
-    pub pulse_arcsec: f64,
+    /// Angle of one counter pulse, arcsec: required for pulse counts in CSV and
+    /// frame captures; an MCAP recording carries its own (the flag must then agree).
+    #[arg(long, value_name = "D", allow_negative_numbers = true)]
+    pub pulse_arcsec: Option<f64>,
     /// CSV column to analyse (default `counts`).
     #[arg(long, value_name = "NAME")]
     pub column: Option<String>,
@@ -51,17 +58,21 @@ pub enum AnalyzeFormat {
     Mcap,
 }
 
-/// Default sample rate when neither the flag nor the file gives one.
-const DEFAULT_RATE_HZ: f64 = 1000.0;
+/// The value of `flag`, or the error naming it: `input` (a CSV file or a frame
+/// capture) carries no `what`.
+fn required(flag: &'static str, value: Option<f64>, input: &std::path::Path, what: &'static str) -> Result<f64> {
+    value.ok_or_else(|| OfflineError::FlagRequired { flag, path: input.to_path_buf(), what }.into())
+}
 
 pub fn run(args: AnalyzeArgs) -> Result<()> {
     if let Some(r) = args.rate_hz
         && !(r.is_finite() && r > 0.0) {
             bail!("--rate-hz must be a positive number of Hz (got {r})");
         }
-    if !(args.pulse_arcsec.is_finite() && args.pulse_arcsec > 0.0) {
-        bail!("--pulse-arcsec must be a positive number of arcsec (got {})", args.pulse_arcsec);
-    }
+    if let Some(d) = args.pulse_arcsec
+        && !(d.is_finite() && d > 0.0) {
+            bail!("--pulse-arcsec must be a positive number of arcsec (got {d})");
+        }
     if args.column.is_some() && args.format != AnalyzeFormat::Csv {
         bail!("--column applies to CSV input only (frame captures and MCAP recordings hold pulse counts)");
     }
@@ -86,15 +97,22 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
     let input = &args.input;
     let pipe = match args.format {
         AnalyzeFormat::Csv => {
-            let rate = args.rate_hz.unwrap_or(DEFAULT_RATE_HZ);
-            let cfg = PipelineConfig::counts(rate, args.pulse_arcsec);
+            let rate = required("--rate-hz", args.rate_hz, input, "sample rate")?;
+            let cfg = match args.unit {
+                RateUnit::Counts => PipelineConfig::counts(
+                    rate,
+                    required("--pulse-arcsec", args.pulse_arcsec, input, "pulse weight (--unit counts)")?,
+                ),
+                _ => PipelineConfig::rates(rate),
+            };
             let column = args.column.as_deref().unwrap_or("counts");
             offline::run_file(input, InputFormat::Csv, Some(column), args.unit, &cfg, &mut progress)
                 .with_context(|| format!("analysing {}", input.display()))?
         }
         AnalyzeFormat::Frames => {
-            let rate = args.rate_hz.unwrap_or(DEFAULT_RATE_HZ);
-            let cfg = PipelineConfig::counts(rate, args.pulse_arcsec);
+            let rate = required("--rate-hz", args.rate_hz, input, "sample rate (a frame capture)")?;
+            let pulse = required("--pulse-arcsec", args.pulse_arcsec, input, "pulse weight (a frame capture)")?;
+            let cfg = PipelineConfig::counts(rate, pulse);
             let (pipe, stats) = offline::run_capture(input, &cfg, &mut progress)
                 .with_context(|| format!("analysing frame capture {}", input.display()))?;
             if stats.lost_samples + stats.bytes_skipped + stats.crc_errors + stats.duplicates + stats.out_of_sequence > 0 {
@@ -115,13 +133,9 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
             pipe
         }
         AnalyzeFormat::Mcap => {
-            let dt = offline::recording_period_ns(input).with_context(|| format!("reading {}", input.display()))?;
-            let rate = match (args.rate_hz, dt) {
-                (Some(r), _) => r,
-                (None, Some(dt)) if dt > 0 => 1e9 / dt as f64,
-                _ => DEFAULT_RATE_HZ,
-            };
-            let cfg = PipelineConfig::counts(rate, args.pulse_arcsec);
+            // the recording's metadata record supplies what the flags leave out
+            let gyro = offline::recording_gyro(input, args.rate_hz, args.pulse_arcsec)?;
+            let cfg = PipelineConfig::counts(gyro.rate_hz, gyro.pulse_arcsec);
             let (pipe, broken) = offline::run_recording(input, &cfg, &mut progress)
                 .with_context(|| format!("analysing recording {}", input.display()))?;
             if let Some(b) = broken {

@@ -5,8 +5,9 @@
 //! Inputs: the model TOML and a recording as CSV (`counts` column of pulse
 //! increments, optional `temp_c`), a raw frame capture (`frames`) or an MCAP
 //! recording (`mcap`, topic `/gyro/raw`). The sample rate and pulse weight come
-//! from the model's `[gyro]`, except that an MCAP recording's sample period
-//! (`dt_ns`) overrides the rate. Outputs: the JSON verdict (`--json`), an SVG
+//! from the model's `[gyro]`, except that an MCAP recording's own values
+//! override them: those of its `sagnac` metadata record ([`crate::sink::meta`]),
+//! or for an older recording without one its sample period (`dt_ns`). Outputs: the JSON verdict (`--json`), an SVG
 //! report (`--report`) and the updated model (`--write-model`).
 
 use std::fs::File;
@@ -19,6 +20,7 @@ use clap::{Args, ValueEnum};
 use crate::model::GyroModel;
 use crate::model::diagnose::{self, DiagnoseOptions, Recording};
 use crate::sink::messages::SinkMessage;
+use crate::sink::meta::GyroOutput;
 use crate::source::capture::CaptureReader;
 use crate::source::frame::{GapFiller, spread_increment};
 use crate::source::input::{InputError, InputFormat, SampleReader};
@@ -165,12 +167,13 @@ fn recording(
     counts: Vec<i64>,
     temp_c: Option<Vec<f64>>,
     rate: Option<f64>,
+    pulse: Option<f64>,
 ) -> Recording {
     Recording {
         counts,
         temp_c,
         sample_rate_hz: rate.unwrap_or(model.gyro.sample_rate_hz),
-        pulse_arcsec: model.gyro.pulse_weight_arcsec,
+        pulse_arcsec: pulse.unwrap_or(model.gyro.pulse_weight_arcsec),
     }
 }
 
@@ -205,7 +208,7 @@ fn read_csv(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
             counts.len()
         );
     }
-    Ok(recording(model, counts, temp.and_then(informative), None))
+    Ok(recording(model, counts, temp.and_then(informative), None, None))
 }
 
 fn read_frames(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
@@ -222,12 +225,19 @@ fn read_frames(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
         .map(|u| u.increment)
         .collect();
     temps.truncate(counts.len());
-    Ok(recording(model, counts, informative(temps), None))
+    Ok(recording(model, counts, informative(temps), None, None))
 }
 
 fn read_mcap(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
     let rec = crate::sink::reader::read_recording(path)
         .with_context(|| format!("reading the MCAP recording {}", path.display()))?;
+    // the recording's own rate and pulse weight (its metadata record), if it says them
+    let meta = rec.metadata.clone();
+    if let Some(m) = &meta
+        && m.output == GyroOutput::Rate
+    {
+        bail!("{}: its metadata says output = rate (rate samples, not pulse counts): not supported by diagnose yet", path.display());
+    }
     let mut counts = Vec::new();
     let mut temps: Vec<f64> = Vec::new();
     let mut any_temp = false;
@@ -280,13 +290,16 @@ fn read_mcap(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
     if counts.is_empty() {
         bail!("{}: no /gyro/raw samples in the recording", path.display());
     }
-    let rate = dt_ns.filter(|d| *d > 0).map(|d| 1e9 / d as f64);
+    let rate = match &meta {
+        Some(m) => Some(m.sample_rate_hz),
+        None => dt_ns.filter(|d| *d > 0).map(|d| 1e9 / d as f64),
+    };
     let temp = if any_temp && temps.iter().all(|t| t.is_finite()) {
         informative(temps)
     } else {
         None
     };
-    Ok(recording(model, counts, temp, rate))
+    Ok(recording(model, counts, temp, rate, meta.and_then(|m| m.pulse_arcsec)))
 }
 
 /// An output path must be `-` (JSON only), or name a file (not a directory)

@@ -172,14 +172,16 @@ fn init_logging(cfg: &Config) -> Result<()> {
 /// Say where a bad configuration value came from: the flag that set it, or
 /// else the config file (the error itself names the key).
 fn with_flag(args: &RunArgs, e: DaemonError) -> anyhow::Error {
-    let origin = match &e {
-        DaemonError::Config(ConfigError::Invalid { key, .. }) => match (flag_of(args, key), &args.config) {
-            (Some((flag, true)), _) => Some(format!("bad value for {flag}")),
-            (_, Some(file)) => Some(format!("bad value in {}", file.display())),
-            _ => None,
-        },
+    let key = match &e {
+        DaemonError::Config(ConfigError::Invalid { key, .. }) => Some(*key),
+        DaemonError::Contradiction(c) => Some(c.flag),
         _ => None,
     };
+    let origin = key.and_then(|key| match (flag_of(args, key), &args.config) {
+        (Some((flag, true)), _) => Some(format!("bad value for {flag}")),
+        (_, Some(file)) => Some(format!("bad value in {}", file.display())),
+        _ => None,
+    });
     match origin {
         Some(o) => anyhow::Error::new(e).context(o),
         None => anyhow::Error::new(e),

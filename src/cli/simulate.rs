@@ -2,7 +2,8 @@
 //! stream as CSV, as a raw frame capture (`--format frames`: the 16-byte gyro
 //! frames of [`crate::source::frame`], what a serial capture holds), or as an
 //! MCAP recording holding `/gyro/raw` (`--format mcap`, the channel `sagnac run`
-//! records and replays).
+//! records and replays, with the `sagnac` metadata record: rate, pulse weight and
+//! the model's text, so that `analyze` and `diagnose` need no flags for it).
 //!
 //! Frames start at `seq` 65000 and a counter 10^6 pulses below 2^32 (both wrap
 //! in a normal run), with all status flags OK and the model's temperature (25.00
@@ -21,6 +22,7 @@ use crate::model::config::OutputKind;
 use crate::model::{GyroModel, Simulator, sim};
 use crate::sink::mcap::{Recorder, RecorderConfig};
 use crate::sink::messages::{RawBatch, SinkMessage};
+use crate::sink::meta::RecordingMeta;
 use crate::source::bench::{SIM_START_COUNTER, SIM_START_SEQ};
 use crate::source::frame::{FrameEncoder, FrameWriter, STATUS_ALL_OK};
 
@@ -90,7 +92,12 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
             return Ok(());
         }
         SimFormat::Mcap => {
-            let messages = write_mcap(&mut simulator, &args.out)
+            // the recording carries its rate, pulse weight and model (the file's text)
+            let text = std::fs::read_to_string(&args.model)
+                .with_context(|| format!("reading {}", args.model.display()))?;
+            let mut meta = RecordingMeta::counts(simulator.sample_rate_hz(), simulator.pulse_weight_arcsec());
+            meta.model = Some(text);
+            let messages = write_mcap(&mut simulator, &meta, &args.out)
                 .with_context(|| format!("writing MCAP recording {}", args.out.display()))?;
             tracing::debug!(messages, "simulate: done");
             return Ok(());
@@ -145,7 +152,7 @@ fn write_frames<W: std::io::Write>(sim: &mut Simulator, out: W) -> anyhow::Resul
 const MCAP_BATCH: usize = 1000;
 
 /// Write the run as `/gyro/raw` messages to `out`; returns the number of messages.
-fn write_mcap(sim: &mut Simulator, out: &Path) -> anyhow::Result<u64> {
+fn write_mcap(sim: &mut Simulator, meta: &RecordingMeta, out: &Path) -> anyhow::Result<u64> {
     // The recorder names its file by time in a directory: write next to `out`
     // under that name, then rename.
     // The directory must exist (the recorder would create it), and the rename
@@ -163,7 +170,7 @@ fn write_mcap(sim: &mut Simulator, out: &Path) -> anyhow::Result<u64> {
         record_dir: dir,
         ..RecorderConfig::default()
     };
-    let recorder = Recorder::start_at(&config, std::time::UNIX_EPOCH)?;
+    let recorder = Recorder::start_with_metadata(&config, std::time::UNIX_EPOCH, Some(meta))?;
     let dt_ns = (1e9 / sim.sample_rate_hz()).round() as u64;
     let period_ns = 1e9 / sim.sample_rate_hz();
     let (mut counts, mut temps) = (Vec::with_capacity(MCAP_BATCH), Vec::with_capacity(MCAP_BATCH));

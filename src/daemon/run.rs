@@ -38,6 +38,7 @@ use crate::daemon::telemetry::Telemetry;
 use crate::model::{GyroModel, ModelError};
 use crate::pipeline::PipelineConfig;
 use crate::sink::mcap::{RecordError, Recorder, RecorderConfig, RecordingSummary};
+use crate::sink::meta::{AGREE_REL, Contradiction, RecordingMeta, check_flag};
 use crate::sink::metrics::{Metrics, MetricsError};
 use crate::source::bench::{BenchError, SimBench, SimBenchConfig};
 use crate::source::frame::DecoderConfig;
@@ -87,6 +88,9 @@ pub enum DaemonError {
     Http(#[from] HttpError),
     #[error("metrics: {0}")]
     Metrics(#[from] MetricsError),
+    /// An explicit gyro setting contradicts what the replayed recording says.
+    #[error(transparent)]
+    Contradiction(#[from] Contradiction),
     #[error("the {task} task failed: {message}")]
     Task { task: &'static str, message: String },
 }
@@ -112,6 +116,8 @@ pub struct Daemon {
     source: Source,
     processor: Processor,
     metrics_addr: Option<SocketAddr>,
+    /// The metadata record of the recording.
+    recording_meta: RecordingMeta,
 }
 
 /// What a run did.
@@ -138,8 +144,9 @@ fn mismatch(key: &'static str, value: f64, message: &'static str) -> DaemonError
 impl Daemon {
     /// Validate `config` (already overridden by flags) and build every component.
     /// The gyro rate and pulse weight of a simulated bench come from its model,
-    /// the rate of an MCAP replay from the recording, unless given explicitly
-    /// (then they must agree).
+    /// the rate and pulse weight of an MCAP replay from the recording (its
+    /// metadata record, else its sample period), unless given explicitly (then
+    /// they must agree). The recording made carries them in its metadata record.
     pub fn build(mut config: Config, explicit: Explicit) -> Result<Daemon, DaemonError> {
         config.validate()?;
         let speed = config.source.effective_speed();
@@ -147,6 +154,7 @@ impl Daemon {
             (config.run.duration_s > 0.0)
                 .then(|| (config.run.duration_s * rate_hz).round().max(1.0) as u64)
         };
+        let mut model_toml = None;
         let source = match config.source.kind {
             SourceKind::Simulate => {
                 let (model, origin) = if config.source.model.is_empty() {
@@ -170,6 +178,7 @@ impl Daemon {
                          rate gyro with `sagnac simulate` (CSV) instead",
                     }));
                 }
+                model_toml = model.to_toml().ok();
                 let (rate, pulse) = (model.gyro.sample_rate_hz, model.gyro.pulse_weight_arcsec);
                 if explicit.rate_hz && config.gyro.rate_hz != rate {
                     return Err(mismatch(
@@ -205,19 +214,30 @@ impl Daemon {
             }
             SourceKind::Replay => {
                 let path = PathBuf::from(&config.source.replay_path);
-                if replay::probe(&path)? == CaptureKind::Mcap
-                    && let Some(dt_ns) = replay::probe_mcap_period_ns(&path)?
-                {
-                    let recorded = 1e9 / dt_ns as f64;
-                    if (1e9 / config.gyro.rate_hz - dt_ns as f64).abs() > 1.0 {
-                        if explicit.rate_hz {
-                            return Err(mismatch(
-                                "gyro.rate_hz",
-                                config.gyro.rate_hz,
-                                "differs from the sample period recorded in /gyro/raw (leave it out to use the recording's)",
-                            ));
-                        }
-                        config.gyro.rate_hz = recorded;
+                if replay::probe(&path)? == CaptureKind::Mcap {
+                    // The recording's own rate and pulse weight (its metadata record,
+                    // else the sample period of /gyro/raw); an explicit value must agree.
+                    let recorded = replay::probe_mcap_gyro(&path)?;
+                    let given = |on: bool, v: f64| on.then_some(v);
+                    if let Some(r) = check_flag(
+                        "gyro.rate_hz",
+                        given(explicit.rate_hz, config.gyro.rate_hz),
+                        recorded.rate_hz,
+                        &path,
+                        recorded.origin,
+                        recorded.rate_rel_tol,
+                    )? {
+                        config.gyro.rate_hz = r;
+                    }
+                    if let Some(p) = check_flag(
+                        "gyro.pulse_arcsec",
+                        given(explicit.pulse_arcsec, config.gyro.pulse_arcsec),
+                        recorded.pulse_arcsec,
+                        &path,
+                        recorded.origin,
+                        AGREE_REL,
+                    )? {
+                        config.gyro.pulse_arcsec = p;
                     }
                 }
                 tracing::info!(path = %path.display(), speed, "source: replay");
@@ -279,11 +299,16 @@ impl Daemon {
             // validate() checked that it parses
             config.metrics.addr.parse().ok()
         };
+        // What the recording says about itself (see crate::sink::meta).
+        let mut recording_meta = RecordingMeta::counts(config.gyro.rate_hz, config.gyro.pulse_arcsec);
+        recording_meta.config = toml::to_string(&config).ok();
+        recording_meta.model = model_toml;
         Ok(Daemon {
             config,
             source,
             processor,
             metrics_addr,
+            recording_meta,
         })
     }
 
@@ -299,6 +324,7 @@ impl Daemon {
             mut source,
             processor,
             metrics_addr,
+            recording_meta,
         } = self;
         // A serial port that cannot be opened fails the run before anything starts.
         if let Source::Serial(s) = &mut source {
@@ -335,7 +361,9 @@ impl Daemon {
                 chunk_size: CHUNK_SIZE,
                 ..RecorderConfig::default()
             };
-            let r = tokio::task::spawn_blocking(move || Recorder::start(&rc))
+            let r = tokio::task::spawn_blocking(move || {
+                Recorder::start_with_metadata(&rc, std::time::SystemTime::now(), Some(&recording_meta))
+            })
                 .await
                 .map_err(|e| join_err("recorder start", e))??;
             tracing::info!(path = %r.path().display(), "recording");

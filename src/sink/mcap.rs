@@ -14,7 +14,9 @@
 //! [`crate::sink::reader::recover_recording`]. The data is not `fsync`ed: a power
 //! loss may lose what the OS had not yet written.
 //!
-//! The schemas and channels go into a first chunk that is closed before
+//! A recording started with [`Recorder::start_with_metadata`] holds, right after
+//! the header, the `sagnac` Metadata record ([`crate::sink::meta`]: sample rate,
+//! pulse weight, config or model, version). The schemas and channels go into a first chunk that is closed before
 //! [`Recorder::start`] returns, so every recording is readable from its start.
 //! (`start` does that small amount of file I/O on the calling thread; from async
 //! code, call it in `spawn_blocking`.) Messages keep their sample time as MCAP log
@@ -41,6 +43,7 @@ use std::time::{Duration, Instant, SystemTime};
 use serde::{Deserialize, Serialize};
 
 use crate::sink::messages::{MESSAGE_ENCODING, MessageError, SCHEMA_ENCODING, SinkMessage, Topic};
+use crate::sink::meta::RecordingMeta;
 
 /// Errors of the recorder.
 #[derive(Debug, thiserror::Error)]
@@ -328,8 +331,19 @@ impl Recorder {
         Recorder::start_at(config, SystemTime::now())
     }
 
-    /// Start a recording named by `start` (tests, replays of old runs).
+    /// Start a recording named by `start` (tests, replays of old runs), without
+    /// a metadata record.
     pub fn start_at(config: &RecorderConfig, start: SystemTime) -> Result<Recorder, RecordError> {
+        Recorder::start_with_metadata(config, start, None)
+    }
+
+    /// Start a recording named by `start` whose first record after the header is
+    /// `metadata` (the `sagnac` Metadata record of [`crate::sink::meta`]).
+    pub fn start_with_metadata(
+        config: &RecorderConfig,
+        start: SystemTime,
+        metadata: Option<&RecordingMeta>,
+    ) -> Result<Recorder, RecordError> {
         config.validate()?;
         let dir = &config.record_dir;
         std::fs::create_dir_all(dir).map_err(|source| RecordError::CreateDir {
@@ -359,6 +373,12 @@ impl Recorder {
         let mut writer = options
             .create(BufWriter::new(counting))
             .map_err(|e| mcap_err("writing the header", e))?;
+        // The recording's description first, where a reader finds it at once.
+        if let Some(meta) = metadata {
+            writer
+                .write_metadata(&meta.to_record())
+                .map_err(|e| mcap_err("writing the metadata record", e))?;
+        }
         let mut channels = BTreeMap::new();
         for topic in Topic::ALL {
             let schema = serde_json::to_vec_pretty(&topic.json_schema()).map_err(|source| {

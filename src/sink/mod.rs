@@ -3,11 +3,14 @@
 //! - [`messages`]: the typed messages of the six MCAP channels and their JSON Schemas;
 //! - [`mcap`]: the [`mcap::Recorder`], one zstd-chunked MCAP file per run, written on
 //!   its own thread with a bounded-loss flush policy;
+//! - [`meta`]: the recording's `sagnac` Metadata record (sample rate, pulse weight,
+//!   model, config), and the rule for a flag that meets a recorded value;
 //! - [`reader`]: reading recordings back (replay, `analyze --format mcap`) and
 //!   recovering truncated ones;
 //! - [`metrics`]: the Prometheus metrics served by [`crate::daemon::http`].
 
 pub mod mcap;
+pub mod meta;
 pub mod messages;
 pub mod metrics;
 pub mod reader;

@@ -10,6 +10,12 @@
 //! disk): it keeps every message up to the last complete chunk and reports the
 //! offset where the file breaks. Messages come back as typed [`SinkMessage`]s;
 //! channels of other topics are skipped and counted.
+//!
+//! The recording's `sagnac` Metadata record ([`crate::sink::meta`]: sample rate,
+//! pulse weight, model, config) is read here too, and only here: every scan
+//! returns it, and [`read_metadata`] reads just the start of a file for it (the
+//! writers put it before any chunk), for the commands that must know the rate
+//! before they read the samples (`analyze`, `diagnose`, the daemon's replay).
 
 use std::collections::HashMap;
 use std::fs::File;
@@ -21,6 +27,7 @@ use ::mcap::records::Record;
 use ::mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
 
 use crate::sink::messages::{MESSAGE_ENCODING, MessageError, SinkMessage, Topic};
+use crate::sink::meta::{METADATA_NAME, MetaError, RecordingMeta};
 
 /// Errors of the reader; each names the file and a byte offset.
 #[derive(Debug, thiserror::Error)]
@@ -58,6 +65,13 @@ pub enum ReadError {
         offset: u64,
         topic: &'static str,
         encoding: String,
+    },
+    /// The `sagnac` Metadata record does not describe a recording.
+    #[error("{}: the sagnac metadata record at byte {offset}: {source}", path.display())]
+    Metadata {
+        path: PathBuf,
+        offset: u64,
+        source: MetaError,
     },
     /// A message refers to a channel that was never declared.
     #[error("{}: message in the record at byte {offset} refers to undeclared channel {channel_id}", path.display())]
@@ -101,6 +115,8 @@ pub struct Recording {
     pub foreign_messages: u64,
     /// File size, bytes.
     pub file_len: u64,
+    /// The recording's `sagnac` metadata record, if it has one.
+    pub metadata: Option<RecordingMeta>,
 }
 
 /// What could be recovered from a possibly truncated recording.
@@ -116,6 +132,8 @@ pub struct Recovery {
     pub file_len: u64,
     /// Where and why reading stopped, `None` for a complete file.
     pub break_at: Option<Break>,
+    /// The recording's `sagnac` metadata record, if one was read.
+    pub metadata: Option<RecordingMeta>,
 }
 
 /// Where a truncated or damaged recording stops being readable.
@@ -182,6 +200,7 @@ fn read_impl(input: &mut dyn Read, len: u64, path: &Path) -> Result<Recording, R
         messages,
         foreign_messages: report.foreign_messages,
         file_len: report.file_len,
+        metadata: report.metadata,
     })
 }
 
@@ -194,6 +213,7 @@ fn recover_impl(input: &mut dyn Read, len: u64, path: &Path) -> Result<Recovery,
         recovered_bytes: report.recovered_bytes,
         file_len: report.file_len,
         break_at: report.break_at,
+        metadata: report.metadata,
     })
 }
 
@@ -210,6 +230,8 @@ pub struct ScanReport {
     pub file_len: u64,
     /// Where reading stopped (only when `strict` is false; strict scans return the error).
     pub break_at: Option<Break>,
+    /// The first `sagnac` metadata record read, if any.
+    pub metadata: Option<RecordingMeta>,
 }
 
 /// Stream the messages of a recording to `each` without holding them all.
@@ -222,6 +244,90 @@ pub fn scan_recording(
 ) -> Result<ScanReport, ReadError> {
     let (file, len) = open(path)?;
     scan(&mut BufReader::new(file), len, path, strict, each)
+}
+
+/// The `sagnac` metadata record of a recording, read from the start of the file
+/// up to the first chunk or message (sagnac writes it right after the header;
+/// a file without one before its data, such as a recording made before the
+/// record existed, gives `None`). Cheap: it reads a few hundred bytes.
+pub fn read_metadata(path: &Path) -> Result<Option<RecordingMeta>, ReadError> {
+    let (file, len) = open(path)?;
+    let mut input = BufReader::new(file);
+    let io_err = |offset, source| ReadError::Io {
+        path: path.to_path_buf(),
+        offset,
+        source,
+    };
+    let mut magic = Vec::with_capacity(8);
+    (&mut input)
+        .take(8)
+        .read_to_end(&mut magic)
+        .map_err(|e| io_err(0, e))?;
+    if magic[..] != ::mcap::MAGIC[..magic.len()] {
+        return Err(ReadError::NotMcap {
+            path: path.to_path_buf(),
+        });
+    }
+    let scanner = Scanner {
+        path,
+        channels: HashMap::new(),
+        report: ScanReport {
+            messages: 0,
+            foreign_messages: 0,
+            recovered_bytes: 0,
+            file_len: len,
+            break_at: None,
+            metadata: None,
+        },
+    };
+    if magic.len() < 8 {
+        return Err(scanner.mcap_error(0, McapError::UnexpectedEof));
+    }
+    let options = LinearReaderOptions::default()
+        .with_skip_start_magic(true)
+        .with_emit_chunks(true)
+        .with_record_length_limit(usize::try_from(len).unwrap_or(usize::MAX));
+    let mut reader = LinearReader::new_with_options(options);
+    let mut offset: u64 = 8;
+    while let Some(event) = reader.next_event() {
+        match event.map_err(|e| scanner.mcap_error(offset, e))? {
+            LinearReadEvent::ReadRequest(need) => {
+                let buf = reader.insert(need.clamp(1, 4096));
+                let n = read_some(&mut input, buf).map_err(|e| io_err(offset, e))?;
+                reader.notify_read(n);
+            }
+            LinearReadEvent::Record { data, opcode } => {
+                let start = offset;
+                offset = start + RECORD_PREFIX + data.len() as u64;
+                match opcode {
+                    ::mcap::records::op::CHUNK | ::mcap::records::op::MESSAGE => return Ok(None),
+                    ::mcap::records::op::METADATA => {
+                        let record = ::mcap::parse_record(opcode, data)
+                            .map_err(|e| scanner.mcap_error(start, e))?;
+                        if let Record::Metadata(m) = record
+                            && m.name == METADATA_NAME
+                        {
+                            return parse_metadata(&m, start, path).map(Some);
+                        }
+                    }
+                    _ => {}
+                }
+            }
+        }
+    }
+    Ok(None)
+}
+
+fn parse_metadata(
+    m: &::mcap::records::Metadata,
+    offset: u64,
+    path: &Path,
+) -> Result<RecordingMeta, ReadError> {
+    RecordingMeta::from_map(&m.metadata).map_err(|source| ReadError::Metadata {
+        path: path.to_path_buf(),
+        offset,
+        source,
+    })
 }
 
 /// Bytes handed to the sans-io reader per read.
@@ -274,6 +380,7 @@ fn scan(
             recovered_bytes: magic.len() as u64,
             file_len,
             break_at: None,
+            metadata: None,
         },
     };
     if magic.len() < 8 {
@@ -328,6 +435,12 @@ fn scan(
                 match record {
                     Record::Footer(_) => footer_seen = true,
                     Record::Statistics(ref s) => stats_count = Some((start, s.message_count)),
+                    Record::Metadata(ref m) if m.name == METADATA_NAME && scanner.report.metadata.is_none() => {
+                        match parse_metadata(m, start, path) {
+                            Ok(meta) => scanner.report.metadata = Some(meta),
+                            Err(e) => return scanner.stop(strict, start, e),
+                        }
+                    }
                     _ => {}
                 }
                 if let Err(e) = scanner.record(record, start, each) {

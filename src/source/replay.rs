@@ -84,6 +84,9 @@ pub enum ReplayError {
          capture (.bin) or an MCAP recording made by `sagnac run`?", path.display()
     )]
     NoSamples { path: PathBuf, bytes_read: u64 },
+    /// The recording's metadata record cannot be read.
+    #[error(transparent)]
+    Recording(#[from] crate::sink::reader::ReadError),
     /// The pipeline stopped during the replay.
     #[error("replay of {}: {source}", path.display())]
     Pipeline {
@@ -130,6 +133,42 @@ pub fn probe_mcap_period_ns(path: &Path) -> Result<Option<u64>, ReplayError> {
         }
     }
     Ok(found)
+}
+
+/// What an MCAP recording says about its gyro.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RecordedGyro {
+    /// Sample rate, Hz, if known.
+    pub rate_hz: Option<f64>,
+    /// Angle of one pulse, arcsec, if known (only a metadata record says it).
+    pub pulse_arcsec: Option<f64>,
+    /// Where the values come from (for messages).
+    pub origin: &'static str,
+    /// Relative tolerance of an explicit rate against `rate_hz`
+    /// (see [`crate::sink::meta::check_flag`]).
+    pub rate_rel_tol: f64,
+}
+
+/// The gyro of an MCAP recording: its `sagnac` metadata record
+/// ([`crate::sink::reader::read_metadata`]), or for an older recording without
+/// one the sample period of its first `/gyro/raw` message (no pulse weight).
+pub fn probe_mcap_gyro(path: &Path) -> Result<RecordedGyro, ReplayError> {
+    if let Some(meta) = crate::sink::reader::read_metadata(path)? {
+        return Ok(RecordedGyro {
+            rate_hz: Some(meta.sample_rate_hz),
+            pulse_arcsec: meta.pulse_arcsec,
+            origin: "in its sagnac metadata record",
+            rate_rel_tol: crate::sink::meta::AGREE_REL,
+        });
+    }
+    let dt = probe_mcap_period_ns(path)?;
+    Ok(RecordedGyro {
+        rate_hz: dt.map(|dt| 1e9 / dt as f64),
+        pulse_arcsec: None,
+        origin: "as the sample period of /gyro/raw",
+        // 1 ns in the period
+        rate_rel_tol: dt.map_or(0.0, |dt| 1.0 / dt as f64),
+    })
 }
 
 /// Settings of the replay source.
