@@ -1,7 +1,7 @@
 //! What travels from a source task to the numeric pipeline thread: a
 //! [`SourceBatch`] of decoded samples (not yet gap-filled) with the events met
 //! while decoding them, built by an [`Assembler`] from the frame decoder's
-//! output and delivered by a [`BatchSender`] through a bounded channel.
+//! output and delivered by a [`BatchSender`] through a bounded queue.
 //!
 //! # Sequence numbers and time
 //! Samples are numbered by an *unwrapped* sequence number: the 16-bit frame
@@ -21,16 +21,17 @@
 //! increment over the missing periods ([`crate::source::frame::spread_increment`]).
 //!
 //! # Delivery
-//! [`Delivery::Lossless`] (replays, the simulated bench) waits for room in the
-//! channel: backpressure slows the source down. [`Delivery::Live`] (the serial
-//! port, which cannot be paused) never waits: a batch that does not fit is
-//! dropped, counted in `sagnac_dropped_samples_total`, and folded into the next
-//! batch that fits as a gap (its pulses are added to that batch's first sample,
-//! so no angle is lost), with a `backpressure_drop` event.
+//! [`Delivery::Lossless`] (replays, the simulated bench) waits for room in a
+//! queue of a few batches: backpressure slows the source down. [`Delivery::Live`]
+//! (the serial port, which cannot be paused) never waits, and its queue is bounded
+//! by a memory budget ([`crate::daemon::queue`]): a batch that does not fit in
+//! what is left of it is dropped, counted in `sagnac_dropped_samples_total`, and
+//! folded into the next batch that fits as a gap (its pulses are added to that
+//! batch's first sample, so no angle is lost), with a `backpressure_drop` event.
 
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
-use crate::daemon::queue::{self, BatchReceiver, QueueBound, QueueTx, TryPushError};
+use crate::daemon::queue::{self, BatchReceiver, QueueBound, QueueTx};
 use crate::daemon::telemetry::{
     ANOMALY_DISCONTINUITY, ANOMALY_DUPLICATE, ANOMALY_OUT_OF_SEQUENCE, Telemetry,
 };
@@ -494,14 +495,10 @@ impl BatchSender {
     fn send_live(&mut self, mut batch: SourceBatch) -> Result<(), PipelineClosed> {
         batch.counts.shrink_to_fit();
         let Some(mut held) = self.held.take() else {
-            return match self.queue.try_push(batch) {
-                Ok(()) => Ok(()),
-                Err(TryPushError::Full(batch)) => {
-                    self.hold(batch);
-                    Ok(())
-                }
-                Err(TryPushError::Closed) => Err(PipelineClosed),
-            };
+            if let Some(refused) = self.queue.try_push(batch)? {
+                self.hold(refused);
+            }
+            return Ok(());
         };
         if batch.counts.is_empty() {
             // Nothing to carry the dropped pulses yet: keep holding them.

@@ -73,7 +73,8 @@ impl Share {
 
 impl Drop for Share {
     fn drop(&mut self) {
-        self.gauge.sub(i64::try_from(self.bytes).unwrap_or(i64::MAX));
+        self.gauge
+            .sub(i64::try_from(self.bytes).unwrap_or(i64::MAX));
     }
 }
 
@@ -82,15 +83,6 @@ impl Drop for Share {
 pub struct Queued {
     batch: SourceBatch,
     _share: Share,
-}
-
-/// A refused [`QueueTx::try_push`].
-#[derive(Debug)]
-pub enum TryPushError {
-    /// Not enough budget left.
-    Full(SourceBatch),
-    /// The pipeline stopped.
-    Closed,
 }
 
 /// Room reserved in a byte-budget queue for one batch of known charge.
@@ -150,10 +142,20 @@ pub fn channel(bound: QueueBound, telemetry: &Telemetry) -> (QueueTx, BatchRecei
             // Every batch is charged at least its own size: the byte budget binds
             // before this count does.
             let most = bytes / charge(0, 0, 0) + 1;
-            let capacity = usize::try_from(most).unwrap_or(usize::MAX).min(Semaphore::MAX_PERMITS);
-            let permits = usize::try_from(bytes).unwrap_or(usize::MAX).min(Semaphore::MAX_PERMITS);
+            let capacity = usize::try_from(most)
+                .unwrap_or(usize::MAX)
+                .min(Semaphore::MAX_PERMITS);
+            let permits = usize::try_from(bytes)
+                .unwrap_or(usize::MAX)
+                .min(Semaphore::MAX_PERMITS);
             let semaphore = Arc::new(Semaphore::new(permits));
-            (capacity, Some(Budget { semaphore, bytes: permits as u64 }))
+            (
+                capacity,
+                Some(Budget {
+                    semaphore,
+                    bytes: permits as u64,
+                }),
+            )
         }
     };
     let budget_bytes = budget.as_ref().map_or(0, |b| b.bytes);
@@ -191,7 +193,10 @@ impl QueueTx {
         };
         let slot = self.tx.reserve().await.map_err(|_| PipelineClosed)?;
         let share = Share::new(bytes, permit, &self.gauge);
-        slot.send(Queued { batch, _share: share });
+        slot.send(Queued {
+            batch,
+            _share: share,
+        });
         Ok(())
     }
 
@@ -200,7 +205,10 @@ impl QueueTx {
     pub fn blocking_push(&self, batch: SourceBatch) -> Result<(), PipelineClosed> {
         let share = Share::new(charge_of(&batch), None, &self.gauge);
         self.tx
-            .blocking_send(Queued { batch, _share: share })
+            .blocking_send(Queued {
+                batch,
+                _share: share,
+            })
             .map_err(|_| PipelineClosed)
     }
 
@@ -229,15 +237,15 @@ impl QueueTx {
         }
     }
 
-    /// Queue `batch` now if its charge fits in the byte budget.
-    pub fn try_push(&self, batch: SourceBatch) -> Result<(), TryPushError> {
-        match self.try_reserve(charge_of(&batch)) {
-            Ok(Some(r)) => {
-                r.send(batch);
-                Ok(())
+    /// Queue `batch` now if its charge fits in the byte budget; otherwise hand
+    /// it back (`Ok(Some(batch))`).
+    pub fn try_push(&self, batch: SourceBatch) -> Result<Option<SourceBatch>, PipelineClosed> {
+        match self.try_reserve(charge_of(&batch))? {
+            Some(room) => {
+                room.send(batch);
+                Ok(None)
             }
-            Ok(None) => Err(TryPushError::Full(batch)),
-            Err(PipelineClosed) => Err(TryPushError::Closed),
+            None => Ok(Some(batch)),
         }
     }
 }
