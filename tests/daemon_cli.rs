@@ -59,6 +59,14 @@ fn bad_values_exit_2_naming_the_key_and_the_flag() {
             vec!["source.speed", "--speed"],
         ),
         (
+            vec!["--serial", "/dev/null", "--queue-budget-mib", "0"],
+            vec!["source.queue_budget_mib", "--queue-budget-mib", "got 0"],
+        ),
+        (
+            vec!["--serial", "/dev/null", "--queue-budget-mib", "1e6"],
+            vec!["source.queue_budget_mib", "--queue-budget-mib"],
+        ),
+        (
             vec!["--replay", "/nonexistent/capture.bin"],
             vec!["/nonexistent/capture.bin"],
         ),

@@ -19,6 +19,7 @@ use std::time::Instant;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sagnac::daemon::batch::{Delivery, SourceBatch};
+use sagnac::daemon::queue::QueueBound;
 use sagnac::daemon::process::{Outputs, ProcessConfig, ProcessReport};
 use sagnac::daemon::telemetry::Telemetry;
 use sagnac::model::estimate::Coefficient;
@@ -105,7 +106,7 @@ fn run(batches: Vec<SourceBatch>, dir: &Path) -> (ProcessReport, Telemetry, std:
     })
     .unwrap();
     let telemetry = Telemetry::standalone().unwrap();
-    let (tx, rx) = tokio::sync::mpsc::channel(4);
+    let (mut tx, rx) = sagnac::daemon::batch::channel(QueueBound::Batches(4), &telemetry);
     let outputs = Outputs {
         recorder: Some(recorder.sender()),
         telemetry: telemetry.clone(),

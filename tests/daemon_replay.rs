@@ -18,8 +18,6 @@ use std::time::{Duration, Instant};
 
 use daemon_common::*;
 use sagnac::model::estimate::Coefficient;
-use sagnac::sink::messages::{EstimateUpdate, RawBatch, SinkMessage, TermEstimate};
-use sagnac::sink::reader::read_recording;
 use sagnac::source::bench::BenchEmulator;
 use sagnac::source::frame::inject::{FaultPlan, InjectorConfig};
 
@@ -44,42 +42,6 @@ fn run_replay(input: &Path, rec_dir: &Path, log: &Path, extra: &[&str]) -> Durat
         d.log_text()
     );
     start.elapsed()
-}
-
-/// (final estimates, raw messages) of a recording.
-fn final_and_raw(rec: &Path) -> (EstimateUpdate, Vec<RawBatch>) {
-    let r = read_recording(rec).unwrap();
-    let mut last = None;
-    let mut raw = Vec::new();
-    for m in r.messages {
-        match m.message {
-            SinkMessage::Estimates(e) => last = Some(e),
-            SinkMessage::Raw(b) => raw.push(b),
-            _ => {}
-        }
-    }
-    (last.expect("estimates recorded"), raw)
-}
-
-fn term(c: &Coefficient) -> TermEstimate {
-    TermEstimate {
-        value: c.value,
-        lo95: c.ci95.map(|c| c[0]),
-        hi95: c.ci95.map(|c| c[1]).or(c.upper95),
-    }
-}
-
-fn close(a: &TermEstimate, b: &TermEstimate, what: &str) {
-    for (x, y) in [(a.value, b.value), (a.lo95, b.lo95), (a.hi95, b.hi95)] {
-        match (x, y) {
-            (Some(x), Some(y)) => assert!(
-                (x - y).abs() <= 1e-9 * x.abs().max(y.abs()),
-                "{what}: {a:?} vs {b:?}"
-            ),
-            (None, None) => {}
-            _ => panic!("{what}: {a:?} vs {b:?}"),
-        }
-    }
 }
 
 #[test]
@@ -132,33 +94,12 @@ fn replays_are_exact_deterministic_and_equal_the_offline_pipeline() {
     assert_eq!(raw2, raw3);
 
     // `sagnac analyze` on the same capture (which carries no rate or pulse weight:
-    // the flags), and on the daemon's recording of it (its metadata record says them).
-    let frame_flags: &[&str] = &["--rate-hz", "1000", "--pulse-arcsec", "1.21"];
-    for (format, input, flags) in [("frames", &bin, frame_flags), ("mcap", &rec1, &[][..])] {
-        let out = dir.path().join(format!("analyze-{format}.json"));
-        let r = std::process::Command::new(env!("CARGO_BIN_EXE_sagnac"))
-            .args(["analyze", "--format", format, "--input"])
-            .arg(input)
-            .args(flags)
-            .arg("--json")
-            .arg(&out)
-            .output()
-            .unwrap();
-        assert!(
-            r.status.success(),
-            "analyze: {}",
-            String::from_utf8_lossy(&r.stderr)
-        );
-        let a: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    // analyze_json gives the flags), and on the daemon's recording of it (its
+    // metadata record says them).
+    for (format, input) in [("frames", &bin), ("mcap", &rec1)] {
+        let a = analyze_json(format, input, &dir.path().join(format!("analyze-{format}.json")));
         assert_eq!(a["samples"], 300_000);
-        for (k, key) in [
-            ("qn_arcsec", "quantization_arcsec"),
-            ("arw_dpsh", "arw_dpsh"),
-            ("bias_instability_dph", "bias_instability_dph"),
-            ("rrw_dphsh", "rrw_dphsh"),
-            ("ramp_dphh", "rate_ramp_dphh"),
-        ] {
+        for (k, key) in ESTIMATE_KEYS {
             let c: Coefficient = serde_json::from_value(a["estimates"][key].clone()).unwrap();
             // The same Pipeline on the same samples, pushed in other block sizes:
             // equal to rounding (relative 1e-9; the pipeline's sums are not

@@ -1,7 +1,7 @@
 //! `sagnac run`: the acquisition daemon.
 //!
 //! ```text
-//! sagnac run [--config FILE] [--serial PATH --baud N | --replay FILE [--speed X] | --simulate MODEL.toml]
+//! sagnac run [--config FILE] [--serial PATH --baud N [--queue-budget-mib M] | --replay FILE [--speed X] | --simulate MODEL.toml]
 //!            [--rate-hz F] [--pulse-arcsec D] [--metrics-addr ADDR] [--record-dir DIR]
 //!            [--wavelet sym8] [--duration-s S]
 //! ```
@@ -51,6 +51,9 @@ pub struct RunArgs {
     /// model of the founding paper's gyro).
     #[arg(long, value_name = "MODEL.toml")]
     pub simulate: Option<PathBuf>,
+    /// Memory budget of the serial source's pipeline queue, MiB (default 16).
+    #[arg(long, value_name = "MIB", allow_negative_numbers = true)]
+    pub queue_budget_mib: Option<f64>,
     /// Gyro sample (frame) rate, Hz.
     #[arg(long, value_name = "F", allow_negative_numbers = true)]
     pub rate_hz: Option<f64>,
@@ -79,6 +82,7 @@ fn flag_of(args: &RunArgs, key: &str) -> Option<(&'static str, bool)> {
         "source.replay_path" => ("--replay", args.replay.is_some()),
         "source.speed" => ("--speed", args.speed.is_some()),
         "source.model" => ("--simulate", args.simulate.is_some()),
+        "source.queue_budget_mib" => ("--queue-budget-mib", args.queue_budget_mib.is_some()),
         "gyro.rate_hz" => ("--rate-hz", args.rate_hz.is_some()),
         "gyro.pulse_arcsec" => ("--pulse-arcsec", args.pulse_arcsec.is_some()),
         "metrics.addr" => ("--metrics-addr", args.metrics_addr.is_some()),
@@ -120,6 +124,9 @@ pub fn resolve(args: &RunArgs) -> Result<(Config, Explicit), ConfigError> {
     }
     if let Some(s) = args.speed {
         cfg.source.speed = Some(s);
+    }
+    if let Some(v) = args.queue_budget_mib {
+        cfg.source.queue_budget_mib = v;
     }
     if let Some(v) = args.rate_hz {
         cfg.gyro.rate_hz = v;

@@ -1,7 +1,7 @@
 //! What travels from a source task to the numeric pipeline thread: a
 //! [`SourceBatch`] of decoded samples (not yet gap-filled) with the events met
 //! while decoding them, built by an [`Assembler`] from the frame decoder's
-//! output and delivered by a [`BatchSender`] through a bounded channel.
+//! output and delivered by a [`BatchSender`] through a bounded queue.
 //!
 //! # Sequence numbers and time
 //! Samples are numbered by an *unwrapped* sequence number: the 16-bit frame
@@ -21,17 +21,17 @@
 //! increment over the missing periods ([`crate::source::frame::spread_increment`]).
 //!
 //! # Delivery
-//! [`Delivery::Lossless`] (replays, the simulated bench) waits for room in the
-//! channel: backpressure slows the source down. [`Delivery::Live`] (the serial
-//! port, which cannot be paused) never waits: a batch that does not fit is
-//! dropped, counted in `sagnac_dropped_samples_total`, and folded into the next
-//! batch that fits as a gap (its pulses are added to that batch's first sample,
-//! so no angle is lost), with a `backpressure_drop` event.
+//! [`Delivery::Lossless`] (replays, the simulated bench) waits for room in a
+//! queue of a few batches: backpressure slows the source down. [`Delivery::Live`]
+//! (the serial port, which cannot be paused) never waits, and its queue is bounded
+//! by a memory budget ([`crate::daemon::queue`]): a batch that does not fit in
+//! what is left of it is dropped, counted in `sagnac_dropped_samples_total`, and
+//! folded into the next batch that fits as a gap (its pulses are added to that
+//! batch's first sample, so no angle is lost), with a `backpressure_drop` event.
 
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
-use tokio::sync::mpsc;
-
+use crate::daemon::queue::{self, BatchReceiver, QueueBound, QueueTx};
 use crate::daemon::telemetry::{
     ANOMALY_DISCONTINUITY, ANOMALY_DUPLICATE, ANOMALY_OUT_OF_SEQUENCE, Telemetry,
 };
@@ -439,26 +439,33 @@ struct Dropped {
 /// Most events kept from dropped batches.
 const MAX_HELD_EVENTS: usize = 4096;
 
-/// The sending end of the source -> pipeline channel.
+/// The sending end of the source -> pipeline queue ([`crate::daemon::queue`]).
 #[derive(Debug)]
 pub struct BatchSender {
-    tx: mpsc::Sender<SourceBatch>,
+    queue: QueueTx,
     delivery: Delivery,
     held: Option<Dropped>,
     telemetry: Telemetry,
 }
 
-impl BatchSender {
-    /// Wrap the channel's sender.
-    pub fn new(tx: mpsc::Sender<SourceBatch>, delivery: Delivery, telemetry: Telemetry) -> Self {
-        BatchSender {
-            tx,
-            delivery,
-            held: None,
-            telemetry,
-        }
-    }
+/// A source -> pipeline queue bounded by `bound`: a batch count for lossless
+/// delivery (the source waits), a byte budget for live delivery (the source drops).
+pub fn channel(bound: QueueBound, telemetry: &Telemetry) -> (BatchSender, BatchReceiver) {
+    let (queue, rx) = queue::channel(bound, telemetry);
+    let delivery = match bound {
+        QueueBound::Batches(_) => Delivery::Lossless,
+        QueueBound::Bytes(_) => Delivery::Live,
+    };
+    let sender = BatchSender {
+        queue,
+        delivery,
+        held: None,
+        telemetry: telemetry.clone(),
+    };
+    (sender, rx)
+}
 
+impl BatchSender {
     /// The delivery mode.
     pub fn delivery(&self) -> Delivery {
         self.delivery
@@ -472,7 +479,7 @@ impl BatchSender {
     /// Deliver from async code.
     pub async fn send(&mut self, batch: SourceBatch) -> Result<(), PipelineClosed> {
         match self.delivery {
-            Delivery::Lossless => self.tx.send(batch).await.map_err(|_| PipelineClosed),
+            Delivery::Lossless => self.queue.push(batch).await,
             Delivery::Live => self.send_live(batch),
         }
     }
@@ -480,44 +487,41 @@ impl BatchSender {
     /// Deliver from a blocking thread (never from async code).
     pub fn blocking_send(&mut self, batch: SourceBatch) -> Result<(), PipelineClosed> {
         match self.delivery {
-            Delivery::Lossless => self.tx.blocking_send(batch).map_err(|_| PipelineClosed),
+            Delivery::Lossless => self.queue.blocking_push(batch),
             Delivery::Live => self.send_live(batch),
         }
     }
 
     fn send_live(&mut self, mut batch: SourceBatch) -> Result<(), PipelineClosed> {
-        if let Some(mut held) = self.held.take() {
-            if batch.counts.is_empty() {
-                // Nothing to carry the dropped pulses yet: keep holding them.
-                held.events.append(&mut batch.events);
-                held.events.truncate(MAX_HELD_EVENTS);
-                self.held = Some(held);
-                return Ok(());
+        batch.counts.shrink_to_fit();
+        let Some(mut held) = self.held.take() else {
+            if let Some(refused) = self.queue.try_push(batch)? {
+                self.hold(refused);
             }
-            let full = match self.tx.try_reserve() {
-                Ok(permit) => {
-                    fold_into(&mut batch, held);
-                    permit.send(batch);
-                    return Ok(());
-                }
-                Err(mpsc::error::TrySendError::Full(())) => true,
-                Err(mpsc::error::TrySendError::Closed(())) => false,
-            };
-            if !full {
-                return Err(PipelineClosed);
-            }
+            return Ok(());
+        };
+        if batch.counts.is_empty() {
+            // Nothing to carry the dropped pulses yet: keep holding them.
+            held.events.append(&mut batch.events);
+            held.events.truncate(MAX_HELD_EVENTS);
             self.held = Some(held);
-            self.hold(batch);
             return Ok(());
         }
-        match self.tx.try_send(batch) {
-            Ok(()) => Ok(()),
-            Err(mpsc::error::TrySendError::Full(batch)) => {
-                self.hold(batch);
-                Ok(())
-            }
-            Err(mpsc::error::TrySendError::Closed(_)) => Err(PipelineClosed),
+        // Room for the batch once the held samples are folded into it: one more
+        // gap, the held events and a backpressure event.
+        let folded = queue::charge(
+            batch.counts.len(),
+            batch.gaps.len() + 1,
+            batch.events.len() + held.events.len() + 1,
+        );
+        if let Some(room) = self.queue.try_reserve(folded)? {
+            fold_into(&mut batch, held);
+            room.send(batch);
+            return Ok(());
         }
+        self.held = Some(held);
+        self.hold(batch);
+        Ok(())
     }
 
     fn hold(&mut self, batch: SourceBatch) {
@@ -583,7 +587,7 @@ impl BatchSender {
                 });
             }
             if !b.is_empty() {
-                self.tx.send(b).await.map_err(|_| PipelineClosed)?;
+                self.queue.push(b).await?;
             }
         }
         Ok(())
@@ -726,10 +730,9 @@ mod tests {
 
     #[tokio::test]
     async fn live_delivery_folds_dropped_batches_into_a_gap() {
-        let (tx, mut rx) = mpsc::channel(1);
         let t = telemetry();
-        let mut s = BatchSender::new(tx, Delivery::Live, t.clone());
-        s.send(batch(10, vec![1, 2, 3])).await.unwrap(); // fills the channel
+        let (mut s, mut rx) = channel(QueueBound::Bytes(queue::charge(3, 0, 0)), &t);
+        s.send(batch(10, vec![1, 2, 3])).await.unwrap(); // fills the budget
         s.send(batch(13, vec![4, 5])).await.unwrap(); // dropped
         s.send(batch(15, vec![6])).await.unwrap(); // dropped too
         assert_eq!(s.held_samples(), 3);
@@ -751,10 +754,9 @@ mod tests {
 
     #[tokio::test]
     async fn samples_dropped_at_the_end_of_the_stream_keep_their_pulses() {
-        let (tx, mut rx) = mpsc::channel(1);
         let t = telemetry();
-        let mut s = BatchSender::new(tx, Delivery::Live, t.clone());
-        s.send(batch(10, vec![1, 2, 3])).await.unwrap(); // fills the channel
+        let (mut s, mut rx) = channel(QueueBound::Bytes(queue::charge(3, 0, 0)), &t);
+        s.send(batch(10, vec![1, 2, 3])).await.unwrap(); // fills the budget
         let mut dropped = batch(13, vec![4, 5]);
         dropped.gaps.push(Gap { index: 1, lost: 2 }); // 2 lost before the 5
         s.send(dropped).await.unwrap();
@@ -779,8 +781,7 @@ mod tests {
 
     #[tokio::test]
     async fn lossless_delivery_waits_for_room() {
-        let (tx, mut rx) = mpsc::channel(1);
-        let mut s = BatchSender::new(tx, Delivery::Lossless, telemetry());
+        let (mut s, mut rx) = channel(QueueBound::Batches(1), &telemetry());
         s.send(batch(0, vec![1])).await.unwrap();
         let sender = tokio::spawn(async move {
             s.send(batch(1, vec![2])).await.unwrap();
@@ -789,5 +790,60 @@ mod tests {
         assert_eq!(rx.recv().await.unwrap().counts, vec![1]);
         assert_eq!(rx.recv().await.unwrap().counts, vec![2]);
         assert_eq!(sender.await.unwrap().held_samples(), 0);
+    }
+
+    #[tokio::test]
+    async fn a_burst_within_the_budget_is_queued_whole_and_its_bytes_released() {
+        let t = telemetry();
+        let one = queue::charge(100, 0, 0);
+        let (mut s, mut rx) = channel(QueueBound::Bytes(10 * one), &t);
+        assert_eq!(t.queue_budget_bytes.get() as u64, 10 * one);
+        for i in 0..10 {
+            s.send(batch(i * 100, vec![1; 100])).await.unwrap();
+        }
+        // Ten batches fit exactly: nothing dropped, the gauge holds their bytes.
+        assert_eq!((s.held_samples(), t.dropped_samples.get()), (0, 0));
+        assert_eq!(t.queue_bytes.get() as u64, 10 * one);
+        s.send(batch(1000, vec![2; 100])).await.unwrap(); // one past the budget
+        assert_eq!((s.held_samples(), t.dropped_samples.get()), (100, 100));
+        for _ in 0..10 {
+            assert_eq!(rx.recv().await.unwrap().counts, vec![1; 100]);
+        }
+        assert_eq!(t.queue_bytes.get(), 0);
+        s.send(batch(1100, vec![3; 100])).await.unwrap();
+        let b = rx.recv().await.unwrap();
+        assert_eq!(b.counts[0], 200 + 3);
+        assert_eq!(b.gaps, vec![Gap { index: 0, lost: 100 }]);
+        assert_eq!(t.queue_bytes.get(), 0);
+    }
+
+    #[tokio::test]
+    async fn a_batch_larger_than_the_budget_waits_for_an_empty_queue() {
+        let t = telemetry();
+        let (mut s, mut rx) = channel(QueueBound::Bytes(queue::charge(10, 0, 0)), &t);
+        s.send(batch(0, vec![1])).await.unwrap();
+        s.send(batch(1, vec![1; 100])).await.unwrap(); // too big while the queue holds one
+        assert_eq!(s.held_samples(), 100);
+        assert_eq!(rx.recv().await.unwrap().counts, vec![1]);
+        s.send(batch(101, vec![1; 100])).await.unwrap(); // empty queue: charged the whole budget
+        assert_eq!(s.held_samples(), 0);
+        assert_eq!(t.queue_bytes.get() as u64, queue::charge(10, 0, 0));
+        let b = rx.recv().await.unwrap();
+        assert_eq!(b.counts.iter().sum::<i64>(), 200);
+        assert_eq!(b.periods(), 200);
+    }
+
+    #[test]
+    fn the_pipeline_releases_a_batch_once_it_is_processed() {
+        let t = telemetry();
+        let (mut s, rx) = channel(QueueBound::Bytes(1 << 20), &t);
+        s.blocking_send(batch(0, vec![1; 10])).unwrap();
+        s.blocking_send(batch(10, vec![1; 20])).unwrap();
+        drop(s);
+        let (a, b) = (queue::charge(10, 0, 0) as i64, queue::charge(20, 0, 0) as i64);
+        let mut seen = Vec::new();
+        rx.for_each_blocking(|_| seen.push(t.queue_bytes.get()));
+        assert_eq!(seen, vec![a + b, b]);
+        assert_eq!(t.queue_bytes.get(), 0);
     }
 }

@@ -54,6 +54,9 @@ pub struct SourceConfig {
     pub model: String,
     /// Seed of the simulated bench.
     pub seed: u64,
+    /// Memory budget of the queue between a live (serial) source and the
+    /// pipeline, MiB of queued sample data: a burst within it loses nothing.
+    pub queue_budget_mib: f64,
 }
 
 impl Default for SourceConfig {
@@ -68,11 +71,20 @@ impl Default for SourceConfig {
             speed: None,
             model: String::new(),
             seed: 1,
+            queue_budget_mib: 16.0,
         }
     }
 }
 
+/// Smallest and largest `source.queue_budget_mib`: 64 KiB, 4 GiB.
+pub const QUEUE_BUDGET_MIB: [f64; 2] = [1.0 / 16.0, 4096.0];
+
 impl SourceConfig {
+    /// `queue_budget_mib` in bytes (validated: 64 KiB to 4 GiB).
+    pub fn queue_budget_bytes(&self) -> u64 {
+        (self.queue_budget_mib * crate::daemon::queue::MIB).round() as u64
+    }
+
     /// The pace actually used, in multiples of real time (0 = as fast as possible):
     /// `speed` when set, otherwise 1 for the simulated bench (so a dashboard shows
     /// it converging) and 0 for a replay. Serial input is never paced.
@@ -201,7 +213,9 @@ pub struct RunConfig {
     /// Stop after this many seconds of samples; 0 = run until SIGINT/SIGTERM
     /// (or the end of a replay).
     pub duration_s: f64,
-    /// Capacity (in batches) of every channel between tasks.
+    /// Capacity, in batches, of the queue between a replay or the simulated
+    /// bench and the pipeline (a live source's queue is sized by
+    /// `source.queue_budget_mib`).
     pub channel_capacity: usize,
 }
 
@@ -273,6 +287,10 @@ impl Config {
         if self.source.reconnect_max_s < self.source.reconnect_initial_s {
             return Err(invalid("source.reconnect_max_s", self.source.reconnect_max_s, "must be >= source.reconnect_initial_s"));
         }
+        let b = self.source.queue_budget_mib;
+        if !(b.is_finite() && (QUEUE_BUDGET_MIB[0]..=QUEUE_BUDGET_MIB[1]).contains(&b)) {
+            return Err(invalid("source.queue_budget_mib", b, "must be from 0.0625 (64 KiB) to 4096 (4 GiB)"));
+        }
         if let Some(speed) = self.source.speed
             && !(speed.is_finite() && speed >= 0.0)
         {
@@ -343,6 +361,12 @@ mod tests {
             ("[allan]\nfull_overlap_max_m = 1000", "allan.full_overlap_max_m"),
             ("[metrics]\naddr = \"localhost\"", "metrics.addr"),
             ("[source]\nspeed = -2.0", "source.speed"),
+            ("[source]\nqueue_budget_mib = 0", "source.queue_budget_mib"),
+            ("[source]\nqueue_budget_mib = -1.0", "source.queue_budget_mib"),
+            ("[source]\nqueue_budget_mib = 0.01", "source.queue_budget_mib"),
+            ("[source]\nqueue_budget_mib = 1e9", "source.queue_budget_mib"),
+            ("[source]\nqueue_budget_mib = nan", "source.queue_budget_mib"),
+            ("[run]\nchannel_capacity = 0", "run.channel_capacity"),
         ];
         for (text, key) in cases {
             let cfg = Config::from_toml(text, Path::new("x.toml")).unwrap();

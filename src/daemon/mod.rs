@@ -5,6 +5,8 @@
 //! * [`batch`]: what a source hands to the pipeline ([`batch::SourceBatch`]),
 //!   built from the frame decoder's output, delivered losslessly (replays,
 //!   simulated bench: backpressure) or live (serial: drop, count, fold);
+//! * [`queue`]: the source -> pipeline queue, bounded by a batch count
+//!   (backpressure) or, for a live source, by a memory budget in bytes;
 //! * [`process`]: the pipeline thread (gap fill, the shared
 //!   [`crate::pipeline::Pipeline`], estimator updates) publishing to the sinks;
 //! * [`run`]: [`run::Daemon`], wiring sources, pipeline, recorder and the
@@ -18,6 +20,7 @@ pub mod batch;
 pub mod config;
 pub mod http;
 pub mod process;
+pub mod queue;
 pub mod run;
 pub mod shutdown;
 pub mod telemetry;

@@ -38,12 +38,11 @@
 use std::collections::{BTreeMap, VecDeque};
 use std::time::{Duration, Instant};
 
-use tokio::sync::mpsc;
-
 use crate::daemon::shutdown::Shutdown;
 
 use crate::allan::AllanPoint;
 use crate::daemon::batch::{Delivery, SourceBatch};
+use crate::daemon::queue::BatchReceiver;
 use crate::daemon::telemetry::Telemetry;
 use crate::model::estimate::Coefficient;
 use crate::pipeline::{Analysis, Pipeline, PipelineConfig, PipelineError, PipelineOutput};
@@ -238,7 +237,7 @@ impl Processor {
     /// gone, then flush the wavelet bank and publish the final estimates.
     pub fn run(
         mut self,
-        mut input: mpsc::Receiver<SourceBatch>,
+        input: BatchReceiver,
         mut outputs: Outputs,
     ) -> ProcessReport {
         let first_update = self.interval_samples;
@@ -265,9 +264,7 @@ impl Processor {
             unreported_drops: 0,
             recorder_failed: false,
         };
-        while let Some(batch) = input.blocking_recv() {
-            run.batch(batch);
-        }
+        input.for_each_blocking(|batch| run.batch(batch));
         run.finish()
     }
 }

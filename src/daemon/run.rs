@@ -11,7 +11,10 @@
 //! ```
 //!
 //! Every channel is bounded: the source -> pipeline queue holds
-//! `run.channel_capacity` batches, the recorder queue 1024 messages.
+//! `run.channel_capacity` batches for a replay or the simulated bench (which
+//! wait for room), and `source.queue_budget_mib` of sample data for a serial
+//! source (which drops past it, see [`crate::daemon::queue`]); the recorder
+//! queue holds 1024 messages.
 //!
 //! Shutdown (mini-redis style): SIGINT/SIGTERM (or a programmatic trigger)
 //! flips a `watch` channel every task listens to. The source stops reading,
@@ -27,11 +30,10 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
 
-use tokio::sync::mpsc;
-
-use crate::daemon::batch::{BatchSender, Delivery, SourceReport};
+use crate::daemon::batch::{self, Delivery, SourceReport};
 use crate::daemon::config::{Config, ConfigError, SourceKind};
 use crate::daemon::http::{self, HttpError};
+use crate::daemon::queue::QueueBound;
 use crate::daemon::process::{Outputs, ProcessConfig, ProcessError, ProcessReport, Processor};
 use crate::daemon::shutdown::{self, ShutdownTrigger};
 use crate::daemon::telemetry::Telemetry;
@@ -379,7 +381,11 @@ impl Daemon {
             "pipeline ready"
         );
 
-        let (tx, rx) = mpsc::channel(config.run.channel_capacity);
+        let bound = match source {
+            Source::Serial(_) => QueueBound::Bytes(config.source.queue_budget_bytes()),
+            _ => QueueBound::Batches(config.run.channel_capacity),
+        };
+        let (sender, rx) = batch::channel(bound, &telemetry);
         let outputs = Outputs {
             recorder: recorder.as_ref().map(Recorder::sender),
             telemetry: telemetry.clone(),
@@ -391,12 +397,6 @@ impl Daemon {
             drop(guard);
             report
         });
-
-        let delivery = match source {
-            Source::Serial(_) => Delivery::Live,
-            _ => Delivery::Lossless,
-        };
-        let sender = BatchSender::new(tx, delivery, telemetry.clone());
         let sd = trigger.subscribe();
         let tel = telemetry.clone();
         let source_result: Result<SourceReport, DaemonError> = match source {

@@ -1,10 +1,13 @@
 //! The daemon's own metrics, registered next to [`Metrics`] in the same
-//! registry (so `GET /metrics` shows them too): backpressure drops, the device
+//! registry (so `GET /metrics` shows them too): backpressure drops, the pipeline
+//! queue's fill and budget, the device
 //! connection state, sequence anomalies, estimator updates and their latency.
 //!
 //! | metric | type | labels |
 //! |---|---|---|
 //! | `sagnac_dropped_samples_total` | counter | (samples a live source could not hand to the pipeline: its queue was full) |
+//! | `sagnac_pipeline_queue_bytes` | gauge | (bytes of sample data queued between the source and the pipeline thread, see [`crate::daemon::queue`]) |
+//! | `sagnac_pipeline_queue_budget_bytes` | gauge | (the live source's queue budget, `source.queue_budget_mib`; 0 when the source waits for room instead) |
 //! | `sagnac_dropped_messages_total` | counter | `sink`: `mcap` |
 //! | `sagnac_device_connected` | gauge | (1 while the serial device is open) |
 //! | `sagnac_device_reconnects_total` | counter | |
@@ -25,6 +28,8 @@ pub struct Telemetry {
     pub metrics: Arc<Metrics>,
     pub dropped_samples: IntCounter,
     pub dropped_messages: IntCounterVec,
+    pub queue_bytes: IntGauge,
+    pub queue_budget_bytes: IntGauge,
     pub device_connected: IntGauge,
     pub device_reconnects: IntCounter,
     pub sequence_anomalies: IntCounterVec,
@@ -73,6 +78,22 @@ impl Telemetry {
                         "Messages dropped because a sink queue was full, by sink.",
                     ),
                     &["sink"],
+                ),
+            )?,
+            queue_bytes: reg(
+                m,
+                "sagnac_pipeline_queue_bytes",
+                IntGauge::new(
+                    "sagnac_pipeline_queue_bytes",
+                    "Bytes of sample data queued between the source and the pipeline thread (held until the pipeline has processed them).",
+                ),
+            )?,
+            queue_budget_bytes: reg(
+                m,
+                "sagnac_pipeline_queue_budget_bytes",
+                IntGauge::new(
+                    "sagnac_pipeline_queue_budget_bytes",
+                    "Budget of the pipeline queue of a live (serial) source, bytes: past it, samples are dropped; 0 for a source that waits for room (replay, simulated bench).",
                 ),
             )?,
             device_connected: reg(

@@ -273,7 +273,8 @@ pub fn write_paced<W: Write>(w: &mut W, bytes: &[u8], bytes_per_s: f64) -> io::R
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::daemon::batch::{Delivery, SourceBatch};
+    use crate::daemon::batch;
+    use crate::daemon::queue::QueueBound;
     use crate::daemon::shutdown;
     use crate::source::frame::inject::FrameAction;
 
@@ -290,9 +291,8 @@ mod tests {
         }
         .build()
         .unwrap();
-        let (tx, mut rx) = tokio::sync::mpsc::channel::<SourceBatch>(4);
         let telemetry = Telemetry::standalone().unwrap();
-        let sender = BatchSender::new(tx, Delivery::Lossless, telemetry.clone());
+        let (sender, mut rx) = batch::channel(QueueBound::Batches(4), &telemetry);
         let (_trigger, sd) = shutdown::channel();
         let t2 = telemetry.clone();
         let h = std::thread::spawn(move || bench.run_blocking(sender, t2, sd).unwrap());

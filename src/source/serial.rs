@@ -3,9 +3,11 @@
 //! pipeline as [`SourceBatch`]es (live delivery: the port is never paused).
 //!
 //! Reads are coalesced into batches of at most 50 ms or 4096 samples (a USB
-//! adapter may deliver a few frames per read), so the bounded pipeline queue
-//! (`run.channel_capacity` batches) holds seconds of data while the pipeline
-//! thread runs an estimator update.
+//! adapter may deliver a few frames per read). The pipeline queue is bounded by
+//! a memory budget (`source.queue_budget_mib`, 16 MiB: about 35 min at 1 kHz, see
+//! [`crate::daemon::queue`]), so a burst or an estimator update that keeps the
+//! pipeline thread busy loses nothing; past the budget, batches are dropped and
+//! counted.
 //!
 //! # When the device goes away
 //! A serial stream ends with EOF (or a read error) when the device vanishes
@@ -274,8 +276,8 @@ impl SerialSource {
                 asm.sync_stats(decoder.stats());
             }
             // Coalesce reads (a USB adapter may deliver a few frames per read) into
-            // batches of at most COALESCE or MAX_BATCH samples, so the bounded
-            // pipeline queue holds seconds of data, not milliseconds.
+            // batches of at most COALESCE or MAX_BATCH samples: few batches, each
+            // charged little more than its samples' bytes in the queue budget.
             let urgent = port.is_none() || asm.done() || asm.pending_samples() >= MAX_BATCH;
             if urgent {
                 flush_at = None;

@@ -9,6 +9,10 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
+use sagnac::model::estimate::Coefficient;
+use sagnac::sink::messages::{EstimateUpdate, RawBatch, SinkMessage, TermEstimate};
+use sagnac::sink::reader::read_recording;
+
 pub fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
@@ -256,4 +260,70 @@ impl Drop for Socat {
             let _ = self.child.wait();
         }
     }
+}
+
+/// (final estimates, raw messages) of a recording.
+pub fn final_and_raw(rec: &Path) -> (EstimateUpdate, Vec<RawBatch>) {
+    let r = read_recording(rec).unwrap();
+    let mut last = None;
+    let mut raw = Vec::new();
+    for m in r.messages {
+        match m.message {
+            SinkMessage::Estimates(e) => last = Some(e),
+            SinkMessage::Raw(b) => raw.push(b),
+            _ => {}
+        }
+    }
+    (last.expect("estimates recorded"), raw)
+}
+
+/// A coefficient of `sagnac analyze --json` in the daemon's recorded form.
+pub fn term(c: &Coefficient) -> TermEstimate {
+    TermEstimate {
+        value: c.value,
+        lo95: c.ci95.map(|c| c[0]),
+        hi95: c.ci95.map(|c| c[1]).or(c.upper95),
+    }
+}
+
+/// Equal to rounding (relative 1e-9): the same `Pipeline` on the same samples,
+/// pushed in other block sizes (its sums are not bit-invariant to the split).
+pub fn close(a: &TermEstimate, b: &TermEstimate, what: &str) {
+    for (x, y) in [(a.value, b.value), (a.lo95, b.lo95), (a.hi95, b.hi95)] {
+        match (x, y) {
+            (Some(x), Some(y)) => assert!(
+                (x - y).abs() <= 1e-9 * x.abs().max(y.abs()),
+                "{what}: {a:?} vs {b:?}"
+            ),
+            (None, None) => {}
+            _ => panic!("{what}: {a:?} vs {b:?}"),
+        }
+    }
+}
+
+/// The daemon's `/gyro/estimates` term and the key of the same coefficient in
+/// `sagnac analyze --json`.
+pub const ESTIMATE_KEYS: [(&str, &str); 5] = [
+    ("qn_arcsec", "quantization_arcsec"),
+    ("arw_dpsh", "arw_dpsh"),
+    ("bias_instability_dph", "bias_instability_dph"),
+    ("rrw_dphsh", "rrw_dphsh"),
+    ("ramp_dphh", "rate_ramp_dphh"),
+];
+
+/// `sagnac analyze --format FORMAT --input INPUT --json OUT`, its JSON report.
+pub fn analyze_json(format: &str, input: &Path, out: &Path) -> serde_json::Value {
+    // a frame capture carries no rate or pulse weight (the paper gyro's); an
+    // MCAP recording's metadata record does
+    let flags: &[&str] = if format == "mcap" { &[] } else { &["--rate-hz", "1000", "--pulse-arcsec", "1.21"] };
+    let r = Command::new(env!("CARGO_BIN_EXE_sagnac"))
+        .args(["analyze", "--format", format, "--input"])
+        .arg(input)
+        .args(flags)
+        .arg("--json")
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "analyze: {}", String::from_utf8_lossy(&r.stderr));
+    serde_json::from_str(&std::fs::read_to_string(out).unwrap()).unwrap()
 }
