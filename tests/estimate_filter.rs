@@ -132,7 +132,11 @@ fn analyse(m: &GyroModel, seed: u64, duration_s: f64) -> Analysis {
 }
 
 fn covers(c: &Coefficient, truth: f64) -> bool {
-    c.ci95.is_some_and(|[lo, hi]| lo <= truth && truth <= hi)
+    match (c.ci95, c.upper95) {
+        (Some([lo, hi]), _) => lo <= truth && truth <= hi,
+        (None, Some(u)) => truth <= u,
+        _ => false,
+    }
 }
 
 #[test]
