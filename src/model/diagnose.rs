@@ -63,6 +63,7 @@
 
 pub mod compare;
 pub mod explain;
+pub mod lines;
 pub mod mc;
 pub mod stats;
 pub mod svg;
@@ -519,7 +520,8 @@ fn reference_model(model: &GyroModel, rec: &Recording, mean_rate: f64) -> GyroMo
     m
 }
 
-/// Mask the counter's own lines in the layout.
+/// The counter's own lines, `(f_true Hz, half-width Hz)` of each core to mask
+/// in a spectrum with bins `df` Hz wide.
 ///
 /// At a constant input `r` the counter's error is a sawtooth of the angle:
 /// harmonics `k r / d` with angle amplitude `d/(pi k)`, damped by the dither
@@ -527,32 +529,22 @@ fn reference_model(model: &GyroModel, rec: &Recording, mean_rate: f64) -> GyroMo
 /// through the first difference (`2 |sin(pi f tau0)| / tau0`, aliased into
 /// `[0, fs/2]`). Angle random walk diffuses each harmonic's phase into a
 /// Lorentzian of half-width `(2 pi k N/d)^2 / (4 pi)` Hz; slow rate wander
-/// (the recording's low-frequency wavelet energy) moves it by `k wander / d`.
-/// A harmonic whose peak density exceeds a fifth of the continuum (ARW plus
-/// white dither) has its core masked (three widths, plus three bins, plus the
-/// wander shift): there the spectrum depends on the exact mean rate and
-/// wander of the record, which the Monte-Carlo runs reproduce only in
-/// distribution. The tails are left in: they follow from the model's ARW.
-fn mask_counter_lines(layout: &mut StatLayout, model: &GyroModel, obs: &StatSet) {
-    let d = layout.pulse_arcsec;
-    let fs = layout.fs_hz;
+/// (`wander`, arcsec/s: the recording's low-frequency wavelet energy) moves it
+/// by `k wander / d`. A harmonic whose peak density exceeds a fifth of the
+/// continuum (ARW plus white dither) has its core masked (three widths, plus
+/// three bins, plus the wander shift): there the spectrum depends on the exact
+/// mean rate and wander of the record, which the Monte-Carlo runs reproduce
+/// only in distribution. The tails are left in: they follow from the model's ARW.
+fn counter_lines(model: &GyroModel, mean_rate: f64, wander: f64, fs: f64, d: f64, df: f64) -> Vec<(f64, f64)> {
     let tau0 = 1.0 / fs;
-    let f1 = obs.mean_rate.abs() / d;
+    let f1 = mean_rate.abs() / d;
+    let mut out = Vec::new();
     if !(f1 > 0.0) {
-        return;
+        return out;
     }
     let s = model.dither_sigma_arcsec() / d;
     let sd_dither = model.dither_sigma_arcsec();
     let arw = units::dpsh_to_arcsec_per_sqrt_s(model.noise.arw_dpsh.unwrap_or(0.0));
-    let wander2: f64 = layout
-        .levels
-        .iter()
-        .zip(&obs.wvar)
-        .filter(|(j, _)| fs / 2f64.powi(**j as i32) <= (f1 / 2.0).max(1e-9))
-        .map(|(j, w)| w * 2f64.powi(-(*j as i32)))
-        .sum();
-    let wander = wander2.sqrt();
-    let df = layout.bin_width_hz();
     for k in 1..=100_000usize {
         let kf = k as f64;
         let damp = (-2.0 * PI * PI * kf * kf * s * s).exp();
@@ -586,10 +578,95 @@ fn mask_counter_lines(layout: &mut StatLayout, model: &GyroModel, obs: &StatSet)
             .max(0.0)
             .sqrt()
             .min(3.0 * width);
-        let hw = reach + 3.0 * df + 4.0 * kf * wander / d;
-        layout.mask_line(f_true, hw);
+        out.push((f_true, reach + 3.0 * df + 4.0 * kf * wander / d));
+    }
+    out
+}
+
+/// Slow rate wander (arcsec/s): the wavelet energy of the levels below
+/// `f1 / 2` (`f1` the counter's fundamental, Hz).
+fn rate_wander(levels: &[u32], wvar: &[f64], fs: f64, f1: f64) -> f64 {
+    levels
+        .iter()
+        .zip(wvar)
+        .filter(|(j, _)| fs / 2f64.powi(**j as i32) <= (f1 / 2.0).max(1e-9))
+        .map(|(j, w)| w * 2f64.powi(-(*j as i32)))
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// Mask the counter's own lines ([`counter_lines`]) in the layout's Welch bins.
+fn mask_counter_lines(layout: &mut StatLayout, model: &GyroModel, obs: &StatSet) {
+    let d = layout.pulse_arcsec;
+    let fs = layout.fs_hz;
+    let wander = rate_wander(&layout.levels, &obs.wvar, fs, obs.mean_rate.abs() / d);
+    let df = layout.bin_width_hz();
+    for (f, hw) in counter_lines(model, obs.mean_rate, wander, fs, d, df) {
+        layout.mask_line(f, hw);
     }
     layout.rebuild_bands();
+}
+
+/// The model's one-sided rate PSD (its Gaussian terms), (arcsec/s)^2/Hz at `f` Hz.
+pub fn model_psd(model: &GyroModel) -> impl Fn(f64) -> f64 {
+    let (terms, theta) = model_spectral_terms(model);
+    let tau0 = 1.0 / model.gyro.sample_rate_hz;
+    move |f: f64| {
+        terms
+            .iter()
+            .zip(&theta)
+            .map(|(t, th)| th * t.psd_cs(f * tau0, tau0) * tau0)
+            .sum()
+    }
+}
+
+/// The whole-record line search of a recording ([`lines`]).
+#[derive(Debug, Clone)]
+pub struct LineScan {
+    pub spectrum: lines::LineSpectrum,
+    /// Detected lines with their fits, strongest first.
+    pub lines: Vec<(lines::Detection, lines::LineFit)>,
+    /// The counter's line cores left out, `(f_true Hz, half-width Hz)`.
+    pub masked: Vec<(f64, f64)>,
+}
+
+/// Scan the rate for lines against `model` (simulated at the recording's rate
+/// and pulse weight); `wander` is [`rate_wander`].
+fn scan_lines(model: &GyroModel, rate: &[f64], fs: f64, d: f64, wander: f64, params: &lines::SearchParams) -> LineScan {
+    let mean_rate = rate.iter().sum::<f64>() / rate.len() as f64;
+    let x = lines::detrend(rate);
+    let df = fs / rate.len() as f64;
+    let masked = counter_lines(model, mean_rate, wander, fs, d, df);
+    let spectrum = lines::LineSpectrum::new(&x, fs, &model_psd(model), &masked);
+    let found = lines::search(&spectrum, params)
+        .into_iter()
+        .filter_map(|det| {
+            let s = spectrum.local_psd(det.f_hz, params.half_width)?;
+            Some((det, lines::fit_line(&x, fs, det.f_hz, s)))
+        })
+        .collect();
+    LineScan {
+        spectrum,
+        lines: found,
+        masked,
+    }
+}
+
+/// The line search of [`diagnose`] on its own: `rec` against `model` (whose
+/// sample rate and pulse weight are taken from the recording).
+pub fn line_scan(model: &GyroModel, rec: &Recording, params: &lines::SearchParams) -> LineScan {
+    let fs = rec.sample_rate_hz;
+    let d = rec.pulse_arcsec;
+    let mut m = model.clone();
+    m.gyro.sample_rate_hz = fs;
+    m.gyro.pulse_weight_arcsec = d;
+    let rate = stats::counts_to_rate(&rec.counts, d, fs);
+    let layout = StatLayout::new(rate.len(), fs, d);
+    let lv = stats::dwt_level_mean_squares(&rate, &layout.lo, &layout.hi, layout.levels.len() as u32, stats::MIN_LEVEL_COEFS);
+    let wvar: Vec<f64> = lv.iter().map(|t| t.2).collect();
+    let mean_rate = rate.iter().sum::<f64>() / rate.len() as f64;
+    let wander = rate_wander(&layout.levels, &wvar, fs, mean_rate.abs() / d);
+    scan_lines(&m, &rate, fs, d, wander, params)
 }
 
 /// Analytic floors of the log standard deviations.
