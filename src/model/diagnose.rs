@@ -17,19 +17,21 @@
 //!    by the estimator's chi-square EDF under the model's Gaussian terms.
 //! 3. **Locate**: points beyond a Bonferroni threshold (family-wise 1 % over
 //!    all wavelet, MDEV and spectral-band points) form tau regions; a separate
-//!    search finds narrow spectral lines (0.1 % family-wise over the bins,
-//!    after dividing out the local continuum, with the counter's own harmonic
-//!    lines masked); the slope tests use 0.25 % each.
-//! 4. **Explain** ([`explain`]): lines become sinusoids (frequency and
-//!    amplitude from the whole record's Hann-windowed DFT; intervals from the
-//!    background PSD, widened to the parametric bootstrap's spread: the same
-//!    estimator re-run on each Monte-Carlo run of the updated model); a
+//!    search ([`lines`]) finds narrow spectral lines in the whole record's
+//!    spectrum, from ten cycles per record to Nyquist (0.1 % family-wise over
+//!    the bins, against the local continuum of the spectrum whitened by the
+//!    model's PSD, with the counter's own harmonic lines masked); the slope
+//!    tests use 0.25 % each.
+//! 4. **Explain** ([`explain`]): lines become sinusoids, or changes of the
+//!    model's own (frequency and amplitude from a least-squares fit to the
+//!    whole record; intervals from the line's Fisher information at the local
+//!    noise level, their coverage checked by simulation); a
 //!    significant slope becomes a rate ramp or, when the temperature explains
 //!    it, a thermal sensitivity; the broadband residual is
 //!    fitted on the wavelet variances by every catalog candidate (parameter
 //!    changes of existing terms; new Gauss-Markov, RRW, bias instability,
-//!    long-period sinusoid), chosen by AIC with parameter-only changes preferred
-//!    unless beaten by more than 2, kept only if the likelihood-ratio test passes
+//!    a sinusoid too slow for the line search), chosen by AIC with
+//!    parameter-only changes preferred unless beaten by more than 2, kept only if the likelihood-ratio test passes
 //!    at 1 %, greedily up to three changes. A new Gauss-Markov term is then
 //!    tested against a random telegraph with the same second-order statistics
 //!    (sigma = a, Tc = dwell/2) by the excess kurtosis of the low-passed rate,
@@ -537,7 +539,14 @@ fn reference_model(model: &GyroModel, rec: &Recording, mean_rate: f64) -> GyroMo
 /// three bins, plus the wander shift): there the spectrum depends on the exact
 /// mean rate and wander of the record, which the Monte-Carlo runs reproduce
 /// only in distribution. The tails are left in: they follow from the model's ARW.
-fn counter_lines(model: &GyroModel, mean_rate: f64, wander: f64, fs: f64, d: f64, df: f64) -> Vec<(f64, f64)> {
+fn counter_lines(
+    model: &GyroModel,
+    mean_rate: f64,
+    wander: f64,
+    fs: f64,
+    d: f64,
+    df: f64,
+) -> Vec<(f64, f64)> {
     let tau0 = 1.0 / fs;
     let f1 = mean_rate.abs() / d;
     let mut out = Vec::new();
@@ -636,7 +645,14 @@ pub struct LineScan {
 
 /// Scan the rate for lines against `model` (simulated at the recording's rate
 /// and pulse weight); `wander` is [`rate_wander`].
-fn scan_lines(model: &GyroModel, rate: &[f64], fs: f64, d: f64, wander: f64, params: &lines::SearchParams) -> LineScan {
+fn scan_lines(
+    model: &GyroModel,
+    rate: &[f64],
+    fs: f64,
+    d: f64,
+    wander: f64,
+    params: &lines::SearchParams,
+) -> LineScan {
     let mean_rate = rate.iter().sum::<f64>() / rate.len() as f64;
     let x = lines::detrend(rate);
     let df = fs / rate.len() as f64;
@@ -667,7 +683,13 @@ pub fn line_scan(model: &GyroModel, rec: &Recording, params: &lines::SearchParam
     m.gyro.pulse_weight_arcsec = d;
     let rate = stats::counts_to_rate(&rec.counts, d, fs);
     let layout = StatLayout::new(rate.len(), fs, d);
-    let lv = stats::dwt_level_mean_squares(&rate, &layout.lo, &layout.hi, layout.levels.len() as u32, stats::MIN_LEVEL_COEFS);
+    let lv = stats::dwt_level_mean_squares(
+        &rate,
+        &layout.lo,
+        &layout.hi,
+        layout.levels.len() as u32,
+        stats::MIN_LEVEL_COEFS,
+    );
     let wvar: Vec<f64> = lv.iter().map(|t| t.2).collect();
     let mean_rate = rate.iter().sum::<f64>() / rate.len() as f64;
     let wander = rate_wander(&layout.levels, &wvar, fs, mean_rate.abs() / d);

@@ -44,9 +44,9 @@ pub(super) fn line_findings(scan: &LineScan, model: &GyroModel, half_width: usiz
     let mut handled = vec![false; sines.len()];
     let mut out = LineFindings::default();
     for (det, fit) in &scan.lines {
-        let near = sines.iter().position(|s| {
-            (1.0 / s.period_s - fit.f_hz).abs() <= (3.0 * df).max(5.0 * fit.f_sd)
-        });
+        let near = sines
+            .iter()
+            .position(|s| (1.0 / s.period_s - fit.f_hz).abs() <= (3.0 * df).max(5.0 * fit.f_sd));
         let finding = match near {
             Some(i) => {
                 handled[i] = true;
@@ -54,7 +54,8 @@ pub(super) fn line_findings(scan: &LineScan, model: &GyroModel, half_width: usiz
                     continue;
                 };
                 let m = units::dph_to_arcsec_per_s(sines[i].amplitude_dph);
-                out.sines.push((fit.f_hz, (fit.amp * fit.amp - m * m).max(0.0).sqrt()));
+                out.sines
+                    .push((fit.f_hz, (fit.amp * fit.amp - m * m).max(0.0).sqrt()));
                 f
             }
             None => {
@@ -168,9 +169,15 @@ fn new_sine(det: &Detection, fit: &LineFit, z: f64) -> Finding {
         changes: vec![],
         added: Some(AddedTerm {
             term: "sinusoid".into(),
-            params: BTreeMap::from([("amplitude_dph".to_string(), amp), ("period_s".to_string(), per)]),
+            params: BTreeMap::from([
+                ("amplitude_dph".to_string(), amp),
+                ("period_s".to_string(), per),
+            ]),
             explanation: expl,
-            ci95: BTreeMap::from([("amplitude_dph".to_string(), amp_ci), ("period_s".to_string(), per_ci)]),
+            ci95: BTreeMap::from([
+                ("amplitude_dph".to_string(), amp_ci),
+                ("period_s".to_string(), per_ci),
+            ]),
         }),
         n_par: 2,
         note: format!(
