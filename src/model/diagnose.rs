@@ -17,19 +17,21 @@
 //!    by the estimator's chi-square EDF under the model's Gaussian terms.
 //! 3. **Locate**: points beyond a Bonferroni threshold (family-wise 1 % over
 //!    all wavelet, MDEV and spectral-band points) form tau regions; a separate
-//!    search finds narrow spectral lines (0.1 % family-wise over the bins,
-//!    after dividing out the local continuum, with the counter's own harmonic
-//!    lines masked); the slope tests use 0.25 % each.
-//! 4. **Explain** ([`explain`]): lines become sinusoids (frequency and
-//!    amplitude from the whole record's Hann-windowed DFT; intervals from the
-//!    background PSD, widened to the parametric bootstrap's spread: the same
-//!    estimator re-run on each Monte-Carlo run of the updated model); a
+//!    search ([`lines`]) finds narrow spectral lines in the whole record's
+//!    spectrum, from ten cycles per record to Nyquist (0.1 % family-wise over
+//!    the bins, against the local continuum of the spectrum whitened by the
+//!    model's PSD, with the counter's own harmonic lines masked); the slope
+//!    tests use 0.25 % each.
+//! 4. **Explain** ([`explain`]): lines become sinusoids, or changes of the
+//!    model's own (frequency and amplitude from a least-squares fit to the
+//!    whole record; intervals from the line's Fisher information at the local
+//!    noise level, their coverage checked by simulation); a
 //!    significant slope becomes a rate ramp or, when the temperature explains
 //!    it, a thermal sensitivity; the broadband residual is
 //!    fitted on the wavelet variances by every catalog candidate (parameter
 //!    changes of existing terms; new Gauss-Markov, RRW, bias instability,
-//!    long-period sinusoid), chosen by AIC with parameter-only changes preferred
-//!    unless beaten by more than 2, kept only if the likelihood-ratio test passes
+//!    a sinusoid too slow for the line search), chosen by AIC with
+//!    parameter-only changes preferred unless beaten by more than 2, kept only if the likelihood-ratio test passes
 //!    at 1 %, greedily up to three changes. A new Gauss-Markov term is then
 //!    tested against a random telegraph with the same second-order statistics
 //!    (sigma = a, Tc = dwell/2) by the excess kurtosis of the low-passed rate,
@@ -63,7 +65,9 @@
 
 pub mod compare;
 pub mod explain;
+pub mod lines;
 pub mod mc;
+mod sines;
 pub mod stats;
 pub mod svg;
 
@@ -72,10 +76,11 @@ use std::f64::consts::PI;
 
 use rustfft::num_complex::Complex64;
 use serde::{Deserialize, Serialize};
-use statrs::distribution::{ChiSquared, ContinuousCDF, StudentsT};
+use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 use self::compare::{Family, LineHit, Point, Region};
 use self::explain::{Basis, Fit, LevelData};
+use self::sines::line_findings;
 use self::stats::{StatLayout, StatSet};
 use super::config::{GaussMarkovParams, RandomTelegraphParams, SinusoidParams, ThermalParams};
 use super::wvar::{LevelBasis, SpectralTerm};
@@ -519,7 +524,8 @@ fn reference_model(model: &GyroModel, rec: &Recording, mean_rate: f64) -> GyroMo
     m
 }
 
-/// Mask the counter's own lines in the layout.
+/// The counter's own lines, `(f_true Hz, half-width Hz)` of each core to mask
+/// in a spectrum with bins `df` Hz wide.
 ///
 /// At a constant input `r` the counter's error is a sawtooth of the angle:
 /// harmonics `k r / d` with angle amplitude `d/(pi k)`, damped by the dither
@@ -527,32 +533,29 @@ fn reference_model(model: &GyroModel, rec: &Recording, mean_rate: f64) -> GyroMo
 /// through the first difference (`2 |sin(pi f tau0)| / tau0`, aliased into
 /// `[0, fs/2]`). Angle random walk diffuses each harmonic's phase into a
 /// Lorentzian of half-width `(2 pi k N/d)^2 / (4 pi)` Hz; slow rate wander
-/// (the recording's low-frequency wavelet energy) moves it by `k wander / d`.
-/// A harmonic whose peak density exceeds a fifth of the continuum (ARW plus
-/// white dither) has its core masked (three widths, plus three bins, plus the
-/// wander shift): there the spectrum depends on the exact mean rate and
-/// wander of the record, which the Monte-Carlo runs reproduce only in
-/// distribution. The tails are left in: they follow from the model's ARW.
-fn mask_counter_lines(layout: &mut StatLayout, model: &GyroModel, obs: &StatSet) {
-    let d = layout.pulse_arcsec;
-    let fs = layout.fs_hz;
+/// (`wander`, arcsec/s: the recording's low-frequency wavelet energy) moves it
+/// by `k wander / d`. A harmonic whose peak density exceeds a fifth of the
+/// continuum (ARW plus white dither) has its core masked (three widths, plus
+/// three bins, plus the wander shift): there the spectrum depends on the exact
+/// mean rate and wander of the record, which the Monte-Carlo runs reproduce
+/// only in distribution. The tails are left in: they follow from the model's ARW.
+fn counter_lines(
+    model: &GyroModel,
+    mean_rate: f64,
+    wander: f64,
+    fs: f64,
+    d: f64,
+    df: f64,
+) -> Vec<(f64, f64)> {
     let tau0 = 1.0 / fs;
-    let f1 = obs.mean_rate.abs() / d;
+    let f1 = mean_rate.abs() / d;
+    let mut out = Vec::new();
     if !(f1 > 0.0) {
-        return;
+        return out;
     }
     let s = model.dither_sigma_arcsec() / d;
     let sd_dither = model.dither_sigma_arcsec();
     let arw = units::dpsh_to_arcsec_per_sqrt_s(model.noise.arw_dpsh.unwrap_or(0.0));
-    let wander2: f64 = layout
-        .levels
-        .iter()
-        .zip(&obs.wvar)
-        .filter(|(j, _)| fs / 2f64.powi(**j as i32) <= (f1 / 2.0).max(1e-9))
-        .map(|(j, w)| w * 2f64.powi(-(*j as i32)))
-        .sum();
-    let wander = wander2.sqrt();
-    let df = layout.bin_width_hz();
     for k in 1..=100_000usize {
         let kf = k as f64;
         let damp = (-2.0 * PI * PI * kf * kf * s * s).exp();
@@ -586,10 +589,111 @@ fn mask_counter_lines(layout: &mut StatLayout, model: &GyroModel, obs: &StatSet)
             .max(0.0)
             .sqrt()
             .min(3.0 * width);
-        let hw = reach + 3.0 * df + 4.0 * kf * wander / d;
-        layout.mask_line(f_true, hw);
+        out.push((f_true, reach + 3.0 * df + 4.0 * kf * wander / d));
+    }
+    out
+}
+
+/// Slow rate wander (arcsec/s): the wavelet energy of the levels below
+/// `f1 / 2` (`f1` the counter's fundamental, Hz).
+fn rate_wander(levels: &[u32], wvar: &[f64], fs: f64, f1: f64) -> f64 {
+    levels
+        .iter()
+        .zip(wvar)
+        .filter(|(j, _)| fs / 2f64.powi(**j as i32) <= (f1 / 2.0).max(1e-9))
+        .map(|(j, w)| w * 2f64.powi(-(*j as i32)))
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// Mask the counter's own lines ([`counter_lines`]) in the layout's Welch bins.
+fn mask_counter_lines(layout: &mut StatLayout, model: &GyroModel, obs: &StatSet) {
+    let d = layout.pulse_arcsec;
+    let fs = layout.fs_hz;
+    let wander = rate_wander(&layout.levels, &obs.wvar, fs, obs.mean_rate.abs() / d);
+    let df = layout.bin_width_hz();
+    for (f, hw) in counter_lines(model, obs.mean_rate, wander, fs, d, df) {
+        layout.mask_line(f, hw);
     }
     layout.rebuild_bands();
+}
+
+/// The model's one-sided rate PSD (its Gaussian terms), (arcsec/s)^2/Hz at `f` Hz.
+pub fn model_psd(model: &GyroModel) -> impl Fn(f64) -> f64 {
+    let (terms, theta) = model_spectral_terms(model);
+    let tau0 = 1.0 / model.gyro.sample_rate_hz;
+    move |f: f64| {
+        terms
+            .iter()
+            .zip(&theta)
+            .map(|(t, th)| th * t.psd_cs(f * tau0, tau0) * tau0)
+            .sum()
+    }
+}
+
+/// The whole-record line search of a recording ([`lines`]).
+#[derive(Debug, Clone)]
+pub struct LineScan {
+    pub spectrum: lines::LineSpectrum,
+    /// Detected lines with their fits, strongest first.
+    pub lines: Vec<(lines::Detection, lines::LineFit)>,
+    /// The counter's line cores left out, `(f_true Hz, half-width Hz)`.
+    pub masked: Vec<(f64, f64)>,
+    /// The rate (arcsec/s), mean and linear trend removed.
+    pub detrended_rate: Vec<f64>,
+}
+
+/// Scan the rate for lines against `model` (simulated at the recording's rate
+/// and pulse weight); `wander` is [`rate_wander`].
+fn scan_lines(
+    model: &GyroModel,
+    rate: &[f64],
+    fs: f64,
+    d: f64,
+    wander: f64,
+    params: &lines::SearchParams,
+) -> LineScan {
+    let mean_rate = rate.iter().sum::<f64>() / rate.len() as f64;
+    let x = lines::detrend(rate);
+    let df = fs / rate.len() as f64;
+    let masked = counter_lines(model, mean_rate, wander, fs, d, df);
+    let spectrum = lines::LineSpectrum::new(&x, fs, &model_psd(model), &masked);
+    let found = lines::search(&spectrum, params)
+        .into_iter()
+        .filter_map(|det| {
+            let s = spectrum.local_psd(det.f_hz, params.half_width)?;
+            Some((det, lines::fit_line(&x, fs, det.f_hz, s)))
+        })
+        .collect();
+    LineScan {
+        spectrum,
+        lines: found,
+        masked,
+        detrended_rate: x,
+    }
+}
+
+/// The line search of [`diagnose`] on its own: `rec` against `model` (whose
+/// sample rate and pulse weight are taken from the recording).
+pub fn line_scan(model: &GyroModel, rec: &Recording, params: &lines::SearchParams) -> LineScan {
+    let fs = rec.sample_rate_hz;
+    let d = rec.pulse_arcsec;
+    let mut m = model.clone();
+    m.gyro.sample_rate_hz = fs;
+    m.gyro.pulse_weight_arcsec = d;
+    let rate = stats::counts_to_rate(&rec.counts, d, fs);
+    let layout = StatLayout::new(rate.len(), fs, d);
+    let lv = stats::dwt_level_mean_squares(
+        &rate,
+        &layout.lo,
+        &layout.hi,
+        layout.levels.len() as u32,
+        stats::MIN_LEVEL_COEFS,
+    );
+    let wvar: Vec<f64> = lv.iter().map(|t| t.2).collect();
+    let mean_rate = rate.iter().sum::<f64>() / rate.len() as f64;
+    let wander = rate_wander(&layout.levels, &wvar, fs, mean_rate.abs() / d);
+    scan_lines(&m, &rate, fs, d, wander, params)
 }
 
 /// Analytic floors of the log standard deviations.
@@ -816,62 +920,6 @@ fn mean_sd(v: &[f64]) -> (f64, f64) {
     (m, s)
 }
 
-/// A fitted line whose interval is refined by the parametric bootstrap.
-#[derive(Debug, Clone, Copy)]
-struct SineProbe {
-    /// Index of its finding.
-    finding: usize,
-    f0: f64,
-    half_width: f64,
-    fit: stats::SineFit,
-}
-
-/// Parametric bootstrap of the fitted sinusoids: the updated model's runs
-/// contain each fitted line; the same estimator applied to them gives the
-/// spread of the amplitude and frequency estimates. The 95 % interval is
-/// `+- t_{R-1} max(sd_analytic, sd_bootstrap)` (the analytic Hann/Cramer-Rao
-/// values understate the spread of the peak-searched estimator by up to ~2x).
-fn bootstrap_sines(findings: &mut [Finding], probes: &[SineProbe], runs: &[StatSet]) {
-    let r = runs.len();
-    if r < 2 {
-        return;
-    }
-    let t = StudentsT::new(0.0, 1.0, (r - 1) as f64)
-        .map(|d| d.inverse_cdf(0.975))
-        .unwrap_or(1.96);
-    for (k, p) in probes.iter().enumerate() {
-        let amps: Vec<f64> = runs
-            .iter()
-            .filter_map(|s| s.sines.get(k).map(|v| v.1))
-            .collect();
-        let fs_: Vec<f64> = runs
-            .iter()
-            .filter_map(|s| s.sines.get(k).map(|v| v.0))
-            .collect();
-        if amps.len() < 2 {
-            continue;
-        }
-        let sd_a = mean_sd(&amps).1.max(p.fit.amp_sd);
-        let sd_f = mean_sd(&fs_).1.max(p.fit.f_sd);
-        let a = units::arcsec_per_s_to_dph(p.fit.amp);
-        let amp_ci = [(a - t * sd_a).max(0.0), a + t * sd_a];
-        let f = p.fit.f_hz;
-        let per_ci = [1.0 / (f + t * sd_f), 1.0 / (f - t * sd_f).max(1e-300)];
-        let fnd = &mut findings[p.finding];
-        if let Some(add) = fnd.added.as_mut() {
-            add.ci95.insert("amplitude_dph".into(), amp_ci);
-            add.ci95.insert("period_s".into(), per_ci);
-        }
-        for c in fnd.changes.iter_mut() {
-            if c.term.ends_with(".amplitude_dph") {
-                c.ci95 = amp_ci;
-            } else if c.term.ends_with(".period_s") {
-                c.ci95 = per_ci;
-            }
-        }
-    }
-}
-
 /// Excess-kurtosis test of a new Gauss-Markov term against a random telegraph.
 fn telegraph_decision(obs: f64, gm: &[f64], rtn: &[f64]) -> (bool, (f64, f64), (f64, f64)) {
     let g: Vec<f64> = gm.iter().copied().filter(|v| v.is_finite()).collect();
@@ -949,49 +997,16 @@ pub fn diagnose(
     let chi2_before = compare::chi2_per_dof(&det, 0);
     let mc_mean = mean_stats(&runs);
 
-    // --- spectral lines
-    // EDF of each bin from the runs' log variances pooled over +-16 bins
-    let nu_bin: Vec<f64> = {
-        let nb = layout.mask.len();
-        let var: Vec<f64> = (0..nb)
-            .map(|i| {
-                let logs: Vec<f64> = runs
-                    .iter()
-                    .map(|s| s.psd[i])
-                    .filter(|v| *v > 0.0)
-                    .map(f64::ln)
-                    .collect();
-                if logs.len() == r {
-                    mean_sd(&logs).1.powi(2)
-                } else {
-                    f64::NAN
-                }
-            })
-            .collect();
-        (0..nb)
-            .map(|i| {
-                let w: Vec<f64> = (i.saturating_sub(16)..(i + 17).min(nb))
-                    .filter(|&j| layout.mask[j] && var[j].is_finite())
-                    .map(|j| var[j])
-                    .collect();
-                if w.len() < 8 {
-                    f64::NAN
-                } else {
-                    compare::nu_from_log_var(w.iter().sum::<f64>() / w.len() as f64)
-                }
-            })
-            .collect()
+    // --- spectral lines, at the whole record's resolution ([`lines`])
+    let line_params = lines::SearchParams {
+        alpha: ALPHA_LINES,
+        ..lines::SearchParams::default()
     };
-    let lines = compare::line_search(
-        &obs.psd,
-        &mc_mean.psd,
-        &layout.mask,
-        &nu_bin,
-        r,
-        ALPHA_LINES,
-        layout.k_lo,
-        layout.bin_width_hz(),
-    );
+    let scan = {
+        let rate = stats::counts_to_rate(&rec.counts, d, fs);
+        let wander = rate_wander(&layout.levels, &obs.wvar, fs, obs.mean_rate.abs() / d);
+        scan_lines(&ref_model, &rate, fs, d, wander, &line_params)
+    };
 
     // --- slope tests
     let z_slope = statrs::distribution::Normal::new(0.0, 1.0)
@@ -1034,35 +1049,6 @@ pub fn diagnose(
         )
     });
 
-    // --- model sinusoids: amplitude check at their own frequencies
-    let xc: Vec<f64> = stats::centred_rate(&rec.counts, d, fs);
-    let fft_mag: Vec<f64> = if lines.is_empty() {
-        Vec::new()
-    } else {
-        stats::hann_fft_magnitude(&xc)
-    };
-    // background PSD under a line: the larger of the model's continuum and the
-    // recording's own (median of the neighbouring usable bins, de-biased)
-    let s_bg_at = |f: f64| -> f64 {
-        let k = ((f / layout.bin_width_hz()).round() as usize).clamp(layout.k_lo, layout.k_hi - 1);
-        let i = k - layout.k_lo;
-        let median = |src: &[f64]| -> Option<f64> {
-            let mut v: Vec<f64> = (i.saturating_sub(16)..(i + 17).min(src.len()))
-                .filter(|&j| layout.mask[j] && (j as i64 - i as i64).abs() > 2)
-                .map(|j| src[j])
-                .collect();
-            if v.is_empty() {
-                return None;
-            }
-            v.sort_by(|a, b| a.total_cmp(b));
-            Some(v[v.len() / 2])
-        };
-        let model_bg = median(&mc_mean.psd).unwrap_or(mc_mean.psd[i]);
-        let nu = nu_bin[i].max(2.0);
-        let rec_bg = median(&obs.psd).map_or(0.0, |m| m / (1.0 - 2.0 / (3.0 * nu)).max(0.5));
-        model_bg.max(rec_bg)
-    };
-
     let mut findings: Vec<Finding> = Vec::new();
     let mut notes: Vec<String> = Vec::new();
     let model_fs = model.gyro.sample_rate_hz;
@@ -1074,161 +1060,12 @@ pub fn diagnose(
             fmt_g(model_fs)
         ));
     }
-    let welch_f_min = layout.bin_hz(layout.k_lo);
-    let mut sine_findings: Vec<(f64, f64)> = Vec::new(); // (f, amp) for the wavelet expectation
-    let mut model_sine_handled = vec![false; ref_model.noise.sinusoid.len()];
-    let mut sine_probes: Vec<SineProbe> = Vec::new();
-
-    // lines -> sinusoids
-    for line in &lines {
-        let s_bg = s_bg_at(line.f_hz);
-        let sf = stats::refine_sine(
-            &xc,
-            tau0,
-            line.f_hz,
-            1.5 * layout.bin_width_hz(),
-            &fft_mag,
-            s_bg,
-        );
-        sine_probes.push(SineProbe {
-            finding: findings.len(),
-            f0: sf.f_hz,
-            half_width: 1.5 * layout.bin_width_hz(),
-            fit: sf,
-        });
-        let existing = ref_model
-            .noise
-            .sinusoid
-            .iter()
-            .position(|s| (1.0 / s.period_s - sf.f_hz).abs() <= 3.0 * layout.bin_width_hz());
-        let per = 1.0 / sf.f_hz;
-        let per_ci = [
-            1.0 / (sf.f_hz + 1.96 * sf.f_sd),
-            1.0 / (sf.f_hz - 1.96 * sf.f_sd).max(1e-300),
-        ];
-        let amp_ci = [
-            (sf.amp - 1.96 * sf.amp_sd).max(0.0),
-            sf.amp + 1.96 * sf.amp_sd,
-        ];
-        let amp_dph = units::arcsec_per_s_to_dph(sf.amp);
-        match existing {
-            Some(i) => {
-                model_sine_handled[i] = true;
-                let old = &ref_model.noise.sinusoid[i];
-                findings.push(Finding {
-                    edit: Edit::Sinusoid { index: Some(i), amplitude_dph: amp_dph, period_s: per },
-                    changes: vec![
-                        ParameterChange {
-                            term: format!("sinusoid[{i}].amplitude_dph"),
-                            model: old.amplitude_dph,
-                            fitted: amp_dph,
-                            ci95: amp_ci,
-                        },
-                        ParameterChange {
-                            term: format!("sinusoid[{i}].period_s"),
-                            model: old.period_s,
-                            fitted: per,
-                            ci95: per_ci,
-                        },
-                    ],
-                    added: None,
-                    n_par: 2,
-                    note: format!(
-                        "sinusoid[{i}]: the line at {} Hz is stronger than the model's: amplitude {} deg/h (model {}), period {} s",
-                        fmt_g(sf.f_hz),
-                        fmt_g(amp_dph),
-                        fmt_g(old.amplitude_dph),
-                        fmt_g(per)
-                    ),
-                });
-            }
-            None => {
-                let t = Term::Sinusoid {
-                    amplitude_dph: amp_dph,
-                    period_s: per,
-                };
-                let expl = format!(
-                    "{} Found as a narrow spectral line at {} Hz (z = {:.1} against the model's spectrum), \
-                     {:.1} times the background there; amplitude {} deg/h, period {} s. Its Allan signature \
-                     (peak near tau = {} s) lies under the quantization noise.",
-                    t.explanation(),
-                    fmt_g(sf.f_hz),
-                    line.z,
-                    line.ratio,
-                    fmt_g(amp_dph),
-                    fmt_g(per),
-                    fmt_g(0.371 * per)
-                );
-                let mut params = BTreeMap::new();
-                params.insert("amplitude_dph".to_string(), amp_dph);
-                params.insert("period_s".to_string(), per);
-                let mut ci = BTreeMap::new();
-                ci.insert("amplitude_dph".to_string(), amp_ci);
-                ci.insert("period_s".to_string(), per_ci);
-                findings.push(Finding {
-                    edit: Edit::Sinusoid {
-                        index: None,
-                        amplitude_dph: amp_dph,
-                        period_s: per,
-                    },
-                    changes: vec![],
-                    added: Some(AddedTerm {
-                        term: "sinusoid".into(),
-                        params,
-                        explanation: expl,
-                        ci95: ci,
-                    }),
-                    n_par: 2,
-                    note: format!(
-                        "new sinusoid at {} Hz, amplitude {} deg/h",
-                        fmt_g(sf.f_hz),
-                        fmt_g(amp_dph)
-                    ),
-                });
-            }
-        }
-        sine_findings.push((sf.f_hz, sf.amp));
-    }
-    // model sinusoids not seen as excess lines: is their amplitude right?
-    let z_sine_check = compare::bonferroni_z(ALPHA_LINES, ref_model.noise.sinusoid.len().max(1));
-    for (i, s) in ref_model.noise.sinusoid.iter().enumerate() {
-        if model_sine_handled[i] {
-            continue;
-        }
-        let f = 1.0 / s.period_s;
-        if f < 2.0 / dur || f > fs / 2.0 {
-            continue;
-        }
-        let s_bg = s_bg_at(f.max(welch_f_min));
-        let mag = stats::dft_hann(&xc, tau0, f).norm();
-        let xarg = PI * f * tau0;
-        let sinc = xarg.sin() / xarg;
-        let amp = 2.0 * mag / (n as f64 / 2.0) / sinc;
-        let sd = (1.5 * s_bg / dur).sqrt() / sinc;
-        let model_amp = units::dph_to_arcsec_per_s(s.amplitude_dph);
-        let z = (amp - model_amp) / sd;
-        if z.abs() > z_sine_check {
-            let fitted = units::arcsec_per_s_to_dph(amp);
-            findings.push(Finding {
-                edit: Edit::Sinusoid { index: Some(i), amplitude_dph: fitted, period_s: s.period_s },
-                changes: vec![ParameterChange {
-                    term: format!("sinusoid[{i}].amplitude_dph"),
-                    model: s.amplitude_dph,
-                    fitted,
-                    ci95: [(fitted - 1.96 * sd).max(0.0), fitted + 1.96 * sd],
-                }],
-                added: None,
-                n_par: 1,
-                note: format!(
-                    "sinusoid[{i}] (period {} s): amplitude {} deg/h in the recording, model {} (z = {z:.1})",
-                    fmt_g(s.period_s),
-                    fmt_g(fitted),
-                    fmt_g(s.amplitude_dph)
-                ),
-            });
-            sine_findings.push((f, amp - model_amp.min(amp)));
-        }
-    }
+    // lines -> sinusoids (new ones, or the model's with another amplitude or period)
+    let lf = line_findings(&scan, &ref_model, line_params.half_width);
+    drop(scan);
+    let lines = lf.hits;
+    let sine_findings = lf.sines; // (f, amp) for the wavelet expectation
+    findings.extend(lf.findings);
 
     // --- the wavelet-level data of the fits (model expectation plus the lines found)
     let basis = Basis::new(&layout.lo, &layout.hi, tau0, &layout.levels);
@@ -1530,7 +1367,7 @@ pub fn diagnose(
             .map(|k| opts.seed.wrapping_add(1_000_003).wrapping_add(k))
             .collect();
         let mut cutoffs = cutoffs_before.clone();
-        let probes: Vec<(f64, f64)> = sine_probes.iter().map(|p| (p.f0, p.half_width)).collect();
+        let probes: Vec<(f64, f64)> = Vec::new();
         let mut alt_model = None;
         if let Some(fi) = telegraph_pending
             && let Edit::GaussMarkov {
@@ -1565,7 +1402,6 @@ pub fn diagnose(
             sine_probes: &probes,
         };
         let mut runs_after = mc::run(&job, &seeds_after)?;
-        bootstrap_sines(&mut findings, &sine_probes, &runs_after);
         let mut m_new_replacement = None;
         if let (Some(fi), Some(alt)) = (telegraph_pending, alt_model) {
             // the alternative's kurtosis first (cheap); its full statistics only if chosen
@@ -2202,8 +2038,8 @@ fn broadband(
     let phi_rrw = basis.rrw();
     let phi_flicker = basis.flicker(f_lo_flicker);
     let tc_grid = explain::log_grid(4.0 * tau0, dur / 3.0, 4);
-    let welch_pmax = layout.welch.seg() as f64 * tau0 / 2.0;
-    let p_grid = explain::log_grid(welch_pmax.min(dur / 4.0), dur / 2.0, 4);
+    // periods beyond the line search's reach (fewer than min_cycles per record)
+    let p_grid = explain::log_grid(dur / lines::SearchParams::default().min_cycles, dur / 2.0, 4);
     let d2_12 = model.gyro.pulse_weight_arcsec.powi(2) / 12.0;
     for _step in 0..3 {
         let l0 = data.loglik(&data.e0);

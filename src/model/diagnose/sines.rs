@@ -1,0 +1,244 @@
+//! Lines become sinusoid findings: the diagnosis's explain step for the lines
+//! the whole-record search ([`super::lines`]) found.
+//!
+//! * A line near one of the model's sinusoids (within three bins or five of
+//!   its frequency standard deviations) is that sinusoid: it is a finding only
+//!   when its amplitude or its frequency differs from the model's by more than
+//!   the Bonferroni z over the model's sinusoids (family-wise
+//!   [`super::ALPHA_LINES`]); then both are reported as parameter changes.
+//! * Any other line is a new sinusoid with the line's amplitude and period.
+//! * A model sinusoid without a line is measured at its own frequency (least
+//!   squares, the local continuum from the spectrum): a significantly weaker
+//!   or stronger amplitude is a parameter change.
+//!
+//! Every interval is the line fit's Fisher interval ([`super::lines::LineFit`]).
+
+use std::collections::BTreeMap;
+use std::f64::consts::PI;
+
+use statrs::distribution::{ContinuousCDF, Normal};
+
+use super::compare::{self, LineHit};
+use super::lines::{self, Detection, LineFit};
+use super::{ALPHA_LINES, AddedTerm, Edit, Finding, LineScan, ParameterChange, fmt_g};
+use crate::model::config::SinusoidParams;
+use crate::model::{GyroModel, Term};
+use crate::units;
+
+/// What the lines contribute to the diagnosis.
+#[derive(Debug, Default)]
+pub(super) struct LineFindings {
+    pub findings: Vec<Finding>,
+    /// The lines the model does not explain.
+    pub hits: Vec<LineHit>,
+    /// `(f Hz, amplitude arcsec/s)` of the line power the model lacks (for the
+    /// wavelet-level expectation of the broadband fit).
+    pub sines: Vec<(f64, f64)>,
+}
+
+/// Turn the scan's lines (and the model's sinusoids) into findings.
+pub(super) fn line_findings(scan: &LineScan, model: &GyroModel, half_width: usize) -> LineFindings {
+    let sines = &model.noise.sinusoid;
+    let z_check = compare::bonferroni_z(ALPHA_LINES, sines.len().max(1));
+    let df = scan.spectrum.df();
+    let mut handled = vec![false; sines.len()];
+    let mut out = LineFindings::default();
+    for (det, fit) in &scan.lines {
+        let near = sines
+            .iter()
+            .position(|s| (1.0 / s.period_s - fit.f_hz).abs() <= (3.0 * df).max(5.0 * fit.f_sd));
+        let finding = match near {
+            Some(i) => {
+                handled[i] = true;
+                let Some(f) = changed_sine(i, &sines[i], fit, z_check) else {
+                    continue;
+                };
+                let m = units::dph_to_arcsec_per_s(sines[i].amplitude_dph);
+                out.sines
+                    .push((fit.f_hz, (fit.amp * fit.amp - m * m).max(0.0).sqrt()));
+                f
+            }
+            None => {
+                out.sines.push((fit.f_hz, fit.amp));
+                new_sine(det, fit, z_of(det))
+            }
+        };
+        out.hits.push(LineHit {
+            bin: det.bin,
+            f_hz: fit.f_hz,
+            ratio: det.ratio,
+            z: z_of(det),
+        });
+        out.findings.push(finding);
+    }
+    for (i, s) in sines.iter().enumerate().filter(|(i, _)| !handled[*i]) {
+        if let Some((f, extra)) = sine_amplitude_check(scan, i, s, half_width, z_check) {
+            out.sines.push((1.0 / s.period_s, extra));
+            out.findings.push(f);
+        }
+    }
+    out
+}
+
+/// Equivalent one-sided z of a detection's per-bin tail probability.
+fn z_of(det: &Detection) -> f64 {
+    -Normal::new(0.0, 1.0)
+        .expect("standard normal")
+        .inverse_cdf(det.p.max(1e-300))
+}
+
+/// The model's sinusoid `i` seen as a line: a finding when amplitude or
+/// frequency differ beyond `z_check`.
+fn changed_sine(i: usize, old: &SinusoidParams, fit: &LineFit, z_check: f64) -> Option<Finding> {
+    let z_a = (fit.amp - units::dph_to_arcsec_per_s(old.amplitude_dph)) / fit.amp_sd.max(1e-300);
+    let z_f = (fit.f_hz - 1.0 / old.period_s) / fit.f_sd.max(1e-300);
+    if z_a.abs() <= z_check && z_f.abs() <= z_check {
+        return None;
+    }
+    let amp = units::arcsec_per_s_to_dph(fit.amp);
+    let per = 1.0 / fit.f_hz;
+    let amp_ci = fit.amp_ci95().map(units::arcsec_per_s_to_dph);
+    Some(Finding {
+        edit: Edit::Sinusoid {
+            index: Some(i),
+            amplitude_dph: amp,
+            period_s: per,
+        },
+        changes: vec![
+            ParameterChange {
+                term: format!("sinusoid[{i}].amplitude_dph"),
+                model: old.amplitude_dph,
+                fitted: amp,
+                ci95: amp_ci,
+            },
+            ParameterChange {
+                term: format!("sinusoid[{i}].period_s"),
+                model: old.period_s,
+                fitted: per,
+                ci95: fit.period_ci95(),
+            },
+        ],
+        added: None,
+        n_par: 2,
+        note: format!(
+            "sinusoid[{i}]: the line at {} Hz differs from the model's: amplitude {} deg/h (model {}, z = {z_a:.1}), \
+             period {} s (model {}, z = {z_f:.1})",
+            fmt_g(fit.f_hz),
+            fmt_g(amp),
+            fmt_g(old.amplitude_dph),
+            fmt_g(per),
+            fmt_g(old.period_s)
+        ),
+    })
+}
+
+/// A line the model has nothing for: a new sinusoid.
+fn new_sine(det: &Detection, fit: &LineFit, z: f64) -> Finding {
+    let amp = units::arcsec_per_s_to_dph(fit.amp);
+    let per = 1.0 / fit.f_hz;
+    let amp_ci = fit.amp_ci95().map(units::arcsec_per_s_to_dph);
+    let per_ci = fit.period_ci95();
+    let t = Term::Sinusoid {
+        amplitude_dph: amp,
+        period_s: per,
+    };
+    let expl = format!(
+        "{} Found as a narrow line in the whole record's spectrum at {} Hz ({} cycles; z = {z:.1} after the \
+         Bonferroni correction over {} bins), {:.1} times the local continuum; least-squares fit: amplitude {} \
+         deg/h (95 % {}..{}), period {} s (95 % {}..{}), intervals from the line's Fisher information at the \
+         local noise level. Its Allan signature (peak near tau = {} s) lies under the quantization noise.",
+        t.explanation(),
+        fmt_g(fit.f_hz),
+        det.bin,
+        det.n_searched,
+        det.ratio,
+        fmt_g(amp),
+        fmt_g(amp_ci[0]),
+        fmt_g(amp_ci[1]),
+        fmt_g(per),
+        fmt_g(per_ci[0]),
+        fmt_g(per_ci[1]),
+        fmt_g(0.371 * per)
+    );
+    Finding {
+        edit: Edit::Sinusoid {
+            index: None,
+            amplitude_dph: amp,
+            period_s: per,
+        },
+        changes: vec![],
+        added: Some(AddedTerm {
+            term: "sinusoid".into(),
+            params: BTreeMap::from([
+                ("amplitude_dph".to_string(), amp),
+                ("period_s".to_string(), per),
+            ]),
+            explanation: expl,
+            ci95: BTreeMap::from([
+                ("amplitude_dph".to_string(), amp_ci),
+                ("period_s".to_string(), per_ci),
+            ]),
+        }),
+        n_par: 2,
+        note: format!(
+            "new sinusoid at {} Hz: amplitude {} deg/h, period {} s (95 % {}..{})",
+            fmt_g(fit.f_hz),
+            fmt_g(amp),
+            fmt_g(per),
+            fmt_g(per_ci[0]),
+            fmt_g(per_ci[1])
+        ),
+    }
+}
+
+/// A model sinusoid the search did not see: its amplitude measured at its own
+/// frequency. Returns the finding and the amplitude the model lacks (arcsec/s).
+fn sine_amplitude_check(
+    scan: &LineScan,
+    i: usize,
+    s: &SinusoidParams,
+    half_width: usize,
+    z_check: f64,
+) -> Option<(Finding, f64)> {
+    let spec = &scan.spectrum;
+    let f = 1.0 / s.period_s;
+    let (fs, t) = (spec.fs_hz, spec.duration_s());
+    if f < 2.0 / t || f >= fs / 2.0 {
+        return None;
+    }
+    let s_loc = spec.local_psd(f, half_width)?;
+    let x = &scan.detrended_rate;
+    let xarg = PI * f / fs;
+    let sinc = xarg.sin() / xarg;
+    let amp = 2.0 * lines::dft(x, 1.0 / fs, f).norm() / x.len() as f64 / sinc;
+    let sd = (s_loc / t).sqrt() / sinc;
+    let model_amp = units::dph_to_arcsec_per_s(s.amplitude_dph);
+    let z = (amp - model_amp) / sd;
+    if !(z.abs() > z_check) {
+        return None;
+    }
+    let fitted = units::arcsec_per_s_to_dph(amp);
+    let sd_dph = units::arcsec_per_s_to_dph(sd);
+    let finding = Finding {
+        edit: Edit::Sinusoid {
+            index: Some(i),
+            amplitude_dph: fitted,
+            period_s: s.period_s,
+        },
+        changes: vec![ParameterChange {
+            term: format!("sinusoid[{i}].amplitude_dph"),
+            model: s.amplitude_dph,
+            fitted,
+            ci95: [(fitted - 1.96 * sd_dph).max(0.0), fitted + 1.96 * sd_dph],
+        }],
+        added: None,
+        n_par: 1,
+        note: format!(
+            "sinusoid[{i}] (period {} s): amplitude {} deg/h in the recording, model {} (z = {z:.1})",
+            fmt_g(s.period_s),
+            fmt_g(fitted),
+            fmt_g(s.amplitude_dph)
+        ),
+    };
+    Some((finding, (amp - model_amp).max(0.0)))
+}
