@@ -9,6 +9,14 @@
 //! analysis() --> estimator (model::estimate) + Allan curves with CIs
 //! ```
 //!
+//! Gaps: samples made up by the gap fill ([`Pipeline::push_counts_filled`])
+//! flow through the outputs unchanged (the angle stays continuous), while the
+//! level variances (rate and angle) leave out every coefficient whose support
+//! touches one ([`crate::dsp::gaps`]) and the Allan sums every term with a
+//! filled phase point; counts (`n_coef`, `n_terms`) are of what remains. Not
+//! yet masked: the QN splitter's running per-level statistics (its gains) and
+//! the rate-ramp slope, which see the filled samples as data.
+//!
 //! Everything is streaming with memory independent of the record length, and
 //! results do not depend on how the input is split into blocks, so replaying a
 //! capture through the daemon gives exactly what `analyze` gives on the file.

@@ -61,6 +61,20 @@
 //!   **CIs**: `avar * edf / chi2_{edf}(1 - p)` ... `avar * edf / chi2_{edf}(p)`,
 //!   `p = (1 - confidence)/2`, reported as deviations.
 //!
+//! # Gaps
+//! [`OctaveAllan::mark_filled`] marks phase points as filled (made up by a gap
+//! fill, not measured). Every term `x[i+2m] - 2 x[i+m] + x[i]` with one of its
+//! three points filled is left out and not counted in `n` (so the EDF follows
+//! what remains). Only the three points matter: a pulse counter keeps the angle
+//! across a gap, so a term whose points are all measured is the gap-free term
+//! exactly, even when a gap lies between them (Stable32's rule for frequency
+//! data, skip any term whose span holds a gap, would drop every term longer than
+//! the spacing of the gaps). Full-overlap octaves sum the left-out terms
+//! separately per block (the union of the filled spans shifted by 0, m, 2m) and
+//! subtract them when reporting, so the all-measured kernel is unchanged; strided
+//! octaves keep a flag per ring slot once a filled point has reached them. The
+//! filled spans are kept while they are within the buffer (bounded by it).
+//!
 //! # Precision
 //! Terms are the batch terms bitwise (same evaluation order) for phase input; each
 //! block of at most `B` terms is summed in 16 lanes (worst-case relative error
