@@ -203,11 +203,12 @@ fn pipeline_levels_equal_the_batch_gap_aware_reference() {
     let rate_bad: Vec<bool> = (0..filled.len()).map(|i| filled[i] || (i > 0 && filled[i - 1])).collect();
     let rate_ref = batch_levels(&rate, &rate_bad, &w, 32);
     let angle_ref = batch_levels(&angle, &filled, &w, p.angle_level_observations().len() as u32);
-    // tolerance: summation order (per block vs. one pass; the kernel's and the
-    // plain convolution's order of multiply-adds), 1e-12 relative; the angle's
-    // detail coefficients are ~1e-6 of the angle itself (a 12 deg/h ramp), so
-    // their rounding is 1e6 times larger relative to them: 1e-9
-    assert_levels_close(&p.rate_level_observations(), &rate_ref, 1e-12, "rate levels");
+    // tolerance: the streaming kernel and the plain convolution add their
+    // products in different orders; deep detail coefficients are small next to
+    // the signal they come from (a 12 deg/h rate of +-1210 arcsec/s pulses, a
+    // ramping angle), so their rounding is large relative to them: 1e-9
+    // relative (the coefficient counts are compared exactly)
+    assert_levels_close(&p.rate_level_observations(), &rate_ref, 1e-9, "rate levels");
     assert_levels_close(&p.angle_level_observations(), &angle_ref, 1e-9, "angle levels");
     // the gaps cost coefficients: fine levels keep most, deep ones lose all
     let fine = &p.rate_level_observations()[0];
