@@ -6,8 +6,9 @@
 //!
 //! Gaps (lost frames) are filled the same way everywhere: the pulses of the
 //! gap, which the cumulative counter kept, are spread over the missing
-//! samples as integers ([`crate::source::frame::spread_increment`]), so the
-//! series stays uniformly sampled and no angle is lost.
+//! samples as integers ([`crate::source::frame::FilledSeries`]), so the
+//! series stays uniformly sampled and no angle is lost; the made-up samples
+//! are marked, and the pipeline's statistics leave them out.
 
 use std::path::{Path, PathBuf};
 
@@ -16,7 +17,7 @@ use crate::sink::messages::SinkMessage;
 use crate::sink::meta::{AGREE_REL, Contradiction, GyroOutput, check_flag};
 use crate::sink::reader::{ReadError, read_metadata, scan_recording};
 use crate::source::capture::{CaptureError, CaptureReader};
-use crate::source::frame::spread_increment;
+use crate::source::frame::FilledSeries;
 use crate::source::input::{InputError, InputFormat, SampleReader};
 use crate::units;
 
@@ -188,14 +189,14 @@ pub fn run_capture(
     let hint = std::fs::metadata(path).ok().map(|m| m.len() / 16);
     let mut pipe = Pipeline::new(cfg)?;
     let mut out = PipelineOutput::default();
-    let mut counts = Vec::with_capacity(BLOCK);
+    let mut series = FilledSeries::with_capacity(BLOCK);
     while let Some(block) = reader.next_block()? {
-        counts.clear();
+        series.clear();
         for s in &block.samples {
-            counts.extend(spread_increment(s.increment, u32::from(s.lost_before) + 1));
+            series.push_sample(s);
         }
         out.clear();
-        pipe.push_counts(&counts, &mut out);
+        pipe.push_counts_filled(&series.counts, &series.filled, &mut out);
         progress(pipe.samples(), hint);
     }
     if pipe.samples() == 0 {
@@ -277,7 +278,7 @@ pub fn run_recording(
 ) -> Result<(Pipeline, Option<crate::sink::reader::Break>), OfflineError> {
     let mut pipe = Pipeline::new(cfg)?;
     let mut out = PipelineOutput::default();
-    let mut counts: Vec<i64> = Vec::new();
+    let mut series = FilledSeries::default();
     let mut first_dt: Option<u64> = None;
     let mut mixed: Option<u64> = None;
     let mut implausible: Option<(u64, u64)> = None;
@@ -295,17 +296,17 @@ pub fn run_recording(
                 Some(d) if d != b.dt_ns && !b.counts.is_empty() => mixed = Some(b.dt_ns),
                 _ => {}
             }
-            counts.clear();
+            series.clear();
             let mut gaps = b.gaps.iter().peekable();
             for (i, &c) in b.counts.iter().enumerate() {
                 let mut lost = 0u64;
                 while let Some(g) = gaps.next_if(|g| g.index as usize == i) {
                     lost += g.lost;
                 }
-                counts.extend(spread_increment(c, (lost + 1).min(u32::MAX as u64) as u32));
+                series.push(c, lost);
             }
             out.clear();
-            pipe.push_counts(&counts, &mut out);
+            pipe.push_counts_filled(&series.counts, &series.filled, &mut out);
             progress(pipe.samples(), None);
         }
     })?;

@@ -9,9 +9,19 @@
 //! analysis() --> estimator (model::estimate) + Allan curves with CIs
 //! ```
 //!
+//! Gaps: samples made up by the gap fill ([`Pipeline::push_counts_filled`])
+//! flow through the outputs unchanged (the angle stays continuous), while the
+//! level variances (rate and angle) leave out every coefficient whose support
+//! touches one ([`crate::dsp::gaps`]) and the Allan sums every term with a
+//! filled phase point; counts (`n_coef`, `n_terms`) are of what remains. Not
+//! yet masked: the QN splitter's running per-level statistics (its gains) and
+//! the rate-ramp slope, which see the filled samples as data.
+//!
 //! Everything is streaming with memory independent of the record length, and
 //! results do not depend on how the input is split into blocks, so replaying a
 //! capture through the daemon gives exactly what `analyze` gives on the file.
+
+use std::ops::Range;
 
 use serde::Serialize;
 
@@ -20,6 +30,7 @@ use crate::allan::{self, AllanPoint};
 use crate::dsp::bank::{AnalysisOutput, MAX_LEVELS, StreamingAnalysis};
 use crate::dsp::qn::{QnConfig, QnSplitter};
 use crate::dsp::wavelet::Wavelet;
+use crate::dsp::gaps::{MaskCascade, good_segments};
 use crate::dsp::DspError;
 use crate::model::baseline::{self, AdevPoint, BaselineEstimates};
 use crate::model::estimate::{self, AllanObs, EstimatorInput, EstimatorOutput, FilterEstimate, NoiseEstimates, RampAccumulator};
@@ -139,8 +150,13 @@ struct LevelAccumulator {
     out2: AnalysisOutput,
     skip: u64,
     seen: Vec<u64>,
+    /// Coefficients summed per level (transient-free and not touching a filled sample).
+    count: Vec<u64>,
     sum_sq: Vec<f64>,
     blocks: Option<BlockSums>,
+    /// Which coefficients touch a filled input sample.
+    mask: MaskCascade,
+    bad: Vec<Range<usize>>,
 }
 
 /// Per-block sums of the detail squares of every level, for a batch-means
@@ -204,8 +220,11 @@ impl LevelAccumulator {
             // first L-1 coefficients of every level touch the zero pre-history
             skip: w.len() as u64 - 1,
             seen: vec![0; levels as usize],
+            count: vec![0; levels as usize],
             sum_sq: vec![0.0; levels as usize],
             blocks: None,
+            mask: MaskCascade::new(w.len(), levels as usize),
+            bad: Vec::new(),
         })
     }
 
@@ -215,40 +234,76 @@ impl LevelAccumulator {
         self
     }
 
+    #[cfg(test)]
     fn push(&mut self, x: &[f64]) {
-        self.out1.approx.clear();
-        for d in &mut self.out1.details {
-            d.clear();
-        }
-        self.first.push(x, &mut self.out1);
-        let n1 = self.out1.details.len();
-        for (j, d) in self.out1.details.iter().enumerate() {
-            Self::acc(self.skip, &mut self.seen[j], &mut self.sum_sq[j], &mut self.blocks, j, d);
-        }
-        if let Some(second) = &mut self.second {
-            self.out2.approx.clear();
-            for d in &mut self.out2.details {
-                d.clear();
-            }
-            second.push(&self.out1.approx, &mut self.out2);
-            for (j, d) in self.out2.details.iter().enumerate() {
-                Self::acc(self.skip, &mut self.seen[n1 + j], &mut self.sum_sq[n1 + j], &mut self.blocks, n1 + j, d);
-            }
-        }
+        self.push_masked(x, &[]);
     }
 
+    /// Push samples; `filled` (absolute sample indices, sorted) are the filled
+    /// ones among them (and possibly later ones).
+    fn push_masked(&mut self, x: &[f64], filled: &[Range<u64>]) {
+        for r in filled {
+            self.mask.add_input(r.clone());
+        }
+        let mut out1 = std::mem::take(&mut self.out1);
+        out1.approx.clear();
+        for d in &mut out1.details {
+            d.clear();
+        }
+        self.first.push(x, &mut out1);
+        let n1 = out1.details.len();
+        for (j, d) in out1.details.iter().enumerate() {
+            self.acc(j, d);
+        }
+        if let Some(second) = &mut self.second {
+            let mut out2 = std::mem::take(&mut self.out2);
+            out2.approx.clear();
+            for d in &mut out2.details {
+                d.clear();
+            }
+            second.push(&out1.approx, &mut out2);
+            for (j, d) in out2.details.iter().enumerate() {
+                self.acc(n1 + j, d);
+            }
+            self.out2 = out2;
+        }
+        self.out1 = out1;
+    }
+
+    /// Add level `j+1`'s new coefficients `d` (those after the start-up
+    /// transient and not touching a filled sample).
     #[inline]
-    fn acc(skip: u64, seen: &mut u64, sum: &mut f64, blocks: &mut Option<BlockSums>, j: usize, d: &[f64]) {
-        let start = skip.saturating_sub(*seen).min(d.len() as u64) as usize;
-        if let Some(b) = blocks {
-            b.add(j, *seen + start as u64, &d[start..]);
+    fn acc(&mut self, j: usize, d: &[f64]) {
+        let seen = self.seen[j];
+        let start = self.skip.saturating_sub(seen).min(d.len() as u64) as usize;
+        self.seen[j] += d.len() as u64;
+        if self.mask.is_clear() {
+            if let Some(b) = &mut self.blocks {
+                b.add(j, seen + start as u64, &d[start..]);
+            }
+            self.count[j] += (d.len() - start) as u64;
+            let mut s = 0.0;
+            for &v in &d[start..] {
+                s += v * v;
+            }
+            self.sum_sq[j] += s;
+            return;
         }
-        *seen += d.len() as u64;
+        self.bad.clear();
+        self.mask.bad_spans(j, seen + start as u64, seen + d.len() as u64, &mut self.bad);
+        let d = &d[start..];
+        let first = seen + start as u64;
         let mut s = 0.0;
-        for &v in &d[start..] {
-            s += v * v;
+        for g in good_segments(d.len(), &self.bad) {
+            if let Some(b) = &mut self.blocks {
+                b.add(j, first + g.start as u64, &d[g.clone()]);
+            }
+            self.count[j] += g.len() as u64;
+            for &v in &d[g] {
+                s += v * v;
+            }
         }
-        *sum += s;
+        self.sum_sq[j] += s;
     }
 
     /// The per-block observations (blocks of equal length; a last block
@@ -278,7 +333,7 @@ impl LevelAccumulator {
     fn observations(&self) -> Vec<LevelObs> {
         (0..self.seen.len())
             .filter_map(|j| {
-                let n = self.seen[j].saturating_sub(self.skip);
+                let n = self.count[j];
                 (n > 0).then(|| LevelObs { level: j as u32 + 1, n_coef: n as f64, mean_sq: self.sum_sq[j] / n as f64 })
             })
             .collect()
@@ -301,8 +356,14 @@ pub struct Pipeline {
     ramp: RampAccumulator,
     angle: f64,
     samples: u64,
+    /// Filled (not measured) samples pushed.
+    filled: u64,
     rate_buf: Vec<f64>,
     angle_buf: Vec<f64>,
+    /// This push's filled spans, absolute sample indices; the same one sample
+    /// longer (a rate sample after a filled one is not measured either).
+    fill_abs: Vec<Range<u64>>,
+    fill_rate: Vec<Range<u64>>,
 }
 
 /// Depth of the deep (rate) level accumulator.
@@ -338,8 +399,11 @@ impl Pipeline {
             ramp: RampAccumulator::default(),
             angle: 0.0,
             samples: 0,
+            filled: 0,
             rate_buf: Vec::new(),
             angle_buf: Vec::new(),
+            fill_abs: Vec::new(),
+            fill_rate: Vec::new(),
         })
     }
 
@@ -355,10 +419,50 @@ impl Pipeline {
         &self.cfg
     }
 
-    /// Push pulse increments (count input).
+    /// Filled (not measured) samples pushed.
+    pub fn filled_samples(&self) -> u64 {
+        self.filled
+    }
+
+    /// Detail-level mean squares of the rate, (arcsec/s)^2, as the estimator
+    /// gets them (transient-free coefficients not touching a filled sample).
+    pub fn rate_level_observations(&self) -> Vec<LevelObs> {
+        self.rate_levels.observations()
+    }
+
+    /// The same for the angle (arcsec^2), the QN band.
+    pub fn angle_level_observations(&self) -> Vec<LevelObs> {
+        self.angle_levels.observations()
+    }
+
+    /// Push pulse increments (count input), all measured.
     pub fn push_counts(&mut self, counts: &[i64], out: &mut PipelineOutput) {
+        self.push_counts_filled(counts, &[], out);
+    }
+
+    /// Push pulse increments with `filled[i]` true for a sample made up by the
+    /// gap fill (see [`Self::push_counts_filled`]).
+    pub fn push_counts_masked(&mut self, counts: &[i64], filled: &[bool], out: &mut PipelineOutput) {
+        assert_eq!(counts.len(), filled.len(), "push_counts_masked: one flag per sample");
+        self.push_counts_filled(counts, &crate::dsp::gaps::spans_of(filled), out);
+    }
+
+    /// Push pulse increments of which the spans `filled` (indices into
+    /// `counts`, sorted, disjoint) were made up by the gap fill
+    /// ([`crate::source::frame::fill`]). They go into the outputs and keep the
+    /// angle continuous, but the statistics leave out every wavelet
+    /// coefficient whose support touches one of them and every Allan second
+    /// difference with one of its three phase points inside a gap (a filled
+    /// sample `k` makes the angle after it unknown; the angle after the
+    /// measured sample that ends the gap is known again), and count
+    /// coefficients and terms from what remains.
+    pub fn push_counts_filled(&mut self, counts: &[i64], filled: &[Range<usize>], out: &mut PipelineOutput) {
+        self.set_filled(filled, counts.len());
         let d = self.cfg.pulse_arcsec.unwrap_or(1.0);
         if let Some(a) = &mut self.raw_counts {
+            for r in &self.fill_abs {
+                a.mark_filled(r.start + 1..r.end + 1);
+            }
             a.push_block(counts);
         }
         let k = d / self.tau0_s;
@@ -369,7 +473,22 @@ impl Pipeline {
 
     /// Push rates in deg/h (== arcsec/s) (rate input).
     pub fn push_rates_dph(&mut self, rates: &[f64], out: &mut PipelineOutput) -> Result<(), PipelineError> {
+        self.push_rates_dph_filled(rates, &[], out)
+    }
+
+    /// Push rates in deg/h with the spans `filled` made up (see
+    /// [`Self::push_counts_filled`]).
+    pub fn push_rates_dph_filled(
+        &mut self,
+        rates: &[f64],
+        filled: &[Range<usize>],
+        out: &mut PipelineOutput,
+    ) -> Result<(), PipelineError> {
+        self.set_filled(filled, rates.len());
         if let Some(a) = &mut self.raw_rate {
+            for r in &self.fill_abs {
+                a.mark_filled(r.start + 1..r.end + 1);
+            }
             a.push_block(rates)?;
         }
         self.rate_buf.clear();
@@ -378,17 +497,38 @@ impl Pipeline {
         Ok(())
     }
 
+    fn set_filled(&mut self, filled: &[Range<usize>], n: usize) {
+        self.fill_abs.clear();
+        self.fill_rate.clear();
+        let s0 = self.samples;
+        for r in filled {
+            let (a, b) = (r.start.min(n), r.end.min(n));
+            if a >= b {
+                continue;
+            }
+            self.filled += (b - a) as u64;
+            let span = s0 + a as u64..s0 + b as u64;
+            self.fill_rate.push(span.start..span.end + 1);
+            self.fill_abs.push(span);
+        }
+        // the clean and noise channels: output sample k is input sample k
+        for r in &self.fill_abs {
+            self.clean_allan.mark_filled(r.start + 1..r.end + 1);
+            self.noise_allan.mark_filled(r.start + 1..r.end + 1);
+        }
+    }
+
     fn process_rates(&mut self, out: &mut PipelineOutput) {
         let n0 = out.clean_dph.len();
         self.splitter.push(&self.rate_buf, &mut out.clean_dph, &mut out.noise_dph);
-        self.rate_levels.push(&self.rate_buf);
+        self.rate_levels.push_masked(&self.rate_buf, &self.fill_rate);
         self.ramp.push_slice(&self.rate_buf);
         self.angle_buf.clear();
         for &r in &self.rate_buf {
             self.angle += r * self.tau0_s;
             self.angle_buf.push(self.angle);
         }
-        self.angle_levels.push(&self.angle_buf);
+        self.angle_levels.push_masked(&self.angle_buf, &self.fill_abs);
         self.samples += self.rate_buf.len() as u64;
         self.feed_channels(n0, out);
     }
@@ -429,7 +569,7 @@ impl Pipeline {
         let angle_blocks = self.angle_levels.block_observations();
         let allan_obs: Vec<AllanObs> = raw_points
             .iter()
-            .map(|p| AllanObs { m: p.m, n_phase: self.samples + 1, avar: p.avar, stride: p.stride, n_terms: p.n })
+            .map(|p| AllanObs { m: p.m, n_phase: self.n_phase(p), avar: p.avar, stride: p.stride, n_terms: p.n })
             .collect();
         let input = EstimatorInput {
             tau0_s: self.tau0_s,
@@ -443,6 +583,16 @@ impl Pipeline {
             ramp: Some(self.ramp),
         };
         estimate::estimate(&input, &FitOptions::default())
+    }
+
+    /// Phase points of a gap-free record giving the same number of terms as
+    /// `p` has (the record's own count when nothing was filled).
+    fn n_phase(&self, p: &StreamPoint) -> u64 {
+        if self.filled == 0 {
+            self.samples + 1
+        } else {
+            p.n.saturating_sub(1) * p.stride + 2 * p.m + 1
+        }
     }
 
     /// Estimates and curves from everything pushed so far.

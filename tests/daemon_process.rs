@@ -143,10 +143,16 @@ fn the_stage_is_chunking_invariant_keeps_gaps_and_matches_the_pipeline() {
     assert_eq!(r1.updates, 9);
     assert_eq!(t1.estimator_updates.get(), 9);
 
-    // The batch reference: one push of the whole gap-filled series.
+    // The batch reference: one push of the whole gap-filled series, with the
+    // filled samples marked (issue 13).
+    let mut series = sagnac::source::frame::FilledSeries::default();
+    for &(c, l) in &decoded {
+        series.push(c, l);
+    }
+    assert_eq!(series.counts, uniform);
     let mut p = Pipeline::new(&PipelineConfig::counts(1000.0, 1.21)).unwrap();
     let mut out = PipelineOutput::default();
-    p.push_counts(&uniform, &mut out);
+    p.push_counts_filled(&series.counts, &series.filled, &mut out);
     p.finish(&mut out);
     let a = p.analysis();
     let pairs = [

@@ -61,6 +61,20 @@
 //!   **CIs**: `avar * edf / chi2_{edf}(1 - p)` ... `avar * edf / chi2_{edf}(p)`,
 //!   `p = (1 - confidence)/2`, reported as deviations.
 //!
+//! # Gaps
+//! [`OctaveAllan::mark_filled`] marks phase points as filled (made up by a gap
+//! fill, not measured). Every term `x[i+2m] - 2 x[i+m] + x[i]` with one of its
+//! three points filled is left out and not counted in `n` (so the EDF follows
+//! what remains). Only the three points matter: a pulse counter keeps the angle
+//! across a gap, so a term whose points are all measured is the gap-free term
+//! exactly, even when a gap lies between them (Stable32's rule for frequency
+//! data, skip any term whose span holds a gap, would drop every term longer than
+//! the spacing of the gaps). Full-overlap octaves sum the left-out terms
+//! separately per block (the union of the filled spans shifted by 0, m, 2m) and
+//! subtract them when reporting, so the all-measured kernel is unchanged; strided
+//! octaves keep a flag per ring slot once a filled point has reached them. The
+//! filled spans are kept while they are within the buffer (bounded by it).
+//!
 //! # Precision
 //! Terms are the batch terms bitwise (same evaluation order) for phase input; each
 //! block of at most `B` terms is summed in 16 lanes (worst-case relative error
@@ -89,6 +103,7 @@ pub mod noise_id;
 pub mod sample;
 pub mod strided_edf;
 
+use std::ops::Range;
 use std::sync::OnceLock;
 
 use serde::{Deserialize, Serialize};
@@ -363,6 +378,7 @@ fn fixed_bytes<P: PhaseValue>(g: &Geometry) -> usize {
     size_of::<OctaveAllan<P>>()
         + (g.hist + g.block + g.block / 2) as usize * size_of::<P>()
         + full * size_of::<P::Total>()
+        + full * (size_of::<P::Total>() + size_of::<u64>())
         + (octaves - full) * size_of::<Strided<P>>()
         + octaves * size_of::<OctaveId<P>>()
         + octaves * size_of::<EdfCache>()
@@ -384,6 +400,11 @@ struct Strided<P: PhaseValue> {
     /// Values pushed so far.
     count: u64,
     total: P::Total,
+    /// Per ring slot: the value is a filled phase point (empty until the first
+    /// filled point arrives, then kept parallel to `ring`).
+    flags: Vec<bool>,
+    /// Terms left out because one of their three points is filled.
+    bad: u64,
 }
 
 impl<P: PhaseValue> Strided<P> {
@@ -394,14 +415,20 @@ impl<P: PhaseValue> Strided<P> {
             ring: Vec::new(),
             count: 0,
             total: P::Total::default(),
+            flags: Vec::new(),
+            bad: 0,
         }
     }
 
-    /// Push the next decimated phase points (consecutive multiples of `s`).
+    /// Push the next decimated phase points (consecutive multiples of `s`);
+    /// `flags[i]`: `values[i]` is a filled point (`None`: none is).
     #[inline(always)]
-    fn feed(&mut self, values: &[P]) {
+    fn feed(&mut self, values: &[P], flags: Option<&[bool]>) {
         if values.is_empty() {
             return;
+        }
+        if flags.is_some() || !self.flags.is_empty() {
+            return self.feed_flagged(values, flags);
         }
         let len = 2 * self.sp + 1;
         let mut partial = P::Partial::default();
@@ -433,8 +460,47 @@ impl<P: PhaseValue> Strided<P> {
         P::total_add(&mut self.total, partial);
     }
 
+    /// [`Self::feed`] once filled points have been seen: a term whose three
+    /// points include a filled one is left out (and counted in `bad`).
+    #[inline(never)]
+    fn feed_flagged(&mut self, values: &[P], flags: Option<&[bool]>) {
+        let len = 2 * self.sp + 1;
+        if self.flags.len() < self.ring.len() {
+            self.flags.resize(self.ring.len(), false);
+        }
+        let mut partial = P::Partial::default();
+        let mut w = (self.count % len as u64) as usize;
+        for (k, &x) in values.iter().enumerate() {
+            let f = flags.is_some_and(|f| f[k]);
+            if self.count >= 2 * self.sp as u64 {
+                let ia = if w + 1 == len { 0 } else { w + 1 };
+                let ib = if w + self.sp + 1 >= len { w + self.sp + 1 - len } else { w + self.sp + 1 };
+                if f || self.flags[ia] || self.flags[ib] {
+                    self.bad += 1;
+                } else {
+                    P::sq_add(&mut partial, self.ring[ia], self.ring[ib], x);
+                }
+            }
+            if self.ring.len() < len {
+                if self.ring.len() == self.ring.capacity() {
+                    let cap = self.ring.capacity();
+                    self.ring.reserve_exact((cap.max(8)).min(len - cap));
+                }
+                self.ring.push(x);
+                self.flags.push(f);
+            } else {
+                self.ring[w] = x;
+                self.flags[w] = f;
+            }
+            self.count += 1;
+            w = if w + 1 == len { 0 } else { w + 1 };
+        }
+        P::total_add(&mut self.total, partial);
+    }
+
+    /// Terms in the total (all terms less those left out).
     fn terms(&self) -> u64 {
-        self.count.saturating_sub(2 * self.sp as u64)
+        self.count.saturating_sub(2 * self.sp as u64) - self.bad
     }
 }
 
@@ -444,6 +510,10 @@ struct Accumulators<P: PhaseValue> {
     /// Phase points whose terms are accumulated.
     done: u64,
     full: Vec<P::Total>,
+    /// Per full-overlap octave: the part of `full` from terms touching a
+    /// filled phase point, and their count (subtracted when reporting).
+    bad_full: Vec<P::Total>,
+    bad_n: Vec<u64>,
     strided: Vec<Strided<P>>,
     id: Vec<OctaveId<P>>,
 }
@@ -457,6 +527,8 @@ impl<P: PhaseValue> Accumulators<P> {
         let id = (0..=g.max_oct).map(|_| OctaveId::default()).collect();
         Self {
             done: 0,
+            bad_full: full.clone(),
+            bad_n: vec![0; full.len()],
             full,
             strided,
             id,
@@ -466,15 +538,76 @@ impl<P: PhaseValue> Accumulators<P> {
     /// Accumulate the phase points `[done, end)`; `buf[0]` is point `base`; `done` is
     /// a multiple of `g.block`. `scratch` (capacity `block / 2`) holds the decimation
     /// cascade.
-    fn process(&mut self, g: &Geometry, buf: &[P], base: u64, end: u64, scratch: &mut Vec<P>) {
+    /// `filled`: sorted, disjoint spans of filled phase points (at least all
+    /// those below `end`).
+    fn process(
+        &mut self,
+        g: &Geometry,
+        buf: &[P],
+        base: u64,
+        end: u64,
+        scratch: &mut Vec<P>,
+        filled: &[Range<u64>],
+    ) {
+        let b0 = self.done;
+        if !filled.is_empty() && end > b0 {
+            self.subtract_filled(buf, base, b0, end, filled);
+        }
         #[cfg(target_arch = "x86_64")]
         {
             if std::arch::is_x86_feature_detected!("avx2") {
                 // SAFETY: the CPU supports AVX2 (checked just above).
-                return unsafe { self.process_avx2(g, buf, base, end, scratch) };
+                return unsafe { self.process_avx2(g, buf, base, end, scratch, filled) };
             }
         }
-        self.process_body(g, buf, base, end, scratch)
+        self.process_body(g, buf, base, end, scratch, filled)
+    }
+
+    /// Full-overlap octaves: sum, separately, the terms ending in `[b0, end)`
+    /// whose three points `x[i-2m], x[i-m], x[i]` include a filled one (the
+    /// union of the filled spans shifted by 0, m and 2m), so that reports
+    /// subtract them. The main kernel stays unmasked: an all-measured stream
+    /// costs nothing here.
+    fn subtract_filled(&mut self, buf: &[P], base: u64, b0: u64, end: u64, filled: &[Range<u64>]) {
+        let mut iv: Vec<(u64, u64)> = Vec::new();
+        for j in 0..self.full.len() {
+            let m = 1u64 << j;
+            let lo = b0.max(2 * m);
+            if lo >= end {
+                continue;
+            }
+            iv.clear();
+            for sp in filled {
+                if sp.start >= end {
+                    break;
+                }
+                for sh in [0, m, 2 * m] {
+                    let (u, v) = ((sp.start + sh).max(lo), (sp.end + sh).min(end));
+                    if u < v {
+                        iv.push((u, v));
+                    }
+                }
+            }
+            if iv.is_empty() {
+                continue;
+            }
+            iv.sort_unstable();
+            let mut lanes = P::Lanes::default();
+            let mut n = 0;
+            let (mut cu, mut cv) = iv[0];
+            for &(u, v) in iv[1..].iter().chain(std::iter::once(&(u64::MAX, u64::MAX))) {
+                if u <= cv {
+                    cv = cv.max(v);
+                    continue;
+                }
+                let (l, h, mu) = ((cu - base) as usize, (cv - base) as usize, m as usize);
+                P::sq_acc(&buf[l - 2 * mu..h - 2 * mu], &buf[l - mu..h - mu], &buf[l..h], &mut lanes);
+                n += cv - cu;
+                (cu, cv) = (u, v);
+            }
+            P::total_add(&mut self.bad_full[j], P::lanes_partial(&lanes));
+            self.bad_n[j] += n;
+        }
     }
 
     /// The same code compiled for 256-bit vectors (no FMA: identical results).
@@ -490,12 +623,21 @@ impl<P: PhaseValue> Accumulators<P> {
         base: u64,
         end: u64,
         scratch: &mut Vec<P>,
+        filled: &[Range<u64>],
     ) {
-        self.process_body(g, buf, base, end, scratch)
+        self.process_body(g, buf, base, end, scratch, filled)
     }
 
     #[inline(always)]
-    fn process_body(&mut self, g: &Geometry, buf: &[P], base: u64, end: u64, scratch: &mut Vec<P>) {
+    fn process_body(
+        &mut self,
+        g: &Geometry,
+        buf: &[P],
+        base: u64,
+        end: u64,
+        scratch: &mut Vec<P>,
+        filled: &[Range<u64>],
+    ) {
         let b0 = self.done;
         if end <= b0 {
             return;
@@ -542,9 +684,14 @@ impl<P: PhaseValue> Accumulators<P> {
         // 2^L <= block, b0 is a multiple of 2^L and level L + 1 is every other point of
         // level L (compacted in place); beyond, a level has at most one point.
         let p_oct = g.p.trailing_zeros();
+        // filled spans that reach into this block (for the strided octaves' flags)
+        let touching = filled.iter().skip_while(|r| r.end <= b0).take_while(|r| r.start < end);
+        let touching: Vec<Range<u64>> = touching.cloned().collect();
+        let mut flags: Vec<bool> = Vec::new();
         for level in 1..=g.max_oct {
             let step = 1u64 << level;
             let single;
+            let first = if step <= g.block { b0 } else { b0.next_multiple_of(step) };
             let values: &[P] = if step <= g.block {
                 if level >= 2 {
                     let n = scratch.len().div_ceil(2);
@@ -565,7 +712,19 @@ impl<P: PhaseValue> Accumulators<P> {
             self.id[level as usize].feed(values);
             let j = level + p_oct;
             if j > g.cap_oct && j <= g.max_oct {
-                self.strided[(j - g.cap_oct - 1) as usize].feed(values);
+                let fl = if touching.is_empty() {
+                    None
+                } else {
+                    flags.clear();
+                    let mut r = touching.iter().peekable();
+                    flags.extend((0..values.len() as u64).map(|k| {
+                        let p = first + k * step;
+                        while r.next_if(|s| s.end <= p).is_some() {}
+                        r.peek().is_some_and(|s| s.start <= p)
+                    }));
+                    Some(&flags[..])
+                };
+                self.strided[(j - g.cap_oct - 1) as usize].feed(values, fl);
             }
         }
         self.done = end;
@@ -676,6 +835,8 @@ pub struct OctaveAllan<P: PhaseValue = f64> {
     /// Decimation cascade scratch (`block / 2` points), reused by every block.
     scratch: Vec<P>,
     edf_cache: Vec<EdfCache>,
+    /// Sorted, disjoint spans of filled phase points not yet behind the buffer.
+    filled: Vec<Range<u64>>,
 }
 
 impl OctaveAllan<f64> {
@@ -793,6 +954,7 @@ impl<P: PhaseValue> OctaveAllan<P> {
             buf_start: 0,
             scratch: Vec::with_capacity((geo.block / 2) as usize),
             edf_cache,
+            filled: Vec::new(),
         })
     }
 
@@ -813,7 +975,7 @@ impl<P: PhaseValue> OctaveAllan<P> {
             return;
         }
         self.acc
-            .process(&self.geo, &self.buf, self.buf_start, end, &mut self.scratch);
+            .process(&self.geo, &self.buf, self.buf_start, end, &mut self.scratch, &self.filled);
         let keep = self.geo.hist as usize;
         if self.buf.len() > keep {
             let drop = self.buf.len() - keep;
@@ -821,11 +983,36 @@ impl<P: PhaseValue> OctaveAllan<P> {
             self.buf.truncate(keep);
             self.buf_start += drop as u64;
         }
+        let old = self.filled.iter().take_while(|r| r.end <= self.buf_start).count();
+        if old > 0 {
+            self.filled.drain(..old);
+        }
     }
 
     /// Input samples consumed.
     pub fn samples(&self) -> u64 {
         self.samples
+    }
+
+    /// Mark the phase points `span` (absolute indices, counted like
+    /// [`Self::phase_points`]) as filled, not measured: every second difference
+    /// `x[i+2m] - 2 x[i+m] + x[i]` with one of its three points in a filled span
+    /// is left out of the sums and of the term counts (`n`, hence the EDF).
+    /// Spans may be marked ahead of their points and must come in increasing
+    /// order (overlapping or adjacent ones are merged); a span must be marked
+    /// before the point completing its block is pushed (marking it before the
+    /// samples it covers is always in time). For frequency and count input,
+    /// sample `k` ends at phase point `k + 1`: a filled sample `k` makes point
+    /// `k + 1` filled (the integral up to it is unknown), while point `k` stays
+    /// measured.
+    pub fn mark_filled(&mut self, span: Range<u64>) {
+        if span.is_empty() {
+            return;
+        }
+        match self.filled.last_mut() {
+            Some(last) if span.start <= last.end => last.end = last.end.max(span.end),
+            _ => self.filled.push(span),
+        }
     }
 
     /// Phase points seen (`samples + 1` for frequency and count input once started).
@@ -850,6 +1037,7 @@ impl<P: PhaseValue> OctaveAllan<P> {
         self.buf.clear();
         self.buf_start = 0;
         self.acc = Accumulators::new(&self.geo);
+        self.filled.clear();
     }
 
     /// Bytes of state held (struct, buffer, rings, per-octave state).
@@ -864,8 +1052,11 @@ impl<P: PhaseValue> OctaveAllan<P> {
                 .acc
                 .strided
                 .iter()
-                .map(|s| s.ring.capacity() * size_of::<P>())
+                .map(|s| s.ring.capacity() * size_of::<P>() + s.flags.capacity())
                 .sum::<usize>()
+            + self.filled.capacity() * size_of::<Range<u64>>()
+            + self.acc.bad_full.capacity() * size_of::<P::Total>()
+            + self.acc.bad_n.capacity() * size_of::<u64>()
             + self.acc.id.capacity() * size_of::<OctaveId<P>>()
             + self.edf_cache.capacity() * size_of::<EdfCache>()
     }
@@ -883,6 +1074,7 @@ impl<P: PhaseValue> OctaveAllan<P> {
                 self.buf_start,
                 self.phase_points(),
                 &mut scratch,
+                &self.filled,
             );
             std::borrow::Cow::Owned(acc)
         }
@@ -926,11 +1118,22 @@ impl<P: PhaseValue> OctaveAllan<P> {
             }
             let alpha = id.alpha.or(inherited).unwrap_or(0);
             let (stride, n, total) = if j <= self.geo.cap_oct {
-                (1, n_phi - 2 * m, P::total_value(&acc.full[j as usize]))
+                let jj = j as usize;
+                let bad = acc.bad_n[jj];
+                let total = if bad == 0 {
+                    P::total_value(&acc.full[jj])
+                } else {
+                    P::total_diff(&acc.full[jj], &acc.bad_full[jj])
+                };
+                (1, n_phi - 2 * m - bad, total)
             } else {
                 let st = &acc.strided[(j - self.geo.cap_oct - 1) as usize];
                 (st.s, st.terms(), P::total_value(&st.total))
             };
+            if n == 0 {
+                // every term touches a filled point
+                continue;
+            }
             let mf = m as f64;
             let avar = total * unit * unit / (2.0 * mf * mf * tau0 * tau0 * n as f64);
             let dev = avar.sqrt();

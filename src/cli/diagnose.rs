@@ -22,7 +22,7 @@ use crate::model::diagnose::{self, DiagnoseOptions, Recording};
 use crate::sink::messages::SinkMessage;
 use crate::sink::meta::GyroOutput;
 use crate::source::capture::CaptureReader;
-use crate::source::frame::{GapFiller, spread_increment};
+use crate::source::frame::FilledSeries;
 use crate::source::input::{InputError, InputFormat, SampleReader};
 
 /// Recording format.
@@ -221,11 +221,13 @@ fn read_frames(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
             temps.push(s.temp_c);
         }
     }
-    let counts: Vec<i64> = GapFiller::new(summary.samples.into_iter())
-        .map(|u| u.increment)
-        .collect();
-    temps.truncate(counts.len());
-    Ok(recording(model, counts, informative(temps), None, None))
+    // the gap fill's mask is not passed on: `Recording` has no field for it yet
+    let mut series = FilledSeries::with_capacity(temps.len());
+    for s in &summary.samples {
+        series.push_sample(s);
+    }
+    temps.truncate(series.len());
+    Ok(recording(model, series.counts, informative(temps), None, None))
 }
 
 fn read_mcap(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
@@ -238,7 +240,7 @@ fn read_mcap(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
     {
         bail!("{}: its metadata says output = rate (rate samples, not pulse counts): not supported by diagnose yet", path.display());
     }
-    let mut counts = Vec::new();
+    let mut series = FilledSeries::default();
     let mut temps: Vec<f64> = Vec::new();
     let mut any_temp = false;
     let mut dt_ns: Option<u64> = None;
@@ -275,19 +277,18 @@ fn read_mcap(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
                         }
                         .into());
                     }
-                    let n = u32::try_from(g.lost + 1).unwrap_or(u32::MAX);
-                    counts.extend(spread_increment(c, n));
-                    temps.extend(std::iter::repeat_n(t, n as usize));
+                    let n = series.push(c, g.lost);
+                    temps.extend(std::iter::repeat_n(t, n));
                     gaps.next();
                 }
                 _ => {
-                    counts.push(c);
+                    series.push(c, 0);
                     temps.push(t);
                 }
             }
         }
     }
-    if counts.is_empty() {
+    if series.is_empty() {
         bail!("{}: no /gyro/raw samples in the recording", path.display());
     }
     let rate = match &meta {
@@ -299,7 +300,7 @@ fn read_mcap(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
     } else {
         None
     };
-    Ok(recording(model, counts, temp, rate, meta.and_then(|m| m.pulse_arcsec)))
+    Ok(recording(model, series.counts, temp, rate, meta.and_then(|m| m.pulse_arcsec)))
 }
 
 /// An output path must be `-` (JSON only), or name a file (not a directory)

@@ -7,8 +7,9 @@
 //!
 //! * Gaps: a sample after `lost` missing ones carries the whole increment over
 //!   `lost + 1` periods; it is spread over them as integers
-//!   ([`spread_increment`]), so the pipeline sees a uniform series whose sum is
-//!   the true number of pulses. `/gyro/raw` records the samples as decoded
+//!   ([`FilledSeries`]), so the pipeline sees a uniform series whose sum is
+//!   the true number of pulses, with the made-up samples marked (its statistics
+//!   leave them out). `/gyro/raw` records the samples as decoded
 //!   (with the gaps), `/gyro/clean` and `/gyro/noise` the uniform series.
 //! * Estimator updates happen every `interval_s` seconds *of samples*, at exact
 //!   sample counts (the input is split there), so they do not depend on how the
@@ -52,7 +53,7 @@ use crate::sink::messages::{
     SinkMessage, TermEstimate, terms,
 };
 use crate::sink::metrics::{AllanChannel, Bounds95};
-use crate::source::frame::spread_increment;
+use crate::source::frame::FilledSeries;
 
 /// Errors building the numeric stage.
 #[derive(Debug, thiserror::Error)]
@@ -213,7 +214,9 @@ struct Run<'a> {
     temp_c: Option<f64>,
     status: u32,
     /// Gap-filled samples not yet pushed into the pipeline.
-    pending: Vec<i64>,
+    pending: FilledSeries,
+    /// Filled spans of one push (scratch).
+    push_filled: Vec<std::ops::Range<usize>>,
     /// (uniform index one past a batch's last sample, its arrival), oldest first.
     arrivals: VecDeque<(u64, Instant)>,
     pout: PipelineOutput,
@@ -253,7 +256,8 @@ impl Processor {
             rates: RateAcc::default(),
             temp_c: None,
             status: 0,
-            pending: Vec::new(),
+            pending: FilledSeries::default(),
+            push_filled: Vec::new(),
             arrivals: VecDeque::new(),
             pout: PipelineOutput::default(),
             next_update_at: first_update,
@@ -516,12 +520,9 @@ impl Run<'_> {
                     index: self.raw.counts.len() as u64,
                     lost,
                 });
-                let n = u32::try_from(lost + 1).unwrap_or(u32::MAX);
-                self.pending.extend(spread_increment(c, n));
                 self.lost += lost;
-            } else {
-                self.pending.push(c);
             }
+            self.pending.push(c, lost);
             self.raw.counts.push(c);
             if self.raw.counts.len() >= bs {
                 self.flush_raw();
@@ -562,9 +563,13 @@ impl Run<'_> {
             } else {
                 break;
             };
-            self.p
-                .pipeline
-                .push_counts(&self.pending[start..start + n], &mut self.pout);
+            self.push_filled.clear();
+            self.pending.filled_in(start..start + n, &mut self.push_filled);
+            self.p.pipeline.push_counts_filled(
+                &self.pending.counts[start..start + n],
+                &self.push_filled,
+                &mut self.pout,
+            );
             self.pushed += n as u64;
             start += n;
             self.take_output();
@@ -590,7 +595,7 @@ impl Run<'_> {
                 }
             }
         }
-        self.pending.drain(..start);
+        self.pending.drain_front(start);
         // Processing lag: the newest batch whose samples are all in the pipeline.
         let mut newest = None;
         while let Some(&(end, arrived)) = self.arrivals.front() {

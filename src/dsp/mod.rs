@@ -14,10 +14,12 @@
 //! - `kernel` (private): the auto-vectorised block kernels the streaming code uses.
 //! - [`bank`]: the streaming analysis ([`bank::StreamingAnalysis`]) and
 //!   analysis + synthesis bank ([`bank::StreamingBank`]) with a fixed latency.
+//! - [`gaps`]: which coefficients of a cascade touch filled (gap) samples.
 //! - [`qn`]: the QN splitter ([`qn::QnSplitter`], [`qn::QnConfig`]).
 
 pub mod bank;
 pub mod dwt;
+pub mod gaps;
 mod kernel;
 pub mod qn;
 pub mod wavelet;

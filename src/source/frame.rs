@@ -100,7 +100,7 @@
 //! * `decoder`: [`FrameDecoder`] and its output types;
 //! * `encoder`: [`FrameEncoder`], [`FrameWriter`] (used by the simulator and the
 //!   bench emulator);
-//! * `fill`: [`fill_gap`], [`GapFiller`], [`spread_increment`];
+//! * `fill`: [`FilledSeries`], [`fill_gap`], [`GapFiller`], [`spread_increment`];
 //! * [`inject`]: a seeded corruption injector with an exact ledger, for tests and
 //!   the daemon's emulator;
 //! * [`codec`]: the `tokio_util::codec::Decoder` adapter (the only part that
@@ -116,7 +116,7 @@ pub use decoder::{
     DecodeEvent, Decoded, DecoderConfig, DecoderStats, FrameDecoder, RunEnd, Sample, increment_between,
 };
 pub use encoder::{FrameEncoder, FrameWriter, encode_increments};
-pub use fill::{GapFiller, UniformSample, fill_gap, spread_increment};
+pub use fill::{FilledSeries, GapFiller, UniformSample, fill_gap, spread_increment};
 
 use crc::{CRC_16_IBM_3740, Crc};
 

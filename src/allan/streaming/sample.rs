@@ -54,6 +54,9 @@ pub trait PhaseValue:
     fn total_add(t: &mut Self::Total, p: Self::Partial);
     /// The running total as `f64` (correctly rounded for `i64`, compensated for `f64`).
     fn total_value(t: &Self::Total) -> f64;
+    /// `t - u` as `f64` (exact before rounding for `i64`): a total less the part
+    /// of it that is left out (terms touching filled samples).
+    fn total_diff(t: &Self::Total, u: &Self::Total) -> f64;
     /// `a - b` in the representation (wrapping, hence exact, for `i64`).
     fn sub(a: Self, b: Self) -> Self;
     /// Conversion to `f64` (rounded once).
@@ -247,6 +250,10 @@ impl PhaseValue for f64 {
     #[inline]
     fn total_value(t: &Neumaier) -> f64 {
         t.value()
+    }
+    #[inline]
+    fn total_diff(t: &Neumaier, u: &Neumaier) -> f64 {
+        t.value() - u.value()
     }
     #[inline]
     fn sub(a: f64, b: f64) -> f64 {
@@ -445,6 +452,10 @@ impl PhaseValue for i64 {
     #[inline]
     fn total_value(t: &u128) -> f64 {
         *t as f64
+    }
+    #[inline]
+    fn total_diff(t: &u128, u: &u128) -> f64 {
+        t.saturating_sub(*u) as f64
     }
     #[inline]
     fn sub(a: i64, b: i64) -> i64 {
