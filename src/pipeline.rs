@@ -455,7 +455,11 @@ impl Pipeline {
     /// difference with one of its three phase points inside a gap (a filled
     /// sample `k` makes the angle after it unknown; the angle after the
     /// measured sample that ends the gap is known again), and count
-    /// coefficients and terms from what remains.
+    /// coefficients and terms from what remains. A wavelet level much coarser
+    /// than a gap keeps its coefficients ([`crate::dsp::gaps::GAP_SCALE`]); so
+    /// that this does not depend on how the pushes split a gap, a span that
+    /// runs on past the end of `counts` is given whole (its end beyond
+    /// `counts.len()`), as [`crate::source::frame::FilledSeries::filled_in`] does.
     pub fn push_counts_filled(&mut self, counts: &[i64], filled: &[Range<usize>], out: &mut PipelineOutput) {
         self.set_filled(filled, counts.len());
         let d = self.cfg.pulse_arcsec.unwrap_or(1.0);
@@ -507,7 +511,10 @@ impl Pipeline {
                 continue;
             }
             self.filled += (b - a) as u64;
-            let span = s0 + a as u64..s0 + b as u64;
+            // a span may run past this push: the mask takes its whole length
+            // (how many levels it masks depends on it), so that the statistics
+            // do not depend on where the pushes split a gap
+            let span = s0 + a as u64..s0 + r.end.max(b) as u64;
             self.fill_rate.push(span.start..span.end + 1);
             self.fill_abs.push(span);
         }

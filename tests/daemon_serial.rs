@@ -183,7 +183,7 @@ fn serial_pty_exact_counts_live_qn_promtool_sigterm_and_every_pulse_recorded() {
     // Live QN against the model's truth: inside the estimator's own 95 % interval
     // (about +-3 % on 60 s of data), and within 3 % (the model's readout is a
     // sawtooth, not white noise, see config/paper_gyro.toml).
-    let qn = metric(&text, "sagnac_qn_arcseconds{bound=\"estimate\"}").unwrap();
+    let qn = metric(&text, "sagnac_qn_arcseconds{bound=\"estimate\"}").unwrap_or_else(|| panic!("{}", text.lines().filter(|l| l.contains("qn") || l.contains("arw") || l.contains("lost") || l.contains("samples")).collect::<Vec<_>>().join("\n")));
     let lo = metric(&text, "sagnac_qn_arcseconds{bound=\"lower95\"}").unwrap();
     let hi = metric(&text, "sagnac_qn_arcseconds{bound=\"upper95\"}").unwrap();
     eprintln!("live QN {qn} [{lo}, {hi}] arcsec (truth {TRUE_QN_ARCSEC})");

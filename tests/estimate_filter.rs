@@ -245,3 +245,28 @@ fn rate_output_model_keys_are_checked() {
     let back = GyroModel::from_toml_str(&m.to_toml().unwrap(), "back").unwrap();
     assert_eq!(m, back);
 }
+
+#[test]
+fn rate_word_rounding_is_white_rate_noise_of_lsb_squared_over_12() {
+    // ARW 1 deg/sqrt(h) at 100 Hz: 0.1667 deg/s per sample; LSB 0.2 deg/s adds
+    // 0.2^2/12 to the variance of every sample, and nothing to its correlation
+    let m = GyroModel::from_toml_str(
+        "[gyro]\nsample_rate_hz = 100.0\noutput = \"rate\"\nrate_lsb_dps = 0.2\n[noise]\narw_dpsh = 1.0\n",
+        "m",
+    )
+    .unwrap();
+    let r = rates(&m, 9, 10_000.0);
+    let n = r.len() as f64;
+    let mean = r.iter().sum::<f64>() / n;
+    let var = r.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
+    let white = (1.0f64 / 60.0).powi(2) / 0.01;
+    let want = white + 0.2f64.powi(2) / 12.0;
+    assert!((var / want - 1.0).abs() < 0.01, "variance {var} vs {want} (without the LSB term {white})");
+    let lag1 = r.iter().zip(&r[1..]).map(|(a, b)| (a - mean) * (b - mean)).sum::<f64>() / (n - 1.0) / var;
+    assert!(lag1.abs() < 0.01, "lag-1 correlation {lag1}");
+    // the model's terms say the same: ARW plus the rate quantization term
+    let tau0 = 0.01;
+    let total: f64 = m.terms().iter().map(|t| t.avar(tau0)).sum();
+    let want_dph2 = want * 3600f64.powi(2);
+    assert!((total / want_dph2 - 1.0).abs() < 1e-9, "model AVAR at tau0 {total} vs {want_dph2}");
+}

@@ -5,7 +5,8 @@
 //! measurements. Statistics built from detail coefficients (the pipeline's
 //! level variances, the QN energy) must leave out every coefficient whose
 //! support touches a filled sample, as Stable32 and AllanTools' `gradev` leave
-//! out the terms that touch a gap. [`MaskCascade`] tells which.
+//! out the terms that touch a gap. [`MaskCascade`] tells which, on the levels
+//! whose scale is within [`GAP_SCALE`] of the gap's length.
 //!
 //! Level `j` computes `a_j[i], d_j[i]` from `a_{j-1}[2i+1-k]`, `k = 0..L`
 //! (see [`super::bank`]), so coefficient `i` of level `j` touches a filled
@@ -19,6 +20,16 @@
 
 use std::collections::VecDeque;
 use std::ops::Range;
+
+/// A filled span of `g` samples masks the coefficients of the levels `j` with
+/// `2^j <= GAP_SCALE * g` only. The fill keeps the angle exactly at the measured
+/// samples and interpolates between them; a level much coarser than the gap
+/// has a support of about `15 x 2^j` samples and a band far below `1/g`, where
+/// the interpolation is the signal: its coefficient moves by a share of about
+/// `g / (15 x 2^j)` of its value. Masking every level would cost the deep
+/// levels all their coefficients under sparse single-frame losses (a loss
+/// every 100 samples touches every coefficient of level 3 and beyond).
+pub const GAP_SCALE: u64 = 8;
 
 /// Per level, the spans of coefficient indices that touch a filled input sample.
 #[derive(Debug, Clone, Default)]
@@ -42,8 +53,15 @@ impl MaskCascade {
         if span.is_empty() {
             return;
         }
+        let g = span.end - span.start;
         let mut r = span;
-        for q in &mut self.levels {
+        for (j, q) in self.levels.iter_mut().enumerate() {
+            if (1u64 << (j + 1).min(63)) > GAP_SCALE.saturating_mul(g) {
+                // levels this much coarser than the filled span see it as a
+                // smooth interpolation inside a support of ~15 x 2^j samples:
+                // their coefficients stay (the fill keeps the angle exactly)
+                break;
+            }
             r = r.start / 2..(r.end + self.len - 1) / 2;
             match q.back_mut() {
                 Some(b) if r.start <= b.end => b.end = b.end.max(r.end),

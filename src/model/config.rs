@@ -463,6 +463,9 @@ impl GyroModel {
         if let Some(v) = n.arw_dpsh.filter(|v| *v > 0.0) {
             out.push(Term::AngleRandomWalk { n_dpsh: v });
         }
+        if self.gyro.output == OutputKind::Rate && self.gyro.rate_lsb_dps > 0.0 {
+            out.push(Term::RateQuantization { lsb_dps: self.gyro.rate_lsb_dps, tau0_s: self.tau0_s() });
+        }
         if let Some(v) = n.bias_instability_dph.filter(|v| *v > 0.0) {
             out.push(Term::BiasInstability {
                 b_dph: v,

@@ -487,6 +487,11 @@ pub enum Term {
         amplitude_dph: f64,
         mean_dwell_s: f64,
     },
+    /// Rate-word quantization of a rate-output gyro: rounding to a multiple of
+    /// `lsb_dps` (deg/s) at each sample of period `tau0_s`, white in *rate*
+    /// with variance `lsb^2 / 12` per sample (an ARW-like term
+    /// `N^2 = lsb^2 tau0 / 12`), not the white-angle QN of a pulse counter.
+    RateQuantization { lsb_dps: f64, tau0_s: f64 },
 }
 
 impl Term {
@@ -501,6 +506,7 @@ impl Term {
             Term::GaussMarkov { .. } => "gauss_markov",
             Term::Sinusoid { .. } => "sinusoid",
             Term::RandomTelegraph { .. } => "random_telegraph",
+            Term::RateQuantization { .. } => "rate_quantization",
         }
     }
 
@@ -543,6 +549,11 @@ impl Term {
                  times, as when the laser hops between longitudinal modes. Same Allan signature as a \
                  Gauss-Markov term with sigma = a and Tc = mean dwell / 2."
             }
+            Term::RateQuantization { .. } => {
+                "Rate-word quantization: a FOG or MEMS gyro outputs its rate as an integer number of LSBs, \
+                 so each sample is rounded; the rounding error is white in rate (variance LSB^2/12), an \
+                 angle random walk of its own, not the angle quantization of a pulse counter."
+            }
         }
     }
 
@@ -557,6 +568,7 @@ impl Term {
             Term::GaussMarkov { sigma_dph, .. } => sigma_dph,
             Term::Sinusoid { amplitude_dph, .. } => amplitude_dph,
             Term::RandomTelegraph { amplitude_dph, .. } => amplitude_dph,
+            Term::RateQuantization { lsb_dps, .. } => lsb_dps,
         }
     }
 
@@ -567,6 +579,7 @@ impl Term {
             Term::AngleRandomWalk { .. } => "deg/sqrt(h)",
             Term::RateRandomWalk { .. } => "deg/h/sqrt(h)",
             Term::RateRamp { .. } => "deg/h/h",
+            Term::RateQuantization { .. } => "deg/s",
             _ => "deg/h",
         }
     }
@@ -583,6 +596,7 @@ impl Term {
             Term::GaussMarkov { sigma_dph, .. } => *sigma_dph = c,
             Term::Sinusoid { amplitude_dph, .. } => *amplitude_dph = c,
             Term::RandomTelegraph { amplitude_dph, .. } => *amplitude_dph = c,
+            Term::RateQuantization { lsb_dps, .. } => *lsb_dps = c,
         }
         t
     }
@@ -658,6 +672,10 @@ impl Term {
                 nonneg("amplitude_dph", amplitude_dph)?;
                 positive("mean_dwell_s", mean_dwell_s)
             }
+            Term::RateQuantization { lsb_dps, tau0_s } => {
+                nonneg("rate_lsb_dps", lsb_dps)?;
+                positive("tau0_s", tau0_s)
+            }
         }
     }
 
@@ -716,6 +734,11 @@ impl Term {
                 0.5 * mean_dwell_s,
                 f,
             ),
+            Term::RateQuantization { lsb_dps, tau0_s } => {
+                // white over the band: one-sided 2 var tau0
+                let l = lsb_dps * units::ARCSEC_PER_DEG;
+                if f < 0.0 || f > 0.5 / tau0_s { 0.0 } else { l * l / 6.0 * tau0_s }
+            }
         }
     }
 
@@ -755,6 +778,10 @@ impl Term {
             }
             Term::RandomTelegraph { mean_dwell_s, .. } => {
                 random_telegraph_avar(units::dph_to_arcsec_per_s(1.0), mean_dwell_s, tau_s)
+            }
+            Term::RateQuantization { tau0_s, .. } => {
+                // unit LSB (1 deg/s): N^2 = 3600^2 tau0 / 12, AVAR N^2 / tau
+                units::ARCSEC_PER_DEG * units::ARCSEC_PER_DEG * tau0_s / 12.0 / tau_s
             }
         }
     }

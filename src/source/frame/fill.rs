@@ -76,14 +76,16 @@ impl FilledSeries {
         self.filled.get(k).is_some_and(|r| r.start <= i)
     }
 
-    /// The filled spans within `range`, relative to its start, appended to `out`.
+    /// The filled spans within `range`, relative to its start, appended to `out`;
+    /// a span that runs past the range keeps its end (for the pipeline's mask).
     pub fn filled_in(&self, range: Range<usize>, out: &mut Vec<Range<usize>>) {
         let k = self.filled.partition_point(|r| r.end <= range.start);
         for r in &self.filled[k..] {
             if r.start >= range.end {
                 break;
             }
-            out.push(r.start.max(range.start) - range.start..r.end.min(range.end) - range.start);
+            // the end is not clipped: a gap running past the range is given whole
+            out.push(r.start.max(range.start) - range.start..r.end - range.start);
         }
     }
 
