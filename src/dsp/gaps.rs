@@ -169,11 +169,19 @@ mod tests {
         for s in spans_of(&filled) {
             c.add_input(s.start as u64..s.end as u64);
         }
-        let mut prev = filled.clone();
+        // each span's support mask level by level; a span of g samples counts
+        // at level j+1 only while 2^(j+1) <= GAP_SCALE g
+        let spans = spans_of(&filled);
+        let mut prev: Vec<Vec<bool>> = spans.iter().map(|s| (0..n).map(|i| s.contains(&i)).collect()).collect();
         for j in 0..5 {
-            let m = prev.len() / 2;
-            let cur: Vec<bool> =
-                (0..m).map(|i| (0..l).any(|k| (2 * i + 1).checked_sub(k).is_some_and(|p| p < prev.len() && prev[p]))).collect();
+            let m = n >> (j + 1);
+            let step = |p: &Vec<bool>| -> Vec<bool> {
+                (0..m).map(|i| (0..l).any(|k| (2 * i + 1).checked_sub(k).is_some_and(|q| q < p.len() && p[q]))).collect()
+            };
+            let next: Vec<Vec<bool>> = prev.iter().map(step).collect();
+            let cur: Vec<bool> = (0..m)
+                .map(|i| spans.iter().zip(&next).any(|(s, v)| (1usize << (j + 1)) <= GAP_SCALE as usize * s.len() && v[i]))
+                .collect();
             let mut got = vec![false; m];
             let mut bad = Vec::new();
             let h = m / 2;
@@ -186,7 +194,7 @@ mod tests {
                 got[h + r.start..h + r.end].iter_mut().for_each(|x| *x = true);
             }
             assert_eq!(got, cur, "level {}", j + 1);
-            prev = cur;
+            prev = next;
         }
     }
 }
