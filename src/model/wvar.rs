@@ -53,6 +53,12 @@ pub enum SpectralTerm {
     /// White rate noise through a readout filter (`theta` = N^2 of the
     /// unfiltered band, arcsec^2/s; the filter has unit DC gain).
     FilteredWhiteRate { filter: ReadoutFilter },
+    /// The part of a white rate that a readout filter removes, `1 - |H|^2`
+    /// (0 at DC): with [`SpectralTerm::FilteredWhiteRate`] it spans white noise
+    /// added after the filter (a rate word's rounding) as `theta_f |H|^2 +
+    /// theta_c (1 - |H|^2)`, so that `theta_f` stays the whole white level at
+    /// low frequency (N^2) whatever share of it passed the filter.
+    WhiteRateComplement { filter: ReadoutFilter },
 }
 
 /// Which signal the DWT analyses: the rate (arcsec/s) or the angle (arcsec,
@@ -99,6 +105,7 @@ impl SpectralTerm {
                 2.0 * (1.0 - phi * phi) / (1.0 + phi * phi - 2.0 * phi * c)
             }
             SpectralTerm::FilteredWhiteRate { filter } => 2.0 / tau0_s * filter.power(nu),
+            SpectralTerm::WhiteRateComplement { filter } => 2.0 / tau0_s * (1.0 - filter.power(nu)),
         }
     }
 
@@ -119,6 +126,9 @@ impl SpectralTerm {
             SpectralTerm::FilteredWhiteRate { filter } => {
                 filter.finite_autocorr().map(|r| r.iter().map(|v| v / tau0_s).collect())
             }
+            SpectralTerm::WhiteRateComplement { filter } => filter.finite_autocorr().map(|r| {
+                r.iter().enumerate().map(|(k, v)| (f64::from(u8::from(k == 0)) - v) / tau0_s).collect()
+            }),
             _ => None,
         }
     }
@@ -154,7 +164,7 @@ impl SpectralTerm {
                 let mut total = 0.0;
                 // resolved part: panels of width 1/(4m) in nu
                 let mut panels = ((split - nu_lo).max(0.0) * 4.0 * mf).ceil() as usize;
-                if let SpectralTerm::FilteredWhiteRate { filter } = self {
+                if let SpectralTerm::FilteredWhiteRate { filter } | SpectralTerm::WhiteRateComplement { filter } = self {
                     // resolve the filter's own structure (a moving average's lobes)
                     let lobes = match filter {
                         ReadoutFilter::MovingAverage { length } => *length as usize,
@@ -198,7 +208,9 @@ impl SpectralTerm {
     pub fn alpha_at(&self, tau_s: f64) -> i32 {
         match *self {
             SpectralTerm::WhiteAngle => 2,
-            SpectralTerm::WhiteRate | SpectralTerm::FilteredWhiteRate { .. } => 0,
+            SpectralTerm::WhiteRate
+            | SpectralTerm::FilteredWhiteRate { .. }
+            | SpectralTerm::WhiteRateComplement { .. } => 0,
             SpectralTerm::Flicker { .. } => -1,
             SpectralTerm::RateRandomWalk => -2,
             SpectralTerm::GaussMarkov { tau_c_s } => {
@@ -400,6 +412,10 @@ fn level_key(lo: &[f64], hi: &[f64], tau0_s: f64, level: u32, terms: &[SpectralT
             SpectralTerm::FilteredWhiteRate { filter } => {
                 let (kind, bits) = filter.key();
                 (4 + kind, f64::from_bits(bits))
+            }
+            SpectralTerm::WhiteRateComplement { filter } => {
+                let (kind, bits) = filter.key();
+                (8 + kind, f64::from_bits(bits))
             }
         };
         k.extend([tag, p.to_bits()]);

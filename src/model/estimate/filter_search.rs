@@ -6,9 +6,10 @@
 //! flat part is misread: ARW too low, B or K invented. Here the
 //! white-rate column of the low-frequency model is replaced by a *filtered*
 //! white rate (exact level variances and Allan signature of
-//! [`SpectralTerm::FilteredWhiteRate`]), and an unfiltered white-rate nuisance
-//! column takes what the electronics add after the filter (a rate word's
-//! LSB rounding).
+//! [`SpectralTerm::FilteredWhiteRate`]), and a column for what the filter
+//! removes from a white rate ([`SpectralTerm::WhiteRateComplement`]) takes
+//! white noise the electronics add after the filter (a rate word's LSB
+//! rounding), so that N stays the whole white level at low frequency.
 //!
 //! The filter's shape is a nonlinear parameter: the likelihood is profiled
 //! over moving averages of 2 ..= [`MAX_MA`] samples and over first-order
@@ -37,12 +38,13 @@ const FO_HI: f64 = 0.49;
 pub const FILTER_LR: f64 = 13.8;
 
 /// The terms of the low-frequency fit with white rate through `filter`:
-/// Q^2 (nuisance), N^2 (filtered), B^2, K^2, and the unfiltered white rate
-/// added after the filter.
+/// Q^2 (nuisance), N^2 (the white level at low frequency, filtered), B^2,
+/// K^2, and the part of a white rate the filter removes (white noise added
+/// after the filter appears there: its theta is that noise's level).
 pub fn filtered_terms(n_samples: u64, tau0_s: f64, filter: ReadoutFilter) -> Vec<SpectralTerm> {
     let mut t = standard_terms(n_samples, tau0_s).to_vec();
     t[1] = SpectralTerm::FilteredWhiteRate { filter };
-    t.push(SpectralTerm::WhiteRate);
+    t.push(SpectralTerm::WhiteRateComplement { filter });
     t
 }
 
