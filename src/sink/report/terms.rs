@@ -41,7 +41,7 @@ pub struct Asymptote {
 }
 
 /// sqrt(2 ln 2 / pi), the flicker floor's factor (0.664).
-pub const BI_FACTOR: f64 = 0.664_282_910_062_583_8;
+pub const BI_FACTOR: f64 = 0.664_282_470_267_960_1;
 
 impl Asymptote {
     /// The asymptote of `kind` for coefficient `c` (in the unit of [`Kind::unit`]).
@@ -182,7 +182,7 @@ mod tests {
         let n = Asymptote::new(Kind::AngleRandomWalk, 0.001);
         assert!((n.dev(t) - 0.03).abs() < 1e-15);
         let b = Asymptote::new(Kind::BiasInstability, 0.01);
-        assert!((b.dev(t) - 0.00664282910062584).abs() < 1e-15);
+        assert!((b.dev(t) - 0.006642824702679601).abs() < 1e-15);
         assert!((BI_FACTOR - (2.0 * 2f64.ln() / std::f64::consts::PI).sqrt()).abs() < 1e-16);
         // K = 6 deg/h/sqrt(h) = 0.1 arcsec/s/sqrt(s): 0.1 sqrt(4/3)
         let k = Asymptote::new(Kind::RateRandomWalk, 6.0);
