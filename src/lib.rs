@@ -19,6 +19,7 @@ pub mod allan;
 pub mod cli;
 pub mod daemon;
 pub mod dsp;
+pub mod font;
 pub mod model;
 pub mod offline;
 pub mod pipeline;

@@ -77,6 +77,38 @@ pub const MAX_GAP_SAMPLES: u64 = 1 << 24;
 /// Called with (samples so far, total expected if known) as input is read.
 pub type Progress<'a> = &'a mut dyn FnMut(u64, Option<u64>);
 
+/// One push into the pipeline, as a [`Tap`] sees it: for a caller that wants
+/// more than the final [`Analysis`](crate::pipeline::Analysis), such as the
+/// time series of `sagnac report`.
+#[derive(Debug, Clone, Copy)]
+pub struct TapBlock<'a> {
+    /// Index of the first sample of this push in the record. A push at 0 after
+    /// others means the reading started over (a CSV column of counts that turns
+    /// out not to be integers is re-read on the rate path): drop what was seen.
+    pub first_sample: u64,
+    /// The pulse increments pushed (gaps filled), for count input on the exact path.
+    pub counts: Option<&'a [i64]>,
+    /// The raw rate of the samples pushed, deg/h (gaps filled); empty for the
+    /// final flush.
+    pub rate_dph: &'a [f64],
+    /// Temperature per pushed sample, deg C, when the input carries one.
+    pub temp_c: Option<&'a [f64]>,
+    /// Gaps (lost frames) in this push, and the samples lost in them.
+    pub gaps: u64,
+    pub lost_samples: u64,
+    /// The clean and noise rates this push produced (delayed by
+    /// [`Pipeline::latency`] samples; the final flush gives the rest).
+    pub out: &'a PipelineOutput,
+}
+
+/// Called once per push into the pipeline, after it.
+pub type Tap<'a> = &'a mut dyn FnMut(&TapBlock<'_>);
+
+/// A shorter-lived copy of an optional tap (to hand it to a callee twice).
+fn reborrow<'s>(tap: &'s mut Option<Tap<'_>>) -> Option<Tap<'s>> {
+    tap.as_mut().map(|t| &mut **t as Tap<'s>)
+}
+
 const BLOCK: usize = 1 << 16;
 
 /// Feed a CSV/text file. `unit = Counts` with `pulse_arcsec` set uses the exact
@@ -89,11 +121,25 @@ pub fn run_file(
     cfg: &PipelineConfig,
     progress: Progress,
 ) -> Result<Pipeline, OfflineError> {
+    run_file_tapped(path, format, column, unit, cfg, progress, None)
+}
+
+/// [`run_file`], showing every push to `tap`; a CSV file's `temp_c` column,
+/// when it has one, comes along as [`TapBlock::temp_c`].
+pub fn run_file_tapped(
+    path: &Path,
+    format: InputFormat,
+    column: Option<&str>,
+    unit: RateUnit,
+    cfg: &PipelineConfig,
+    progress: Progress,
+    mut tap: Option<Tap>,
+) -> Result<Pipeline, OfflineError> {
     let integral = unit == RateUnit::Counts && cfg.pulse_arcsec.is_some();
-    match feed_file(path, format, column, unit, cfg, integral, progress) {
+    match feed_file(path, format, column, unit, cfg, integral, progress, reborrow(&mut tap)) {
         Err(FeedError::NotInteger) => {
             let mut noop = |_: u64, _: Option<u64>| {};
-            feed_file(path, format, column, unit, cfg, false, &mut noop).map_err(FeedError::into_offline)
+            feed_file(path, format, column, unit, cfg, false, &mut noop, tap).map_err(FeedError::into_offline)
         }
         other => other.map_err(FeedError::into_offline),
     }
@@ -127,8 +173,19 @@ fn feed_file(
     cfg: &PipelineConfig,
     integral: bool,
     progress: Progress,
+    mut tap: Option<Tap>,
 ) -> Result<Pipeline, FeedError> {
     let mut reader = SampleReader::open(path, format, column)?;
+    // the temperature column rides along only for a tap that shows it
+    let mut temps = match (&tap, format) {
+        (Some(_), InputFormat::Csv) => match SampleReader::open(path, format, Some("temp_c")) {
+            Ok(r) => Some(r),
+            Err(InputError::MissingColumn { .. }) => None,
+            Err(e) => return Err(e.into()),
+        },
+        _ => None,
+    };
+    let mut temp_buf = Vec::new();
     let hint = reader.len_hint();
     let mut c = cfg.clone();
     if !integral {
@@ -153,6 +210,7 @@ fn feed_file(
             break;
         }
         out.clear();
+        let first_sample = pipe.samples();
         if integral {
             ints.clear();
             for &v in &buf {
@@ -162,11 +220,27 @@ fn feed_file(
                 ints.push(v as i64);
             }
             pipe.push_counts(&ints, &mut out);
-        } else {
-            for v in &mut buf {
-                *v = to_dph(*v);
-            }
+        }
+        for v in &mut buf {
+            *v = to_dph(*v);
+        }
+        if !integral {
             pipe.push_rates_dph(&buf, &mut out)?;
+        }
+        if let Some(tap) = tap.as_deref_mut() {
+            let mut temp_c = None;
+            if let Some(t) = &mut temps {
+                // a temp_c column shorter than the data ends the temperature there
+                temp_buf.clear();
+                let got = t.next_block(&mut temp_buf, n)?;
+                if got == n {
+                    temp_c = Some(&temp_buf[..]);
+                } else {
+                    temps = None;
+                }
+            }
+            let counts = integral.then_some(&ints[..]);
+            tap(&TapBlock { first_sample, counts, rate_dph: &buf, temp_c, gaps: 0, lost_samples: 0, out: &out });
         }
         progress(pipe.samples(), hint);
     }
@@ -175,7 +249,23 @@ fn feed_file(
     }
     out.clear();
     pipe.finish(&mut out);
+    tap_flush(tap, &pipe, &out);
     Ok(pipe)
+}
+
+/// Show the final flush (the last clean and noise values) to `tap`.
+fn tap_flush(tap: Option<Tap>, pipe: &Pipeline, out: &PipelineOutput) {
+    if let Some(tap) = tap {
+        tap(&TapBlock {
+            first_sample: pipe.samples(),
+            counts: None,
+            rate_dph: &[],
+            temp_c: None,
+            gaps: 0,
+            lost_samples: 0,
+            out,
+        });
+    }
 }
 
 /// Feed a raw frame capture (`.bin`); gaps are filled. Returns the pipeline and
@@ -185,18 +275,52 @@ pub fn run_capture(
     cfg: &PipelineConfig,
     progress: Progress,
 ) -> Result<(Pipeline, crate::source::frame::DecoderStats), OfflineError> {
+    run_capture_tapped(path, cfg, progress, None)
+}
+
+/// [`run_capture`], showing every push to `tap` (with the frames'
+/// temperature, repeated over a gap).
+pub fn run_capture_tapped(
+    path: &Path,
+    cfg: &PipelineConfig,
+    progress: Progress,
+    mut tap: Option<Tap>,
+) -> Result<(Pipeline, crate::source::frame::DecoderStats), OfflineError> {
     let mut reader = CaptureReader::open(path)?;
     let hint = std::fs::metadata(path).ok().map(|m| m.len() / 16);
     let mut pipe = Pipeline::new(cfg)?;
     let mut out = PipelineOutput::default();
     let mut series = FilledSeries::with_capacity(BLOCK);
+    let (mut rates, mut temps) = (Vec::new(), Vec::new());
     while let Some(block) = reader.next_block()? {
         series.clear();
         for s in &block.samples {
             series.push_sample(s);
         }
         out.clear();
+        let first_sample = pipe.samples();
         pipe.push_counts_filled(&series.counts, &series.filled, &mut out);
+        if let Some(tap) = tap.as_deref_mut() {
+            let k = cfg.pulse_arcsec.unwrap_or(1.0) * cfg.rate_hz;
+            rates.clear();
+            rates.extend(series.counts.iter().map(|&c| c as f64 * k));
+            temps.clear();
+            let (mut gaps, mut lost) = (0, 0);
+            for s in &block.samples {
+                temps.extend(std::iter::repeat_n(s.temp_c, usize::from(s.lost_before) + 1));
+                gaps += u64::from(s.lost_before > 0);
+                lost += u64::from(s.lost_before);
+            }
+            tap(&TapBlock {
+                first_sample,
+                counts: Some(&series.counts),
+                rate_dph: &rates,
+                temp_c: Some(&temps),
+                gaps,
+                lost_samples: lost,
+                out: &out,
+            });
+        }
         progress(pipe.samples(), hint);
     }
     if pipe.samples() == 0 {
@@ -204,6 +328,7 @@ pub fn run_capture(
     }
     out.clear();
     pipe.finish(&mut out);
+    tap_flush(tap, &pipe, &out);
     Ok((pipe, *reader.stats()))
 }
 
@@ -276,7 +401,19 @@ pub fn run_recording(
     cfg: &PipelineConfig,
     progress: Progress,
 ) -> Result<(Pipeline, Option<crate::sink::reader::Break>), OfflineError> {
+    run_recording_tapped(path, cfg, progress, None)
+}
+
+/// [`run_recording`], showing every push to `tap` (with the batches'
+/// temperature, when they carry one).
+pub fn run_recording_tapped(
+    path: &Path,
+    cfg: &PipelineConfig,
+    progress: Progress,
+    mut tap: Option<Tap>,
+) -> Result<(Pipeline, Option<crate::sink::reader::Break>), OfflineError> {
     let mut pipe = Pipeline::new(cfg)?;
+    let (mut rates, mut temps) = (Vec::new(), Vec::new());
     let mut out = PipelineOutput::default();
     let mut series = FilledSeries::default();
     let mut first_dt: Option<u64> = None;
@@ -306,7 +443,27 @@ pub fn run_recording(
                 series.push(c, lost);
             }
             out.clear();
+            let first_sample = pipe.samples();
             pipe.push_counts_filled(&series.counts, &series.filled, &mut out);
+            if let Some(tap) = tap.as_deref_mut() {
+                let k = cfg.pulse_arcsec.unwrap_or(1.0) * cfg.rate_hz;
+                rates.clear();
+                rates.extend(series.counts.iter().map(|&c| c as f64 * k));
+                let temp_c = b.temp_c.map(|t| {
+                    temps.clear();
+                    temps.resize(series.counts.len(), t);
+                    &temps[..]
+                });
+                tap(&TapBlock {
+                    first_sample,
+                    counts: Some(&series.counts),
+                    rate_dph: &rates,
+                    temp_c,
+                    gaps: b.gaps.len() as u64,
+                    lost_samples: b.gaps.iter().map(|g| g.lost).sum(),
+                    out: &out,
+                });
+            }
             progress(pipe.samples(), None);
         }
     })?;
@@ -324,5 +481,6 @@ pub fn run_recording(
     }
     out.clear();
     pipe.finish(&mut out);
+    tap_flush(tap, &pipe, &out);
     Ok((pipe, report.break_at))
 }

@@ -45,6 +45,28 @@ pub struct AllanArgs {
     /// Two-sided confidence level of the intervals (Stable32's default 0.683; e.g. 0.95).
     #[arg(long, default_value_t = allan::DEFAULT_CONFIDENCE)]
     pub confidence: f64,
+    /// Also write the curve as CSV (tau_s, dev, ci_lo, ci_hi, edf, n; the
+    /// deviation's unit in the column names).
+    #[arg(long, value_name = "OUT.csv")]
+    pub csv: Option<PathBuf>,
+}
+
+/// The deviation's unit, as a column-name suffix: pulses/s for counts, the
+/// input's own unit for frequency, the phase unit per second for phase.
+fn dev_unit(kind: DataKind) -> &'static str {
+    match kind {
+        DataKind::Counts => "pulse_per_s",
+        DataKind::Freq => "freq_unit",
+        DataKind::Phase => "phase_unit_per_s",
+    }
+}
+
+/// `--csv`, when given.
+fn write_csv(args: &AllanArgs, kind: DataKind, r: &AllanResult) -> Result<()> {
+    if let Some(path) = &args.csv {
+        crate::sink::export::allan_csv::write_curve(path, &r.points, dev_unit(kind)).context("writing the Allan CSV")?;
+    }
+    Ok(())
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -137,6 +159,12 @@ pub fn run(args: AllanArgs) -> Result<()> {
         bail!("--column applies to CSV input only (use --format csv)");
     }
     let kind = DataKind::from(args.data);
+    if let Some(p) = &args.csv {
+        if p.is_dir() {
+            bail!("--csv {}: is a directory, not a file", p.display());
+        }
+        super::output_dir(p).context("bad --csv")?;
+    }
     if args.engine == EngineArg::Streaming {
         return run_streaming(&args, kind);
     }
@@ -152,6 +180,7 @@ pub fn run(args: AllanArgs) -> Result<()> {
     };
     let result = allan::compute(&phase, stat, args.tau0, args.taus.into(), &opts)
         .with_context(|| format!("cannot compute {stat} of {}", args.input.display()))?;
+    write_csv(&args, kind, &result)?;
 
     match &args.json {
         Some(out) => {
@@ -222,6 +251,7 @@ fn run_streaming(args: &AllanArgs, kind: DataKind) -> Result<()> {
         tau0_s: args.tau0,
         points: points.iter().filter(|p| p.n > 0 && p.m <= m_max).map(allan::AllanPoint::from).collect(),
     };
+    write_csv(args, kind, &result)?;
     match &args.json {
         Some(out) => {
             let text = serde_json::to_string_pretty(&result).context("serialising the result")?;

@@ -49,6 +49,14 @@ pub struct AnalyzeArgs {
     /// Write the result as JSON here ("-" for stdout) instead of printing a table.
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
+    /// Also write Kalibr's imu.yaml gyroscope fields (noise density from ARW,
+    /// random walk from RRW or its upper bound, update rate), conversions in comments.
+    #[arg(long, value_name = "FILE.yaml")]
+    pub kalibr: Option<PathBuf>,
+    /// Also write the raw, clean and noise Allan curves as CSV
+    /// (channel, tau_s, dev_dph, ci_lo_dph, ci_hi_dph, edf, n).
+    #[arg(long, value_name = "OUT.csv")]
+    pub allan_csv: Option<PathBuf>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -75,6 +83,15 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
         }
     if args.column.is_some() && args.format != AnalyzeFormat::Csv {
         bail!("--column applies to CSV input only (frame captures and MCAP recordings hold pulse counts)");
+    }
+    // the export paths are checked before the analysis
+    for (flag, p) in [("--kalibr", &args.kalibr), ("--allan-csv", &args.allan_csv)] {
+        if let Some(p) = p {
+            if p.is_dir() {
+                bail!("{flag} {}: is a directory, not a file", p.display());
+            }
+            super::output_dir(p).with_context(|| format!("bad {flag}"))?;
+        }
     }
     let started = Instant::now();
     let bar = ProgressBar::hidden();
@@ -161,6 +178,13 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
     }
     if !analysis.fit.ok {
         eprintln!("warning: {}: {}", input.display(), misfit_message(&analysis));
+    }
+    if let Some(path) = &args.kalibr {
+        crate::sink::export::kalibr::write(path, &analysis.estimates, pipe.config().rate_hz, &input.display().to_string())
+            .context("writing the Kalibr file")?;
+    }
+    if let Some(path) = &args.allan_csv {
+        crate::sink::export::allan_csv::write_channels(path, &analysis.allan).context("writing the Allan CSV")?;
     }
     match &args.json {
         Some(path) => {

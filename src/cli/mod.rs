@@ -7,6 +7,7 @@ use clap::{Parser, Subcommand};
 pub mod allan;
 pub mod analyze;
 pub mod diagnose;
+pub mod report;
 pub mod run;
 pub mod simulate;
 
@@ -30,6 +31,8 @@ pub enum Command {
     Simulate(simulate::SimulateArgs),
     /// Compare a recording with its gyro model: locate the mismatch, name and fit the missing physics.
     Diagnose(diagnose::DiagnoseArgs),
+    /// Analyse a recording and write a self-contained HTML report (inline SVG figures) and PNG figures.
+    Report(report::ReportArgs),
 }
 
 /// Parse the command line, run, print the error chain and exit 2 on failure.
@@ -54,6 +57,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Run(args) => run::run(args),
         Command::Simulate(args) => simulate::run(args),
         Command::Diagnose(args) => diagnose::run(args),
+        Command::Report(args) => report::run(args),
     }
 }
 

@@ -7,10 +7,14 @@
 //!   model, config), and the rule for a flag that meets a recorded value;
 //! - [`reader`]: reading recordings back (replay, `analyze --format mcap`) and
 //!   recovering truncated ones;
-//! - [`metrics`]: the Prometheus metrics served by [`crate::daemon::http`].
+//! - [`metrics`]: the Prometheus metrics served by [`crate::daemon::http`];
+//! - [`report`]: `sagnac report`'s self-contained HTML page and PNG figures;
+//! - [`export`]: files for other tools (Kalibr's `imu.yaml`, Allan curves as CSV).
 
+pub mod export;
 pub mod mcap;
 pub mod meta;
 pub mod messages;
 pub mod metrics;
+pub mod report;
 pub mod reader;

@@ -1,5 +1,6 @@
 //! The diagnosis report as an SVG figure (plotters' SVG backend; text is
-//! emitted as SVG `<text>`, so no font is rasterised).
+//! emitted as SVG `<text>`, so no font is rasterised; plotters measures it
+//! with the bundled font, [`crate::font`]).
 //!
 //! Four log-log panels: wavelet deviations per level, modified Allan
 //! deviation, the rate spectrum in quarter-octave bands and the raw Allan
@@ -28,6 +29,8 @@ const SHADE: RGBColor = RGBColor(230, 60, 60);
 
 /// Render the report of `diag` as an SVG document (`title` on top).
 pub fn render(diag: &Diagnosis, title: &str) -> Result<String, SvgError> {
+    // plotters measures text with the fonts registered with it (ab_glyph backend)
+    crate::font::register().map_err(err)?;
     let mut out = String::new();
     {
         let root = SVGBackend::with_string(&mut out, (1200, 900)).into_drawing_area();

@@ -1,0 +1,240 @@
+//! The page: one HTML document with inline CSS and inline SVG figures. It
+//! loads nothing (its Content-Security-Policy forbids every outside source)
+//! and runs no script.
+
+use std::fmt::Write;
+
+use super::{Report, ReportError, allan_fig, diagnosis, fmt_sig, noise_fig, rate_fig, svg};
+use crate::model::estimate::Coefficient;
+use crate::pipeline::Analysis;
+
+/// `s` escaped for HTML text and attributes.
+pub fn esc(s: &str) -> String {
+    let mut o = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '&' => o.push_str("&amp;"),
+            '<' => o.push_str("&lt;"),
+            '>' => o.push_str("&gt;"),
+            '"' => o.push_str("&quot;"),
+            '\'' => o.push_str("&#39;"),
+            c => o.push(c),
+        }
+    }
+    o
+}
+
+/// An SVG document as an inline element (without an XML declaration).
+pub fn inline_svg(doc: &str) -> &str {
+    match doc.find("<svg") {
+        Some(i) => &doc[i..],
+        None => doc,
+    }
+}
+
+const STYLE: &str = "
+body{font-family:sans-serif;margin:24px auto;max-width:1200px;color:#222;line-height:1.4;padding:0 12px}
+h1{font-size:1.5em;margin-bottom:4px}
+h2{font-size:1.2em;border-bottom:1px solid #ccc;padding-bottom:3px;margin-top:28px}
+h3{font-size:1.02em}
+table{border-collapse:collapse;margin:8px 0}
+td,th{border:1px solid #ccc;padding:3px 9px;text-align:left;vertical-align:top}
+th{background:#f3f3f3}
+td.num{text-align:right;font-variant-numeric:tabular-nums;white-space:nowrap}
+figure{margin:10px 0}
+figure svg{width:100%;height:auto;display:block}
+figcaption{font-size:.92em;color:#444;margin-top:4px}
+.verdict{padding:6px 10px;border-radius:3px}
+.ok{background:#e6f4ea}
+.bad{background:#fdecea}
+.muted{color:#666}
+";
+
+/// The whole page.
+pub fn page(r: &Report<'_>) -> Result<String, ReportError> {
+    let a = r.analysis;
+    let m = r.meta;
+    let mut h = String::new();
+    let name = std::path::Path::new(&m.input).file_name().map_or(m.input.clone(), |f| f.to_string_lossy().into_owned());
+    let _ = write!(
+        h,
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\
+         <meta http-equiv=\"Content-Security-Policy\" content=\"default-src 'none'; style-src 'unsafe-inline'\">\
+         <meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\
+         <title>sagnac report: {}</title><style>{STYLE}</style></head><body>\n",
+        esc(&name)
+    );
+    let _ = write!(h, "<h1>Gyro bench report: {}</h1>", esc(&name));
+    let _ = write!(
+        h,
+        "<p class=\"muted\">Written by sagnac {} (<code>sagnac report</code>): IEEE 952 noise coefficients, \
+         wavelet (sym8) quantization-noise removal and Allan deviations of a static recording.</p>\n",
+        env!("CARGO_PKG_VERSION")
+    );
+    metadata(&mut h, r);
+    coefficients(&mut h, a);
+    let allan = svg(super::ALLAN_SIZE, |area| allan_fig::draw(area, a))?;
+    let _ = write!(
+        h,
+        "<section id=\"allan\"><h2>Allan deviation</h2><figure>{}<figcaption>Overlapping Allan deviation of the raw \
+         rate, of the clean rate (quantization noise removed by the wavelet bank) and of the extracted noise, \
+         with their {} % confidence intervals (bars). Dashed: the IEEE 952 term of each coefficient found \
+         (QN \u{221a}3\u{b7}Q/\u{3c4}, ARW N/\u{221a}\u{3c4}, BI 0.664\u{b7}B, RRW K\u{b7}\u{221a}(\u{3c4}/3), \
+         RR R\u{b7}\u{3c4}/\u{221a}2, with Q in arcsec, N in deg/\u{221a}h, B in deg/h, K in deg/h/\u{221a}h, R in \
+         deg/h\u{b2}, \u{3c4} in s, deviations in deg/h); grey: their total, the square root of the summed \
+         variances.</figcaption></figure></section>\n",
+        inline_svg(&allan),
+        fmt_sig(100.0 * crate::allan::DEFAULT_CONFIDENCE, 3)
+    );
+    let noise = svg(super::NOISE_SIZE, |area| noise_fig::draw(area, r.series, m.pulse_arcsec))?;
+    let check = match (noise_fig::max_abs_angle(r.series), m.pulse_arcsec) {
+        (Some(p), Some(d)) => format!(
+            " Here the integral stays within {} pulse{} of zero ({} arcsec at most).",
+            fmt_sig(p / d, 3),
+            if p / d > 1.0 { "s" } else { "" },
+            fmt_sig(p, 3)
+        ),
+        _ => String::new(),
+    };
+    let _ = write!(
+        h,
+        "<section id=\"noise\"><h2>Extracted noise and its integral</h2><figure>{}<figcaption>The quantization \
+         noise the wavelet bank separated from the rate (top) and its running integral, an angle (bottom). \
+         Quantization noise is white in angle, so its integral stays bounded, within about one pulse \
+         (shaded band), instead of wandering like a random walk: the founding paper's check of the \
+         separation.{check} Each series is drawn as its minimum-maximum band per pixel column and its \
+         mean.</figcaption></figure></section>\n",
+        inline_svg(&noise)
+    );
+    let rate = svg(super::RATE_SIZE, |area| rate_fig::draw(area, r.series))?;
+    let _ = write!(
+        h,
+        "<section id=\"rate\"><h2>Rate{}</h2><figure>{}<figcaption>The rate over the recording: the raw rate \
+         as its mean per pixel column (its sample-to-sample spread is the quantization noise above), the clean \
+         rate as minimum-maximum band per pixel column and mean (the axis leaves out the most extreme 2 % of \
+         the columns, such as the wavelet bank's start-up, drawn at its edge){}.</figcaption></figure></section>\n",
+        if r.series.temperature().is_some() { " and temperature" } else { "" },
+        inline_svg(&rate),
+        if r.series.temperature().is_some() { "; below, the temperature the frames carry" } else { "; the input has no temperature" }
+    );
+    if let Some(d) = &r.diagnosis {
+        h.push_str(&diagnosis::section(d)?);
+        h.push('\n');
+    }
+    h.push_str("</body></html>\n");
+    Ok(h)
+}
+
+fn row(h: &mut String, k: &str, v: &str) {
+    let _ = write!(h, "<tr><th>{}</th><td>{}</td></tr>", esc(k), esc(v));
+}
+
+fn metadata(h: &mut String, r: &Report<'_>) {
+    let m = r.meta;
+    let a = r.analysis;
+    h.push_str("<section id=\"recording\"><h2>Recording</h2><table>");
+    row(h, "input", &m.input);
+    row(h, "format", &m.format);
+    row(h, "samples", &a.samples.to_string());
+    row(h, "duration", &format!("{} s ({} h)", a.duration_s, fmt_sig(a.duration_s / 3600.0, 3)));
+    row(h, "sample rate", &format!("{} Hz ({})", m.rate_hz, m.origin));
+    match m.pulse_arcsec {
+        Some(d) => row(h, "pulse weight", &format!("{d} arcsec ({})", m.origin)),
+        None => row(h, "pulse weight", "none: rate input"),
+    }
+    match m.gaps {
+        Some((g, lost)) => row(h, "gaps", &format!("{g} gaps, {lost} samples lost (filled, the angle kept)")),
+        None => row(h, "gaps", "not recorded by this format"),
+    }
+    if let Some(s) = &m.frame_stats {
+        row(
+            h,
+            "frames",
+            &format!(
+                "{} decoded; {} CRC errors, {} false syncs, {} bytes skipped, {} resyncs; {} duplicate, \
+                 {} out-of-sequence frames dropped",
+                s.frames_decoded, s.crc_errors, s.false_syncs, s.bytes_skipped, s.resyncs, s.duplicates, s.out_of_sequence
+            ),
+        );
+    }
+    for n in &m.notes {
+        row(h, "note", n);
+    }
+    h.push_str("</table></section>\n");
+}
+
+fn coefficients(h: &mut String, a: &Analysis) {
+    let e = &a.estimates;
+    h.push_str("<section id=\"coefficients\"><h2>Noise coefficients</h2>");
+    let (class, verdict) = if a.fit.ok {
+        ("ok", "the noise model describes the recording".to_string())
+    } else {
+        (
+            "bad",
+            "the noise model does NOT describe this recording: the intervals are widened by \
+             \u{221a}(\u{3c7}\u{b2}/dof); run <code>sagnac diagnose</code> (or this report with --model)"
+                .to_string(),
+        )
+    };
+    let _ = write!(
+        h,
+        "<p class=\"verdict {class}\">Fit: {verdict} (\u{3c7}\u{b2}/dof {} on {} degrees of freedom, {} observations; \
+         <code>fit.ok = {}</code>).</p>",
+        fmt_sig(a.fit.chi2_per_dof, 3),
+        if a.fit.dof.fract() == 0.0 { format!("{}", a.fit.dof) } else { fmt_sig(a.fit.dof, 4) },
+        a.fit.observations,
+        a.fit.ok
+    );
+    h.push_str("<table><tr><th>term</th><th>coefficient</th><th>value</th><th>95 % interval</th><th>unit</th></tr>");
+    for (name, sym, c, unit) in [
+        ("quantization noise", "Q", &e.quantization_arcsec, "arcsec"),
+        ("angle random walk", "N", &e.arw_dpsh, "deg/\u{221a}h"),
+        ("bias instability", "B", &e.bias_instability_dph, "deg/h"),
+        ("rate random walk", "K", &e.rrw_dphsh, "deg/h/\u{221a}h"),
+        ("rate ramp", "R", &e.rate_ramp_dphh, "deg/h\u{b2}"),
+    ] {
+        let (v, ci) = coef_cells(c);
+        let _ = write!(
+            h,
+            "<tr><td>{name}</td><td>{sym}</td><td class=\"num\">{v}</td><td class=\"num\">{ci}</td><td>{unit}</td></tr>"
+        );
+    }
+    h.push_str("</table>");
+    match &a.readout_filter {
+        Some(f) => {
+            let _ = write!(
+                h,
+                "<p>Readout filter found: {}{}, corner {} Hz (95 %: {} to {} Hz), delay {} s.</p>",
+                esc(&f.kind.name().replace('_', " ")),
+                f.length.map_or(String::new(), |l| format!(" of {l} samples")),
+                fmt_sig(f.corner_hz, 4),
+                fmt_sig(f.ci95[0], 4),
+                fmt_sig(f.ci95[1], 4),
+                fmt_sig(f.delay_s, 4)
+            );
+        }
+        None => h.push_str("<p>Readout filter: none found (the short-\u{3c4} Allan deviation shows no smoothing).</p>"),
+    }
+    h.push_str("</section>\n");
+}
+
+/// The value and interval cells of a coefficient.
+fn coef_cells(c: &Coefficient) -> (String, String) {
+    match (c.value, c.ci95, c.upper95) {
+        (Some(v), Some([lo, hi]), _) => (fmt_sig(v, 4), format!("{} to {}", fmt_sig(lo, 3), fmt_sig(hi, 3))),
+        (Some(v), None, _) => (fmt_sig(v, 4), "\u{2013}".into()),
+        (None, _, Some(u)) => ("not found".into(), format!("&lt; {} (upper bound)", fmt_sig(u, 3))),
+        _ => ("n/a".into(), "\u{2013}".into()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn escaping_and_inline_svg() {
+        assert_eq!(esc("a<b & \"c\" 'd'>"), "a&lt;b &amp; &quot;c&quot; &#39;d&#39;&gt;");
+        assert_eq!(inline_svg("<?xml version=\"1.0\"?>\n<svg a=\"1\"/>"), "<svg a=\"1\"/>");
+    }
+}
