@@ -138,10 +138,18 @@ fn effects() -> Vec<Effect> {
 
 fn gyro(e: &Effect, arw: f64, extra: &str) -> GyroModel {
     let q = (e.pulse * e.pulse / 12.0 + 0.25f64).sqrt();
+    // the effect may set a key the model already has (a parameter change)
+    let key = |l: &str| l.split('=').next().unwrap_or("").trim().to_string();
+    let base: String = e
+        .model
+        .lines()
+        .filter(|l| !extra.lines().any(|x| key(x) == key(l)))
+        .map(|l| format!("{l}\n"))
+        .collect();
     let text = format!(
         "[gyro]\nsample_rate_hz = {}\npulse_weight_arcsec = {}\ninput_rate_dph = 10.0\n\
-         [noise]\nquantization_arcsec = {q}\narw_dpsh = {arw}\n{}{extra}",
-        e.fs, e.pulse, e.model
+         [noise]\nquantization_arcsec = {q}\narw_dpsh = {arw}\n{base}{extra}",
+        e.fs, e.pulse
     );
     GyroModel::from_toml_str(&text, e.name).unwrap()
 }
