@@ -64,9 +64,11 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod compare;
+pub mod compare_models;
 pub mod explain;
 pub mod lines;
 pub mod mc;
+pub mod reference;
 mod sines;
 pub mod stats;
 pub mod svg;
@@ -247,6 +249,9 @@ pub struct Diagnosis {
     pub ramp_z: f64,
     pub thermal_z: Option<f64>,
     pub telegraph_test: Option<TelegraphTest>,
+    /// Detection by model comparison: the largest likelihood ratio of a
+    /// catalog change against its bootstrap threshold ([`compare_models`]).
+    pub model_comparison: Option<compare_models::ModelComparison>,
     /// Input rate the Monte-Carlo runs used (the recording's mean), deg/h.
     pub mc_input_rate_dph: f64,
     /// Human-readable findings, one per line.
@@ -1092,6 +1097,33 @@ pub fn diagnose(
         }
     });
 
+    // --- detection by model comparison: the best catalog change's LR against
+    // the bootstrap of the model's own runs ([`compare_models`])
+    let comparison = data0.as_ref().and_then(|d0| {
+        let fw = floors(&layout, &ref_model, &mc_mean).0;
+        compare_models::compare(d0, &basis, &ref_model, &layout, &runs, &fw, &wpts, opts.alpha)
+    });
+    let lr_detected = comparison.as_ref().is_some_and(|c| c.detected);
+    let regions = match &comparison {
+        Some(c) if regions.is_empty() && c.detected => c.regions.clone(),
+        _ => regions,
+    };
+    if let Some(c) = comparison.as_ref().filter(|c| c.detected) {
+        notes.push(format!(
+            "Model comparison: the best catalog change ({}) improves the wavelet-variance likelihood by LR = {:.1}, \
+             above the {:.0} % threshold {:.1} calibrated on the model's own runs (leave-one-out bootstrap, \
+             max over the catalog: c chi2_k with c = {:.2}, k = {:.1}); largest single-point |z| {:.2} (threshold {:.2}).",
+            c.best,
+            c.max_lr,
+            100.0 * opts.alpha,
+            c.lr_crit,
+            c.tail.0,
+            c.tail.1,
+            max_abs_z,
+            z_crit
+        ));
+    }
+
     // --- the model's Gauss-Markov / telegraph terms: right distribution?
     for p in before
         .iter()
@@ -1226,7 +1258,7 @@ pub fn diagnose(
 
     // --- broadband: wavelet-variance fits
     let mut telegraph_pending: Option<usize> = None; // index into findings of a new GM
-    if !regions.is_empty()
+    if (!regions.is_empty() || lr_detected)
         && let Some(data0) = &data0
     {
         let found = broadband(data0, &basis, &ref_model, &layout, &regions, dur);
@@ -1348,6 +1380,7 @@ pub fn diagnose(
     }
 
     let verdict_mismatch = !regions.is_empty()
+        || lr_detected
         || !lines.is_empty()
         || ramp_z.abs() > z_slope
         || thermal_z.is_some_and(|z| z.abs() > z_slope)
@@ -1598,6 +1631,18 @@ pub fn diagnose(
     for f in &findings {
         notes.push(f.note.clone());
     }
+    if let Some(c) = comparison.as_ref().filter(|c| c.detected) {
+        let near = c.near_best(4.0);
+        if near.len() > 1 {
+            notes.push(format!(
+                "The wavelet variances do not exclude these alternatives (AIC within 4 of the best): {}.",
+                near.iter()
+                    .map(|e| format!("{} (LR {:.1})", e.0, e.1))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+        }
+    }
     if findings.is_empty() && verdict_mismatch {
         notes.push(
             "The recording departs from the model but no catalog term explains it significantly."
@@ -1606,8 +1651,9 @@ pub fn diagnose(
     }
     if !verdict_mismatch {
         notes.push(format!(
-            "The recording is consistent with the model: max |z| = {max_abs_z:.2} (threshold {z_crit:.2}), no lines, \
-             slopes within their bands."
+            "The recording is consistent with the model: max |z| = {max_abs_z:.2} (threshold {z_crit:.2}), {}no lines, \
+             slopes within their bands.",
+            diag_lr_text(comparison.as_ref())
         ));
     }
     let report = DiagnosisReport {
@@ -1645,8 +1691,18 @@ pub fn diagnose(
         ramp_z,
         thermal_z,
         telegraph_test,
+        model_comparison: comparison,
         mc_input_rate_dph: ref_model.gyro.input_rate_dph,
         notes,
+    })
+}
+
+fn diag_lr_text(c: Option<&compare_models::ModelComparison>) -> String {
+    c.map_or(String::new(), |c| {
+        format!(
+            "best catalog change {} at LR {:.1} (threshold {:.1}), ",
+            c.best, c.max_lr, c.lr_crit
+        )
     })
 }
 

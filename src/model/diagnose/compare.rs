@@ -315,7 +315,7 @@ pub fn detect(points: &[&Point], alpha: f64) -> Detection {
     }
 }
 
-fn merge(mut hits: Vec<(f64, f64, f64)>) -> Vec<Region> {
+pub(crate) fn merge(mut hits: Vec<(f64, f64, f64)>) -> Vec<Region> {
     hits.sort_by(|a, b| a.0.total_cmp(&b.0));
     let mut out: Vec<Region> = Vec::new();
     for (lo, hi, z) in hits {
