@@ -710,63 +710,44 @@ pub fn write_csv<W: Write>(sim: &mut Simulator, out: W) -> Result<u64, ModelErro
             "CSV output needs a finite duration",
         ));
     }
-    const BLOCK: usize = 65_536;
     let mut out = std::io::BufWriter::with_capacity(1 << 20, out);
-    let thermal = sim.has_temperature();
     if sim.output() == OutputKind::Rate {
-        return write_rate_csv(sim, &mut out, thermal);
-    }
-    out.write_all(if thermal {
-        b"counts,temp_c\n"
+        // rates in deg/s as the shortest decimal that reads back exactly
+        write_rows(sim, &mut out, "rate_dps", |sim, n, v, t| sim.next_block_rates(n, v, t), |buf, v: f64| {
+            // writing into a Vec cannot fail
+            let _ = write!(buf, "{v}");
+        })
     } else {
-        b"counts\n"
-    })
-    .map_err(ModelError::Write)?;
-    let mut counts = Vec::with_capacity(BLOCK);
-    let mut temps = Vec::with_capacity(BLOCK);
+        write_rows(sim, &mut out, "counts", |sim, n, v, t| sim.next_block_with_temp(n, v, t), |buf, v: i64| push_i64(buf, v))
+    }
+}
+
+/// The CSV rows of a whole run: `column` (and `temp_c` with a thermal model),
+/// blocks from `next`, values written by `fmt`.
+fn write_rows<W: Write, T: Copy>(
+    sim: &mut Simulator,
+    out: &mut W,
+    column: &str,
+    next: impl Fn(&mut Simulator, usize, &mut Vec<T>, &mut Vec<f64>) -> usize,
+    fmt: impl Fn(&mut Vec<u8>, T),
+) -> Result<u64, ModelError> {
+    const BLOCK: usize = 65_536;
+    let thermal = sim.has_temperature();
+    let header = if thermal { format!("{column},temp_c\n") } else { format!("{column}\n") };
+    out.write_all(header.as_bytes()).map_err(ModelError::Write)?;
+    let (mut vals, mut temps) = (Vec::with_capacity(BLOCK), Vec::with_capacity(BLOCK));
     let mut buf = Vec::with_capacity(BLOCK * 20);
     let mut rows = 0u64;
     loop {
-        counts.clear();
+        vals.clear();
         temps.clear();
         buf.clear();
-        let n = sim.next_block_with_temp(BLOCK, &mut counts, &mut temps);
+        let n = next(sim, BLOCK, &mut vals, &mut temps);
         if n == 0 {
             break;
         }
         for i in 0..n {
-            push_i64(&mut buf, counts[i]);
-            if thermal {
-                buf.push(b',');
-                push_fixed4(&mut buf, temps[i]);
-            }
-            buf.push(b'\n');
-        }
-        out.write_all(&buf).map_err(ModelError::Write)?;
-        rows += n as u64;
-    }
-    out.flush().map_err(ModelError::Write)?;
-    Ok(rows)
-}
-
-/// [`write_csv`] for a rate-output model: header `rate_dps` (or `rate_dps,temp_c`),
-/// rates in deg/s written as the shortest decimal that reads back exactly.
-fn write_rate_csv<W: Write>(sim: &mut Simulator, out: &mut W, thermal: bool) -> Result<u64, ModelError> {
-    const BLOCK: usize = 65_536;
-    let header: &[u8] = if thermal { b"rate_dps,temp_c\n" } else { b"rate_dps\n" };
-    out.write_all(header).map_err(ModelError::Write)?;
-    let (mut rates, mut temps, mut buf) = (Vec::with_capacity(BLOCK), Vec::with_capacity(BLOCK), Vec::new());
-    let mut rows = 0u64;
-    loop {
-        rates.clear();
-        temps.clear();
-        buf.clear();
-        let n = sim.next_block_rates(BLOCK, &mut rates, &mut temps);
-        if n == 0 {
-            break;
-        }
-        for i in 0..n {
-            write!(buf, "{}", rates[i]).map_err(ModelError::Write)?;
+            fmt(&mut buf, vals[i]);
             if thermal {
                 buf.push(b',');
                 push_fixed4(&mut buf, temps[i]);
