@@ -7,7 +7,7 @@
 
 use sagnac::allan::streaming::{OctaveAllan, StreamConfig, StreamPoint};
 use sagnac::dsp::dwt::{Mode, dwt};
-use sagnac::dsp::gaps::GAP_SCALE;
+use sagnac::dsp::gaps::{GAP_SCALE, SHORT_GAP};
 use sagnac::dsp::wavelet::Wavelet;
 use sagnac::model::config::GyroModel;
 use sagnac::model::estimate::Coefficient;
@@ -107,8 +107,9 @@ fn run_pipeline(f: &FilledSeries, cfg: &PipelineConfig, blocks: &[usize]) -> Pip
 /// Batch gap-aware level mean squares: level-by-level `mode='zero'` DWT of
 /// `x`; coefficient i of level j is used when i >= L-1 (the streaming start-up
 /// transient) and its input support `[2^j (i+1) - 1 - (L-1)(2^j - 1), 2^j (i+1) - 1]`
-/// holds no sample of a filled span of length g with `2^j <= GAP_SCALE g`
-/// (coarser levels see a short gap as a smooth interpolation and keep it).
+/// holds no sample of a filled span of length g, except short spans
+/// (`g <= SHORT_GAP`) on levels with `2^j > GAP_SCALE g` (they see a short
+/// gap as a smooth interpolation and keep it).
 fn batch_levels(x: &[f64], spans: &[std::ops::Range<usize>], w: &Wavelet, levels: u32) -> Vec<LevelObs> {
     let l = w.len() as i64;
     let mut a = x.to_vec();
@@ -120,7 +121,7 @@ fn batch_levels(x: &[f64], spans: &[std::ops::Range<usize>], w: &Wavelet, levels
         }
         let mut prefix = vec![0u64; x.len() + 1];
         let mut bad = vec![false; x.len()];
-        for r in spans.iter().filter(|r| (1u64 << j) <= GAP_SCALE * r.len() as u64) {
+        for r in spans.iter().filter(|r| r.len() as u64 > SHORT_GAP || (1u64 << j) <= GAP_SCALE * r.len() as u64) {
             bad[r.start..r.end.min(x.len())].iter_mut().for_each(|b| *b = true);
         }
         for (i, &b) in bad.iter().enumerate() {
