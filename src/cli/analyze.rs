@@ -19,6 +19,7 @@ use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::model::estimate::Coefficient;
+use crate::model::spec::{Spec, SpecReport};
 use crate::offline::{self, OfflineError, RateUnit};
 use crate::pipeline::{Analysis, PipelineConfig};
 use crate::source::input::InputFormat;
@@ -49,6 +50,10 @@ pub struct AnalyzeArgs {
     /// Write the result as JSON here ("-" for stdout) instead of printing a table.
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
+    /// Acceptance test against this spec file (config/spec_example.toml): adds
+    /// `spec` (verdict per coefficient) to the output.
+    #[arg(long, value_name = "SPEC.toml")]
+    pub spec: Option<PathBuf>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -76,6 +81,11 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
     if args.column.is_some() && args.format != AnalyzeFormat::Csv {
         bail!("--column applies to CSV input only (frame captures and MCAP recordings hold pulse counts)");
     }
+    // a bad spec file fails before the (long) analysis
+    let spec = match &args.spec {
+        Some(p) => Some(Spec::load(p)?),
+        None => None,
+    };
     let started = Instant::now();
     let bar = ProgressBar::hidden();
     let mut shown = false;
@@ -162,16 +172,52 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
     if !analysis.fit.ok {
         eprintln!("warning: {}: {}", input.display(), misfit_message(&analysis));
     }
+    let verdict = spec.as_ref().map(|s| s.evaluate_fixed(&analysis.estimates, analysis.duration_s));
     match &args.json {
         Some(path) => {
-            let text = serde_json::to_string_pretty(&analysis).context("serialising the analysis")?;
+            let mut value = serde_json::to_value(&analysis).context("serialising the analysis")?;
+            if let (Some(v), Some(obj)) = (&verdict, value.as_object_mut()) {
+                obj.insert("spec".into(), serde_json::to_value(v).context("serialising the verdict")?);
+            }
+            let text = serde_json::to_string_pretty(&value).context("serialising the analysis")?;
             if path.as_os_str() == "-" {
                 super::write_stdout(&text)?;
             } else {
                 std::fs::write(path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
             }
         }
-        None => print_table(&analysis)?,
+        None => {
+            print_table(&analysis)?;
+            if let Some(v) = &verdict {
+                print_verdict(v)?;
+            }
+        }
+    }
+    Ok(())
+}
+
+fn print_verdict(r: &SpecReport) -> Result<()> {
+    let mut o = std::io::stdout().lock();
+    writeln!(o)?;
+    writeln!(
+        o,
+        "spec verdict: {} (each coefficient at {} % confidence, one look at {:.1} s)",
+        r.verdict.as_str().to_uppercase(),
+        r.confidence * 100.0,
+        r.duration_s
+    )?;
+    writeln!(o, "{:<22} {:>12} {:>10} {:>12} {:>12}  reason", "coefficient", "limit", "verdict", "estimate", "bound")?;
+    let f = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.6}"));
+    for (name, c) in &r.coefficients {
+        writeln!(
+            o,
+            "{name:<22} {:>12.6} {:>10} {:>12} {:>12}  {}",
+            c.limit,
+            c.verdict.as_str(),
+            f(c.estimate),
+            f(c.bound),
+            c.reason.as_deref().unwrap_or("")
+        )?;
     }
     Ok(())
 }
