@@ -3,7 +3,8 @@
 //! file, a raw frame capture or an MCAP recording.
 //!
 //! Thin: reading is `offline`, the numerics are `pipeline` (the same chain the
-//! daemon runs live).
+//! daemon runs live). `--spec SPEC.toml` adds the acceptance test's verdicts
+//! (`spec` in the JSON, [`crate::model::spec`]): one look at the whole record.
 //!
 //! No silent defaults: a CSV file and a frame capture carry no sample rate and
 //! no pulse weight, so `--rate-hz` (and `--pulse-arcsec` for pulse counts) are
