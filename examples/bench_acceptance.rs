@@ -34,8 +34,13 @@ use sagnac::pipeline::{Pipeline, PipelineConfig, PipelineOutput};
 
 const CONFIDENCE: f64 = 0.95;
 const UPDATE_S: f64 = 5.0;
-const FACTORS: [(f64, &str); 5] =
-    [(0.5, "well inside"), (1.0 / 1.1, "just inside"), (1.0, "at limit"), (1.1, "just outside"), (2.0, "well outside")];
+const FACTORS: [(f64, &str); 5] = [
+    (0.5, "well inside"),
+    (1.0 / 1.1, "just inside"),
+    (1.0, "at limit"),
+    (1.1, "just outside"),
+    (2.0, "well outside"),
+];
 
 #[derive(Clone, Copy)]
 struct Family {
@@ -100,15 +105,23 @@ struct Outcome {
 
 /// The naive rule at one look: the fixed-sample one-sided bound at the spec's
 /// confidence (what `sagnac analyze` does once), here applied at every look.
-fn naive_verdict(spec: &Spec, c: SpecCoefficient, e: &sagnac::model::estimate::NoiseEstimates) -> Verdict {
-    spec.evaluate_fixed(e, 0.0).coefficients.get(c.name()).map_or(Verdict::Undecided, |v| v.verdict)
+fn naive_verdict(
+    spec: &Spec,
+    c: SpecCoefficient,
+    e: &sagnac::model::estimate::NoiseEstimates,
+) -> Verdict {
+    spec.evaluate_fixed(e, 0.0)
+        .coefficients
+        .get(c.name())
+        .map_or(Verdict::Undecided, |v| v.verdict)
 }
 
 fn run_one(f: &Family, truth: f64, i: usize, seed: u64, to_end: bool) -> Result<Outcome, String> {
     let (toml, rate, pulse) = model_toml(f, truth, i);
     let model = GyroModel::from_toml_str(&toml, "bench").map_err(|e| e.to_string())?;
     let mut sim = Simulator::new(&model, seed, Some(f.duration_s)).map_err(|e| e.to_string())?;
-    let mut pipe = Pipeline::new(&PipelineConfig::counts(rate, pulse)).map_err(|e| e.to_string())?;
+    let mut pipe =
+        Pipeline::new(&PipelineConfig::counts(rate, pulse)).map_err(|e| e.to_string())?;
     let mut spec = Spec {
         quantization_arcsec_max: None,
         arw_dpsh_max: None,
@@ -151,7 +164,14 @@ fn run_one(f: &Family, truth: f64, i: usize, seed: u64, to_end: bool) -> Result<
             last_look = look;
             if std::env::var_os("BENCH_DEBUG").is_some() {
                 let c = f.coef.of(&a.estimates);
-                eprintln!("cfg {} truth {truth} t {:.0} value {:?} ci {:?} up {:?}", i % f.configs.len(), a.duration_s, c.value, c.ci95, c.upper95);
+                eprintln!(
+                    "cfg {} truth {truth} t {:.0} value {:?} ci {:?} up {:?}",
+                    i % f.configs.len(),
+                    a.duration_s,
+                    c.value,
+                    c.ci95,
+                    c.upper95
+                );
             }
             seq.observe(&a.estimates, a.duration_s);
             if o.seq.is_none() {
@@ -211,7 +231,9 @@ fn main() -> Result<(), String> {
             "--quick" => quick = true,
             "--runs" => runs = val()?.parse().map_err(|e| format!("--runs: {e}"))?,
             "--jobs" => jobs = val()?.parse().map_err(|e| format!("--jobs: {e}"))?,
-            "--fixed-runs" => fixed_runs = val()?.parse().map_err(|e| format!("--fixed-runs: {e}"))?,
+            "--fixed-runs" => {
+                fixed_runs = val()?.parse().map_err(|e| format!("--fixed-runs: {e}"))?
+            }
             "--only" => only = Some(val()?.clone()),
             "--factor" => factor_only = Some(val()?.parse().map_err(|e| format!("--factor: {e}"))?),
             other => return Err(format!("unknown argument {other}")),
@@ -222,8 +244,11 @@ fn main() -> Result<(), String> {
         fixed_runs = fixed_runs.min(5);
     }
     let jobs = jobs.max(1);
-    let families: Vec<Family> =
-        FAMILIES.iter().copied().filter(|f| only.as_deref().is_none_or(|o| o == f.name)).collect();
+    let families: Vec<Family> = FAMILIES
+        .iter()
+        .copied()
+        .filter(|f| only.as_deref().is_none_or(|o| o == f.name))
+        .collect();
     if families.is_empty() {
         return Err("--only: qn, arw or bi".into());
     }
@@ -240,20 +265,32 @@ fn main() -> Result<(), String> {
         }
     }
     // long jobs first (at-limit cases run to the end)
-    work.sort_by_key(|&(fi, ci, _)| (std::cmp::Reverse((families[fi].duration_s as u64) * if ci == 2 { 2 } else { 1 }), fi, ci));
+    work.sort_by_key(|&(fi, ci, _)| {
+        (
+            std::cmp::Reverse((families[fi].duration_s as u64) * if ci == 2 { 2 } else { 1 }),
+            fi,
+            ci,
+        )
+    });
     let work = Arc::new(work);
     let next = Arc::new(AtomicUsize::new(0));
     let results: Arc<Mutex<Vec<Vec<Vec<Outcome>>>>> =
-        Arc::new(Mutex::new(vec![vec![Vec::new(); FACTORS.len()]; families.len()]));
+        Arc::new(Mutex::new(vec![
+            vec![Vec::new(); FACTORS.len()];
+            families.len()
+        ]));
     let started = Instant::now();
     let errors = Arc::new(Mutex::new(Vec::<String>::new()));
     std::thread::scope(|s| {
         for _ in 0..jobs {
-            let (work, next, results, errors, families) = (&work, &next, &results, &errors, &families);
+            let (work, next, results, errors, families) =
+                (&work, &next, &results, &errors, &families);
             s.spawn(move || {
                 loop {
                     let j = next.fetch_add(1, Ordering::Relaxed);
-                    let Some(&(fi, ci, i)) = work.get(j) else { break };
+                    let Some(&(fi, ci, i)) = work.get(j) else {
+                        break;
+                    };
                     let f = &families[fi];
                     let truth = f.limit * FACTORS[ci].0;
                     let seed = 1_000_003 * (fi as u64 + 1) + 10_007 * ci as u64 + i as u64;
@@ -292,8 +329,14 @@ fn main() -> Result<(), String> {
             let count = |v: Verdict| os.iter().filter(|o| o.seq.map(|s| s.0) == Some(v)).count();
             let (p, fl) = (count(Verdict::Pass), count(Verdict::Fail));
             let und = os.len() - p - fl;
-            let wr = os.iter().filter(|o| o.seq.is_some_and(|s| wrong(s.0, *factor))).count();
-            let naive_wr = os.iter().filter(|o| o.naive.is_some_and(|s| wrong(s.0, *factor))).count();
+            let wr = os
+                .iter()
+                .filter(|o| o.seq.is_some_and(|s| wrong(s.0, *factor)))
+                .count();
+            let naive_wr = os
+                .iter()
+                .filter(|o| o.naive.is_some_and(|s| wrong(s.0, *factor)))
+                .count();
             let times: Vec<f64> = os.iter().filter_map(|o| o.seq.map(|s| s.1)).collect();
             let med = median(times).map_or("-".to_string(), |m| format!("{m:.0}"));
             let fixed: Vec<Verdict> = os.iter().filter_map(|o| o.fixed).collect();
@@ -313,8 +356,16 @@ fn main() -> Result<(), String> {
                 p + fl,
                 f.duration_s,
                 pct(naive_wr),
-                if fixed.is_empty() { "-".into() } else { format!("{:.0} %", 100.0 * fixed_wrong as f64 / fixed.len() as f64) },
-                if fixed.is_empty() { "-".into() } else { format!("{:.0} %", 100.0 * fixed_dec as f64 / fixed.len() as f64) },
+                if fixed.is_empty() {
+                    "-".into()
+                } else {
+                    format!("{:.0} %", 100.0 * fixed_wrong as f64 / fixed.len() as f64)
+                },
+                if fixed.is_empty() {
+                    "-".into()
+                } else {
+                    format!("{:.0} %", 100.0 * fixed_dec as f64 / fixed.len() as f64)
+                },
                 fixed.len(),
             );
         }
@@ -329,6 +380,9 @@ fn main() -> Result<(), String> {
                 / 3600.0
         })
         .sum();
-    eprintln!("about {sim_h:.0} h of gyro data simulated in {} s", started.elapsed().as_secs());
+    eprintln!(
+        "about {sim_h:.0} h of gyro data simulated in {} s",
+        started.elapsed().as_secs()
+    );
     Ok(())
 }

@@ -19,7 +19,11 @@ use sagnac::sink::messages::SinkMessage;
 use sagnac::sink::metrics::Metrics;
 
 fn sagnac(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_sagnac")).args(args).env_remove("RUST_LOG").output().unwrap()
+    Command::new(env!("CARGO_BIN_EXE_sagnac"))
+        .args(args)
+        .env_remove("RUST_LOG")
+        .output()
+        .unwrap()
 }
 
 #[test]
@@ -35,27 +39,68 @@ fn the_example_spec_parses() {
 #[test]
 fn spec_errors_name_their_key() {
     let cases = [
-        ("[spec]\narw_dpsh_max = 0.003\nconfidence = 0.95\nbogus = 1", "bogus"),
-        ("[spec]\narw_dpsh_max = 0.003\nconfidence = 0.95\n[other]\nx = 1", "other"),
+        (
+            "[spec]\narw_dpsh_max = 0.003\nconfidence = 0.95\nbogus = 1",
+            "bogus",
+        ),
+        (
+            "[spec]\narw_dpsh_max = 0.003\nconfidence = 0.95\n[other]\nx = 1",
+            "other",
+        ),
         ("[spec]\narw_dpsh_max = 0.003", "confidence"),
-        ("[spec]\narw_dpsh_max = -0.003\nconfidence = 0.95", "spec.arw_dpsh_max"),
-        ("[spec]\nquantization_arcsec_max = nan\nconfidence = 0.95", "spec.quantization_arcsec_max"),
-        ("[spec]\nbias_instability_dph_max = 0\nconfidence = 0.95", "spec.bias_instability_dph_max"),
-        ("[spec]\nrrw_dphsh_max = inf\nconfidence = 0.95", "spec.rrw_dphsh_max"),
-        ("[spec]\nrate_ramp_dphh_max = -1\nconfidence = 0.95", "spec.rate_ramp_dphh_max"),
-        ("[spec]\narw_dpsh_max = 0.003\nconfidence = 1.0", "spec.confidence"),
-        ("[spec]\narw_dpsh_max = 0.003\nconfidence = 0.3", "spec.confidence"),
+        (
+            "[spec]\narw_dpsh_max = -0.003\nconfidence = 0.95",
+            "spec.arw_dpsh_max",
+        ),
+        (
+            "[spec]\nquantization_arcsec_max = nan\nconfidence = 0.95",
+            "spec.quantization_arcsec_max",
+        ),
+        (
+            "[spec]\nbias_instability_dph_max = 0\nconfidence = 0.95",
+            "spec.bias_instability_dph_max",
+        ),
+        (
+            "[spec]\nrrw_dphsh_max = inf\nconfidence = 0.95",
+            "spec.rrw_dphsh_max",
+        ),
+        (
+            "[spec]\nrate_ramp_dphh_max = -1\nconfidence = 0.95",
+            "spec.rate_ramp_dphh_max",
+        ),
+        (
+            "[spec]\narw_dpsh_max = 0.003\nconfidence = 1.0",
+            "spec.confidence",
+        ),
+        (
+            "[spec]\narw_dpsh_max = 0.003\nconfidence = 0.3",
+            "spec.confidence",
+        ),
         ("[spec]\nconfidence = 0.95", "spec"),
-        ("[spec]\narw_dpsh_max = 0.003\nconfidence = 0.95\nfirst_look_s = 0", "spec.first_look_s"),
-        ("[spec]\narw_dpsh_max = 0.003\nconfidence = 0.95\nsystematic_rel = -0.1", "spec.systematic_rel"),
-        ("[spec]\narw_dpsh_max = \"small\"\nconfidence = 0.95", "arw_dpsh_max"),
+        (
+            "[spec]\narw_dpsh_max = 0.003\nconfidence = 0.95\nfirst_look_s = 0",
+            "spec.first_look_s",
+        ),
+        (
+            "[spec]\narw_dpsh_max = 0.003\nconfidence = 0.95\nsystematic_rel = -0.1",
+            "spec.systematic_rel",
+        ),
+        (
+            "[spec]\narw_dpsh_max = \"small\"\nconfidence = 0.95",
+            "arw_dpsh_max",
+        ),
         ("spec = 3", "spec"),
     ];
     for (text, key) in cases {
         let err = Spec::from_toml(text, "s.toml").unwrap_err().to_string();
-        assert!(err.contains(key) && err.contains("s.toml"), "{text:?}: {err}");
+        assert!(
+            err.contains(key) && err.contains("s.toml"),
+            "{text:?}: {err}"
+        );
     }
-    let err = Spec::load(Path::new("/nonexistent/spec.toml")).unwrap_err().to_string();
+    let err = Spec::load(Path::new("/nonexistent/spec.toml"))
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("/nonexistent/spec.toml"), "{err}");
 }
 
@@ -78,7 +123,11 @@ fn synthetic_run(seed: u64, truth: f64, limit: f64, minutes: u32) -> (Verdict, V
     };
     let mut seq = SequentialSpec::new(spec.clone());
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let none = Coefficient { value: None, ci95: None, upper95: None };
+    let none = Coefficient {
+        value: None,
+        ci95: None,
+        upper95: None,
+    };
     let mut w = 0.0;
     let mut naive = Verdict::Undecided;
     let mut last_look = None;
@@ -90,7 +139,11 @@ fn synthetic_run(seed: u64, truth: f64, limit: f64, minutes: u32) -> (Verdict, V
         let h = 1.959_964 * sigma / t.sqrt();
         let e = NoiseEstimates {
             quantization_arcsec: none,
-            arw_dpsh: Coefficient { value: Some(v), ci95: Some([v * (-h).exp(), v * h.exp()]), upper95: None },
+            arw_dpsh: Coefficient {
+                value: Some(v),
+                ci95: Some([v * (-h).exp(), v * h.exp()]),
+                upper95: None,
+            },
             bias_instability_dph: none,
             rrw_dphsh: none,
             rate_ramp_dphh: none,
@@ -116,9 +169,14 @@ fn optional_stopping_keeps_the_error_rate_at_alpha() {
         fail += (v == Verdict::Fail) as u32;
         naive_wrong += (naive != Verdict::Undecided) as u32;
     }
-    eprintln!("truth at the limit, {seeds} runs of 3 days: pass {pass}, fail {fail}; naive peeking decided {naive_wrong}");
+    eprintln!(
+        "truth at the limit, {seeds} runs of 3 days: pass {pass}, fail {fail}; naive peeking decided {naive_wrong}"
+    );
     // each direction at most alpha = 5 % (binomial sd 0.7 % at 1000 runs: allow 6.5 %)
-    assert!(pass <= 65 && fail <= 65, "pass {pass}, fail {fail} of {seeds}");
+    assert!(
+        pass <= 65 && fail <= 65,
+        "pass {pass}, fail {fail} of {seeds}"
+    );
     // the naive rule (the fixed-sample bound at every look) errs far more often
     assert!(naive_wrong > 150, "naive peeking: {naive_wrong} of {seeds}");
     // and the rule still decides: 10 % inside / outside the limit
@@ -126,8 +184,16 @@ fn optional_stopping_keeps_the_error_rate_at_alpha() {
     for seed in 0..200 {
         let (a, _) = synthetic_run(10_000 + seed, 0.9, 1.0, 60 * 24);
         let (b, _) = synthetic_run(20_000 + seed, 1.1, 1.0, 60 * 24);
-        assert_ne!(a, Verdict::Fail, "seed {seed}: a gyro inside the limit failed");
-        assert_ne!(b, Verdict::Pass, "seed {seed}: a gyro outside the limit passed");
+        assert_ne!(
+            a,
+            Verdict::Fail,
+            "seed {seed}: a gyro inside the limit failed"
+        );
+        assert_ne!(
+            b,
+            Verdict::Pass,
+            "seed {seed}: a gyro outside the limit passed"
+        );
         decided += (a == Verdict::Pass) as u32 + (b == Verdict::Fail) as u32;
     }
     assert!(decided >= 360, "decided {decided} of 400");
@@ -140,7 +206,12 @@ fn optional_stopping_on_the_simulated_gyro_with_a_handful_of_seeds() {
     use sagnac::pipeline::{Pipeline, PipelineConfig, PipelineOutput};
     // Q 10 % inside its limit: each of 4 seeds must pass (never fail) within 300 s,
     // judged at every 5 s update as the daemon does
-    for (seed, truth, want) in [(1, 0.45, Verdict::Pass), (2, 0.45, Verdict::Pass), (3, 0.55, Verdict::Fail), (4, 0.55, Verdict::Fail)] {
+    for (seed, truth, want) in [
+        (1, 0.45, Verdict::Pass),
+        (2, 0.45, Verdict::Pass),
+        (3, 0.55, Verdict::Fail),
+        (4, 0.55, Verdict::Fail),
+    ] {
         let toml = format!(
             "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 0.6\ninput_rate_dph = 12.3\n\
              [noise]\nquantization_arcsec = {truth}\narw_dpsh = 0.001\nbias_instability_dph = 0.002\n"
@@ -148,7 +219,11 @@ fn optional_stopping_on_the_simulated_gyro_with_a_handful_of_seeds() {
         let model = GyroModel::from_toml_str(&toml, "test").unwrap();
         let mut sim = Simulator::new(&model, seed, Some(300.0)).unwrap();
         let mut pipe = Pipeline::new(&PipelineConfig::counts(1000.0, 0.6)).unwrap();
-        let spec = Spec::from_toml("[spec]\nquantization_arcsec_max = 0.5\nconfidence = 0.95", "t").unwrap();
+        let spec = Spec::from_toml(
+            "[spec]\nquantization_arcsec_max = 0.5\nconfidence = 0.95",
+            "t",
+        )
+        .unwrap();
         let mut seq = SequentialSpec::new(spec);
         let (mut counts, mut out) = (Vec::new(), PipelineOutput::default());
         while sim.remaining() != Some(0) && !seq.all_decided() {
@@ -220,21 +295,36 @@ fn analyze_spec_json_contract() {
     let cs = s["coefficients"].as_object().unwrap();
     assert_eq!(
         cs.keys().map(String::as_str).collect::<Vec<_>>(),
-        ["arw_dpsh", "bias_instability_dph", "quantization_arcsec", "rrw_dphsh"]
+        [
+            "arw_dpsh",
+            "bias_instability_dph",
+            "quantization_arcsec",
+            "rrw_dphsh"
+        ]
     );
     for (name, c) in cs {
         for key in ["limit", "verdict", "estimate", "bound"] {
             assert!(c.get(key).is_some(), "{name}: no `{key}` in {c}");
         }
-        assert!(["pass", "fail", "undecided"].contains(&c["verdict"].as_str().unwrap()), "{c}");
+        assert!(
+            ["pass", "fail", "undecided"].contains(&c["verdict"].as_str().unwrap()),
+            "{c}"
+        );
         assert_eq!(c["estimate"], v["estimates"][name]["value"], "{name}");
-        assert_eq!(c["reason"].is_string(), c["verdict"] == "undecided", "{name}: {c}");
+        assert_eq!(
+            c["reason"].is_string(),
+            c["verdict"] == "undecided",
+            "{name}: {c}"
+        );
     }
     assert_eq!(cs["arw_dpsh"]["limit"], 0.0035);
     for name in ["quantization_arcsec", "arw_dpsh"] {
         let c = &cs[name];
         assert_eq!(c["verdict"], "pass", "{name}: {c}");
-        let (e, b) = (c["estimate"].as_f64().unwrap(), c["bound"].as_f64().unwrap());
+        let (e, b) = (
+            c["estimate"].as_f64().unwrap(),
+            c["bound"].as_f64().unwrap(),
+        );
         assert!(e < b && b < c["limit"].as_f64().unwrap(), "{name}: {c}");
     }
     // a term the record does not resolve against a tiny limit: undecided, saying why
@@ -242,26 +332,42 @@ fn analyze_spec_json_contract() {
         let c = &cs[name];
         assert_eq!(c["verdict"], "undecided", "{name}: {c}");
         if c["estimate"].is_null() && c["bound"].is_number() {
-            assert!(c["reason"].as_str().unwrap().contains("does not resolve"), "{name}: {c}");
+            assert!(
+                c["reason"].as_str().unwrap().contains("does not resolve"),
+                "{name}: {c}"
+            );
         }
     }
     assert_eq!(s["verdict"], "undecided");
     assert_eq!(s["confidence"], 0.95);
 
     // a failing limit makes the whole spec fail
-    write(&spec, "[spec]\nquantization_arcsec_max = 0.2\narw_dpsh_max = 0.0035\nconfidence = 0.95\n");
+    write(
+        &spec,
+        "[spec]\nquantization_arcsec_max = 0.2\narw_dpsh_max = 0.0035\nconfidence = 0.95\n",
+    );
     let r = analyze(&["--json", "-"]);
     let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
-    assert_eq!(v["spec"]["coefficients"]["quantization_arcsec"]["verdict"], "fail", "{}", v["spec"]);
+    assert_eq!(
+        v["spec"]["coefficients"]["quantization_arcsec"]["verdict"], "fail",
+        "{}",
+        v["spec"]
+    );
     let c = &v["spec"]["coefficients"]["quantization_arcsec"];
-    assert!(c["bound"].as_f64().unwrap() > 0.2 && c["bound"].as_f64().unwrap() < c["estimate"].as_f64().unwrap());
+    assert!(
+        c["bound"].as_f64().unwrap() > 0.2
+            && c["bound"].as_f64().unwrap() < c["estimate"].as_f64().unwrap()
+    );
     assert_eq!(v["spec"]["verdict"], "fail");
 
     // the table prints it too
     let r = analyze(&[]);
     let out = String::from_utf8_lossy(&r.stdout);
     assert!(r.status.success());
-    assert!(out.contains("spec verdict: FAIL") && out.contains("quantization_arcsec"), "{out}");
+    assert!(
+        out.contains("spec verdict: FAIL") && out.contains("quantization_arcsec"),
+        "{out}"
+    );
 
     // a bad spec file fails before the analysis, naming the key
     write(&spec, "[spec]\narw_dpsh_max = -1\nconfidence = 0.95\n");
@@ -275,7 +381,10 @@ fn analyze_spec_json_contract() {
 fn run_stops_when_decided_with_a_finished_recording_holding_the_verdicts() {
     let dir = tempfile::tempdir().unwrap();
     let spec = dir.path().join("s.toml");
-    write(&spec, "[spec]\nquantization_arcsec_max = 0.5\narw_dpsh_max = 0.0035\nconfidence = 0.95\n");
+    write(
+        &spec,
+        "[spec]\nquantization_arcsec_max = 0.5\narw_dpsh_max = 0.0035\nconfidence = 0.95\n",
+    );
     let rec = dir.path().join("rec");
     let log = dir.path().join("run.log");
     let model = repo().join("config/paper_gyro.toml");
@@ -302,7 +411,10 @@ fn run_stops_when_decided_with_a_finished_recording_holding_the_verdicts() {
     let status = d.wait(std::time::Duration::from_secs(300));
     let text = d.log_text();
     assert!(status.success(), "exit {status:?}; log:\n{text}");
-    assert!(text.contains("every coefficient of the spec is decided"), "{text}");
+    assert!(
+        text.contains("every coefficient of the spec is decided"),
+        "{text}"
+    );
     assert!(text.contains("spec verdict"), "{text}");
     let file = only_recording(&rec);
     let r = sagnac::sink::reader::read_recording(&file).unwrap();
@@ -316,7 +428,11 @@ fn run_stops_when_decided_with_a_finished_recording_holding_the_verdicts() {
         .collect();
     let last = verdicts.last().expect("/gyro/verdict messages");
     assert_eq!(last.verdict, Verdict::Pass, "{last:?}");
-    assert!(last.coefficients.values().all(|c| c.verdict == Verdict::Pass && c.decided_at_s.is_some()));
+    assert!(
+        last.coefficients
+            .values()
+            .all(|c| c.verdict == Verdict::Pass && c.decided_at_s.is_some())
+    );
     let raw: usize = r
         .messages
         .iter()
@@ -325,19 +441,31 @@ fn run_stops_when_decided_with_a_finished_recording_holding_the_verdicts() {
             _ => 0,
         })
         .sum();
-    assert!(raw < 3_000_000, "stopped long before the duration limit: {raw} samples");
+    assert!(
+        raw < 3_000_000,
+        "stopped long before the duration limit: {raw} samples"
+    );
     // the final estimates went out after the stop
-    assert!(text.contains("final_update=true") || text.contains("\"final_update\":true"), "{text}");
+    assert!(
+        text.contains("final_update=true") || text.contains("\"final_update\":true"),
+        "{text}"
+    );
     // the independent reader validates every message against its schema
     let py = daemon_common::read_mcap_py(&file);
-    assert!(py["channels"]["/gyro/verdict"].as_u64().unwrap() >= 1, "{py}");
+    assert!(
+        py["channels"]["/gyro/verdict"].as_u64().unwrap() >= 1,
+        "{py}"
+    );
     assert_eq!(py["schema_invalid"], serde_json::json!([]), "{py}");
 }
 
 #[test]
 fn spec_metrics_are_promtool_clean() {
     let m = Metrics::new().unwrap();
-    assert!(!m.encode().contains("sagnac_spec_"), "no spec series without a spec");
+    assert!(
+        !m.encode().contains("sagnac_spec_"),
+        "no spec series without a spec"
+    );
     m.set_spec("overall", -1.0, None, None);
     m.set_spec("arw_dpsh", 1.0, Some(0.0035), Some(0.0));
     m.set_spec("bias_instability_dph", 0.0, Some(0.005), None);
@@ -360,8 +488,13 @@ fn spec_metrics_are_promtool_clean() {
 fn promtool_present(what: &str) -> bool {
     let found = Command::new("promtool").arg("--version").output().is_ok();
     if !found {
-        assert!(std::env::var_os("CI").is_none(), "promtool is required in CI (apt-get install prometheus)");
-        eprintln!("note: promtool not found: `promtool check {what}` skipped (apt-get install prometheus)");
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "promtool is required in CI (apt-get install prometheus)"
+        );
+        eprintln!(
+            "note: promtool not found: `promtool check {what}` skipped (apt-get install prometheus)"
+        );
     }
     found
 }
@@ -370,11 +503,18 @@ fn promtool_present(what: &str) -> bool {
 fn prometheus_spec_rules_pass_promtool() {
     let rules = repo().join("config/prometheus/sagnac-spec-rules.yml");
     let text = std::fs::read_to_string(&rules).unwrap();
-    assert!(text.contains("sagnac_spec_verdict") && text.contains("== -1"), "a rule for a failing gyro");
+    assert!(
+        text.contains("sagnac_spec_verdict") && text.contains("== -1"),
+        "a rule for a failing gyro"
+    );
     if !promtool_present("rules") {
         return;
     }
-    let out = Command::new("promtool").args(["check", "rules"]).arg(&rules).output().unwrap();
+    let out = Command::new("promtool")
+        .args(["check", "rules"])
+        .arg(&rules)
+        .output()
+        .unwrap();
     assert!(
         out.status.success(),
         "{}{}",

@@ -112,7 +112,12 @@ pub enum SpecError {
     #[error("spec file {origin}: {message}")]
     Parse { origin: String, message: String },
     #[error("spec file {origin}: `{key}` = {value}: {reason}")]
-    Invalid { origin: String, key: &'static str, value: String, reason: &'static str },
+    Invalid {
+        origin: String,
+        key: &'static str,
+        value: String,
+        reason: &'static str,
+    },
 }
 
 /// The file: one `[spec]` table.
@@ -290,26 +295,43 @@ pub struct SpecReport {
 impl SpecReport {
     /// Whether every coefficient is decided.
     pub fn all_decided(&self) -> bool {
-        self.coefficients.values().all(|c| c.verdict != Verdict::Undecided)
+        self.coefficients
+            .values()
+            .all(|c| c.verdict != Verdict::Undecided)
     }
 }
 
-fn invalid(origin: &str, key: &'static str, value: impl ToString, reason: &'static str) -> SpecError {
-    SpecError::Invalid { origin: origin.to_string(), key, value: value.to_string(), reason }
+fn invalid(
+    origin: &str,
+    key: &'static str,
+    value: impl ToString,
+    reason: &'static str,
+) -> SpecError {
+    SpecError::Invalid {
+        origin: origin.to_string(),
+        key,
+        value: value.to_string(),
+        reason,
+    }
 }
 
 impl Spec {
     /// Parse and validate spec TOML; `origin` names it in messages.
     pub fn from_toml(text: &str, origin: &str) -> Result<Spec, SpecError> {
-        let file: SpecFile = toml::from_str(text)
-            .map_err(|e| SpecError::Parse { origin: origin.to_string(), message: e.to_string() })?;
+        let file: SpecFile = toml::from_str(text).map_err(|e| SpecError::Parse {
+            origin: origin.to_string(),
+            message: e.to_string(),
+        })?;
         file.spec.validate(origin)?;
         Ok(file.spec)
     }
 
     /// Read, parse and validate a spec file.
     pub fn load(path: &Path) -> Result<Spec, SpecError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SpecError::Read { path: path.to_path_buf(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| SpecError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
         Spec::from_toml(&text, &path.display().to_string())
     }
 
@@ -333,24 +355,40 @@ impl Spec {
         }
         let c = self.confidence;
         if !(c.is_finite() && (0.5..=0.9999).contains(&c)) {
-            return Err(invalid(origin, "spec.confidence", c, "must be from 0.5 to 0.9999"));
+            return Err(invalid(
+                origin,
+                "spec.confidence",
+                c,
+                "must be from 0.5 to 0.9999",
+            ));
         }
         if let Some(f) = self.first_look_s
             && !(f.is_finite() && f > 0.0)
         {
-            return Err(invalid(origin, "spec.first_look_s", f, "must be a finite number of seconds > 0"));
+            return Err(invalid(
+                origin,
+                "spec.first_look_s",
+                f,
+                "must be a finite number of seconds > 0",
+            ));
         }
         if let Some(r) = self.systematic_rel
             && !(r.is_finite() && (0.0..=0.5).contains(&r))
         {
-            return Err(invalid(origin, "spec.systematic_rel", r, "must be from 0 to 0.5"));
+            return Err(invalid(
+                origin,
+                "spec.systematic_rel",
+                r,
+                "must be from 0 to 0.5",
+            ));
         }
         Ok(())
     }
 
     /// The estimator's relative systematic error assumed for `c`.
     pub fn systematic_rel(&self, c: SpecCoefficient) -> f64 {
-        self.systematic_rel.unwrap_or_else(|| default_systematic_rel(c))
+        self.systematic_rel
+            .unwrap_or_else(|| default_systematic_rel(c))
     }
 
     /// The limit on `c`, if any.
@@ -366,7 +404,9 @@ impl Spec {
 
     /// The limited coefficients and their limits.
     pub fn limits(&self) -> impl Iterator<Item = (SpecCoefficient, f64)> + '_ {
-        SpecCoefficient::ALL.into_iter().filter_map(|c| self.limit(c).map(|l| (c, l)))
+        SpecCoefficient::ALL
+            .into_iter()
+            .filter_map(|c| self.limit(c).map(|l| (c, l)))
     }
 
     /// `1 - confidence`.
@@ -384,7 +424,12 @@ impl Spec {
         let z = normal_quantile(self.confidence);
         let coefficients = self
             .limits()
-            .map(|(c, limit)| (c.name().to_string(), judge(c, c.of(e), limit, z, self.systematic_rel(c))))
+            .map(|(c, limit)| {
+                (
+                    c.name().to_string(),
+                    judge(c, c.of(e), limit, z, self.systematic_rel(c)),
+                )
+            })
             .collect();
         report(self.confidence, None, z, duration_s, coefficients)
     }
@@ -397,7 +442,10 @@ fn report(
     duration_s: f64,
     coefficients: BTreeMap<String, CoefficientVerdict>,
 ) -> SpecReport {
-    let vs: Vec<Verdict> = coefficients.values().map(|c: &CoefficientVerdict| c.verdict).collect();
+    let vs: Vec<Verdict> = coefficients
+        .values()
+        .map(|c: &CoefficientVerdict| c.verdict)
+        .collect();
     let verdict = if vs.contains(&Verdict::Fail) {
         Verdict::Fail
     } else if vs.iter().all(|v| *v == Verdict::Pass) {
@@ -405,13 +453,22 @@ fn report(
     } else {
         Verdict::Undecided
     };
-    SpecReport { verdict, confidence, look, z, duration_s, coefficients }
+    SpecReport {
+        verdict,
+        confidence,
+        look,
+        z,
+        duration_s,
+        coefficients,
+    }
 }
 
 /// `Phi^-1(p)`.
 pub fn normal_quantile(p: f64) -> f64 {
     // Normal::new(0, 1) cannot fail
-    Normal::new(0.0, 1.0).map(|n| n.inverse_cdf(p)).unwrap_or(f64::NAN)
+    Normal::new(0.0, 1.0)
+        .map(|n| n.inverse_cdf(p))
+        .unwrap_or(f64::NAN)
 }
 
 /// The alpha-spending schedule of a live run (see the module docs).
@@ -431,7 +488,9 @@ impl LookSchedule {
         if !(duration_s.is_finite() && duration_s >= self.first_look_s) {
             return None;
         }
-        let mut k = (2.0 * (duration_s / self.first_look_s).log2()).floor().max(0.0) as u32;
+        let mut k = (2.0 * (duration_s / self.first_look_s).log2())
+            .floor()
+            .max(0.0) as u32;
         // guard the floating-point edges
         while self.length_s(k) > duration_s && k > 0 {
             k -= 1;
@@ -463,17 +522,28 @@ struct Scaled {
 
 fn scaled(c: SpecCoefficient, v: f64, lo: f64, hi: f64, sys: f64) -> Option<Scaled> {
     if c.signed() {
-        return (v.is_finite() && lo.is_finite() && hi.is_finite())
-            .then(|| Scaled { centre: v, se_lo: ((v - lo) / Z95).max(0.0), se_hi: ((hi - v) / Z95).max(0.0) });
+        return (v.is_finite() && lo.is_finite() && hi.is_finite()).then(|| Scaled {
+            centre: v,
+            se_lo: ((v - lo) / Z95).max(0.0),
+            se_hi: ((hi - v) / Z95).max(0.0),
+        });
     }
     if !(v.is_finite() && v > 0.0 && hi.is_finite()) {
         return None;
     }
     let centre = v.ln();
     let se_hi = ((hi.max(v)).ln() - centre) / Z95;
-    let se_lo = if lo > 0.0 { (centre - lo.min(v).ln()) / Z95 } else { f64::INFINITY };
+    let se_lo = if lo > 0.0 {
+        (centre - lo.min(v).ln()) / Z95
+    } else {
+        f64::INFINITY
+    };
     let (se_hi, se_lo) = (se_hi.hypot(sys), se_lo.hypot(sys));
-    Some(Scaled { centre, se_lo, se_hi })
+    Some(Scaled {
+        centre,
+        se_lo,
+        se_hi,
+    })
 }
 
 /// (lower, upper) bounds of the coefficient's magnitude at quantile `z` with the
@@ -498,7 +568,13 @@ fn bounds_at(c: SpecCoefficient, s: Scaled, z: f64, shrink: f64) -> (f64, f64) {
 }
 
 /// The verdict on one coefficient at one look with one-sided quantile `z`.
-fn judge(c: SpecCoefficient, coef: &Coefficient, limit: f64, z: f64, sys: f64) -> CoefficientVerdict {
+fn judge(
+    c: SpecCoefficient,
+    coef: &Coefficient,
+    limit: f64,
+    z: f64,
+    sys: f64,
+) -> CoefficientVerdict {
     let undecided = |estimate, lower, upper, reason: String| CoefficientVerdict {
         limit,
         verdict: Verdict::Undecided,
@@ -513,7 +589,12 @@ fn judge(c: SpecCoefficient, coef: &Coefficient, limit: f64, z: f64, sys: f64) -
     match (coef.value, coef.ci95, coef.upper95) {
         (Some(v), Some([lo, hi]), _) => {
             let Some(s) = scaled(c, v, lo, hi, sys) else {
-                return undecided(Some(v), None, None, "the estimate's interval is not usable (not finite)".into());
+                return undecided(
+                    Some(v),
+                    None,
+                    None,
+                    "the estimate's interval is not usable (not finite)".into(),
+                );
             };
             let (lower, upper) = bounds_at(c, s, z, 1.0);
             let (verdict, bound) = if upper < limit {
@@ -524,7 +605,7 @@ fn judge(c: SpecCoefficient, coef: &Coefficient, limit: f64, z: f64, sys: f64) -
                 return undecided(
                     Some(v),
                     Some(lower),
-                Some(upper),
+                    Some(upper),
                     format!(
                         "the interval [{lower:.4e}, {upper:.4e}] at this confidence contains the limit {limit:.4e}: \
                          more data needed"
@@ -570,7 +651,12 @@ fn judge(c: SpecCoefficient, coef: &Coefficient, limit: f64, z: f64, sys: f64) -
                 )
             }
         }
-        _ => undecided(None, None, None, "no estimate yet (too short a record)".into()),
+        _ => undecided(
+            None,
+            None,
+            None,
+            "no estimate yet (too short a record)".into(),
+        ),
     }
 }
 
@@ -596,8 +682,16 @@ pub struct Observed {
 
 impl SequentialSpec {
     pub fn new(spec: Spec) -> Self {
-        let schedule = LookSchedule { first_look_s: spec.first_look_s(), alpha: spec.alpha() };
-        SequentialSpec { spec, schedule, last_look: None, report: None }
+        let schedule = LookSchedule {
+            first_look_s: spec.first_look_s(),
+            alpha: spec.alpha(),
+        };
+        SequentialSpec {
+            spec,
+            schedule,
+            last_look: None,
+            report: None,
+        }
     }
 
     pub fn spec(&self) -> &Spec {
@@ -635,7 +729,13 @@ impl SequentialSpec {
                         )
                     })
                     .collect();
-                report(self.spec.confidence, None, self.schedule.z(0), 0.0, coefficients)
+                report(
+                    self.spec.confidence,
+                    None,
+                    self.schedule.z(0),
+                    0.0,
+                    coefficients,
+                )
             }
         }
     }
@@ -649,10 +749,16 @@ impl SequentialSpec {
     /// update past a new scheduled length, else nothing changes.
     pub fn observe(&mut self, e: &NoiseEstimates, duration_s: f64) -> Observed {
         let Some(k) = self.schedule.look_at(duration_s) else {
-            return Observed { looked: false, changed: false };
+            return Observed {
+                looked: false,
+                changed: false,
+            };
         };
         if self.last_look.is_some_and(|l| l >= k) {
-            return Observed { looked: false, changed: false };
+            return Observed {
+                looked: false,
+                changed: false,
+            };
         }
         self.last_look = Some(k);
         let z = self.schedule.z(k);
@@ -681,30 +787,46 @@ impl SequentialSpec {
             None => true,
             Some(o) => {
                 o.verdict != new.verdict
-                    || o.coefficients.iter().any(|(n, c)| new.coefficients.get(n).map(|d| d.verdict) != Some(c.verdict))
+                    || o.coefficients
+                        .iter()
+                        .any(|(n, c)| new.coefficients.get(n).map(|d| d.verdict) != Some(c.verdict))
             }
         };
         self.report = Some(new);
-        Observed { looked: true, changed }
+        Observed {
+            looked: true,
+            changed,
+        }
     }
 
     /// Predicted further record length until `coef` is decided (see the module docs).
-    fn eta(&self, c: SpecCoefficient, coef: &Coefficient, limit: f64, k: u32, duration_s: f64) -> Option<f64> {
+    fn eta(
+        &self,
+        c: SpecCoefficient,
+        coef: &Coefficient,
+        limit: f64,
+        k: u32,
+        duration_s: f64,
+    ) -> Option<f64> {
         const HORIZON: u32 = 80;
         match (coef.value, coef.ci95, coef.upper95) {
             (Some(v), Some([lo, hi]), _) => {
                 let s = scaled(c, v, lo, hi, self.spec.systematic_rel(c))?;
                 (k + 1..k + HORIZON).find_map(|j| {
                     let t = self.schedule.length_s(j);
-                    let (lower, upper) = bounds_at(c, s, self.schedule.z(j), (duration_s / t).sqrt());
-                    (upper < limit || lower > limit).then(|| t - duration_s)
+                    let (lower, upper) =
+                        bounds_at(c, s, self.schedule.z(j), (duration_s / t).sqrt());
+                    (upper < limit || lower > limit).then_some(t - duration_s)
                 })
             }
             (None, _, Some(u)) if u.is_finite() && u > 0.0 => (k + 1..k + HORIZON).find_map(|j| {
                 let t = self.schedule.length_s(j);
                 let zj = self.schedule.z(j);
-                let upper = u * (zj / Z95_ONE_SIDED).max(1.0) * (zj * self.spec.systematic_rel(c)).exp() * (duration_s / t).powf(0.25);
-                (upper < limit).then(|| t - duration_s)
+                let upper = u
+                    * (zj / Z95_ONE_SIDED).max(1.0)
+                    * (zj * self.spec.systematic_rel(c)).exp()
+                    * (duration_s / t).powf(0.25);
+                (upper < limit).then_some(t - duration_s)
             }),
             _ => None,
         }
@@ -717,7 +839,10 @@ mod tests {
 
     #[test]
     fn spending_sums_to_alpha_and_the_first_look_is_the_two_sided_95() {
-        let s = LookSchedule { first_look_s: 60.0, alpha: 0.05 };
+        let s = LookSchedule {
+            first_look_s: 60.0,
+            alpha: 0.05,
+        };
         let total: f64 = (0..100_000).map(|k| s.alpha_k(k)).sum();
         assert!((total - 0.05).abs() < 1e-6, "{total}");
         assert!((s.z(0) - Z95).abs() < 1e-9);
