@@ -20,6 +20,9 @@
 //! one), and, on the first `--fixed-runs` runs of each case (continued to the
 //! full length), the fixed-length run (one look at the end).
 //!
+//! `BENCH_DEBUG=1` prints each look's estimate and interval on stderr (how the
+//! estimator's calibration was measured, docs/acceptance.md).
+//!
 //! Wrong: `pass` when the truth is above the limit, `fail` when below; at the
 //! limit both are counted (each is at most alpha by construction).
 
