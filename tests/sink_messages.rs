@@ -532,7 +532,8 @@ fn topics_and_times() {
             "/gyro/noise",
             "/gyro/estimates",
             "/gyro/allan",
-            "/gyro/events"
+            "/gyro/events",
+            "/gyro/verdict"
         ]
     );
     for t in Topic::ALL {

@@ -3,7 +3,8 @@
 //! file, a raw frame capture or an MCAP recording.
 //!
 //! Thin: reading is `offline`, the numerics are `pipeline` (the same chain the
-//! daemon runs live).
+//! daemon runs live). `--spec SPEC.toml` adds the acceptance test's verdicts
+//! (`spec` in the JSON, [`crate::model::spec`]): one look at the whole record.
 //!
 //! No silent defaults: a CSV file and a frame capture carry no sample rate and
 //! no pulse weight, so `--rate-hz` (and `--pulse-arcsec` for pulse counts) are
@@ -19,6 +20,7 @@ use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::model::estimate::Coefficient;
+use crate::model::spec::{Spec, SpecReport};
 use crate::offline::{self, OfflineError, RateUnit};
 use crate::pipeline::{Analysis, PipelineConfig};
 use crate::source::input::InputFormat;
@@ -57,6 +59,10 @@ pub struct AnalyzeArgs {
     /// (channel, tau_s, dev_dph, ci_lo_dph, ci_hi_dph, edf, n).
     #[arg(long, value_name = "OUT.csv")]
     pub allan_csv: Option<PathBuf>,
+    /// Acceptance test against this spec file (config/spec_example.toml): adds
+    /// `spec` (verdict per coefficient) to the output.
+    #[arg(long, value_name = "SPEC.toml")]
+    pub spec: Option<PathBuf>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -93,6 +99,11 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
             super::output_dir(p).with_context(|| format!("bad {flag}"))?;
         }
     }
+    // a bad spec file fails before the (long) analysis
+    let spec = match &args.spec {
+        Some(p) => Some(Spec::load(p)?),
+        None => None,
+    };
     let started = Instant::now();
     let bar = ProgressBar::hidden();
     let mut shown = false;
@@ -186,16 +197,52 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
     if let Some(path) = &args.allan_csv {
         crate::sink::export::allan_csv::write_channels(path, &analysis.allan).context("writing the Allan CSV")?;
     }
+    let verdict = spec.as_ref().map(|s| s.evaluate_fixed(&analysis.estimates, analysis.duration_s));
     match &args.json {
         Some(path) => {
-            let text = serde_json::to_string_pretty(&analysis).context("serialising the analysis")?;
+            let mut value = serde_json::to_value(&analysis).context("serialising the analysis")?;
+            if let (Some(v), Some(obj)) = (&verdict, value.as_object_mut()) {
+                obj.insert("spec".into(), serde_json::to_value(v).context("serialising the verdict")?);
+            }
+            let text = serde_json::to_string_pretty(&value).context("serialising the analysis")?;
             if path.as_os_str() == "-" {
                 super::write_stdout(&text)?;
             } else {
                 std::fs::write(path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
             }
         }
-        None => print_table(&analysis)?,
+        None => {
+            print_table(&analysis)?;
+            if let Some(v) = &verdict {
+                print_verdict(v)?;
+            }
+        }
+    }
+    Ok(())
+}
+
+fn print_verdict(r: &SpecReport) -> Result<()> {
+    let mut o = std::io::stdout().lock();
+    writeln!(o)?;
+    writeln!(
+        o,
+        "spec verdict: {} (each coefficient at {} % confidence, one look at {:.1} s)",
+        r.verdict.as_str().to_uppercase(),
+        r.confidence * 100.0,
+        r.duration_s
+    )?;
+    writeln!(o, "{:<22} {:>12} {:>10} {:>12} {:>12}  reason", "coefficient", "limit", "verdict", "estimate", "bound")?;
+    let f = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.6}"));
+    for (name, c) in &r.coefficients {
+        writeln!(
+            o,
+            "{name:<22} {:>12.6} {:>10} {:>12} {:>12}  {}",
+            c.limit,
+            c.verdict.as_str(),
+            f(c.estimate),
+            f(c.bound),
+            c.reason.as_deref().unwrap_or("")
+        )?;
     }
     Ok(())
 }

@@ -3,7 +3,7 @@
 //! ```text
 //! sagnac run [--config FILE] [--serial PATH --baud N [--queue-budget-mib M] | --replay FILE [--speed X] | --simulate MODEL.toml]
 //!            [--rate-hz F] [--pulse-arcsec D] [--metrics-addr ADDR] [--record-dir DIR]
-//!            [--wavelet sym8] [--duration-s S]
+//!            [--wavelet sym8] [--duration-s S] [--spec SPEC.toml [--stop-when-decided]]
 //! ```
 //!
 //! Thin: read the config file (or the built-in defaults), apply the flags,
@@ -72,6 +72,14 @@ pub struct RunArgs {
     /// Stop after this many seconds of samples (0 = until SIGINT/SIGTERM or the end of a replay).
     #[arg(long, value_name = "S", allow_negative_numbers = true)]
     pub duration_s: Option<f64>,
+    /// Acceptance test against this spec file: verdicts at each estimator update
+    /// (metrics, MCAP /gyro/verdict, a log line per change).
+    #[arg(long, value_name = "SPEC.toml")]
+    pub spec: Option<PathBuf>,
+    /// End the run once every coefficient of the spec is decided (drain, final
+    /// estimates, finished recording, exit 0).
+    #[arg(long)]
+    pub stop_when_decided: bool,
 }
 
 /// The config key a flag overrides (for error messages).
@@ -89,6 +97,8 @@ fn flag_of(args: &RunArgs, key: &str) -> Option<(&'static str, bool)> {
         "record.dir" => ("--record-dir", args.record_dir.is_some()),
         "dsp.wavelet" => ("--wavelet", args.wavelet.is_some()),
         "run.duration_s" => ("--duration-s", args.duration_s.is_some()),
+        "spec.path" => ("--spec", args.spec.is_some()),
+        "spec.stop_when_decided" => ("--stop-when-decided", args.stop_when_decided),
         _ => return None,
     })
 }
@@ -145,6 +155,12 @@ pub fn resolve(args: &RunArgs) -> Result<(Config, Explicit), ConfigError> {
     }
     if let Some(d) = args.duration_s {
         cfg.run.duration_s = d;
+    }
+    if let Some(p) = &args.spec {
+        cfg.spec.path = p.display().to_string();
+    }
+    if args.stop_when_decided {
+        cfg.spec.stop_when_decided = true;
     }
     cfg.validate()?;
     Ok((cfg, explicit))

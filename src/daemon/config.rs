@@ -225,6 +225,15 @@ impl Default for RunConfig {
     }
 }
 
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct SpecRunConfig {
+    /// Spec file of the acceptance test ([`crate::model::spec`]); empty = none.
+    pub path: String,
+    /// End the run once every coefficient of the spec is decided.
+    pub stop_when_decided: bool,
+}
+
 /// The whole configuration.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
 #[serde(deny_unknown_fields, default)]
@@ -238,6 +247,7 @@ pub struct Config {
     pub record: RecordConfig,
     pub log: LogConfig,
     pub run: RunConfig,
+    pub spec: SpecRunConfig,
 }
 
 fn invalid(key: &'static str, value: impl ToString, message: &'static str) -> ConfigError {
@@ -319,6 +329,9 @@ impl Config {
         }
         if self.run.channel_capacity == 0 {
             return Err(invalid("run.channel_capacity", 0, "must be > 0"));
+        }
+        if self.spec.stop_when_decided && self.spec.path.is_empty() {
+            return Err(invalid("spec.stop_when_decided", true, "needs a spec file (spec.path, --spec)"));
         }
         if self.log.level.trim().is_empty() {
             return Err(invalid("log.level", "\"\"", "must be a tracing filter such as info"));

@@ -35,11 +35,18 @@
 //!   estimates (with the same configuration).
 //! * Time: each segment of contiguous samples has a time anchor (from its first
 //!   batch); uniform sample `u` of the segment is at `t0 + u / rate`.
+//! * Acceptance test (issue 17, [`Processor::set_spec`]): at each estimator
+//!   update the [`SequentialSpec`] sees the estimates (its looks are at fixed
+//!   record lengths, so skipped updates only skip looks); the verdicts go to the
+//!   metrics and `/gyro/verdict`, a change to the log; with a stop trigger the
+//!   run is ended once every coefficient is decided, through the ordinary
+//!   shutdown (drain, final estimates, finished recording).
 
 use std::collections::{BTreeMap, VecDeque};
 use std::time::{Duration, Instant};
 
-use crate::daemon::shutdown::Shutdown;
+use crate::daemon::shutdown::{Shutdown, ShutdownTrigger};
+use crate::model::spec::{SequentialSpec, Spec, SpecReport, Verdict};
 
 use crate::allan::AllanPoint;
 use crate::daemon::batch::{Delivery, SourceBatch};
@@ -50,7 +57,7 @@ use crate::pipeline::{Analysis, Pipeline, PipelineConfig, PipelineError, Pipelin
 use crate::sink::mcap::{RecordError, RecordSender};
 use crate::sink::messages::{
     AllanCurve, AllanUpdate, EstimateUpdate, Event, EventKind, Gap, RateBatch, RawBatch,
-    SinkMessage, TermEstimate, terms,
+    SinkMessage, TermEstimate, VerdictUpdate, terms,
 };
 use crate::sink::metrics::{AllanChannel, Bounds95};
 use crate::source::frame::FilledSeries;
@@ -94,6 +101,16 @@ pub struct Processor {
     interval_samples: u64,
     period_ns: f64,
     dt_ns: u64,
+    spec: Option<LiveSpec>,
+}
+
+/// The acceptance test of a live run.
+#[derive(Debug)]
+struct LiveSpec {
+    monitor: SequentialSpec,
+    /// Ends the run once every coefficient is decided.
+    stop: Option<ShutdownTrigger>,
+    stopped: bool,
 }
 
 impl ProcessConfig {
@@ -124,6 +141,7 @@ impl ProcessConfig {
             interval_samples,
             pipeline,
             cfg: self,
+            spec: None,
         })
     }
 }
@@ -234,6 +252,24 @@ impl Processor {
     /// The pipeline (e.g. its latency).
     pub fn pipeline(&self) -> &Pipeline {
         &self.pipeline
+    }
+
+    /// Judge `spec` at each estimator update; with `stop`, trigger it once every
+    /// coefficient is decided (`--stop-when-decided`).
+    pub fn set_spec(&mut self, spec: Spec, stop: Option<ShutdownTrigger>) {
+        self.spec = Some(LiveSpec { monitor: SequentialSpec::new(spec), stop, stopped: false });
+    }
+
+    /// End the run through `stop` once every coefficient of the spec (if any) is decided.
+    pub fn attach_spec_stop(&mut self, stop: ShutdownTrigger) {
+        if let Some(s) = self.spec.as_mut() {
+            s.stop = Some(stop);
+        }
+    }
+
+    /// The acceptance test's current verdicts, if there is a spec.
+    pub fn spec_report(&self) -> Option<SpecReport> {
+        self.spec.as_ref().map(|s| s.monitor.report())
     }
 
     /// Run on the calling (blocking) thread until every sender of `input` is
@@ -677,6 +713,50 @@ impl Run<'_> {
             latency_s = latency,
             "estimate"
         );
+        self.judge(a, t_ns, last);
+    }
+
+    /// The acceptance test at an estimator update.
+    fn judge(&mut self, a: &Analysis, t_ns: u64, last: bool) {
+        let Some(spec) = self.p.spec.as_mut() else {
+            return;
+        };
+        let seen = spec.monitor.observe(&a.estimates, a.duration_s);
+        let report = spec.monitor.report();
+        let all_decided = spec.monitor.all_decided();
+        let m = &self.out.telemetry.metrics;
+        m.set_spec("overall", report.verdict.metric(), None, None);
+        for (name, c) in &report.coefficients {
+            let eta = if c.verdict == Verdict::Undecided { c.eta_s } else { Some(0.0) };
+            m.set_spec(name, c.verdict.metric(), Some(c.limit), eta);
+        }
+        if seen.changed {
+            let each: Vec<String> =
+                report.coefficients.iter().map(|(n, c)| format!("{n}={}", c.verdict.as_str())).collect();
+            tracing::info!(
+                verdict = report.verdict.as_str(),
+                coefficients = %each.join(" "),
+                look = report.look,
+                z = report.z,
+                duration_s = report.duration_s,
+                "spec verdict"
+            );
+        }
+        let stop = if all_decided && !spec.stopped && !last {
+            spec.stopped = true;
+            spec.stop.clone()
+        } else {
+            None
+        };
+        self.record(SinkMessage::Verdict(VerdictUpdate::new(t_ns, &report)));
+        if let Some(trigger) = stop {
+            tracing::info!(
+                verdict = report.verdict.as_str(),
+                duration_s = report.duration_s,
+                "every coefficient of the spec is decided: stopping (drain, final estimates, recording)"
+            );
+            trigger.trigger();
+        }
     }
 
     fn finish(mut self) -> ProcessReport {

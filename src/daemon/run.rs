@@ -88,6 +88,8 @@ pub enum DaemonError {
     Record(#[from] RecordError),
     #[error(transparent)]
     Http(#[from] HttpError),
+    #[error(transparent)]
+    Spec(#[from] crate::model::spec::SpecError),
     #[error("metrics: {0}")]
     Metrics(#[from] MetricsError),
     /// An explicit gyro setting contradicts what the replayed recording says.
@@ -277,7 +279,7 @@ impl Daemon {
             }
         };
         let live = config.source.kind == SourceKind::Serial;
-        let processor = ProcessConfig {
+        let mut processor = ProcessConfig {
             pipeline: PipelineConfig {
                 rate_hz: config.gyro.rate_hz,
                 pulse_arcsec: Some(config.gyro.pulse_arcsec),
@@ -295,6 +297,12 @@ impl Daemon {
             update_budget: (!live).then_some(UPDATE_BUDGET),
         }
         .build()?;
+        if !config.spec.path.is_empty() {
+            let spec = crate::model::spec::Spec::load(std::path::Path::new(&config.spec.path))?;
+            tracing::info!(path = config.spec.path, confidence = spec.confidence, "acceptance test");
+            // the stop trigger is attached in run()
+            processor.set_spec(spec, None);
+        }
         let metrics_addr = if config.metrics.addr.is_empty() {
             None
         } else {
@@ -324,10 +332,14 @@ impl Daemon {
         let Daemon {
             config,
             mut source,
-            processor,
+            mut processor,
             metrics_addr,
             recording_meta,
         } = self;
+        if config.spec.stop_when_decided {
+            // --stop-when-decided: the ordinary shutdown once every coefficient is decided
+            processor.attach_spec_stop(trigger.clone());
+        }
         // A serial port that cannot be opened fails the run before anything starts.
         if let Source::Serial(s) = &mut source {
             s.open()?;

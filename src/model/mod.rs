@@ -30,6 +30,7 @@ pub mod estimate;
 pub mod filter;
 pub mod fit;
 pub mod sim;
+pub mod spec;
 pub mod terms;
 pub mod wvar;
 

@@ -16,6 +16,7 @@
 //! | `/gyro/estimates` | [`EstimateUpdate`]: noise coefficients with 95 % CIs | `t_ns` |
 //! | `/gyro/allan` | [`AllanUpdate`]: octave Allan curves with CIs | `t_ns` |
 //! | `/gyro/events` | [`Event`]: gaps, resyncs, CRC errors, device changes, drops | `t_ns` |
+//! | `/gyro/verdict` | [`VerdictUpdate`]: acceptance-test verdicts (`sagnac run --spec`) | `t_ns` |
 //!
 //! Times are nanoseconds; the daemon uses nanoseconds since the Unix epoch (host
 //! clock) so Foxglove shows wall time.
@@ -45,6 +46,8 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
+
+use crate::model::spec::{CoefficientVerdict, SpecReport, Verdict};
 
 /// Schema encoding written in the MCAP Schema records.
 pub const SCHEMA_ENCODING: &str = "jsonschema";
@@ -289,6 +292,53 @@ pub enum EventKind {
 }
 
 /// The six channels of a recording.
+/// `/gyro/verdict`: the acceptance test's verdicts after an estimator update
+/// ([`crate::model::spec`]; the same fields as `spec` in `sagnac analyze --spec`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VerdictUpdate {
+    /// Time of the update, ns.
+    pub t_ns: u64,
+    /// Overall verdict: fail if any coefficient fails, pass if all pass.
+    pub verdict: Verdict,
+    /// Guaranteed confidence of each verdict.
+    pub confidence: f64,
+    /// The look of the schedule the verdicts were last evaluated at (`null`: none yet).
+    pub look: Option<u32>,
+    /// Normal quantile of that look.
+    pub z: f64,
+    /// Record length at that look, s.
+    pub duration_s: f64,
+    /// Coefficient name -> verdict.
+    pub coefficients: BTreeMap<String, CoefficientVerdict>,
+}
+
+impl VerdictUpdate {
+    /// The message of `report` at `t_ns` (non-finite numbers dropped to `null`).
+    pub fn new(t_ns: u64, report: &SpecReport) -> Self {
+        let fin = |v: Option<f64>| v.filter(|x| x.is_finite());
+        let coefficients = report
+            .coefficients
+            .iter()
+            .map(|(k, c)| {
+                let mut c = c.clone();
+                (c.estimate, c.bound, c.lower, c.upper) = (fin(c.estimate), fin(c.bound), fin(c.lower), fin(c.upper));
+                (c.decided_at_s, c.eta_s) = (fin(c.decided_at_s), fin(c.eta_s));
+                (k.clone(), c)
+            })
+            .collect();
+        VerdictUpdate {
+            t_ns,
+            verdict: report.verdict,
+            confidence: report.confidence,
+            look: report.look,
+            z: report.z,
+            duration_s: report.duration_s,
+            coefficients,
+        }
+    }
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Topic {
     Raw,
@@ -297,17 +347,19 @@ pub enum Topic {
     Estimates,
     Allan,
     Events,
+    Verdict,
 }
 
 impl Topic {
     /// All topics, in channel-id order of a recording.
-    pub const ALL: [Topic; 6] = [
+    pub const ALL: [Topic; 7] = [
         Topic::Raw,
         Topic::Clean,
         Topic::Noise,
         Topic::Estimates,
         Topic::Allan,
         Topic::Events,
+        Topic::Verdict,
     ];
 
     /// The MCAP topic name.
@@ -319,6 +371,7 @@ impl Topic {
             Topic::Estimates => "/gyro/estimates",
             Topic::Allan => "/gyro/allan",
             Topic::Events => "/gyro/events",
+            Topic::Verdict => "/gyro/verdict",
         }
     }
 
@@ -335,6 +388,7 @@ impl Topic {
             Topic::Estimates => "sagnac.EstimateUpdate",
             Topic::Allan => "sagnac.AllanUpdate",
             Topic::Events => "sagnac.Event",
+            Topic::Verdict => "sagnac.VerdictUpdate",
         }
     }
 
@@ -347,6 +401,7 @@ impl Topic {
             Topic::Estimates => estimate_update_schema(),
             Topic::Allan => allan_update_schema(),
             Topic::Events => event_schema(),
+            Topic::Verdict => verdict_update_schema(),
         }
     }
 }
@@ -360,6 +415,7 @@ pub enum SinkMessage {
     Estimates(EstimateUpdate),
     Allan(AllanUpdate),
     Event(Event),
+    Verdict(VerdictUpdate),
 }
 
 impl SinkMessage {
@@ -372,6 +428,7 @@ impl SinkMessage {
             SinkMessage::Estimates(_) => Topic::Estimates,
             SinkMessage::Allan(_) => Topic::Allan,
             SinkMessage::Event(_) => Topic::Events,
+            SinkMessage::Verdict(_) => Topic::Verdict,
         }
     }
 
@@ -383,6 +440,7 @@ impl SinkMessage {
             SinkMessage::Estimates(m) => m.t_ns,
             SinkMessage::Allan(m) => m.t_ns,
             SinkMessage::Event(m) => m.t_ns,
+            SinkMessage::Verdict(m) => m.t_ns,
         }
     }
 
@@ -410,6 +468,7 @@ impl SinkMessage {
             SinkMessage::Estimates(m) => serde_json::to_vec(m),
             SinkMessage::Allan(m) => serde_json::to_vec(m),
             SinkMessage::Event(m) => serde_json::to_vec(m),
+            SinkMessage::Verdict(m) => serde_json::to_vec(m),
         }
     }
 
@@ -427,6 +486,7 @@ impl SinkMessage {
             SinkMessage::Estimates(m) => serde_json::to_writer(&mut *out, m)?,
             SinkMessage::Allan(m) => serde_json::to_writer(&mut *out, m)?,
             SinkMessage::Event(m) => serde_json::to_writer(&mut *out, m)?,
+            SinkMessage::Verdict(m) => serde_json::to_writer(&mut *out, m)?,
         }
         Ok(())
     }
@@ -453,6 +513,9 @@ impl SinkMessage {
             }
             Topic::Events => {
                 SinkMessage::Event(serde_json::from_slice(payload).map_err(decode_err)?)
+            }
+            Topic::Verdict => {
+                SinkMessage::Verdict(serde_json::from_slice(payload).map_err(decode_err)?)
             }
         };
         msg.validate()?;
@@ -538,6 +601,25 @@ impl SinkMessage {
                 Ok(())
             }
             SinkMessage::Event(_) => Ok(()),
+            SinkMessage::Verdict(m) => {
+                finite(topic, "confidence", m.confidence)?;
+                finite(topic, "z", m.z)?;
+                finite(topic, "duration_s", m.duration_s)?;
+                for (name, c) in &m.coefficients {
+                    finite(topic, &format!("coefficients.{name}.limit"), c.limit)?;
+                    for (field, v) in [
+                        ("estimate", c.estimate),
+                        ("bound", c.bound),
+                        ("lower", c.lower),
+                        ("upper", c.upper),
+                        ("decided_at_s", c.decided_at_s),
+                        ("eta_s", c.eta_s),
+                    ] {
+                        finite_opt(topic, &format!("coefficients.{name}.{field}"), v)?;
+                    }
+                }
+                Ok(())
+            }
         }
     }
 }
@@ -896,4 +978,39 @@ fn event_schema() -> Value {
         "required": ["t_ns", "kind"],
         "oneOf": branches,
     })
+}
+
+fn verdict_update_schema() -> Value {
+    let verdict = |d: &str| json!({"type": "string", "enum": ["pass", "fail", "undecided"], "description": d});
+    let coefficient = json!({
+        "title": "sagnac.CoefficientVerdict",
+        "description": "one coefficient's verdict against its limit, in the unit its name carries",
+        "type": "object",
+        "properties": {
+            "limit": number("the spec's upper limit"),
+            "verdict": verdict("pass: below the limit; fail: above it; undecided"),
+            "estimate": nullable_number("the estimate (null: only an upper bound, or none yet)"),
+            "bound": nullable_number("the deciding bound at the verdict's confidence: upper for pass and undecided, lower for fail"),
+            "lower": number("lower bound at the verdict's confidence"),
+            "upper": number("upper bound at the verdict's confidence"),
+            "reason": {"type": "string", "description": "why the coefficient is undecided"},
+            "decided_at_s": number("record length at the decision, s"),
+            "eta_s": number("predicted further record length until a decision, s"),
+        },
+        "required": ["limit", "verdict", "estimate", "bound"],
+        "additionalProperties": false,
+    });
+    object(
+        "sagnac.VerdictUpdate",
+        "acceptance-test verdicts (anytime-valid: alpha spending over looks at geometrically spaced record lengths)",
+        json!({
+            "t_ns": uint("time of the update, ns since the Unix epoch"),
+            "verdict": verdict("overall: fail if any coefficient fails, pass if all pass, else undecided"),
+            "confidence": number("guaranteed confidence of each verdict"),
+            "look": {"type": ["integer", "null"], "minimum": 0, "description": "look of the schedule the verdicts were evaluated at (null: none yet)"},
+            "z": number("normal quantile of that look"),
+            "duration_s": number("record length at that look, s"),
+            "coefficients": {"type": "object", "additionalProperties": coefficient, "description": "coefficient name -> verdict"},
+        }),
+    )
 }

@@ -20,6 +20,11 @@
 //! | `sagnac_temperature_celsius` | gauge | |
 //! | `sagnac_processing_lag_seconds` | gauge | |
 //! | `sagnac_recording_bytes` | gauge | |
+//! | `sagnac_spec_verdict` | gauge | `coefficient` (as in the spec, and `overall`): 1 pass, 0 undecided, -1 fail |
+//! | `sagnac_spec_limit` | gauge | `coefficient`: the spec's limit, in the coefficient's unit |
+//! | `sagnac_spec_decision_eta_seconds` | gauge | `coefficient`: predicted record length until a decision (0 decided, NaN unknown) |
+//!
+//! The `sagnac_spec_*` series exist only in a run with a spec (`sagnac run --spec`).
 //!
 //! A coefficient bound that is not known is absent (no series), not zero; the
 //! temperature and lag read `NaN` until first set. The Allan series of a channel
@@ -128,6 +133,9 @@ pub struct Metrics {
     temperature: Gauge,
     lag: Gauge,
     recording_bytes: IntGauge,
+    spec_verdict: GaugeVec,
+    spec_limit: GaugeVec,
+    spec_eta: GaugeVec,
 }
 
 impl std::fmt::Debug for Metrics {
@@ -231,6 +239,36 @@ impl Metrics {
                 IntGauge::new(
                     "sagnac_recording_bytes",
                     "Size of the current MCAP recording written so far, bytes.",
+                ),
+            )?,
+            spec_verdict: reg(
+                &registry,
+                "sagnac_spec_verdict",
+                GaugeVec::new(
+                    Opts::new(
+                        "sagnac_spec_verdict",
+                        "Acceptance-test verdict per coefficient (and overall): 1 pass, 0 undecided, -1 fail.",
+                    ),
+                    &["coefficient"],
+                ),
+            )?,
+            spec_limit: reg(
+                &registry,
+                "sagnac_spec_limit",
+                GaugeVec::new(
+                    Opts::new("sagnac_spec_limit", "The spec's upper limit per coefficient, in the coefficient's unit."),
+                    &["coefficient"],
+                ),
+            )?,
+            spec_eta: reg(
+                &registry,
+                "sagnac_spec_decision_eta_seconds",
+                GaugeVec::new(
+                    Opts::new(
+                        "sagnac_spec_decision_eta_seconds",
+                        "Predicted further record length until the coefficient is decided, seconds (0: decided; NaN: no prediction).",
+                    ),
+                    &["coefficient"],
                 ),
             )?,
             registry,
@@ -343,6 +381,19 @@ impl Metrics {
     pub fn set_recording_bytes(&self, bytes: u64) {
         self.recording_bytes
             .set(i64::try_from(bytes).unwrap_or(i64::MAX));
+    }
+
+    /// Set one coefficient's acceptance-test series: verdict (1 pass, 0 undecided,
+    /// -1 fail), its limit (`None` for `overall`) and the predicted time to a
+    /// decision, s (`None`: exported as NaN).
+    pub fn set_spec(&self, coefficient: &str, verdict: f64, limit: Option<f64>, eta_s: Option<f64>) {
+        self.spec_verdict.with_label_values(&[coefficient]).set(verdict);
+        if let Some(l) = limit {
+            self.spec_limit.with_label_values(&[coefficient]).set(l);
+        }
+        if coefficient != "overall" {
+            self.spec_eta.with_label_values(&[coefficient]).set(eta_s.unwrap_or(f64::NAN));
+        }
     }
 
     /// The text exposition (format 0.0.4) of every metric.

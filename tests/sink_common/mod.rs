@@ -7,8 +7,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sagnac::sink::messages::{
     AllanCurve, AllanUpdate, EstimateUpdate, Event, EventKind, Gap, RateBatch, RawBatch,
-    SinkMessage, TermEstimate, terms,
+    SinkMessage, TermEstimate, VerdictUpdate, terms,
 };
+use sagnac::model::spec::{CoefficientVerdict, Verdict};
 
 /// 2026-11-21T20:03:01Z, ns since the epoch.
 pub const T0_NS: u64 = 1_795_291_381_000_000_000;
@@ -151,17 +152,55 @@ pub fn event(rng: &mut ChaCha8Rng, i: u64) -> Event {
     }
 }
 
-/// A deterministic stream of `n` messages cycling over all six channels.
+/// An acceptance-test verdict: decided, undecided with a reason, bound-only terms.
+pub fn verdict(rng: &mut ChaCha8Rng, i: u64) -> VerdictUpdate {
+    let v = |k: u64| match k % 3 {
+        0 => Verdict::Pass,
+        1 => Verdict::Fail,
+        _ => Verdict::Undecided,
+    };
+    let mut coefficients = BTreeMap::new();
+    for (j, name) in ["arw_dpsh", "bias_instability_dph", "quantization_arcsec"].into_iter().enumerate() {
+        let verdict = v(i + j as u64);
+        let bound_only = rng.random_bool(0.3);
+        coefficients.insert(
+            name.to_string(),
+            CoefficientVerdict {
+                limit: awkward_f64(rng).abs().max(1e-9),
+                verdict,
+                estimate: (!bound_only).then(|| awkward_f64(rng)),
+                bound: rng.random_bool(0.9).then(|| awkward_f64(rng)),
+                lower: (!bound_only).then(|| awkward_f64(rng)),
+                upper: rng.random_bool(0.9).then(|| awkward_f64(rng)),
+                reason: (verdict == Verdict::Undecided).then(|| "more data needed: \"quoted\" \u{e9}".to_string()),
+                decided_at_s: (verdict != Verdict::Undecided).then(|| rng.random_range(60.0..1e5)),
+                eta_s: (verdict == Verdict::Undecided && rng.random_bool(0.5)).then(|| rng.random_range(0.0..1e6)),
+            },
+        );
+    }
+    VerdictUpdate {
+        t_ns: T0_NS + i * 10_000_000,
+        verdict: v(i),
+        confidence: 0.95,
+        look: (i % 4 != 0).then_some(i as u32),
+        z: rng.random_range(1.6..4.0),
+        duration_s: rng.random_range(0.0..1e5),
+        coefficients,
+    }
+}
+
+/// A deterministic stream of `n` messages cycling over all seven channels.
 pub fn stream(seed: u64, n: usize) -> Vec<SinkMessage> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     (0..n as u64)
-        .map(|i| match i % 6 {
+        .map(|i| match i % 7 {
             0 => SinkMessage::Raw(raw_batch(&mut rng, i, 64)),
             1 => SinkMessage::Clean(rate_batch(&mut rng, i, 64)),
             2 => SinkMessage::Noise(rate_batch(&mut rng, i, 64)),
             3 => SinkMessage::Estimates(estimate(&mut rng, i)),
             4 => SinkMessage::Allan(allan(&mut rng, i)),
-            _ => SinkMessage::Event(event(&mut rng, i / 6)),
+            5 => SinkMessage::Event(event(&mut rng, i / 7)),
+            _ => SinkMessage::Verdict(verdict(&mut rng, i)),
         })
         .collect()
 }
