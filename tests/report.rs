@@ -191,3 +191,30 @@ fn the_page_loads_in_chromium_without_errors_or_requests() {
     assert!(std::fs::metadata(&shot).unwrap().len() > 50_000, "a near-blank screenshot");
     eprintln!("screenshot: {}", shot.display());
 }
+
+#[test]
+fn report_with_a_spec_shows_the_same_verdict_as_analyze() {
+    let dir = tempfile::tempdir().unwrap();
+    let (bin, _model) = simulate(dir.path(), "120");
+    let spec = concat!(env!("CARGO_MANIFEST_DIR"), "/config/spec_example.toml");
+    let out = dir.path().join("rep");
+    let flags = ["--format", "frames", "--rate-hz", "1000", "--pulse-arcsec", "1.21", "--spec", spec];
+    let mut args = vec!["report", "--input", bin.to_str().unwrap(), "--out", out.to_str().unwrap()];
+    args.extend(flags);
+    ok(&sagnac(&args));
+    let mut args = vec!["analyze", "--input", bin.to_str().unwrap(), "--json", "-"];
+    args.extend(flags);
+    let o = sagnac(&args);
+    ok(&o);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let html = std::fs::read_to_string(out.join("index.html")).unwrap();
+    let overall = v["spec"]["verdict"].as_str().unwrap();
+    assert!(html.contains(&format!("<h2>Acceptance test: {overall}</h2>")), "overall verdict {overall} not shown");
+    for (name, c) in v["spec"]["coefficients"].as_object().unwrap() {
+        let verdict = c["verdict"].as_str().unwrap();
+        let row = format!("<tr><td><code>{name}</code></td>");
+        let at = html.find(&row).unwrap_or_else(|| panic!("no row for {name}"));
+        let end = at + html[at..].find("</tr>").unwrap();
+        assert!(html[at..end].contains(&format!("<td>{verdict}</td>")), "{name}: {}", &html[at..end]);
+    }
+}

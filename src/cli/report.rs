@@ -53,6 +53,9 @@ pub struct ReportArgs {
     /// Gyro model (TOML): also diagnose the recording against it and show the findings.
     #[arg(long, value_name = "MODEL.toml")]
     pub model: Option<PathBuf>,
+    /// Acceptance test against this spec file: show the verdict per coefficient.
+    #[arg(long, value_name = "SPEC.toml")]
+    pub spec: Option<PathBuf>,
 }
 
 fn required(flag: &'static str, value: Option<f64>, input: &Path, what: &'static str) -> Result<f64> {
@@ -77,6 +80,10 @@ pub fn run(args: ReportArgs) -> Result<()> {
     // the model is read before a pass that may take minutes
     let model = match &args.model {
         Some(p) => Some(GyroModel::load(p).with_context(|| format!("loading the gyro model {}", p.display()))?),
+        None => None,
+    };
+    let spec = match &args.spec {
+        Some(p) => Some(crate::model::spec::Spec::load(p)?),
         None => None,
     };
     if model.is_some() && args.format == AnalyzeFormat::Csv && args.unit != RateUnit::Counts {
@@ -174,11 +181,13 @@ pub fn run(args: ReportArgs) -> Result<()> {
         (Some(m), Some(path)) => Some((run_diagnosis(m, &collector, &meta, input)?, path.display().to_string())),
         _ => None,
     };
+    let verdict = spec.as_ref().map(|s| s.evaluate_fixed(&analysis.estimates, analysis.duration_s));
     let r = report::Report {
         meta: &meta,
         analysis: &analysis,
         series: &collector,
         diagnosis: diagnosis.as_ref().map(|(d, m)| DiagnosisPart { diagnosis: d, model: m }),
+        spec: verdict.as_ref(),
     };
     let written = report::write(&args.out, &r).context("writing the report")?;
     super::write_stdout(&format!(

@@ -73,6 +73,9 @@ pub fn page(r: &Report<'_>) -> Result<String, ReportError> {
     );
     metadata(&mut h, r);
     coefficients(&mut h, a);
+    if let Some(v) = r.spec {
+        spec_section(&mut h, v);
+    }
     let allan = svg(super::ALLAN_SIZE, |area| allan_fig::draw(area, a))?;
     let _ = write!(
         h,
@@ -123,6 +126,33 @@ pub fn page(r: &Report<'_>) -> Result<String, ReportError> {
     }
     h.push_str("</body></html>\n");
     Ok(h)
+}
+
+/// The acceptance test: overall verdict and one row per coefficient.
+fn spec_section(h: &mut String, v: &crate::model::spec::SpecReport) {
+    let _ = write!(
+        h,
+        "<section id=\"spec\"><h2>Acceptance test: {}</h2><p>Each verdict holds at {} % confidence. \
+         A coefficient passes when its upper bound is below the limit, fails when its lower bound is above \
+         it, and is undecided otherwise.</p><table><tr><th>coefficient</th><th>limit</th><th>estimate</th>\
+         <th>deciding bound</th><th>verdict</th><th>why undecided</th></tr>",
+        esc(v.verdict.as_str()),
+        fmt_sig(100.0 * v.confidence, 3)
+    );
+    let num = |x: Option<f64>| x.map_or("-".to_string(), |x| fmt_sig(x, 4));
+    for (name, c) in &v.coefficients {
+        let _ = write!(
+            h,
+            "<tr><td><code>{}</code></td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            esc(name),
+            fmt_sig(c.limit, 4),
+            num(c.estimate),
+            num(c.bound),
+            esc(c.verdict.as_str()),
+            esc(c.reason.as_deref().unwrap_or(""))
+        );
+    }
+    h.push_str("</table></section>\n");
 }
 
 fn row(h: &mut String, k: &str, v: &str) {

@@ -83,6 +83,8 @@ pub struct Report<'a> {
     pub analysis: &'a Analysis,
     pub series: &'a Collector,
     pub diagnosis: Option<DiagnosisPart<'a>>,
+    /// The acceptance test's verdict, with `--spec`.
+    pub spec: Option<&'a crate::model::spec::SpecReport>,
 }
 
 /// Sizes of the figures, px.
