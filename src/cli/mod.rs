@@ -6,6 +6,7 @@ use clap::{Parser, Subcommand};
 
 pub mod allan;
 pub mod analyze;
+pub mod completions;
 pub mod diagnose;
 pub mod report;
 pub mod run;
@@ -33,6 +34,8 @@ pub enum Command {
     Diagnose(diagnose::DiagnoseArgs),
     /// Analyse a recording and write a self-contained HTML report (inline SVG figures) and PNG figures.
     Report(report::ReportArgs),
+    /// Print a shell completion script (bash, zsh or fish) to standard output.
+    Completions(completions::CompletionsArgs),
 }
 
 /// Parse the command line, run, print the error chain and exit 2 on failure.
@@ -58,6 +61,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Simulate(args) => simulate::run(args),
         Command::Diagnose(args) => diagnose::run(args),
         Command::Report(args) => report::run(args),
+        Command::Completions(args) => completions::run(args),
     }
 }
 
