@@ -72,6 +72,8 @@ fn filled() -> Metrics {
         lower95: None,
         upper95: Some(0.01),
     });
+    m.set_rrw_dphsh(Bounds95 { estimate: None, lower95: None, upper95: Some(0.2) });
+    m.set_rate_ramp_dphh(Bounds95 { estimate: Some(-0.03), lower95: Some(-0.05), upper95: Some(-0.01) });
     let taus: Vec<f64> = (0..8).map(|k| 0.001 * 2f64.powi(k)).collect();
     let devs: Vec<f64> = taus.iter().map(|t| 0.5 / t).collect();
     m.set_allan_curve(AllanChannel::Raw, &taus, &devs).unwrap();
@@ -119,6 +121,9 @@ fn names_help_and_values() {
         ("sagnac_temperature_celsius", "gauge"),
         ("sagnac_processing_lag_seconds", "gauge"),
         ("sagnac_recording_bytes", "gauge"),
+        ("sagnac_rrw_degrees_per_hour_per_root_hour", "gauge"),
+        ("sagnac_rate_ramp_degrees_per_hour_squared", "gauge"),
+        ("sagnac_build_info", "gauge"),
     ] {
         assert!(text.contains(&format!("# HELP {name} ")), "HELP {name}");
         assert!(
@@ -127,7 +132,9 @@ fn names_help_and_values() {
         );
     }
     let families = text.lines().filter(|l| l.starts_with("# TYPE ")).count();
-    assert_eq!(families, 12, "exactly the twelve metrics:\n{text}");
+    assert_eq!(families, 15, "exactly the fifteen metrics:\n{text}");
+    let build = format!("sagnac_build_info{{version=\"{}\"}} 1\n", env!("CARGO_PKG_VERSION"));
+    assert!(text.contains(&build), "{build} missing in\n{text}");
 
     let s = samples(&text);
     let get = |k: &str| *s.get(k).unwrap_or_else(|| panic!("{k} missing in\n{text}"));
@@ -151,6 +158,9 @@ fn names_help_and_values() {
         0.01
     );
     assert!(!s.contains_key("sagnac_bias_instability_degrees_per_hour{bound=\"estimate\"}"));
+    assert_eq!(get("sagnac_rrw_degrees_per_hour_per_root_hour{bound=\"upper95\"}"), 0.2);
+    assert_eq!(get("sagnac_rate_ramp_degrees_per_hour_squared{bound=\"estimate\"}"), -0.03);
+    assert_eq!(get("sagnac_rate_ramp_degrees_per_hour_squared{bound=\"lower95\"}"), -0.05);
     assert_eq!(
         get("sagnac_allan_deviation_degrees_per_hour{channel=\"raw\",tau_seconds=\"0.128\"}"),
         0.5 / 0.128

@@ -664,6 +664,8 @@ impl Run<'_> {
         m.set_qn_arcsec(bounds(&e.quantization_arcsec));
         m.set_arw_dpsh(bounds(&e.arw_dpsh));
         m.set_bias_instability_dph(bounds(&e.bias_instability_dph));
+        m.set_rrw_dphsh(bounds(&e.rrw_dphsh));
+        m.set_rate_ramp_dphh(bounds(&e.rate_ramp_dphh));
         for (ch, pts) in [
             (AllanChannel::Raw, &a.allan.raw),
             (AllanChannel::Clean, &a.allan.clean),

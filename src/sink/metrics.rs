@@ -16,6 +16,9 @@
 //! | `sagnac_qn_arcseconds` | gauge | `bound`: `estimate`, `lower95`, `upper95` |
 //! | `sagnac_arw_degrees_per_root_hour` | gauge | `bound` |
 //! | `sagnac_bias_instability_degrees_per_hour` | gauge | `bound` |
+//! | `sagnac_rrw_degrees_per_hour_per_root_hour` | gauge | `bound` |
+//! | `sagnac_rate_ramp_degrees_per_hour_squared` | gauge | `bound` |
+//! | `sagnac_build_info` | gauge | `version` (always 1) |
 //! | `sagnac_allan_deviation_degrees_per_hour` | gauge | `channel`: `raw`, `clean`; `tau_seconds` |
 //! | `sagnac_temperature_celsius` | gauge | |
 //! | `sagnac_processing_lag_seconds` | gauge | |
@@ -127,6 +130,8 @@ pub struct Metrics {
     qn: GaugeVec,
     arw: GaugeVec,
     bias_instability: GaugeVec,
+    rrw: GaugeVec,
+    rate_ramp: GaugeVec,
     allan: GaugeVec,
     /// tau labels currently exported, per channel.
     allan_taus: Mutex<BTreeMap<AllanChannel, Vec<String>>>,
@@ -205,6 +210,16 @@ impl Metrics {
                 "sagnac_bias_instability_degrees_per_hour",
                 "Bias instability coefficient B, degrees per hour, with its 95% interval.",
             )?,
+            rrw: bounds(
+                "sagnac_rrw_degrees_per_hour_per_root_hour",
+                "Rate random walk coefficient K, degrees per hour per square root of hour, with its 95% interval \
+                 (only upper95 while the term is not found).",
+            )?,
+            rate_ramp: bounds(
+                "sagnac_rate_ramp_degrees_per_hour_squared",
+                "Rate ramp R, degrees per hour per hour (signed), with its 95% interval (only upper95, on its \
+                 magnitude, while the ramp is not found).",
+            )?,
             allan: reg(
                 &registry,
                 "sagnac_allan_deviation_degrees_per_hour",
@@ -278,6 +293,12 @@ impl Metrics {
         }
         m.temperature.set(f64::NAN);
         m.lag.set(f64::NAN);
+        let build = reg(
+            &m.registry,
+            "sagnac_build_info",
+            GaugeVec::new(Opts::new("sagnac_build_info", "Always 1; the version label says which sagnac runs."), &["version"]),
+        )?;
+        build.with_label_values(&[env!("CARGO_PKG_VERSION")]).set(1.0);
         Ok(m)
     }
 
@@ -326,6 +347,16 @@ impl Metrics {
     /// Set the bias-instability coefficient, deg/h.
     pub fn set_bias_instability_dph(&self, b: Bounds95) {
         set_bounds(&self.bias_instability, b);
+    }
+
+    /// Set the rate-random-walk coefficient, deg/h/sqrt(h).
+    pub fn set_rrw_dphsh(&self, b: Bounds95) {
+        set_bounds(&self.rrw, b);
+    }
+
+    /// Set the rate ramp, deg/h/h.
+    pub fn set_rate_ramp_dphh(&self, b: Bounds95) {
+        set_bounds(&self.rate_ramp, b);
     }
 
     /// Replace the Allan curve of a channel: deviations in deg/h at averaging times in s.
