@@ -6,16 +6,23 @@
 use plotters::prelude::*;
 
 use super::collect::Collector;
-use super::plot::{self, Area, TimeAxis, draw_err, font};
+use super::plot::{self, Area, TimeAxis, draw_err};
 use super::{ReportError, fmt_sig};
 
 /// The largest |running integral|, arcsec, if any.
 pub fn max_abs_angle(c: &Collector) -> Option<f64> {
-    c.series.noise_angle_arcsec.range().map(|(lo, hi)| lo.abs().max(hi.abs()))
+    c.series
+        .noise_angle_arcsec
+        .range()
+        .map(|(lo, hi)| lo.abs().max(hi.abs()))
 }
 
 /// Draw the two panels on `area`; `pulse_arcsec` gives the band.
-pub fn draw<DB: DrawingBackend>(area: &Area<DB>, c: &Collector, pulse_arcsec: Option<f64>) -> Result<(), ReportError> {
+pub fn draw<DB: DrawingBackend>(
+    area: &Area<DB>,
+    c: &Collector,
+    pulse_arcsec: Option<f64>,
+) -> Result<(), ReportError> {
     crate::font::register()?;
     area.fill(&WHITE).map_err(draw_err)?;
     let tau0 = c.tau0_s();
@@ -28,27 +35,22 @@ pub fn draw<DB: DrawingBackend>(area: &Area<DB>, c: &Collector, pulse_arcsec: Op
     // the noise rate
     let (lo, hi) = s.noise_dph.range().unwrap_or((-1.0, 1.0));
     let (lo, hi) = plot::padded(lo, hi);
-    let mut chart = ChartBuilder::on(&top)
-        .caption("extracted quantization noise (rate)", font(plot::TITLE))
-        .margin(12)
-        .x_label_area_size(42)
-        .y_label_area_size(72)
-        .build_cartesian_2d(0.0..t_hi, lo..hi)
-        .map_err(draw_err)?;
-    let ystep = (hi - lo) / 6.0;
-    let xstep = t_hi / 10.0;
-    chart
-        .configure_mesh()
-        .x_desc(axis.label)
-        .y_desc("noise, deg/h")
-        .axis_desc_style(font(plot::LABEL))
-        .label_style(font(plot::TICK))
-        .x_label_formatter(&|v| plot::lin_tick(*v, xstep))
-        .y_label_formatter(&|v| plot::lin_tick(*v, ystep))
-        .light_line_style(RGBColor(240, 240, 240))
-        .draw()
-        .map_err(draw_err)?;
-    plot::draw_band(&mut chart, &s.noise_dph.buckets(), tau0, axis, plot::NOISE, "")?;
+    let mut chart = plot::TimeChart {
+        caption: "extracted quantization noise (rate)",
+        caption_size: plot::TITLE,
+        x_area: 42,
+        y_area: 72,
+        y_desc: "noise, deg/h",
+    }
+    .build(&top, axis, t_hi, (lo, hi))?;
+    plot::draw_band(
+        &mut chart,
+        &s.noise_dph.buckets(),
+        tau0,
+        axis,
+        plot::NOISE,
+        "",
+    )?;
 
     // its running integral
     let (mut lo, mut hi) = s.noise_angle_arcsec.range().unwrap_or((-1.0, 1.0));
@@ -65,38 +67,44 @@ pub fn draw<DB: DrawingBackend>(area: &Area<DB>, c: &Collector, pulse_arcsec: Op
             fmt_sig(peak / d, 3),
             fmt_sig(d, 4)
         ),
-        None => format!("running integral of the noise: max |angle| {} arcsec (rate input: no pulse weight)", fmt_sig(peak, 3)),
+        None => format!(
+            "running integral of the noise: max |angle| {} arcsec (rate input: no pulse weight)",
+            fmt_sig(peak, 3)
+        ),
     };
-    let mut chart = ChartBuilder::on(&bottom)
-        .caption(caption, font(plot::LABEL + 2))
-        .margin(12)
-        .x_label_area_size(48)
-        .y_label_area_size(72)
-        .build_cartesian_2d(0.0..t_hi, lo..hi)
-        .map_err(draw_err)?;
-    let ystep = (hi - lo) / 6.0;
-    let xstep = t_hi / 10.0;
-    chart
-        .configure_mesh()
-        .x_desc(axis.label)
-        .y_desc("integrated noise, arcsec")
-        .axis_desc_style(font(plot::LABEL))
-        .label_style(font(plot::TICK))
-        .x_label_formatter(&|v| plot::lin_tick(*v, xstep))
-        .y_label_formatter(&|v| plot::lin_tick(*v, ystep))
-        .light_line_style(RGBColor(240, 240, 240))
-        .draw()
-        .map_err(draw_err)?;
+    let mut chart = plot::TimeChart {
+        caption: &caption,
+        caption_size: plot::LABEL + 2,
+        x_area: 48,
+        y_area: 72,
+        y_desc: "integrated noise, arcsec",
+    }
+    .build(&bottom, axis, t_hi, (lo, hi))?;
     if let Some(d) = pulse_arcsec {
         chart
-            .draw_series(std::iter::once(Rectangle::new([(0.0, -d), (t_hi, d)], plot::CLEAN.mix(0.10).filled())))
+            .draw_series(std::iter::once(Rectangle::new(
+                [(0.0, -d), (t_hi, d)],
+                plot::CLEAN.mix(0.10).filled(),
+            )))
             .map_err(draw_err)?;
         for y in [-d, d] {
             chart
-                .draw_series(DashedLineSeries::new(vec![(0.0, y), (t_hi, y)], 9, 6, plot::CLEAN.stroke_width(2)))
+                .draw_series(DashedLineSeries::new(
+                    vec![(0.0, y), (t_hi, y)],
+                    9,
+                    6,
+                    plot::CLEAN.stroke_width(2),
+                ))
                 .map_err(draw_err)?;
         }
     }
-    plot::draw_band(&mut chart, &s.noise_angle_arcsec.buckets(), tau0, axis, plot::NOISE, "")?;
+    plot::draw_band(
+        &mut chart,
+        &s.noise_angle_arcsec.buckets(),
+        tau0,
+        axis,
+        plot::NOISE,
+        "",
+    )?;
     Ok(())
 }

@@ -19,8 +19,13 @@ pub const TEMP: RGBColor = RGBColor(190, 40, 40);
 /// The total model curve.
 pub const MODEL: RGBColor = RGBColor(125, 125, 125);
 /// QN, ARW, BI, RRW, RR.
-pub const TERM_COLORS: [RGBColor; 5] =
-    [RGBColor(140, 60, 170), RGBColor(20, 140, 70), RGBColor(150, 100, 30), RGBColor(200, 30, 90), RGBColor(0, 150, 160)];
+pub const TERM_COLORS: [RGBColor; 5] = [
+    RGBColor(140, 60, 170),
+    RGBColor(20, 140, 70),
+    RGBColor(150, 100, 30),
+    RGBColor(200, 30, 90),
+    RGBColor(0, 150, 160),
+];
 
 /// Font sizes, px.
 pub const TITLE: u32 = 20;
@@ -43,9 +48,17 @@ pub fn log_tick(v: f64) -> String {
     }
     let e = v.log10().floor();
     let mant = v / 10f64.powf(e);
-    let mant_txt = if (mant - mant.round()).abs() < 1e-6 { format!("{}", mant.round()) } else { format!("{mant:.1}") };
+    let mant_txt = if (mant - mant.round()).abs() < 1e-6 {
+        format!("{}", mant.round())
+    } else {
+        format!("{mant:.1}")
+    };
     if (-3.0..5.0).contains(&e) {
-        let decimals = if e < 0.0 { (-e) as usize + usize::from(mant_txt.contains('.')) } else { 0 };
+        let decimals = if e < 0.0 {
+            (-e) as usize + usize::from(mant_txt.contains('.'))
+        } else {
+            0
+        };
         format!("{v:.decimals$}")
     } else if mant_txt == "1" {
         format!("1e{e}")
@@ -56,9 +69,17 @@ pub fn log_tick(v: f64) -> String {
 
 /// A linear-axis tick with just enough decimals for a step of `step`.
 pub fn lin_tick(v: f64, step: f64) -> String {
-    let d = if step > 0.0 && step.is_finite() { (-step.log10().floor()).max(0.0) as usize } else { 2 };
+    let d = if step > 0.0 && step.is_finite() {
+        (-step.log10().floor()).max(0.0) as usize
+    } else {
+        2
+    };
     let s = format!("{v:.d$}");
-    if s.starts_with('-') && s[1..].chars().all(|c| c == '0' || c == '.') { s[1..].to_string() } else { s }
+    if s.starts_with('-') && s[1..].chars().all(|c| c == '0' || c == '.') {
+        s[1..].to_string()
+    } else {
+        s
+    }
 }
 
 /// A time axis: seconds, minutes or hours, chosen for the record's length.
@@ -72,11 +93,20 @@ pub struct TimeAxis {
 impl TimeAxis {
     pub fn for_duration(duration_s: f64) -> TimeAxis {
         if duration_s > 3.0 * 3600.0 {
-            TimeAxis { per_unit: 3600.0, label: "time, h" }
+            TimeAxis {
+                per_unit: 3600.0,
+                label: "time, h",
+            }
         } else if duration_s > 1800.0 {
-            TimeAxis { per_unit: 60.0, label: "time, min" }
+            TimeAxis {
+                per_unit: 60.0,
+                label: "time, min",
+            }
         } else {
-            TimeAxis { per_unit: 1.0, label: "time, s" }
+            TimeAxis {
+                per_unit: 1.0,
+                label: "time, s",
+            }
         }
     }
 }
@@ -89,7 +119,11 @@ pub fn bucket_time(b: &Bucket, tau0_s: f64, axis: TimeAxis) -> f64 {
 /// A y range holding `lo..hi` with a margin (a flat series gets one too).
 pub fn padded(lo: f64, hi: f64) -> (f64, f64) {
     let span = hi - lo;
-    let pad = if span > 0.0 { 0.06 * span } else { lo.abs().max(1.0) * 0.05 };
+    let pad = if span > 0.0 {
+        0.06 * span
+    } else {
+        lo.abs().max(1.0) * 0.05
+    };
     (lo - pad, hi + pad)
 }
 
@@ -113,12 +147,60 @@ pub fn robust_range(buckets: &[Bucket]) -> Option<(f64, f64)> {
 pub fn clamped(buckets: &[Bucket], lo: f64, hi: f64) -> Vec<Bucket> {
     buckets
         .iter()
-        .map(|b| Bucket { min: b.min.clamp(lo, hi), max: b.max.clamp(lo, hi), mean: b.mean.clamp(lo, hi), ..*b })
+        .map(|b| Bucket {
+            min: b.min.clamp(lo, hi),
+            max: b.max.clamp(lo, hi),
+            mean: b.mean.clamp(lo, hi),
+            ..*b
+        })
         .collect()
 }
 
 /// Draw `buckets` as a min-max band (when buckets span several samples) and
 /// the mean line on top.
+/// A chart of linear time (`0..t_hi`, in `axis` units) against a linear `y`
+/// range, its mesh drawn with six y and ten x ticks.
+pub struct TimeChart<'c> {
+    pub caption: &'c str,
+    pub caption_size: u32,
+    pub x_area: u32,
+    pub y_area: u32,
+    pub y_desc: &'c str,
+}
+
+impl TimeChart<'_> {
+    /// Build the chart on `area` and draw its mesh.
+    pub fn build<'a, DB: DrawingBackend>(
+        &self,
+        area: &'a Area<DB>,
+        axis: TimeAxis,
+        t_hi: f64,
+        (lo, hi): (f64, f64),
+    ) -> Result<ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>, ReportError>
+    {
+        let mut chart = ChartBuilder::on(area)
+            .caption(self.caption, font(self.caption_size))
+            .margin(12)
+            .x_label_area_size(self.x_area)
+            .y_label_area_size(self.y_area)
+            .build_cartesian_2d(0.0..t_hi, lo..hi)
+            .map_err(draw_err)?;
+        let (ystep, xstep) = ((hi - lo) / 6.0, t_hi / 10.0);
+        chart
+            .configure_mesh()
+            .x_desc(axis.label)
+            .y_desc(self.y_desc)
+            .axis_desc_style(font(LABEL))
+            .label_style(font(TICK))
+            .x_label_formatter(&|v| lin_tick(*v, xstep))
+            .y_label_formatter(&|v| lin_tick(*v, ystep))
+            .light_line_style(RGBColor(240, 240, 240))
+            .draw()
+            .map_err(draw_err)?;
+        Ok(chart)
+    }
+}
+
 pub fn draw_band<DB: DrawingBackend>(
     chart: &mut ChartContext<'_, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
     buckets: &[Bucket],
@@ -134,53 +216,86 @@ pub fn draw_band<DB: DrawingBackend>(
     if buckets.iter().any(|b| b.max > b.min) {
         let mut poly: Vec<(f64, f64)> = buckets.iter().map(|b| (t(b), b.max)).collect();
         poly.extend(buckets.iter().rev().map(|b| (t(b), b.min)));
-        chart.draw_series(std::iter::once(Polygon::new(poly, color.mix(0.25).filled()))).map_err(draw_err)?;
+        chart
+            .draw_series(std::iter::once(Polygon::new(
+                poly,
+                color.mix(0.25).filled(),
+            )))
+            .map_err(draw_err)?;
     }
     let s = chart
-        .draw_series(LineSeries::new(buckets.iter().map(|b| (t(b), b.mean)), color.stroke_width(1)))
+        .draw_series(LineSeries::new(
+            buckets.iter().map(|b| (t(b), b.mean)),
+            color.stroke_width(1),
+        ))
         .map_err(draw_err)?;
     if !label.is_empty() {
         let c = color;
-        s.label(label.to_string())
-            .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 18, y + 5)], c.mix(0.5).filled()));
+        s.label(label.to_string()).legend(move |(x, y)| {
+            Rectangle::new([(x, y - 5), (x + 18, y + 5)], c.mix(0.5).filled())
+        });
     }
     Ok(())
 }
 
 /// A legend box at the top of `area` (outside any plot, so it covers no data):
 /// one row per (colour, dashed?, text).
-pub fn side_legend<DB: DrawingBackend>(area: &Area<DB>, rows: &[(RGBColor, LineKind, String)]) -> Result<(), ReportError> {
+pub fn side_legend<DB: DrawingBackend>(
+    area: &Area<DB>,
+    rows: &[(RGBColor, LineKind, String)],
+) -> Result<(), ReportError> {
     let f = font(TICK);
     let mut y = 12;
     for (c, kind, text) in rows {
         let (x0, x1) = (4, 38);
         match kind {
             LineKind::Solid => {
-                area.draw(&PathElement::new(vec![(x0, y), (x1, y)], c.stroke_width(2))).map_err(draw_err)?;
+                area.draw(&PathElement::new(vec![(x0, y), (x1, y)], c.stroke_width(2)))
+                    .map_err(draw_err)?;
             }
             LineKind::Dashed => {
                 for s in (x0..x1).step_by(10) {
-                    area.draw(&PathElement::new(vec![(s, y), ((s + 6).min(x1), y)], c.stroke_width(2)))
-                        .map_err(draw_err)?;
+                    area.draw(&PathElement::new(
+                        vec![(s, y), ((s + 6).min(x1), y)],
+                        c.stroke_width(2),
+                    ))
+                    .map_err(draw_err)?;
                 }
             }
             LineKind::Points => {
-                area.draw(&PathElement::new(vec![(x0 + 17, y - 7), (x0 + 17, y + 7)], c.stroke_width(1)))
+                area.draw(&PathElement::new(
+                    vec![(x0 + 17, y - 7), (x0 + 17, y + 7)],
+                    c.stroke_width(1),
+                ))
+                .map_err(draw_err)?;
+                area.draw(&Circle::new((x0 + 17, y), 4, c.filled()))
                     .map_err(draw_err)?;
-                area.draw(&Circle::new((x0 + 17, y), 4, c.filled())).map_err(draw_err)?;
             }
             LineKind::Ring => {
-                area.draw(&PathElement::new(vec![(x0 + 17, y - 8), (x0 + 17, y + 8)], c.stroke_width(1)))
+                area.draw(&PathElement::new(
+                    vec![(x0 + 17, y - 8), (x0 + 17, y + 8)],
+                    c.stroke_width(1),
+                ))
+                .map_err(draw_err)?;
+                area.draw(&Circle::new((x0 + 17, y), 5, c.stroke_width(2)))
                     .map_err(draw_err)?;
-                area.draw(&Circle::new((x0 + 17, y), 5, c.stroke_width(2))).map_err(draw_err)?;
             }
             LineKind::Band => {
-                area.draw(&Rectangle::new([(x0, y - 6), (x1, y + 6)], c.mix(0.3).filled())).map_err(draw_err)?;
+                area.draw(&Rectangle::new(
+                    [(x0, y - 6), (x1, y + 6)],
+                    c.mix(0.3).filled(),
+                ))
+                .map_err(draw_err)?;
             }
         }
         // a long row wraps at " | "
         for (i, part) in text.split(" | ").enumerate() {
-            area.draw(&Text::new(part.to_string(), (x1 + 8, y - 7 + 17 * i as i32), f.clone())).map_err(draw_err)?;
+            area.draw(&Text::new(
+                part.to_string(),
+                (x1 + 8, y - 7 + 17 * i as i32),
+                f.clone(),
+            ))
+            .map_err(draw_err)?;
             if i > 0 {
                 y += 17;
             }

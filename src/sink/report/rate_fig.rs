@@ -5,7 +5,7 @@ use plotters::prelude::*;
 
 use super::ReportError;
 use super::collect::Collector;
-use super::plot::{self, Area, LineKind, TimeAxis, draw_err, font};
+use super::plot::{self, Area, LineKind, TimeAxis, draw_err};
 
 /// Draw on `area`.
 pub fn draw<DB: DrawingBackend>(area: &Area<DB>, c: &Collector) -> Result<(), ReportError> {
@@ -28,10 +28,13 @@ pub fn draw<DB: DrawingBackend>(area: &Area<DB>, c: &Collector) -> Result<(), Re
     // the raw rate as its mean per column: its per-sample spread is the
     // quantization noise (the noise figure), which would flatten the rest
     let raw = s.raw_dph.buckets();
-    let raw_mean = raw.iter().map(|b| b.mean).fold(None, |r: Option<(f64, f64)>, v| match r {
-        None => Some((v, v)),
-        Some((lo, hi)) => Some((lo.min(v), hi.max(v))),
-    });
+    let raw_mean = raw
+        .iter()
+        .map(|b| b.mean)
+        .fold(None, |r: Option<(f64, f64)>, v| match r {
+            None => Some((v, v)),
+            Some((lo, hi)) => Some((lo.min(v), hi.max(v))),
+        });
     let clean = s.clean_dph.buckets();
     let (lo, hi) = match (raw_mean, plot::robust_range(&clean)) {
         (Some(a), Some(b)) => (a.0.min(b.0), a.1.max(b.1)),
@@ -39,31 +42,27 @@ pub fn draw<DB: DrawingBackend>(area: &Area<DB>, c: &Collector) -> Result<(), Re
         (None, None) => (-1.0, 1.0),
     };
     let (lo, hi) = plot::padded(lo, hi);
-    let mut chart = ChartBuilder::on(&body)
-        .caption("rate", font(plot::TITLE))
-        .margin(12)
-        .x_label_area_size(44)
-        .y_label_area_size(80)
-        .build_cartesian_2d(0.0..t_hi, lo..hi)
-        .map_err(draw_err)?;
-    let ystep = (hi - lo) / 6.0;
-    let xstep = t_hi / 10.0;
-    chart
-        .configure_mesh()
-        .x_desc(axis.label)
-        .y_desc("rate, deg/h")
-        .axis_desc_style(font(plot::LABEL))
-        .label_style(font(plot::TICK))
-        .x_label_formatter(&|v| plot::lin_tick(*v, xstep))
-        .y_label_formatter(&|v| plot::lin_tick(*v, ystep))
-        .light_line_style(RGBColor(240, 240, 240))
-        .draw()
-        .map_err(draw_err)?;
+    let mut chart = plot::TimeChart {
+        caption: "rate",
+        caption_size: plot::TITLE,
+        x_area: 44,
+        y_area: 80,
+        y_desc: "rate, deg/h",
+    }
+    .build(&body, axis, t_hi, (lo, hi))?;
     // the extreme 2 % (the wavelet bank's start-up) is drawn at the axis' edge
-    plot::draw_band(&mut chart, &plot::clamped(&clean, lo, hi), tau0, axis, plot::CLEAN, "")?;
+    plot::draw_band(
+        &mut chart,
+        &plot::clamped(&clean, lo, hi),
+        tau0,
+        axis,
+        plot::CLEAN,
+        "",
+    )?;
     chart
         .draw_series(LineSeries::new(
-            raw.iter().map(|b| (plot::bucket_time(b, tau0, axis), b.mean.clamp(lo, hi))),
+            raw.iter()
+                .map(|b| (plot::bucket_time(b, tau0, axis), b.mean.clamp(lo, hi))),
             plot::RAW.mix(0.8).stroke_width(1),
         ))
         .map_err(draw_err)?;
@@ -71,39 +70,43 @@ pub fn draw<DB: DrawingBackend>(area: &Area<DB>, c: &Collector) -> Result<(), Re
     let clean_c = plot::clamped(&clean, lo, hi);
     chart
         .draw_series(LineSeries::new(
-            clean_c.iter().map(|b| (plot::bucket_time(b, tau0, axis), b.mean)),
+            clean_c
+                .iter()
+                .map(|b| (plot::bucket_time(b, tau0, axis), b.mean)),
             plot::CLEAN.stroke_width(2),
         ))
         .map_err(draw_err)?;
     // the legend above the plot, in one row
     let legend = head.margin(8, 0, 90, 0);
     let (l1, l2) = legend.split_horizontally(360);
-    plot::side_legend(&l1, &[(plot::RAW, LineKind::Solid, "raw rate, mean per pixel column".into())])?;
-    plot::side_legend(&l2, &[(plot::CLEAN, LineKind::Band, "clean rate (quantization noise removed): mean, min/max band".into())])?;
+    plot::side_legend(
+        &l1,
+        &[(
+            plot::RAW,
+            LineKind::Solid,
+            "raw rate, mean per pixel column".into(),
+        )],
+    )?;
+    plot::side_legend(
+        &l2,
+        &[(
+            plot::CLEAN,
+            LineKind::Band,
+            "clean rate (quantization noise removed): mean, min/max band".into(),
+        )],
+    )?;
 
     if let (Some(t), Some(area)) = (temp, temp_area) {
         let (lo, hi) = t.range().unwrap_or((0.0, 1.0));
         let (lo, hi) = plot::padded(lo, hi);
-        let mut chart = ChartBuilder::on(&area)
-            .caption("temperature", font(plot::LABEL + 2))
-            .margin(12)
-            .x_label_area_size(44)
-            .y_label_area_size(80)
-            .build_cartesian_2d(0.0..t_hi, lo..hi)
-            .map_err(draw_err)?;
-        let ystep = (hi - lo) / 6.0;
-        let xstep = t_hi / 10.0;
-        chart
-            .configure_mesh()
-            .x_desc(axis.label)
-            .y_desc("temperature, \u{b0}C")
-            .axis_desc_style(font(plot::LABEL))
-            .label_style(font(plot::TICK))
-            .x_label_formatter(&|v| plot::lin_tick(*v, xstep))
-        .y_label_formatter(&|v| plot::lin_tick(*v, ystep))
-            .light_line_style(RGBColor(240, 240, 240))
-            .draw()
-            .map_err(draw_err)?;
+        let mut chart = plot::TimeChart {
+            caption: "temperature",
+            caption_size: plot::LABEL + 2,
+            x_area: 44,
+            y_area: 80,
+            y_desc: "temperature, \u{b0}C",
+        }
+        .build(&area, axis, t_hi, (lo, hi))?;
         plot::draw_band(&mut chart, &t.buckets(), tau0, axis, plot::TEMP, "")?;
     }
     Ok(())
