@@ -1,9 +1,9 @@
-//! Issue 17's measurement: how often the live acceptance rule
+//! How often the live acceptance rule
 //! ([`sagnac::model::spec::SequentialSpec`]) gives a wrong verdict, and how
 //! soon it decides, on simulated gyros with known truth.
 //!
 //! ```text
-//! cargo run --release --example bench_acceptance -- [--quick] [--runs N] [--jobs J] [--only qn|arw|bi] [--fixed-runs M] [--factor 0..4]
+//! cargo run --release --example bench_acceptance -- [--quick] [--runs N] [--jobs J] [--only qn|arw|bi|rrw|ramp] [--fixed-runs M] [--factor 0..4]
 //! ```
 //!
 //! Each case puts one coefficient at `factor x limit` (0.5 well inside, 1/1.1
@@ -55,7 +55,7 @@ struct Family {
     configs: &'static [(f64, f64)],
 }
 
-const FAMILIES: [Family; 3] = [
+const FAMILIES: [Family; 5] = [
     Family {
         name: "qn",
         coef: SpecCoefficient::Quantization,
@@ -77,19 +77,37 @@ const FAMILIES: [Family; 3] = [
         duration_s: 7200.0,
         configs: &[(100.0, 1.21), (200.0, 0.6)],
     },
+    Family {
+        name: "rrw",
+        coef: SpecCoefficient::Rrw,
+        limit: 0.02,
+        duration_s: 7200.0,
+        configs: &[(100.0, 1.21), (200.0, 0.6)],
+    },
+    Family {
+        name: "ramp",
+        coef: SpecCoefficient::RateRamp,
+        limit: 0.05,
+        duration_s: 7200.0,
+        configs: &[(100.0, 1.21), (200.0, 0.6)],
+    },
 ];
 
 /// The model of run `i` of a case: the tested coefficient at `truth`, the others typical.
 fn model_toml(f: &Family, truth: f64, i: usize) -> (String, f64, f64) {
     let (rate, pulse) = f.configs[i % f.configs.len()];
-    let (q, n, b) = match f.coef {
-        SpecCoefficient::Quantization => (truth, 0.001, 0.002),
-        SpecCoefficient::Arw => (0.4 * pulse, truth, 0.002),
-        _ => (0.4 * pulse, 0.0005, truth),
+    let (q, n, b, k, r) = match f.coef {
+        SpecCoefficient::Quantization => (truth, 0.001, 0.002, 0.0, 0.0),
+        SpecCoefficient::Arw => (0.4 * pulse, truth, 0.002, 0.0, 0.0),
+        SpecCoefficient::BiasInstability => (0.4 * pulse, 0.0005, truth, 0.0, 0.0),
+        SpecCoefficient::Rrw => (0.4 * pulse, 0.0005, 0.002, truth, 0.0),
+        // the sign of a ramp alternates over the runs: the limit is on its magnitude
+        SpecCoefficient::RateRamp => (0.4 * pulse, 0.0005, 0.002, 0.0, if i % 2 == 0 { truth } else { -truth }),
     };
     let toml = format!(
         "[gyro]\nsample_rate_hz = {rate}\npulse_weight_arcsec = {pulse}\ninput_rate_dph = 12.3\n\
-         [noise]\nquantization_arcsec = {q}\narw_dpsh = {n}\nbias_instability_dph = {b}\n"
+         [noise]\nquantization_arcsec = {q}\narw_dpsh = {n}\nbias_instability_dph = {b}\n\
+         rrw_dphsh = {k}\nrate_ramp_dphh = {r}\n"
     );
     (toml, rate, pulse)
 }
@@ -138,7 +156,9 @@ fn run_one(f: &Family, truth: f64, i: usize, seed: u64, to_end: bool) -> Result<
     match f.coef {
         SpecCoefficient::Quantization => spec.quantization_arcsec_max = Some(f.limit),
         SpecCoefficient::Arw => spec.arw_dpsh_max = Some(f.limit),
-        _ => spec.bias_instability_dph_max = Some(f.limit),
+        SpecCoefficient::BiasInstability => spec.bias_instability_dph_max = Some(f.limit),
+        SpecCoefficient::Rrw => spec.rrw_dphsh_max = Some(f.limit),
+        SpecCoefficient::RateRamp => spec.rate_ramp_dphh_max = Some(f.limit),
     }
     let mut seq = SequentialSpec::new(spec.clone());
     let chunk = (UPDATE_S * rate).round() as usize;
@@ -253,7 +273,7 @@ fn main() -> Result<(), String> {
         .filter(|f| only.as_deref().is_none_or(|o| o == f.name))
         .collect();
     if families.is_empty() {
-        return Err("--only: qn, arw or bi".into());
+        return Err("--only: qn, arw, bi, rrw or ramp".into());
     }
     // every (family, factor, run) as one job
     let mut work = Vec::new();

@@ -220,7 +220,7 @@ fn a_model_that_does_not_fit_says_so_and_widens_its_intervals() {
     assert!(single.fit.ok, "single pole: {:?}", single.fit);
     let width = |c: &Coefficient| c.ci95.map(|[lo, hi]| (hi - lo) / c.value.unwrap()).unwrap_or(f64::INFINITY);
     let (w_bad, w_ok) = (width(&a.estimates.arw_dpsh), width(&single.estimates.arw_dpsh));
-    assert!(w_bad > a.fit.chi2_per_dof.sqrt() * 0.8 * w_ok, "misfit width {w_bad} vs {w_ok}");
+    assert!(w_bad > a.fit.chi2_per_dof.sqrt() * 0.8 * w_ok, "misfit width {w_bad} vs {w_ok}, fit {:?}", a.fit);
 }
 
 #[test]

@@ -77,11 +77,17 @@ pub struct FitOptions {
     pub upper_lr: f64,
     /// Terms forced to stay (e.g. for a diagnosis that tests a fixed model).
     pub always_keep: u64,
+    /// Nuisance terms left unconstrained in sign while the intervals of the
+    /// others are profiled. A nuisance whose truth sits at its zero boundary
+    /// would otherwise be held at 0 whenever the profile pushes against it, and
+    /// the rows it would have absorbed would pin the term of interest: the
+    /// interval would be that of a model that knows the nuisance is absent.
+    pub signed_in_profile: u64,
 }
 
 impl Default for FitOptions {
     fn default() -> Self {
-        FitOptions { keep_lr: 2.705_543_454_095_404, ci_lr: 3.841_458_820_694_124, upper_lr: 2.705_543_454_095_404, always_keep: 0 }
+        FitOptions { keep_lr: 2.705_543_454_095_404, ci_lr: 3.841_458_820_694_124, upper_lr: 2.705_543_454_095_404, always_keep: 0, signed_in_profile: 0 }
     }
 }
 
@@ -90,6 +96,8 @@ struct Problem<'a> {
     y: Vec<f64>,
     half_edf: Vec<f64>,
     k: usize,
+    /// Columns not held to theta >= 0 (bit mask).
+    signed: u64,
 }
 
 impl Problem<'_> {
@@ -183,7 +191,12 @@ impl Problem<'_> {
             .collect();
         let m = free_idx.len();
         let mut best: Option<(f64, Vec<f64>)> = None;
+        let signed = |b: usize| self.signed & (1 << free_idx[b]) != 0;
         for mask in 0u32..(1u32 << m) {
+            // a signed column is never dropped to its face
+            if (0..m).any(|b| signed(b) && mask & (1 << b) == 0) {
+                continue;
+            }
             let sub: Vec<usize> = (0..m).filter(|b| mask & (1 << b) != 0).collect();
             let p = sub.len();
             let mut a = vec![vec![0.0; p]; p];
@@ -198,7 +211,7 @@ impl Problem<'_> {
                 }
             }
             let Some(sol) = solve(a, rhs) else { continue };
-            if sol.iter().any(|&v| v < 0.0 || !v.is_finite()) {
+            if sub.iter().zip(&sol).any(|(&b, &v)| !v.is_finite() || (v < 0.0 && !signed(b))) {
                 continue;
             }
             let mut th = base.to_vec();
@@ -226,7 +239,7 @@ impl Problem<'_> {
 /// `sum_j w_j (y_j - sum_k theta_k phi_jk)^2` over `theta >= 0`.
 pub fn weighted_nnls(phi: &[Vec<f64>], y: &[f64], w: &[f64]) -> Vec<f64> {
     let k = phi.first().map_or(0, |r| r.len());
-    let prob = Problem { phi, y: y.to_vec(), half_edf: vec![1.0; y.len()], k };
+    let prob = Problem { phi, y: y.to_vec(), half_edf: vec![1.0; y.len()], k, signed: 0 };
     prob.wnnls(&vec![true; k], &vec![0.0; k], w)
 }
 
@@ -275,7 +288,7 @@ pub fn ml_theta(phi: &[Vec<f64>], y: &[f64], edf0: &[f64], edf: &dyn Fn(usize, &
 /// such as a readout filter's corner, are compared on one likelihood).
 pub fn ml_loglik_fixed_edf(phi: &[Vec<f64>], y: &[f64], edf: &[f64]) -> (Vec<f64>, f64) {
     let k = phi.first().map_or(0, |r| r.len());
-    let prob = Problem { phi, y: y.to_vec(), half_edf: edf.iter().map(|e| e / 2.0).collect(), k };
+    let prob = Problem { phi, y: y.to_vec(), half_edf: edf.iter().map(|e| e / 2.0).collect(), k, signed: 0 };
     let theta = prob.maximise(&vec![true; k], &vec![0.0; k], None);
     let l = prob.loglik(&theta);
     (theta, l)
@@ -298,7 +311,7 @@ fn ml_with_edf<'a>(
 ) -> (Problem<'a>, Vec<f64>) {
     let k = phi.first().map_or(0, |r| r.len());
     let n = y.len();
-    let mut prob = Problem { phi, y: y.to_vec(), half_edf: edf0.iter().map(|e| e / 2.0).collect(), k };
+    let mut prob = Problem { phi, y: y.to_vec(), half_edf: edf0.iter().map(|e| e / 2.0).collect(), k, signed: 0 };
     let all = vec![true; k];
     let zero = vec![0.0; k];
     let mut theta = prob.maximise(&all, &zero, None);
@@ -356,19 +369,67 @@ pub fn fit_rows(
         }
     }
     let l_max = prob.loglik(&theta);
+    let terms = profile_terms(&prob, &theta, &active, &lr, opts);
+    let fitted: Vec<f64> = (0..n).map(|j| prob.mu(j, &theta)).collect();
+    let chi2: f64 = (0..n).map(|j| prob.half_edf[j] * (prob.y[j] / fitted[j] - 1.0).powi(2)).sum();
+    let n_par = active.iter().filter(|a| **a).count();
+    let dof = (n as f64 - n_par as f64).max(1.0);
+    LevelFit {
+        terms,
+        loglik: l_max,
+        edf: prob.half_edf.iter().map(|h| 2.0 * h).collect(),
+        fitted,
+        chi2_per_dof: chi2 / dof,
+    }
+}
 
+/// Profile-likelihood intervals (active terms) and upper bounds (dropped
+/// terms) of every term about the fit `theta`. With nuisances in
+/// `opts.signed_in_profile`, each interval is the union of the constrained
+/// profile's and the profile with those nuisances free in sign, the latter only
+/// when the data are consistent with the constraint (the signed optimum within
+/// `ci_lr` of the constrained one): a model that needs a negative nuisance does
+/// not fit, and its signed profile says nothing about the constrained fit.
+fn profile_terms(prob: &Problem, theta: &[f64], active: &[bool], lr: &[f64], opts: &FitOptions) -> Vec<TermFit> {
+    let l_max = prob.loglik(theta);
+    let mut terms = profile_with(prob, theta, active, lr, opts, l_max);
+    if opts.signed_in_profile == 0 {
+        return terms;
+    }
+    let signed = Problem { signed: opts.signed_in_profile, y: prob.y.clone(), half_edf: prob.half_edf.clone(), ..*prob };
+    let l_ref = signed.loglik(&signed.maximise(active, &vec![0.0; prob.k], Some(theta))).max(l_max);
+    if 2.0 * (l_ref - l_max) > opts.ci_lr {
+        return terms;
+    }
+    for (t, w) in terms.iter_mut().zip(profile_with(&signed, theta, active, lr, opts, l_ref)) {
+        if let (Some((lo, hi)), Some((wl, wh))) = (t.ci95.as_mut(), w.ci95) {
+            *lo = lo.min(wl);
+            *hi = hi.max(wh);
+        }
+        if let (Some(u), Some(wu)) = (t.upper95.as_mut(), w.upper95) {
+            *u = u.max(wu);
+        }
+    }
+    terms
+}
+
+/// The profile intervals and bounds of [`profile_terms`] for one problem,
+/// deviances measured from `l_ref`.
+fn profile_with(prob: &Problem, theta: &[f64], active: &[bool], lr: &[f64], opts: &FitOptions, l_ref: f64) -> Vec<TermFit> {
+    let k = prob.k;
+    let zero = vec![0.0; k];
     let mut terms = Vec::with_capacity(k);
     for i in 0..k {
         let profile = |t: f64| -> f64 {
-            let mut act = active.clone();
+            let mut act = active.to_vec();
             act[i] = false;
             let mut base = zero.clone();
             base[i] = t;
             let th = prob.maximise(&act, &base, None);
-            2.0 * (l_max - prob.loglik(&th))
+            2.0 * (l_ref - prob.loglik(&th))
         };
         // a scale for bracketing: Fisher standard error of theta_i
-        let se = fisher_se(&prob, &theta, i);
+        let se = fisher_se(prob, theta, i);
         if active[i] {
             let hi = find_crossing(&profile, theta[i], se, opts.ci_lr);
             let lo = if profile(0.0) <= opts.ci_lr {
@@ -382,17 +443,7 @@ pub fn fit_rows(
             terms.push(TermFit { theta: 0.0, included: false, ci95: None, upper95: Some(up), lr: lr[i] });
         }
     }
-    let fitted: Vec<f64> = (0..n).map(|j| prob.mu(j, &theta)).collect();
-    let chi2: f64 = (0..n).map(|j| prob.half_edf[j] * (prob.y[j] / fitted[j] - 1.0).powi(2)).sum();
-    let n_par = active.iter().filter(|a| **a).count();
-    let dof = (n as f64 - n_par as f64).max(1.0);
-    LevelFit {
-        terms,
-        loglik: l_max,
-        edf: prob.half_edf.iter().map(|h| 2.0 * h).collect(),
-        fitted,
-        chi2_per_dof: chi2 / dof,
-    }
+    terms
 }
 
 fn fisher_se(prob: &Problem, theta: &[f64], i: usize) -> f64 {
@@ -521,4 +572,37 @@ mod tests {
         // an absent term is reported at most ~5 % of the time (binomial slack)
         assert!((rrw_false as f64 / runs as f64) < 0.10, "RRW false detections {rrw_false}/{runs}");
     }
+
+    /// A nuisance that only the first rows see, its truth at its zero boundary:
+    /// with it free in sign, the interval of the flat term no longer leans on
+    /// those rows as if the nuisance were known absent; where the rows need it
+    /// far below zero (a misfit), the constrained interval stands.
+    #[test]
+    fn a_signed_nuisance_widens_the_profile_only_when_the_data_allow_it() {
+        let shape = [8.0, 4.0, 2.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+        let phi: Vec<Vec<f64>> = shape.iter().map(|&s| vec![1.0, s]).collect();
+        let edf = vec![2.0e4; shape.len()];
+        let fit = |dip: f64, signed: u64| {
+            let y: Vec<f64> = shape.iter().map(|&s| if s > 0.0 { 1.0 - dip * s / 8.0 } else { 1.0 }).collect();
+            let opts = FitOptions { always_keep: 0b11, signed_in_profile: signed, ..FitOptions::default() };
+            let f = fit_rows(&phi, &y, &edf, &|j, _| edf[j], &opts);
+            let (lo, hi) = f.terms[0].ci95.unwrap();
+            (f.terms[1].theta, lo, hi)
+        };
+        // a dip of half a standard error: the nuisance sits at 0
+        let (nuis, lo0, hi0) = fit(0.005, 0);
+        let (_, lo1, hi1) = fit(0.005, 0b10);
+        assert_eq!(nuis, 0.0);
+        assert!(lo1 <= lo0 && hi1 >= hi0, "[{lo1}, {hi1}] must contain [{lo0}, {hi0}]");
+        assert!(hi1 - lo1 > 1.1 * (hi0 - lo0), "signed [{lo1}, {hi1}] vs constrained [{lo0}, {hi0}]");
+        // six rows alone (the nuisance-free ones) give the flat term's width
+        // sqrt(2/(6 x 2e4)) x 1.96 x 2 in relative terms: the signed interval is no wider
+        let six = 2.0 * 1.959964 * (2.0 / (6.0 * 2.0e4f64)).sqrt();
+        assert!(hi1 - lo1 <= six * 1.05, "signed width {} vs six rows {six}", hi1 - lo1);
+        // a dip of 50 %: the rows want a strongly negative nuisance; unchanged
+        let (_, lo2, hi2) = fit(0.5, 0);
+        let (_, lo3, hi3) = fit(0.5, 0b10);
+        assert_eq!((lo2, hi2), (lo3, hi3));
+    }
+
 }

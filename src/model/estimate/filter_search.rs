@@ -37,6 +37,9 @@ const FO_HI: f64 = 0.49;
 /// the search runs over many candidates).
 pub const FILTER_LR: f64 = 13.8;
 
+/// Column of [`SpectralTerm::WhiteRateComplement`] in [`filtered_terms`].
+pub const COMPLEMENT_COL: usize = 4;
+
 /// The terms of the low-frequency fit with white rate through `filter`:
 /// Q^2 (nuisance), N^2 (the white level at low frequency, filtered), B^2,
 /// K^2, and the part of a white rate the filter removes (white noise added
@@ -45,6 +48,7 @@ pub fn filtered_terms(n_samples: u64, tau0_s: f64, filter: ReadoutFilter) -> Vec
     let mut t = standard_terms(n_samples, tau0_s).to_vec();
     t[1] = SpectralTerm::FilteredWhiteRate { filter };
     t.push(SpectralTerm::WhiteRateComplement { filter });
+    debug_assert_eq!(t.len(), COMPLEMENT_COL + 1);
     t
 }
 
