@@ -116,6 +116,20 @@ impl Prometheus {
         }
     }
 
+    /// Poll `f` every 250 ms until it returns `true` (then `true`), at most `timeout` (then `false`).
+    pub fn wait_ok(&self, timeout: Duration, mut f: impl FnMut() -> bool) -> bool {
+        let start = Instant::now();
+        loop {
+            if f() {
+                return true;
+            }
+            if start.elapsed() > timeout {
+                return false;
+            }
+            std::thread::sleep(Duration::from_millis(250));
+        }
+    }
+
     /// SIGTERM to our own child by its PID, then wait (SIGKILL after 10 s).
     pub fn stop(&mut self) {
         if let Ok(None) = self.child.try_wait() {
