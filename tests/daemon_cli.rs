@@ -259,39 +259,43 @@ fn default_run_is_the_simulated_bench_promtool_clean_and_drains_on_sigterm() {
     );
     // The clean channel lags the input by the wavelet bank's latency (about 31 s
     // of samples with the automatic depth at 1 kHz): wait for its Allan curve.
-    let clean = "sagnac_allan_deviation_degrees_per_hour{channel=\"clean\",tau_seconds=\"0.001\"}";
+    let clean = "sagnac_allan_deviation_degrees_per_hour{channel=\"clean\",gyro=\"gyro\",tau_seconds=\"0.001\"}";
     let text = wait_for("the clean Allan curve", Duration::from_secs(40), || {
         let t = scrape(addr)?;
-        (metric(&t, "sagnac_estimator_updates_total")? >= 2.0 && metric(&t, clean).is_some())
+        (metric(&t, "sagnac_estimator_updates_total{gyro=\"gyro\"}")? >= 2.0 && metric(&t, clean).is_some())
             .then_some(t)
     });
     let (ok, out) = promtool(&text);
     assert!(ok, "promtool check metrics:\n{out}\n---\n{text}");
     // the simulated pulses went through the frame encoder and decoder
-    let frames = metric(&text, "sagnac_frames_decoded_total").unwrap();
-    let samples = metric(&text, "sagnac_samples_total").unwrap();
+    let frames = metric(&text, "sagnac_frames_decoded_total{gyro=\"gyro\"}").unwrap();
+    let samples = metric(&text, "sagnac_samples_total{gyro=\"gyro\"}").unwrap();
     assert!(
         samples >= 4000.0 && frames >= samples,
         "{frames} frames, {samples} samples"
     );
     assert_eq!(
-        metric(&text, "sagnac_frame_errors_total{kind=\"crc\"}"),
+        metric(&text, "sagnac_frame_errors_total{gyro=\"gyro\",kind=\"crc\"}"),
         Some(0.0)
     );
     for series in [
-        "sagnac_qn_arcseconds{bound=\"estimate\"}",
+        "sagnac_qn_arcseconds{bound=\"estimate\",gyro=\"gyro\"}",
         // ARW is not resolved in a few seconds of data: its 95 % upper bound is exported
-        "sagnac_arw_degrees_per_root_hour{bound=\"upper95\"}",
-        "sagnac_allan_deviation_degrees_per_hour{channel=\"raw\",tau_seconds=\"0.001\"}",
-        "sagnac_allan_deviation_degrees_per_hour{channel=\"clean\",tau_seconds=\"0.001\"}",
-        "sagnac_processing_lag_seconds",
-        "sagnac_estimate_latency_seconds",
+        "sagnac_arw_degrees_per_root_hour{bound=\"upper95\",gyro=\"gyro\"}",
+        "sagnac_allan_deviation_degrees_per_hour{channel=\"raw\",gyro=\"gyro\",tau_seconds=\"0.001\"}",
+        "sagnac_allan_deviation_degrees_per_hour{channel=\"clean\",gyro=\"gyro\",tau_seconds=\"0.001\"}",
+        "sagnac_processing_lag_seconds{gyro=\"gyro\"}",
+        "sagnac_estimate_latency_seconds_sum{gyro=\"gyro\"}",
+        "sagnac_estimate_latency_seconds_bucket{gyro=\"gyro\",le=\"+Inf\"}",
         "sagnac_recording_bytes",
     ] {
         let v = metric(&text, series).unwrap_or_else(|| panic!("{series} missing:\n{text}"));
         assert!(v.is_finite() && v >= 0.0, "{series} = {v}");
     }
-    assert_eq!(metric(&text, "sagnac_temperature_celsius"), Some(25.0));
+    assert_eq!(metric(&text, "sagnac_temperature_celsius{gyro=\"gyro\"}"), Some(25.0));
+    // no serial device: no device series (a dashboard would read 0 as "disconnected")
+    assert!(!text.contains("sagnac_device_"), "{text}");
+    assert_eq!(metric(&text, "sagnac_gyro_info{gyro=\"gyro\",model=\"\",serial_number=\"\"}"), Some(1.0));
 
     let t = Instant::now();
     d.sigterm();

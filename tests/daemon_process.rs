@@ -234,6 +234,6 @@ fn the_stage_is_chunking_invariant_keeps_gaps_and_matches_the_pipeline() {
     assert_eq!(per_topic["/gyro/clean"], N);
     assert_eq!(per_topic["/gyro/noise"], N);
     let text = t1.metrics.encode();
-    assert!(text.contains("sagnac_qn_arcseconds{bound=\"estimate\"}"));
-    assert!(text.contains("sagnac_temperature_celsius 25"));
+    assert!(text.contains("sagnac_qn_arcseconds{bound=\"estimate\",gyro=\"gyro\"}"), "{text}");
+    assert!(text.contains("sagnac_temperature_celsius{gyro=\"gyro\"} 25\n"), "{text}");
 }

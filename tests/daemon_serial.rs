@@ -65,20 +65,20 @@ fn exact_counts(text: &str, l: &Ledger) {
     let e = &l.expected;
     for (series, want) in [
         ("sagnac_bytes_read_total", e.bytes_read),
-        ("sagnac_frames_decoded_total", e.frames_decoded),
-        ("sagnac_samples_total", e.samples),
-        ("sagnac_lost_samples_total", e.lost_samples),
-        ("sagnac_frame_errors_total{kind=\"crc\"}", e.crc_errors),
+        ("sagnac_frames_decoded_total{gyro=\"gyro\"}", e.frames_decoded),
+        ("sagnac_samples_total{gyro=\"gyro\"}", e.samples),
+        ("sagnac_lost_samples_total{gyro=\"gyro\"}", e.lost_samples),
+        ("sagnac_frame_errors_total{gyro=\"gyro\",kind=\"crc\"}", e.crc_errors),
         (
-            "sagnac_frame_errors_total{kind=\"false_sync\"}",
+            "sagnac_frame_errors_total{gyro=\"gyro\",kind=\"false_sync\"}",
             e.false_syncs,
         ),
-        ("sagnac_frame_errors_total{kind=\"truncated\"}", 0),
+        ("sagnac_frame_errors_total{gyro=\"gyro\",kind=\"truncated\"}", 0),
         (
-            "sagnac_sequence_anomalies_total{kind=\"duplicate\"}",
+            "sagnac_sequence_anomalies_total{gyro=\"gyro\",kind=\"duplicate\"}",
             e.duplicates,
         ),
-        ("sagnac_dropped_samples_total", 0),
+        ("sagnac_dropped_samples_total{gyro=\"gyro\"}", 0),
     ] {
         assert_eq!(metric(text, series), Some(want as f64), "{series}");
     }
@@ -174,7 +174,7 @@ fn serial_pty_exact_counts_live_qn_promtool_sigterm_and_every_pulse_recorded() {
     // 60 000 sample periods at 10 s per update: 6 updates.
     let text = wait_metric(
         addr,
-        "sagnac_estimator_updates_total",
+        "sagnac_estimator_updates_total{gyro=\"gyro\"}",
         6.0,
         Duration::from_secs(30),
     );
@@ -183,9 +183,9 @@ fn serial_pty_exact_counts_live_qn_promtool_sigterm_and_every_pulse_recorded() {
     // Live QN against the model's truth: inside the estimator's own 95 % interval
     // (about +-3 % on 60 s of data), and within 3 % (the model's readout is a
     // sawtooth, not white noise, see config/paper_gyro.toml).
-    let qn = metric(&text, "sagnac_qn_arcseconds{bound=\"estimate\"}").unwrap_or_else(|| panic!("{}", text.lines().filter(|l| l.contains("qn") || l.contains("arw") || l.contains("lost") || l.contains("samples")).collect::<Vec<_>>().join("\n")));
-    let lo = metric(&text, "sagnac_qn_arcseconds{bound=\"lower95\"}").unwrap();
-    let hi = metric(&text, "sagnac_qn_arcseconds{bound=\"upper95\"}").unwrap();
+    let qn = metric(&text, "sagnac_qn_arcseconds{bound=\"estimate\",gyro=\"gyro\"}").unwrap_or_else(|| panic!("{}", text.lines().filter(|l| l.contains("qn") || l.contains("arw") || l.contains("lost") || l.contains("samples")).collect::<Vec<_>>().join("\n")));
+    let lo = metric(&text, "sagnac_qn_arcseconds{bound=\"lower95\",gyro=\"gyro\"}").unwrap();
+    let hi = metric(&text, "sagnac_qn_arcseconds{bound=\"upper95\",gyro=\"gyro\"}").unwrap();
     eprintln!("live QN {qn} [{lo}, {hi}] arcsec (truth {TRUE_QN_ARCSEC})");
     assert!(lo <= qn && qn <= hi);
     assert!(
@@ -197,8 +197,8 @@ fn serial_pty_exact_counts_live_qn_promtool_sigterm_and_every_pulse_recorded() {
         "QN {qn}"
     );
     // the temperature of the frames (25.00 deg C) reached the gauge
-    assert_eq!(metric(&text, "sagnac_temperature_celsius"), Some(25.0));
-    assert_eq!(metric(&text, "sagnac_device_connected"), Some(1.0));
+    assert_eq!(metric(&text, "sagnac_temperature_celsius{gyro=\"gyro\"}"), Some(25.0));
+    assert_eq!(metric(&text, "sagnac_device_connected{gyro=\"gyro\"}"), Some(1.0));
 
     let (ok, out) = promtool(&text);
     assert!(
@@ -270,7 +270,7 @@ fn serial_device_vanishes_and_returns_angle_continuity_and_exact_loss() {
     socat.stop(); // the device vanishes: the daemon reads EOF
     wait_metric(
         addr,
-        "sagnac_device_connected",
+        "sagnac_device_connected{gyro=\"gyro\"}",
         0.0,
         Duration::from_secs(10),
     );
@@ -278,7 +278,7 @@ fn serial_device_vanishes_and_returns_angle_continuity_and_exact_loss() {
     let socat = Socat::start(&a_path, &b_path); // and comes back
     wait_metric(
         addr,
-        "sagnac_device_reconnects_total",
+        "sagnac_device_reconnects_total{gyro=\"gyro\"}",
         1.0,
         Duration::from_secs(10),
     );
@@ -293,7 +293,7 @@ fn serial_device_vanishes_and_returns_angle_continuity_and_exact_loss() {
     // the decoder's counts continue across the reconnect: still exact
     let text = wait_metric(
         addr,
-        "sagnac_estimator_updates_total",
+        "sagnac_estimator_updates_total{gyro=\"gyro\"}",
         4.0,
         Duration::from_secs(30),
     );
@@ -354,11 +354,11 @@ fn serial_overload_drops_are_counted_recorded_and_lose_no_angle() {
     let text = wait_for("drops", Duration::from_secs(30), || {
         let t = scrape(addr)?;
         most_queued = most_queued.max(metric(&t, "sagnac_pipeline_queue_bytes")?);
-        (metric(&t, "sagnac_dropped_samples_total")? > 0.0).then_some(t)
+        (metric(&t, "sagnac_dropped_samples_total{gyro=\"gyro\"}")? > 0.0).then_some(t)
     });
     assert_eq!(metric(&text, "sagnac_pipeline_queue_budget_bytes"), Some(budget));
     assert!(most_queued <= budget, "queued {most_queued} bytes, budget {budget}");
-    eprintln!("dropped so far: {:?}", metric(&text, "sagnac_dropped_samples_total"));
+    eprintln!("dropped so far: {:?}", metric(&text, "sagnac_dropped_samples_total{gyro=\"gyro\"}"));
     // then the rest at real time: the pipeline catches up, and later batches carry
     // the pulses of the dropped ones
     write_paced(&mut w, &bytes[burst..], RATE_HZ * 16.0).unwrap();
@@ -368,9 +368,9 @@ fn serial_overload_drops_are_counted_recorded_and_lose_no_angle() {
     let text = scrape(addr).unwrap();
     let queued = metric(&text, "sagnac_pipeline_queue_bytes").unwrap();
     assert!(queued <= budget, "queued {queued} bytes, budget {budget}");
-    let dropped = metric(&text, "sagnac_dropped_samples_total").unwrap();
+    let dropped = metric(&text, "sagnac_dropped_samples_total{gyro=\"gyro\"}").unwrap();
     assert!(dropped > 0.0);
-    assert_eq!(metric(&text, "sagnac_lost_samples_total"), Some(0.0), "nothing lost on the wire");
+    assert_eq!(metric(&text, "sagnac_lost_samples_total{gyro=\"gyro\"}"), Some(0.0), "nothing lost on the wire");
     let peak = peak_rss_bytes(daemon.child.id()).unwrap();
     assert!(peak < 128 << 20, "peak RSS {} MB", peak >> 20);
 
@@ -432,11 +432,11 @@ fn issue_13_a_600_s_burst_at_full_speed_drops_nothing_and_equals_analyze() {
         metric(&text, "sagnac_pipeline_queue_bytes")
     );
     assert_eq!(metric(&text, "sagnac_pipeline_queue_budget_bytes"), Some(16.0 * 1024.0 * 1024.0));
-    wait_metric(addr, "sagnac_estimator_updates_total", 10.0, Duration::from_secs(120));
+    wait_metric(addr, "sagnac_estimator_updates_total{gyro=\"gyro\"}", 10.0, Duration::from_secs(120));
     let text = wait_metric(addr, "sagnac_pipeline_queue_bytes", 0.0, Duration::from_secs(10));
-    assert_eq!(metric(&text, "sagnac_dropped_samples_total"), Some(0.0));
-    assert_eq!(metric(&text, "sagnac_lost_samples_total"), Some(0.0));
-    assert_eq!(metric(&text, "sagnac_samples_total"), Some(600_000.0));
+    assert_eq!(metric(&text, "sagnac_dropped_samples_total{gyro=\"gyro\"}"), Some(0.0));
+    assert_eq!(metric(&text, "sagnac_lost_samples_total{gyro=\"gyro\"}"), Some(0.0));
+    assert_eq!(metric(&text, "sagnac_samples_total{gyro=\"gyro\"}"), Some(600_000.0));
 
     daemon.sigterm();
     let status = daemon.wait(Duration::from_secs(20));

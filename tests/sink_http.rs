@@ -7,7 +7,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use sagnac::daemon::http::{DEFAULT_METRICS_ADDR, bind};
-use sagnac::sink::metrics::{Bounds95, FrameErrorKind, Metrics};
+use sagnac::sink::metrics::{Bounds95, FrameErrorKind, GyroInfo, Metrics};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpStream;
 use tokio::sync::watch;
@@ -52,9 +52,10 @@ async fn serves_metrics_and_404() {
     assert_ne!(addr.port(), 0);
     let server = tokio::spawn(server);
 
-    metrics.add_samples(500);
-    metrics.add_frame_errors(FrameErrorKind::Crc, 2);
-    metrics.set_qn_arcsec(Bounds95 {
+    let gyro = metrics.gyro(&GyroInfo::labelled("gyro"));
+    gyro.add_samples(500);
+    gyro.add_frame_errors(FrameErrorKind::Crc, 2);
+    gyro.set_qn_arcsec(Bounds95 {
         estimate: Some(0.25),
         lower95: Some(0.2),
         upper95: Some(0.3),
@@ -65,21 +66,21 @@ async fn serves_metrics_and_404() {
         head.contains("content-type: text/plain; version=0.0.4"),
         "{head}"
     );
-    assert_eq!(value(&body, "sagnac_samples_total"), Some(500.0));
+    assert_eq!(value(&body, "sagnac_samples_total{gyro=\"gyro\"}"), Some(500.0));
     assert_eq!(
-        value(&body, "sagnac_frame_errors_total{kind=\"crc\"}"),
+        value(&body, "sagnac_frame_errors_total{gyro=\"gyro\",kind=\"crc\"}"),
         Some(2.0)
     );
     assert_eq!(
-        value(&body, "sagnac_qn_arcseconds{bound=\"lower95\"}"),
+        value(&body, "sagnac_qn_arcseconds{bound=\"lower95\",gyro=\"gyro\"}"),
         Some(0.2)
     );
 
     // Live: the next scrape sees the update.
-    metrics.add_samples(24);
+    gyro.add_samples(24);
     metrics.set_recording_bytes(4096);
     let (_, _, body) = request(addr, "GET", "/metrics?x=1").await;
-    assert_eq!(value(&body, "sagnac_samples_total"), Some(524.0));
+    assert_eq!(value(&body, "sagnac_samples_total{gyro=\"gyro\"}"), Some(524.0));
     assert_eq!(value(&body, "sagnac_recording_bytes"), Some(4096.0));
 
     for (method, path) in [

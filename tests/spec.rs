@@ -16,7 +16,7 @@ use daemon_common::{DaemonProc, only_recording, promtool, repo};
 use sagnac::model::estimate::{Coefficient, NoiseEstimates};
 use sagnac::model::spec::{SequentialSpec, Spec, SpecCoefficient, Verdict};
 use sagnac::sink::messages::SinkMessage;
-use sagnac::sink::metrics::Metrics;
+use sagnac::sink::metrics::{GyroInfo, Metrics};
 
 fn sagnac(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_sagnac"))
@@ -461,21 +461,22 @@ fn run_stops_when_decided_with_a_finished_recording_holding_the_verdicts() {
 
 #[test]
 fn spec_metrics_are_promtool_clean() {
-    let m = Metrics::new().unwrap();
+    let metrics = Metrics::new().unwrap();
+    let m = metrics.gyro(&GyroInfo::labelled("gyro"));
     assert!(
-        !m.encode().contains("sagnac_spec_"),
+        !metrics.encode().contains("sagnac_spec_"),
         "no spec series without a spec"
     );
     m.set_spec("overall", -1.0, None, None);
     m.set_spec("arw_dpsh", 1.0, Some(0.0035), Some(0.0));
     m.set_spec("bias_instability_dph", 0.0, Some(0.005), None);
     m.set_spec("quantization_arcsec", -1.0, Some(0.5), Some(0.0));
-    let text = m.encode();
+    let text = metrics.encode();
     for series in [
-        "sagnac_spec_verdict{coefficient=\"overall\"} -1",
-        "sagnac_spec_verdict{coefficient=\"arw_dpsh\"} 1",
-        "sagnac_spec_limit{coefficient=\"arw_dpsh\"} 0.0035",
-        "sagnac_spec_decision_eta_seconds{coefficient=\"bias_instability_dph\"} NaN",
+        "sagnac_spec_verdict{coefficient=\"overall\",gyro=\"gyro\"} -1",
+        "sagnac_spec_verdict{coefficient=\"arw_dpsh\",gyro=\"gyro\"} 1",
+        "sagnac_spec_limit{coefficient=\"arw_dpsh\",gyro=\"gyro\"} 0.0035",
+        "sagnac_spec_decision_eta_seconds{coefficient=\"bias_instability_dph\",gyro=\"gyro\"} NaN",
     ] {
         assert!(text.contains(series), "{series} in\n{text}");
     }

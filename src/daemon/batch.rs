@@ -296,10 +296,7 @@ impl Assembler {
             ),
             DecodeEvent::Duplicate { seq, offset } => {
                 tracing::debug!(seq, offset, "duplicate frame dropped");
-                self.telemetry
-                    .sequence_anomalies
-                    .with_label_values(&[ANOMALY_DUPLICATE])
-                    .inc();
+                self.telemetry.add_sequence_anomaly(ANOMALY_DUPLICATE);
             }
             DecodeEvent::OutOfSequence {
                 seq,
@@ -307,10 +304,7 @@ impl Assembler {
                 offset,
             } => {
                 tracing::warn!(seq, expected, offset, "out-of-sequence frame dropped");
-                self.telemetry
-                    .sequence_anomalies
-                    .with_label_values(&[ANOMALY_OUT_OF_SEQUENCE])
-                    .inc();
+                self.telemetry.add_sequence_anomaly(ANOMALY_OUT_OF_SEQUENCE);
             }
             DecodeEvent::Discontinuity {
                 from_seq,
@@ -324,10 +318,7 @@ impl Assembler {
                     "sequence discontinuity: the gyro or the link restarted; new baseline, \
                      the angle across the break is unknown and not counted"
                 );
-                self.telemetry
-                    .sequence_anomalies
-                    .with_label_values(&[ANOMALY_DISCONTINUITY])
-                    .inc();
+                self.telemetry.add_sequence_anomaly(ANOMALY_DISCONTINUITY);
                 // New time segment, anchored on the host clock at the next sample.
                 self.anchor = None;
                 self.next_new_segment = true;
@@ -340,7 +331,7 @@ impl Assembler {
                 if trailing_bytes > 0 {
                     self.truncated += 1;
                     self.telemetry
-                        .metrics
+                            .gyro
                         .add_frame_errors(FrameErrorKind::Truncated, 1);
                     let from = at_offset.saturating_sub(trailing_bytes);
                     tracing::warn!(
@@ -362,9 +353,9 @@ impl Assembler {
 
     /// Count what the decoder did since the last call in the metrics.
     pub fn sync_stats(&mut self, stats: &DecoderStats) {
-        let m = &self.telemetry.metrics;
+        let m = &self.telemetry.gyro;
         let old = self.stats;
-        m.add_bytes_read(stats.bytes_read - old.bytes_read);
+        self.telemetry.metrics.add_bytes_read(stats.bytes_read - old.bytes_read);
         m.add_frames_decoded(stats.frames_decoded - old.frames_decoded);
         m.add_samples(stats.samples - old.samples);
         m.add_lost_samples(stats.lost_samples - old.lost_samples);
@@ -704,8 +695,8 @@ mod tests {
             }
         );
         let text = t.metrics.encode();
-        assert!(text.contains("sagnac_lost_samples_total 3"), "{text}");
-        assert!(text.contains("sagnac_samples_total 197"), "{text}");
+        assert!(text.contains("sagnac_lost_samples_total{gyro=\"gyro\"} 3\n"), "{text}");
+        assert!(text.contains("sagnac_samples_total{gyro=\"gyro\"} 197\n"), "{text}");
     }
 
     #[test]

@@ -104,12 +104,42 @@ pub struct GyroConfig {
     pub rate_hz: f64,
     /// Angle per counter pulse, arcsec.
     pub pulse_arcsec: f64,
+    /// Serial number of the unit on this bench (the `serial_number` label of
+    /// `sagnac_gyro_info`); empty = not given.
+    pub serial_number: String,
+    /// Model name of the unit (the `model` label of `sagnac_gyro_info`); empty = not given.
+    pub model_name: String,
 }
 
 impl Default for GyroConfig {
     fn default() -> Self {
-        GyroConfig { rate_hz: 1000.0, pulse_arcsec: 1.21 }
+        GyroConfig { rate_hz: 1000.0, pulse_arcsec: 1.21, serial_number: String::new(), model_name: String::new() }
     }
+}
+
+/// Longest `gyro.serial_number` and `gyro.model_name`, characters.
+pub const GYRO_NAME_MAX_CHARS: usize = 128;
+
+impl GyroConfig {
+    /// The metrics' description of this gyro under the label `label`.
+    pub fn info(&self, label: &str) -> crate::sink::metrics::GyroInfo {
+        crate::sink::metrics::GyroInfo {
+            label: label.to_string(),
+            serial_number: self.serial_number.clone(),
+            model: self.model_name.clone(),
+        }
+    }
+}
+
+/// A label value given in the config: printable, at most [`GYRO_NAME_MAX_CHARS`].
+fn label_value(key: &'static str, v: &str) -> Result<(), ConfigError> {
+    if v.chars().count() > GYRO_NAME_MAX_CHARS {
+        return Err(invalid(key, format!("{} characters", v.chars().count()), "must be at most 128 characters"));
+    }
+    if v.chars().any(char::is_control) {
+        return Err(invalid(key, format!("{v:?}"), "must not contain control characters (newline, tab, ...)"));
+    }
+    Ok(())
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -276,6 +306,8 @@ impl Config {
     pub fn validate(&self) -> Result<(), ConfigError> {
         positive("gyro.rate_hz", self.gyro.rate_hz)?;
         positive("gyro.pulse_arcsec", self.gyro.pulse_arcsec)?;
+        label_value("gyro.serial_number", &self.gyro.serial_number)?;
+        label_value("gyro.model_name", &self.gyro.model_name)?;
         match self.source.kind {
             SourceKind::Serial => {
                 if self.source.serial_path.is_empty() {
@@ -357,7 +389,12 @@ mod tests {
 
     #[test]
     fn unknown_keys_are_rejected_at_every_level() {
-        for (text, key) in [("bogus = 1", "bogus"), ("[gyro]\nrate = 5", "rate"), ("[record]\nflush_s = 1", "flush_s")] {
+        for (text, key) in [
+            ("bogus = 1", "bogus"),
+            ("[gyro]\nrate = 5", "rate"),
+            ("[gyro]\nserial = \"A1\"", "serial"),
+            ("[record]\nflush_s = 1", "flush_s"),
+        ] {
             let err = Config::from_toml(text, Path::new("x.toml")).unwrap_err().to_string();
             assert!(err.contains(key) && err.contains("x.toml"), "{err}");
         }
@@ -380,7 +417,12 @@ mod tests {
             ("[source]\nqueue_budget_mib = 1e9", "source.queue_budget_mib"),
             ("[source]\nqueue_budget_mib = nan", "source.queue_budget_mib"),
             ("[run]\nchannel_capacity = 0", "run.channel_capacity"),
+            ("[gyro]\nserial_number = \"SN\\n1\"", "gyro.serial_number"),
+            ("[gyro]\nmodel_name = \"tab\\there\"", "gyro.model_name"),
         ];
+        let long = format!("[gyro]\nmodel_name = \"{}\"", "m".repeat(GYRO_NAME_MAX_CHARS + 1));
+        let err = Config::from_toml(&long, Path::new("x.toml")).unwrap().validate().unwrap_err().to_string();
+        assert!(err.contains("gyro.model_name") && err.contains("129 characters"), "{err}");
         for (text, key) in cases {
             let cfg = Config::from_toml(text, Path::new("x.toml")).unwrap();
             let err = cfg.validate().unwrap_err().to_string();

@@ -522,7 +522,7 @@ impl Run<'_> {
         }
         if let Some(t) = b.temp_c {
             self.temp_c = Some(t);
-            self.out.telemetry.metrics.set_temperature_c(Some(t));
+            self.out.telemetry.gyro.set_temperature_c(Some(t));
         }
         if let Some(s) = b.status {
             self.status = s;
@@ -644,7 +644,7 @@ impl Run<'_> {
         if let Some(a) = newest {
             self.out
                 .telemetry
-                .metrics
+                .gyro
                 .set_processing_lag_s(a.elapsed().as_secs_f64());
         }
     }
@@ -659,7 +659,7 @@ impl Run<'_> {
 
     fn publish(&mut self, a: &Analysis, arrived: Instant, last: bool) {
         let tel = self.out.telemetry.clone();
-        let m = &tel.metrics;
+        let m = &tel.gyro;
         let e = &a.estimates;
         m.set_qn_arcsec(bounds(&e.quantization_arcsec));
         m.set_arw_dpsh(bounds(&e.arw_dpsh));
@@ -678,7 +678,7 @@ impl Run<'_> {
         tel.estimator_updates.inc();
         let latency = arrived.elapsed().as_secs_f64();
         if !last {
-            tel.estimate_latency.set(latency);
+            tel.estimate_latency.observe(latency);
             self.max_latency_s = self.max_latency_s.max(latency);
         }
         self.updates += 1;
@@ -726,7 +726,7 @@ impl Run<'_> {
         let seen = spec.monitor.observe(&a.estimates, a.duration_s);
         let report = spec.monitor.report();
         let all_decided = spec.monitor.all_decided();
-        let m = &self.out.telemetry.metrics;
+        let m = &self.out.telemetry.gyro;
         m.set_spec("overall", report.verdict.metric(), None, None);
         for (name, c) in &report.coefficients {
             let eta = if c.verdict == Verdict::Undecided { c.eta_s } else { Some(0.0) };

@@ -344,7 +344,8 @@ impl Daemon {
         if let Source::Serial(s) = &mut source {
             s.open()?;
         }
-        let telemetry = Telemetry::new(Arc::new(Metrics::new()?))?;
+        let gyro = config.gyro.info(crate::sink::metrics::DEFAULT_GYRO);
+        let telemetry = Telemetry::new(Arc::new(Metrics::new()?), &gyro)?;
         let (drain_guard, drained) = shutdown::drain_channel();
 
         // The metrics server stops last, after the final estimates are in.

@@ -455,11 +455,11 @@ impl ReplaySource {
             b.gaps = raw.gaps;
             let periods = b.periods();
             let lost: u64 = b.gaps.iter().map(|g| g.lost).sum();
-            let m = &telemetry.metrics;
-            m.add_samples(b.counts.len() as u64);
-            m.add_lost_samples(lost);
+            let g = &telemetry.gyro;
+            g.add_samples(b.counts.len() as u64);
+            g.add_lost_samples(lost);
             let now_read = reader.offset();
-            m.add_bytes_read(now_read - read_bytes);
+            telemetry.metrics.add_bytes_read(now_read - read_bytes);
             read_bytes = now_read;
             report.samples += b.counts.len() as u64;
             report.periods += periods;

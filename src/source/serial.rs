@@ -182,7 +182,8 @@ impl SerialSource {
         let cfg = self.config;
         let device = cfg.path.display().to_string();
         let open = || tokio_serial::new(device.clone(), cfg.baud).open_native_async();
-        telemetry.device_connected.set(1);
+        let device_metrics = telemetry.device();
+        device_metrics.connected.set(1);
         let pipeline_err = |source| SerialError::Pipeline {
             path: cfg.path.clone(),
             source,
@@ -205,8 +206,8 @@ impl SerialSource {
                 match open() {
                     Ok(p) => {
                         tracing::info!(device, "serial device reconnected");
-                        telemetry.device_connected.set(1);
-                        telemetry.device_reconnects.inc();
+                        device_metrics.connected.set(1);
+                        device_metrics.reconnects.inc();
                         asm.push_event(
                             wall_ns(),
                             EventKind::DeviceReconnected {
@@ -256,7 +257,7 @@ impl SerialSource {
                     reason,
                     "serial device went away; reconnecting with backoff"
                 );
-                telemetry.device_connected.set(0);
+                device_metrics.connected.set(0);
                 asm.push_event(
                     now,
                     EventKind::DeviceDisconnected {
