@@ -194,6 +194,10 @@ fn serialize_rates<S: serde::Serializer>(values: &[f64], s: S) -> Result<S::Ok, 
     s.collect_seq(values.iter().map(|&v| quantize_rate(v)))
 }
 
+fn serialize_rate<S: serde::Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_f64(quantize_rate(*v))
+}
+
 /// `/gyro/estimates`: one estimator update, with the fields of `sagnac analyze
 /// --json` of the same name: `samples`, `duration_s` and `estimates` (the five
 /// coefficients `quantization_arcsec`, `arw_dpsh`, `bias_instability_dph`,
@@ -256,7 +260,8 @@ impl Timestamp {
 /// at the end of the run. The rates are means over the window's periods: the raw
 /// rate of the gap-filled pulse increments (`pulses x pulse_arcsec x rate_hz`,
 /// what the pipeline sees) and the wavelet-cleaned rate of the same periods
-/// (before the 1e-3 deg/h rounding of `/gyro/clean`).
+/// (of the values before the rounding of `/gyro/clean`); both are recorded on
+/// the same 1e-3 deg/h grid ([`quantize_rate`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SummaryUpdate {
@@ -266,9 +271,11 @@ pub struct SummaryUpdate {
     pub samples: u64,
     /// Of those, periods whose sample was lost (gap-filled).
     pub lost_samples: u64,
-    /// Mean raw rate, deg/h.
+    /// Mean raw rate, deg/h (recorded to 1e-3 deg/h).
+    #[serde(serialize_with = "serialize_rate")]
     pub raw_rate_dph: f64,
-    /// Mean wavelet-cleaned rate, deg/h.
+    /// Mean wavelet-cleaned rate, deg/h (recorded to 1e-3 deg/h).
+    #[serde(serialize_with = "serialize_rate")]
     pub clean_rate_dph: f64,
     /// Device temperature, deg C (the last one received in the window), when the frames carry one.
     pub temp_c: Option<f64>,
@@ -505,7 +512,8 @@ impl SinkMessage {
     }
 
     /// The message as a recording gives it back: rate values (`/gyro/clean`,
-    /// `/gyro/noise`) on the 1e-3 deg/h grid ([`quantize_rate`]), all else unchanged.
+    /// `/gyro/noise`, the rates of `/gyro/summary`) on the 1e-3 deg/h grid
+    /// ([`quantize_rate`]), all else unchanged.
     pub fn recorded(&self) -> SinkMessage {
         let q = |m: &RateBatch| RateBatch {
             t0_ns: m.t0_ns,
@@ -515,6 +523,11 @@ impl SinkMessage {
         match self {
             SinkMessage::Clean(m) => SinkMessage::Clean(q(m)),
             SinkMessage::Noise(m) => SinkMessage::Noise(q(m)),
+            SinkMessage::Summary(m) => SinkMessage::Summary(SummaryUpdate {
+                raw_rate_dph: quantize_rate(m.raw_rate_dph),
+                clean_rate_dph: quantize_rate(m.clean_rate_dph),
+                ..m.clone()
+            }),
             other => other.clone(),
         }
     }
@@ -999,8 +1012,8 @@ fn summary_update_schema() -> Value {
             "timestamp": timestamp,
             "samples": uint("sample periods in the window (gap-filled ones included)"),
             "lost_samples": uint("periods of the window whose sample was lost (gap-filled)"),
-            "raw_rate_dph": number("mean raw rate over the window, deg/h"),
-            "clean_rate_dph": number("mean wavelet-cleaned rate over the window, deg/h"),
+            "raw_rate_dph": number("mean raw rate over the window, deg/h, recorded to 1e-3 deg/h"),
+            "clean_rate_dph": number("mean wavelet-cleaned rate over the window, deg/h, recorded to 1e-3 deg/h"),
             "temp_c": nullable_number("device temperature, deg C (null: the frames carry none)"),
         }),
     )
