@@ -3,9 +3,11 @@
 via `zstandard`); prints a JSON summary that tests/sink_mcap.rs compares with what
 the Rust recorder wrote.
 
-Usage: scripts/read-mcap.py [--no-schema] RECORDING.mcap
+Usage: scripts/read-mcap.py [--no-schema] [--summary] RECORDING.mcap
   --no-schema   skip the JSON Schema validation (slow on long recordings);
                 schema_valid is then null
+  --summary     also recompute the /gyro/summary windows from /gyro/raw and
+                /gyro/clean (keys summary_recorded and summary_expected)
 
 Summary keys:
   messages              total messages (indexed read, file order)
@@ -18,7 +20,7 @@ Summary keys:
   values_total          topic -> number of values on /gyro/clean and /gyro/noise
   events_by_kind        kind -> count on /gyro/events
   time_mismatches       messages whose log_time or publish_time differs from the
-                        payload time (t0_ns or t_ns)
+                        payload time (t0_ns, t_ns, or timestamp {sec, nsec})
   schema_valid          messages valid against their channel's JSON Schema, checked
                         with the `jsonschema` package, or null when it is missing
   schema_invalid        list of the first validation errors (empty when valid)
@@ -29,6 +31,18 @@ Summary keys:
                         `sagnac` record: sample_rate_hz, output, pulse_arcsec,
                         model or config, sagnac_version), read through the
                         summary's metadata index
+  summary_recorded      (--summary) the /gyro/summary messages in log-time order,
+                        each [t_ns, samples, lost_samples, raw_rate_dph,
+                        clean_rate_dph, temp_c]
+  summary_expected      (--summary) the same windows recomputed here: the raw
+                        counts with each gap's pulses spread over its periods as
+                        integers (floor(I*(j+1)/n) - floor(I*j/n)), cut into
+                        windows of round(sample_rate_hz * 0.1) periods from the
+                        first sample, the raw mean times pulse_arcsec *
+                        sample_rate_hz (deg/h), the clean mean of /gyro/clean
+                        (recorded to 1e-3 deg/h); temp_c is [min, max] of the
+                        raw batches' temperatures. Assumes one time segment
+                        (sample times uniform from the first sample).
 """
 
 import json
@@ -42,10 +56,59 @@ except ImportError:  # pragma: no cover
     jsonschema = None
 
 
+def payload_time(payload):
+    """The time a message states: t0_ns, t_ns, or Foxglove's {sec, nsec}."""
+    if "timestamp" in payload:
+        ts = payload["timestamp"]
+        return ts["sec"] * 1_000_000_000 + ts["nsec"]
+    return payload.get("t0_ns", payload.get("t_ns"))
+
+
+def spread(total, n):
+    """The integer shares of a gap sample's increment over its n periods."""
+    return [(total * (j + 1)) // n - (total * j) // n for j in range(n)]
+
+
+def expected_summary(raw, clean, metadata):
+    """The /gyro/summary windows recomputed from the raw and clean channels."""
+    meta = metadata.get("sagnac", {})
+    rate_hz = float(meta["sample_rate_hz"])
+    pulse = float(meta.get("pulse_arcsec", "1"))
+    window = max(1, round(rate_hz * 0.1))
+    periods, filled, temps = [], [], []
+    raw.sort(key=lambda p: p["t0_ns"])
+    t_first = raw[0]["t0_ns"] if raw else 0
+    dt_ns = raw[0]["dt_ns"] if raw else 0
+    for b in raw:
+        lost_at = {g["index"]: g["lost"] for g in b["gaps"]}
+        for i, c in enumerate(b["counts"]):
+            n = lost_at.get(i, 0) + 1
+            periods.extend(spread(c, n))
+            filled.extend([True] * (n - 1) + [False])
+        if b["temp_c"] is not None:
+            temps.append(b["temp_c"])
+    clean.sort(key=lambda p: p["t0_ns"])
+    clean_values = [v for b in clean for v in b["values"]]
+    out = []
+    for a in range(0, len(periods), window):
+        e = min(a + window, len(periods))
+        n = e - a
+        out.append([
+            t_first + round(a * 1e9 / rate_hz) if dt_ns else 0,
+            n,
+            sum(filled[a:e]),
+            sum(periods[a:e]) / n * pulse * rate_hz,
+            sum(clean_values[a:e]) / n if e <= len(clean_values) else None,
+            [min(temps), max(temps)] if temps else None,
+        ])
+    return out
+
+
 def main() -> int:
     args = sys.argv[1:]
     check_schemas = "--no-schema" not in args
-    args = [a for a in args if a != "--no-schema"]
+    want_summary = "--summary" in args
+    args = [a for a in args if a not in ("--no-schema", "--summary")]
     if len(args) != 1:
         print(__doc__, file=sys.stderr)
         return 2
@@ -64,6 +127,7 @@ def main() -> int:
     last_estimates = None
     last_estimates_time = -1
     gap_lost_total = 0
+    raw_payloads, clean_payloads, summaries = [], [], []
 
     with open(path, "rb") as f:
         reader = make_reader(f, validate_crcs=True)
@@ -84,9 +148,15 @@ def main() -> int:
                 schema.encoding if schema else None,
             ]
             payload = json.loads(message.data)
-            t = payload.get("t0_ns", payload.get("t_ns"))
+            t = payload_time(payload)
             if message.log_time != t or message.publish_time != t:
                 time_mismatches += 1
+            if want_summary and topic == "/gyro/raw":
+                raw_payloads.append(payload)
+            elif want_summary and topic == "/gyro/clean":
+                clean_payloads.append(payload)
+            elif want_summary and topic == "/gyro/summary":
+                summaries.append(payload)
             if topic == "/gyro/raw":
                 raw_samples += len(payload["counts"])
                 raw_counts_total += sum(payload["counts"])
@@ -115,9 +185,18 @@ def main() -> int:
                 else:
                     schema_valid += 1
 
+    extra = {}
+    if want_summary:
+        summaries.sort(key=payload_time)
+        extra["summary_recorded"] = [
+            [payload_time(m), m["samples"], m["lost_samples"], m["raw_rate_dph"], m["clean_rate_dph"], m["temp_c"]]
+            for m in summaries
+        ]
+        extra["summary_expected"] = expected_summary(raw_payloads, clean_payloads, metadata)
     print(
         json.dumps(
             {
+                **extra,
                 "messages": messages,
                 "channels": channels,
                 "encodings": encodings,

@@ -12,6 +12,23 @@
 //! | `_dphsh` | rate random walk K, deg/h/sqrt(h) | 1/60 arcsec/s/sqrt(s) |
 //! | `_dphh` | rate ramp R, deg/h/h | 1/3600 arcsec/s^2 |
 
+/// The IEEE 952 coefficients as every output names them (`analyze --json`,
+/// MCAP `/gyro/estimates`, the live status line, the spec files): key, unit,
+/// and what it is. The key carries the unit; this table says it in words for
+/// the JSON outputs' `units` objects and the MCAP schema.
+pub const COEFFICIENTS: [(&str, &str, &str); 5] = [
+    ("quantization_arcsec", "arcsec", "quantization noise Q"),
+    ("arw_dpsh", "deg/sqrt(h)", "angle random walk N"),
+    ("bias_instability_dph", "deg/h", "bias instability B"),
+    ("rrw_dphsh", "deg/h/sqrt(h)", "rate random walk K"),
+    ("rate_ramp_dphh", "deg/h/h", "rate ramp R"),
+];
+
+/// The unit of the coefficient `key` of [`COEFFICIENTS`].
+pub fn coefficient_unit(key: &str) -> Option<&'static str> {
+    COEFFICIENTS.iter().find(|(k, _, _)| *k == key).map(|(_, u, _)| *u)
+}
+
 /// Arcseconds in one degree.
 pub const ARCSEC_PER_DEG: f64 = 3600.0;
 /// Seconds in one hour.

@@ -48,6 +48,18 @@ fn json_contract_and_values_on_a_simulated_run() {
     for k in ["quantization_arcsec", "arw_dpsh", "bias_instability_dph", "rrw_dphsh", "rate_ramp_dphh"] {
         check_coefficient(&v["estimates"][k], k);
     }
+    // the JSON says its units and input settings
+    assert_eq!(v["sagnac_version"], env!("CARGO_PKG_VERSION"));
+    assert_eq!(
+        v["input"],
+        serde_json::json!({"path": csv.to_str().unwrap(), "format": "csv", "sample_rate_hz": 1000.0, "pulse_arcsec": 1.21,
+                           "column": "counts", "unit": "counts", "origin": "given on the command line"})
+    );
+    for (key, unit, _) in sagnac::units::COEFFICIENTS {
+        assert_eq!(v["units"][format!("estimates.{key}")], unit, "{key}");
+    }
+    assert_eq!(v["units"]["allan.*.dev, ci_lo, ci_hi"], "deg/h");
+    assert_eq!(v["units"]["duration_s"], "s");
     for ch in ["raw", "clean", "noise"] {
         let pts = v["allan"][ch].as_array().unwrap();
         assert!(pts.len() > 8, "{ch}: {} points", pts.len());
@@ -328,7 +340,16 @@ fn issue_13_an_mcap_recording_carries_its_rate_and_pulse_weight() {
     assert!((q / 0.26 - 1.0).abs() < 0.03, "Q {q}");
     let flagged = sagnac(&["analyze", "--format", "mcap", "--input", m, "--rate-hz", "400", "--pulse-arcsec", "0.9", "--json", "-"]);
     assert!(flagged.status.success(), "{}", String::from_utf8_lossy(&flagged.stderr));
-    assert_eq!(bare.stdout, flagged.stdout, "the metadata's values are the flags' values");
+    // the same numbers; `input` says where the rate and pulse weight came from
+    let mut f: Value = serde_json::from_slice(&flagged.stdout).unwrap();
+    let mut b = v.clone();
+    for (j, origin) in [(&mut b, "from the recording"), (&mut f, "given on the command line (checked against the recording)")] {
+        assert_eq!(j["input"]["origin"], origin);
+        assert_eq!((&j["input"]["sample_rate_hz"], &j["input"]["pulse_arcsec"]), (&Value::from(400.0), &Value::from(0.9)));
+        assert_eq!(j["input"]["format"], "mcap");
+        j["input"].as_object_mut().unwrap().remove("origin");
+    }
+    assert_eq!(b, f, "the metadata's values are the flags' values");
 
     for (flag, value, recorded) in [("--rate-hz", "1000", "400"), ("--pulse-arcsec", "1.21", "0.9")] {
         let o = sagnac(&["analyze", "--format", "mcap", "--input", m, flag, value, "--json", "-"]);

@@ -75,9 +75,17 @@ fn check_contract(j: &Value) {
         "added_terms",
         "fit_before",
         "fit_after",
+        "sagnac_version",
+        "input",
+        "units",
     ] {
         assert!(obj.contains_key(k), "missing key {k}");
     }
+    assert_eq!(j["sagnac_version"], env!("CARGO_PKG_VERSION"));
+    for (key, unit, _) in sagnac::units::COEFFICIENTS {
+        assert_eq!(j["units"][key], unit, "{key}");
+    }
+    assert!(j["units"]["mismatch_regions.tau_min_s, tau_max_s"] == "s");
     let v = j["verdict"].as_str().unwrap();
     assert!(v == "consistent" || v == "mismatch", "verdict {v}");
     for r in j["mismatch_regions"].as_array().unwrap() {
@@ -183,6 +191,11 @@ fn matched_mcap_and_frame_recordings_are_consistent_and_json_goes_to_stdout() {
         ok(&out);
         let j: Value = serde_json::from_slice(&out.stdout).unwrap();
         check_contract(&j);
+        // the input settings used: the recording's own (its metadata record, the same as the model's here)
+        let input = &j["input"];
+        assert_eq!((input["format"].as_str(), input["sample_rate_hz"].as_f64(), input["pulse_arcsec"].as_f64()), (Some(format), Some(500.0), Some(1.21)));
+        assert_eq!(input["model"].as_str(), p.join("model.toml").to_str());
+        assert_eq!(input["path"].as_str(), p.join(file).to_str());
         assert_eq!(j["verdict"], "consistent", "{format}: {j:#}");
         assert!(j["added_terms"].as_array().unwrap().is_empty());
         assert!(j["parameter_changes"].as_array().unwrap().is_empty());

@@ -315,7 +315,7 @@ fn default_run_is_the_simulated_bench_promtool_clean_and_drains_on_sigterm() {
     assert_eq!(v["values_total"]["/gyro/clean"].as_u64(), Some(raw));
     assert_eq!(v["values_total"]["/gyro/noise"].as_u64(), Some(raw));
     assert!(
-        v["last_estimates"]["terms"]["qn_arcsec"]["value"]
+        v["last_estimates"]["estimates"]["quantization_arcsec"]["value"]
             .as_f64()
             .is_some()
     );
@@ -359,8 +359,16 @@ fn duration_limit_ends_the_run_and_logs_are_json() {
     assert_eq!(last["level"], "INFO");
     assert_eq!(last["fields"]["samples"], 3000);
     assert_eq!(last["fields"]["final_update"], true);
-    for f in ["qn_arcsec", "arw_dpsh", "bias_instability_dph", "lost"] {
+    for f in ["quantization_arcsec", "arw_dpsh", "bias_instability_dph", "lost"] {
         assert!(!last["fields"][f].is_null(), "{f} in {last}");
+    }
+    // the coefficients in fixed notation: "0.351 [0.341, 0.360]" or "< 0.00200"
+    for f in ["quantization_arcsec", "arw_dpsh", "bias_instability_dph"] {
+        let text = last["fields"][f].as_str().unwrap_or_else(|| panic!("{f} in {last}"));
+        assert!(
+            !text.is_empty() && text.chars().all(|c| c.is_ascii_digit() || " .,[]<-".contains(c)),
+            "{f} = {text:?}: not fixed notation"
+        );
     }
     let v = read_mcap_py(&only_recording(&dir.path().join("rec")));
     assert_eq!(v["raw_samples"], 3000);
@@ -405,4 +413,45 @@ fn issue_13_a_replayed_recording_supplies_its_rate_and_pulse_weight() {
     let config = meta.config.expect("the daemon's config");
     assert!(config.contains("rate_hz = 500") && config.contains("replay_path"), "{config}");
     assert_eq!(meta.model, None);
+}
+
+/// `/gyro/summary`: 10 Hz scalars with Foxglove's `{sec, nsec}` time, read by
+/// the Python `mcap` reader: 3 s at 1 kHz give 30 windows of 100 samples whose
+/// means equal the raw and clean channels averaged independently; every JSON
+/// output of the recording says its units and input settings (the metadata
+/// record: rate, pulse weight, version; the schemas: the unit of every field).
+#[test]
+fn summary_channel_is_ten_hertz_and_equals_the_averaged_raw_channel() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = dir.path().join("c.toml");
+    std::fs::write(&cfg, "[estimator]\ninterval_s = 1.0\n").unwrap();
+    let rec = dir.path().join("rec");
+    let r = run(&[
+        "--config",
+        cfg.to_str().unwrap(),
+        "--speed",
+        "0",
+        "--duration-s",
+        "3",
+        "--metrics-addr",
+        "",
+        "--record-dir",
+        rec.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let v = read_mcap_py_with(&only_recording(&rec), &["--summary"]);
+    assert_eq!(v["channels"]["/gyro/summary"], 30);
+    assert_eq!(check_summary(&v), 30);
+    let windows = v["summary_recorded"].as_array().unwrap();
+    assert!(windows.iter().all(|w| w[1] == 100 && w[2] == 0), "full windows, no loss");
+    // 10 Hz: consecutive timestamps 0.1 s apart
+    for pair in windows.windows(2) {
+        assert_eq!(pair[1][0].as_u64().unwrap() - pair[0][0].as_u64().unwrap(), 100_000_000);
+    }
+    assert_eq!(v["schema_invalid"], serde_json::json!([]));
+    assert_eq!(v["time_mismatches"], 0, "log time = the payload's {{sec, nsec}}");
+    let meta = &v["metadata"]["sagnac"];
+    assert_eq!(meta["sample_rate_hz"], "1000");
+    assert_eq!(meta["pulse_arcsec"], "1.21");
+    assert_eq!(meta["sagnac_version"], env!("CARGO_PKG_VERSION"));
 }

@@ -111,6 +111,7 @@ fn run(batches: Vec<SourceBatch>, dir: &Path) -> (ProcessReport, Telemetry, std:
         recorder: Some(recorder.sender()),
         telemetry: telemetry.clone(),
         stop: None,
+        status: None,
     };
     let h = std::thread::spawn(move || processor.run(rx, outputs));
     for b in batches {

@@ -17,7 +17,6 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use daemon_common::*;
-use sagnac::model::estimate::Coefficient;
 use sagnac::source::bench::BenchEmulator;
 use sagnac::source::frame::inject::{FaultPlan, InjectorConfig};
 
@@ -65,7 +64,13 @@ fn replays_are_exact_deterministic_and_equal_the_offline_pipeline() {
     let r1 = dir.path().join("r1");
     run_replay(&bin, &r1, &dir.path().join("r1.log"), &[]);
     let rec1 = only_recording(&r1);
-    let v = read_mcap_py_fast(&rec1);
+    let v = read_mcap_py_with(&rec1, &["--no-schema", "--summary"]);
+    // /gyro/summary: 10 Hz over 300 s of gap-filled periods (the windows with
+    // gaps count their lost samples), equal to the raw and clean channels
+    // averaged independently
+    assert_eq!(check_summary(&v), 3000);
+    let lost: u64 = v["summary_recorded"].as_array().unwrap().iter().map(|w| w[2].as_u64().unwrap()).sum();
+    assert_eq!(lost, e.lost_samples);
     assert_eq!(
         v["raw_counts_total"].as_i64(),
         Some(emu.true_total_pulses())
@@ -86,9 +91,9 @@ fn replays_are_exact_deterministic_and_equal_the_offline_pipeline() {
     let (f1, raw1) = final_and_raw(&rec1);
     let (f2, raw2) = final_and_raw(&only_recording(&r2));
     let (f3, raw3) = final_and_raw(&only_recording(&r3));
-    assert_eq!(f2.terms, f3.terms, "replaying the same recording twice");
-    assert_eq!(f1.terms, f2.terms, ".bin replay vs its MCAP replay");
-    assert_eq!((f1.n_samples, f2.n_samples), (300_000, 300_000));
+    assert_eq!(f2.estimates, f3.estimates, "replaying the same recording twice");
+    assert_eq!(f1.estimates, f2.estimates, ".bin replay vs its MCAP replay");
+    assert_eq!((f1.samples, f2.samples), (300_000, 300_000));
     // /gyro/raw is reproduced: same samples, gaps and sequence numbers, same times.
     assert_eq!(raw1, raw2);
     assert_eq!(raw2, raw3);
@@ -99,18 +104,26 @@ fn replays_are_exact_deterministic_and_equal_the_offline_pipeline() {
     for (format, input) in [("frames", &bin), ("mcap", &rec1)] {
         let a = analyze_json(format, input, &dir.path().join(format!("analyze-{format}.json")));
         assert_eq!(a["samples"], 300_000);
-        for (k, key) in ESTIMATE_KEYS {
-            let c: Coefficient = serde_json::from_value(a["estimates"][key].clone()).unwrap();
-            // The same Pipeline on the same samples, pushed in other block sizes:
-            // equal to rounding (relative 1e-9; the pipeline's sums are not
-            // bit-invariant to the block split).
-            close(
-                &f1.terms[k],
-                &term(&c),
-                &format!("{k}: daemon vs analyze --format {format}"),
-            );
-        }
+        // The same Pipeline on the same samples, pushed in other block sizes:
+        // equal to rounding (relative 1e-9; the pipeline's sums are not
+        // bit-invariant to the block split).
+        close_estimates(&f1, &a, &format!("daemon vs analyze --format {format}"));
     }
+    // One name per quantity: /gyro/estimates, read by the Python reader, has
+    // analyze's keys and interval fields, coefficient by coefficient.
+    let a = analyze_json("mcap", &rec1, &dir.path().join("analyze-names.json"));
+    let shape = |v: &serde_json::Value| -> Vec<(String, Vec<String>)> {
+        v.as_object().unwrap().iter().map(|(k, c)| (k.clone(), c.as_object().unwrap().keys().cloned().collect())).collect()
+    };
+    let recorded = &v["last_estimates"]["estimates"];
+    assert_eq!(shape(recorded), shape(&a["estimates"]));
+    let keys: Vec<&str> = sagnac::units::COEFFICIENTS.iter().map(|c| c.0).collect();
+    assert_eq!(recorded.as_object().unwrap().keys().map(String::as_str).collect::<Vec<_>>(), {
+        let mut k = keys.clone();
+        k.sort();
+        k
+    });
+    assert_eq!(v["last_estimates"]["samples"], a["samples"]);
 }
 
 #[test]

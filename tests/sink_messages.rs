@@ -137,7 +137,7 @@ fn every_message_validates_against_its_schema() {
 fn schema_properties_are_exactly_the_serialized_fields() {
     // additionalProperties:false + all-required on every object means the schema and
     // the struct agree both ways; check the flag is there for the fixed structs.
-    for topic in [Topic::Raw, Topic::Clean, Topic::Estimates, Topic::Allan] {
+    for topic in [Topic::Raw, Topic::Clean, Topic::Estimates, Topic::Allan, Topic::Summary] {
         let s = topic.json_schema();
         assert_eq!(s["additionalProperties"], json!(false), "{topic:?}");
         let props: Vec<&String> = s["properties"].as_object().unwrap().keys().collect();
@@ -222,12 +222,38 @@ fn validator_rejects_broken_messages() {
         .is_err()
     );
     let est = Topic::Estimates.json_schema();
-    let e = json!({"t_ns": 1, "n_samples": 2, "duration_s": 0.5,
-                   "terms": {"qn_arcsec": {"value": 1.0, "lo95": null, "hi95": 2.0}}});
-    assert!(check(&est, &e, "$").is_ok());
+    // the shape of `sagnac analyze --json`'s `estimates`: value and ci95, or null and upper95
+    let c = json!({"value": 1.0, "ci95": [0.5, 2.0]});
+    let u = json!({"value": null, "upper95": 2.0});
+    let e = json!({"t_ns": 1, "samples": 2, "duration_s": 0.5,
+                   "estimates": {"quantization_arcsec": c, "arw_dpsh": u, "bias_instability_dph": c,
+                                 "rrw_dphsh": u, "rate_ramp_dphh": u}});
+    check(&est, &e, "$").unwrap();
+    for (path, value) in [
+        ("quantization_arcsec", json!({"value": "1"})),
+        ("quantization_arcsec", json!({"value": 1.0, "lo95": 0.5})),
+        ("arw_dpsh", json!({"upper95": 2.0})),
+    ] {
+        let mut bad = e.clone();
+        bad["estimates"][path] = value.clone();
+        assert!(check(&est, &bad, "$").is_err(), "{path} = {value} accepted");
+    }
     let mut bad = e.clone();
-    bad["terms"]["qn_arcsec"]["value"] = json!("1");
-    assert!(check(&est, &bad, "$").is_err());
+    bad["estimates"].as_object_mut().unwrap().remove("rate_ramp_dphh");
+    assert!(check(&est, &bad, "$").is_err(), "a coefficient missing");
+    let mut bad = e.clone();
+    bad["estimates"]["qn_arcsec"] = c.clone();
+    assert!(check(&est, &bad, "$").is_err(), "another name for Q");
+    // /gyro/summary: Foxglove's {sec, nsec} and scalars
+    let sum = Topic::Summary.json_schema();
+    let s = json!({"timestamp": {"sec": 1, "nsec": 5}, "samples": 100, "lost_samples": 0,
+                   "raw_rate_dph": 12.1, "clean_rate_dph": 12.3, "temp_c": null});
+    check(&sum, &s, "$").unwrap();
+    for (key, value) in [("timestamp", json!(5)), ("timestamp", json!({"sec": 1})), ("raw_rate_dph", json!([1.0]))] {
+        let mut bad = s.clone();
+        bad[key] = value.clone();
+        assert!(check(&sum, &bad, "$").is_err(), "{key} = {value} accepted");
+    }
 }
 
 #[test]
@@ -533,20 +559,55 @@ fn topics_and_times() {
             "/gyro/estimates",
             "/gyro/allan",
             "/gyro/events",
-            "/gyro/verdict"
+            "/gyro/verdict",
+            "/gyro/summary"
         ]
     );
     for t in Topic::ALL {
         assert_eq!(Topic::from_name(t.name()), Some(t));
     }
     assert_eq!(Topic::from_name("/gyro/other"), None);
-    for m in sink_common::stream(14, 12) {
+    for m in sink_common::stream(14, 16) {
         let j = json_of(&m);
+        // /gyro/summary states its time as Foxglove does: {sec, nsec}
+        let foxglove = j.get("timestamp").map(|ts| {
+            let nsec = ts["nsec"].as_u64().unwrap();
+            assert!(nsec < 1_000_000_000);
+            ts["sec"].as_u64().unwrap() * 1_000_000_000 + nsec
+        });
         let t = j
             .get("t0_ns")
             .or(j.get("t_ns"))
             .and_then(Value::as_u64)
+            .or(foxglove)
             .unwrap();
         assert_eq!(m.time_ns(), t);
+    }
+}
+
+/// One name per quantity: `/gyro/estimates` carries the five coefficients under
+/// the keys of `sagnac analyze --json` (the same `Coefficient` serialization:
+/// `value` with `ci95`, or `null` with `upper95`), and its schema states the unit
+/// of each.
+#[test]
+fn estimates_use_analyzes_names_and_the_schema_states_units() {
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let m = sink_common::estimate(&mut rng, 0);
+    let j = json_of(&SinkMessage::Estimates(m.clone()));
+    assert_eq!(j["estimates"], serde_json::to_value(m.estimates).unwrap(), "analyze's serialization");
+    let schema = Topic::Estimates.json_schema();
+    let props = &schema["properties"]["estimates"]["properties"];
+    assert_eq!(props.as_object().unwrap().len(), 5);
+    for (key, unit, _) in sagnac::units::COEFFICIENTS {
+        let d = props[key]["description"].as_str().unwrap_or_else(|| panic!("{key} in the schema"));
+        assert!(d.contains(unit), "{key}: {d}");
+        assert!(j["estimates"].get(key).is_some(), "{key} in the message");
+        for field in ["ci95", "upper95"] {
+            assert!(props[key]["properties"][field]["description"].as_str().unwrap().contains(unit), "{key}.{field}");
+        }
+    }
+    let summary = Topic::Summary.json_schema();
+    for (field, unit) in [("raw_rate_dph", "deg/h"), ("clean_rate_dph", "deg/h"), ("temp_c", "deg C")] {
+        assert!(summary["properties"][field]["description"].as_str().unwrap().contains(unit), "{field}");
     }
 }

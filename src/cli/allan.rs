@@ -1,7 +1,9 @@
 //! `sagnac allan`: Allan-family deviations of a recorded file, with confidence
 //! intervals, as JSON (`--json OUT`) or an aligned table on stdout.
 //!
-//! Thin: reading is `source::input`, the numerics are `allan`.
+//! Thin: reading is `source::input`, the numerics are `allan`. A run longer
+//! than a moment shows its phase (reading, computing) or, with the streaming
+//! engine, the samples read, on stderr at a terminal.
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -149,6 +151,12 @@ impl From<FormatArg> for InputFormat {
     }
 }
 
+impl AllanArgs {
+    fn stat_name(&self) -> String {
+        Stat::from(self.stat).to_string()
+    }
+}
+
 /// Run `sagnac allan`.
 pub fn run(args: AllanArgs) -> Result<()> {
     allan::check_tau0(args.tau0).context("invalid --tau0")?;
@@ -168,9 +176,11 @@ pub fn run(args: AllanArgs) -> Result<()> {
     if args.engine == EngineArg::Streaming {
         return run_streaming(&args, kind);
     }
+    let spinner = super::progress::Spinner::start(format!("reading {}", args.input.display()));
     let samples = SampleReader::open(&args.input, args.format.into(), args.column.as_deref())
         .and_then(|r| r.require_integers(kind == DataKind::Counts).read_to_end())
         .with_context(|| format!("cannot read samples from {}", args.input.display()))?;
+    spinner.set_message(format!("computing {} of {} samples", args.stat_name(), samples.len()));
     let phase = Phase::from_vec(samples, kind, args.tau0)
         .with_context(|| format!("invalid samples in {}", args.input.display()))?;
     let stat = Stat::from(args.stat);
@@ -180,6 +190,7 @@ pub fn run(args: AllanArgs) -> Result<()> {
     };
     let result = allan::compute(&phase, stat, args.tau0, args.taus.into(), &opts)
         .with_context(|| format!("cannot compute {stat} of {}", args.input.display()))?;
+    spinner.finish();
     write_csv(&args, kind, &result)?;
 
     match &args.json {
@@ -219,6 +230,7 @@ fn run_streaming(args: &AllanArgs, kind: DataKind) -> Result<()> {
     };
     let mut buf = Vec::with_capacity(1 << 17);
     let mut ints: Vec<i64> = Vec::with_capacity(1 << 17);
+    let mut bar = super::progress::DelayedBar::new("streaming OADEV", "samples");
     loop {
         let n = reader
             .next_block(&mut buf, 1 << 17)
@@ -234,7 +246,9 @@ fn run_streaming(args: &AllanArgs, kind: DataKind) -> Result<()> {
                 a.push_block(&ints);
             }
         }
+        bar.inc(n as u64, None);
     }
+    bar.finish();
     let (points, n_phase) = match &acc {
         Acc::F(a) => (a.points(args.confidence)?, a.phase_points()),
         Acc::C(a) => (a.points(args.confidence)?, a.phase_points()),

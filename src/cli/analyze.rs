@@ -10,19 +10,22 @@
 //! no pulse weight, so `--rate-hz` (and `--pulse-arcsec` for pulse counts) are
 //! required; an MCAP recording carries both in its `sagnac` metadata record
 //! ([`crate::sink::meta`]), and a flag that contradicts it is an error.
+//!
+//! The JSON (`--json`) also says how it was made ([`crate::sink::provenance`]):
+//! `sagnac_version`, `input` (file, format, column and unit, sample rate and
+//! pulse weight, where they came from) and `units`.
 
 use std::io::Write;
 use std::path::PathBuf;
-use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::model::estimate::Coefficient;
 use crate::model::spec::{Spec, SpecReport};
 use crate::offline::{self, OfflineError, RateUnit};
 use crate::pipeline::{Analysis, PipelineConfig};
+use crate::sink::provenance::{InputSettings, Provenance, analysis_units};
 use crate::source::input::InputFormat;
 
 /// Arguments of `sagnac analyze`.
@@ -104,25 +107,12 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
         Some(p) => Some(Spec::load(p)?),
         None => None,
     };
-    let started = Instant::now();
-    let bar = ProgressBar::hidden();
-    let mut shown = false;
-    let mut progress = |done: u64, total: Option<u64>| {
-        // a bar on stderr once the job is visibly long (hidden when stderr is not a terminal)
-        if !shown && started.elapsed() > Duration::from_millis(700) {
-            bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
-            if let Some(t) = total {
-                bar.set_length(t);
-            }
-            bar.set_style(
-                ProgressStyle::with_template("{spinner} {pos}/{len} samples [{elapsed}] {per_sec}")
-                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
-            );
-            shown = true;
-        }
-        bar.set_position(done);
-    };
+    // a bar on stderr once the job is visibly long (hidden when stderr is not a terminal)
+    let mut bar = super::progress::DelayedBar::new("analysing", "samples");
+    let mut progress = |done: u64, total: Option<u64>| bar.update(done, total);
     let input = &args.input;
+    let given = "given on the command line";
+    let settings: InputSettings;
     let pipe = match args.format {
         AnalyzeFormat::Csv => {
             let rate = required("--rate-hz", args.rate_hz, input, "sample rate")?;
@@ -134,6 +124,9 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
                 _ => PipelineConfig::rates(rate),
             };
             let column = args.column.as_deref().unwrap_or("counts");
+            let mut s = InputSettings::new(input, "csv", cfg.rate_hz, cfg.pulse_arcsec);
+            (s.column, s.unit, s.origin) = (Some(column.into()), Some(unit_key(args.unit)), Some(given.into()));
+            settings = s;
             offline::run_file(input, InputFormat::Csv, Some(column), args.unit, &cfg, &mut progress)
                 .with_context(|| format!("analysing {}", input.display()))?
         }
@@ -141,6 +134,9 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
             let rate = required("--rate-hz", args.rate_hz, input, "sample rate (a frame capture)")?;
             let pulse = required("--pulse-arcsec", args.pulse_arcsec, input, "pulse weight (a frame capture)")?;
             let cfg = PipelineConfig::counts(rate, pulse);
+            let mut s = InputSettings::new(input, "frames", rate, Some(pulse));
+            s.origin = Some(given.into());
+            settings = s;
             let (pipe, stats) = offline::run_capture(input, &cfg, &mut progress)
                 .with_context(|| format!("analysing frame capture {}", input.display()))?;
             if stats.lost_samples + stats.bytes_skipped + stats.crc_errors + stats.duplicates + stats.out_of_sequence > 0 {
@@ -164,6 +160,16 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
             // the recording's metadata record supplies what the flags leave out
             let gyro = offline::recording_gyro(input, args.rate_hz, args.pulse_arcsec)?;
             let cfg = PipelineConfig::counts(gyro.rate_hz, gyro.pulse_arcsec);
+            let mut s = InputSettings::new(input, "mcap", gyro.rate_hz, Some(gyro.pulse_arcsec));
+            s.origin = Some(
+                match (args.rate_hz, args.pulse_arcsec) {
+                    (None, None) => "from the recording",
+                    (Some(_), Some(_)) => "given on the command line (checked against the recording)",
+                    _ => "from the recording and the command line",
+                }
+                .into(),
+            );
+            settings = s;
             let (pipe, broken) = offline::run_recording(input, &cfg, &mut progress)
                 .with_context(|| format!("analysing recording {}", input.display()))?;
             if let Some(b) = broken {
@@ -178,7 +184,7 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
             pipe
         }
     };
-    bar.finish_and_clear();
+    bar.finish();
     let analysis = pipe.analysis();
     if !analysis.allan.raw.is_empty() && analysis.allan.raw.iter().all(|p| p.dev == 0.0) {
         eprintln!(
@@ -204,6 +210,7 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
             if let (Some(v), Some(obj)) = (&verdict, value.as_object_mut()) {
                 obj.insert("spec".into(), serde_json::to_value(v).context("serialising the verdict")?);
             }
+            Provenance::new(settings, analysis_units()).insert_into(&mut value);
             let text = serde_json::to_string_pretty(&value).context("serialising the analysis")?;
             if path.as_os_str() == "-" {
                 super::write_stdout(&text)?;
@@ -219,6 +226,12 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The `--unit` value as the flag spells it.
+fn unit_key(u: RateUnit) -> String {
+    use clap::ValueEnum;
+    u.to_possible_value().map_or_else(|| format!("{u:?}"), |v| v.get_name().to_string())
 }
 
 fn print_verdict(r: &SpecReport) -> Result<()> {

@@ -9,6 +9,11 @@
 //! override them: those of its `sagnac` metadata record ([`crate::sink::meta`]),
 //! or for an older recording without one its sample period (`dt_ns`). Outputs: the JSON verdict (`--json`), an SVG
 //! report (`--report`) and the updated model (`--write-model`).
+//!
+//! The JSON verdict also says how it was made: `sagnac_version`, `input` (the
+//! recording, its format, the sample rate and pulse weight used and where they
+//! came from, the model file) and `units`. At a terminal a spinner names the
+//! phase (reading, Monte-Carlo runs) once the job takes more than a moment.
 
 use std::fs::File;
 use std::io::Write;
@@ -20,6 +25,7 @@ use clap::{Args, ValueEnum};
 use crate::model::GyroModel;
 use crate::model::diagnose::{self, DiagnoseOptions, Recording};
 use crate::sink::messages::SinkMessage;
+use crate::sink::provenance::{InputSettings, Provenance};
 use crate::sink::meta::GyroOutput;
 use crate::source::capture::CaptureReader;
 use crate::source::frame::FilledSeries;
@@ -78,11 +84,18 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
         }
     }
     let model = GyroModel::load(&args.model).context("loading the gyro model")?;
+    let spinner = super::progress::Spinner::start(format!("reading {}", args.recording.display()));
     let rec = match args.format {
         RecordingFormat::Csv => read_csv(&args.recording, &model)?,
         RecordingFormat::Frames => read_frames(&args.recording, &model)?,
         RecordingFormat::Mcap => read_mcap(&args.recording, &model)?,
     };
+    spinner.set_message(format!(
+        "diagnosing {} samples against the model ({} + {} Monte-Carlo runs)",
+        rec.counts.len(),
+        args.runs,
+        args.runs_after
+    ));
     // A series without any variation has no noise to compare: a dead gyro or a
     // stuck counter, not a gyro consistent with every noise model.
     if let Some(&c0) = rec.counts.first()
@@ -108,7 +121,10 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
             args.model.display()
         )
     })?;
-    let json = serde_json::to_string_pretty(&diag.report).context("serialising the verdict")?;
+    spinner.finish();
+    let mut value = serde_json::to_value(&diag.report).context("serialising the verdict")?;
+    provenance(&args, &model, &rec).insert_into(&mut value);
+    let json = serde_json::to_string_pretty(&value).context("serialising the verdict")?;
     if args.json.as_os_str() == "-" {
         super::write_stdout(&json)?;
     } else {
@@ -160,6 +176,42 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// What `--json` says about how the verdict was made.
+fn provenance(args: &DiagnoseArgs, model: &GyroModel, rec: &Recording) -> Provenance {
+    let own = |v: f64, m: f64| if v == m { "the model's [gyro]" } else { "the recording's metadata" };
+    let mut input = InputSettings::new(&args.recording, format_name(args.format), rec.sample_rate_hz, Some(rec.pulse_arcsec));
+    input.origin = Some(format!(
+        "sample rate from {}, pulse weight from {}",
+        own(rec.sample_rate_hz, model.gyro.sample_rate_hz),
+        own(rec.pulse_arcsec, model.gyro.pulse_weight_arcsec)
+    ));
+    input.model = Some(args.model.display().to_string());
+    Provenance::new(input, diagnose_units())
+}
+
+fn format_name(f: RecordingFormat) -> &'static str {
+    match f {
+        RecordingFormat::Csv => "csv",
+        RecordingFormat::Frames => "frames",
+        RecordingFormat::Mcap => "mcap",
+    }
+}
+
+/// The units of the diagnosis JSON's numbers.
+fn diagnose_units() -> Vec<(String, String)> {
+    let mut u: Vec<(String, String)> = vec![
+        ("mismatch_regions.tau_min_s, tau_max_s".into(), "s".into()),
+        ("mismatch_regions.max_z".into(), "standard deviations of the model's Monte-Carlo spread".into()),
+        ("fit_before, fit_after.chi2_per_dof".into(), "1 (chi-square per degree of freedom)".into()),
+        (
+            "parameter_changes, added_terms".into(),
+            "each parameter in the unit its model-file key names (_dph deg/h, _dpsh deg/sqrt(h), _s s, _c deg C)".into(),
+        ),
+    ];
+    u.extend(crate::units::COEFFICIENTS.iter().map(|(k, unit, _)| (k.to_string(), unit.to_string())));
+    u
 }
 
 fn recording(

@@ -8,6 +8,7 @@ pub mod allan;
 pub mod analyze;
 pub mod completions;
 pub mod diagnose;
+pub mod progress;
 pub mod report;
 pub mod run;
 pub mod simulate;

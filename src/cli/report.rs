@@ -10,11 +10,10 @@
 //! is [`crate::sink::report`].
 
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use super::progress::{DelayedBar, Spinner};
 
 use super::analyze::AnalyzeFormat;
 use crate::model::GyroModel;
@@ -91,24 +90,9 @@ pub fn run(args: ReportArgs) -> Result<()> {
     }
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
 
-    let started = Instant::now();
-    let bar = ProgressBar::hidden();
-    let mut shown = false;
-    let mut progress = |done: u64, total: Option<u64>| {
-        // a bar on stderr once the job is visibly long (hidden when stderr is not a terminal)
-        if !shown && started.elapsed() > Duration::from_millis(700) {
-            bar.set_draw_target(ProgressDrawTarget::stderr());
-            if let Some(t) = total {
-                bar.set_length(t);
-            }
-            bar.set_style(
-                ProgressStyle::with_template("{spinner} analysing: {pos}/{len} samples [{elapsed}] {per_sec}")
-                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
-            );
-            shown = true;
-        }
-        bar.set_position(done);
-    };
+    // a bar on stderr once the job is visibly long (hidden when stderr is not a terminal)
+    let mut bar = DelayedBar::new("analysing", "samples");
+    let mut progress = |done: u64, total: Option<u64>| bar.update(done, total);
     let input = &args.input;
     let mut meta = Metadata { input: input.display().to_string(), ..Metadata::default() };
     let (pipe, collector) = match args.format {
@@ -167,7 +151,7 @@ pub fn run(args: ReportArgs) -> Result<()> {
             (finish(pipe, &mut meta, &cfg), col)
         }
     };
-    bar.finish_and_clear();
+    bar.finish();
     let analysis = pipe.analysis();
     if !analysis.fit.ok {
         eprintln!(
@@ -238,11 +222,9 @@ fn run_diagnosis(model: &GyroModel, c: &Collector, meta: &Metadata, input: &Path
         sample_rate_hz: meta.rate_hz,
         pulse_arcsec: meta.pulse_arcsec.unwrap_or(f64::NAN),
     };
-    let spinner = ProgressBar::new_spinner();
-    spinner.set_message("diagnosing against the model (Monte-Carlo runs)");
-    spinner.enable_steady_tick(Duration::from_millis(200));
+    let spinner = Spinner::start("diagnosing against the model (Monte-Carlo runs)");
     let d = diagnose::diagnose(model, &rec, &DiagnoseOptions::default())
         .with_context(|| format!("diagnosing {} against the model", input.display()));
-    spinner.finish_and_clear();
+    spinner.finish();
     d
 }

@@ -12,6 +12,13 @@
 //! runtime, install the SIGINT/SIGTERM handlers and run [`Daemon`]. The first
 //! signal drains the pipeline and finishes the recording (exit 0); another one
 //! at least a second later exits at once (exit 130).
+//!
+//! At a terminal (stderr a tty, `log.format = "human"`) one status line is
+//! redrawn in place below the log lines: elapsed time, samples, lost samples, QN
+//! and ARW with their 95 % intervals, the fit verdict, and a replay's progress
+//! ([`super::progress::StatusLine`]); the intermediate estimate log lines are
+//! then left to `debug`. Otherwise (a file, a pipe, a service) the log lines
+//! are all there is, with no carriage return or escape code.
 
 use std::path::PathBuf;
 
@@ -21,6 +28,7 @@ use clap::{ArgGroup, Args};
 use crate::daemon::config::{Config, ConfigError, GyroConfig, LogFormat, SourceKind};
 use crate::daemon::run::{Daemon, DaemonError, Explicit};
 use crate::daemon::shutdown;
+use super::progress::StatusLine;
 
 /// Arguments of `sagnac run`.
 #[derive(Debug, Args)]
@@ -166,7 +174,7 @@ pub fn resolve(args: &RunArgs) -> Result<(Config, Explicit), ConfigError> {
     Ok((cfg, explicit))
 }
 
-fn init_logging(cfg: &Config) -> Result<()> {
+fn init_logging(cfg: &Config, line: Option<&StatusLine>) -> Result<()> {
     let filter = match std::env::var("RUST_LOG") {
         Ok(v) if !v.trim().is_empty() => tracing_subscriber::EnvFilter::try_new(&v)
             .with_context(|| format!("RUST_LOG = {v:?} is not a valid tracing filter"))?,
@@ -179,15 +187,14 @@ fn init_logging(cfg: &Config) -> Result<()> {
             .context(format!("invalid log filter: {e}"))
         })?,
     };
-    use std::io::IsTerminal;
     let builder = tracing_subscriber::fmt()
         .with_env_filter(filter)
-        .with_ansi(std::io::stderr().is_terminal())
-        .with_writer(std::io::stderr);
+        .with_ansi(super::progress::stderr_is_terminal());
     // A subscriber may already be set (tests calling run twice): keep it.
-    let _ = match cfg.log.format {
-        LogFormat::Human => builder.try_init(),
-        LogFormat::Json => builder.json().try_init(),
+    let _ = match (cfg.log.format, line) {
+        (LogFormat::Human, Some(l)) => builder.with_writer(l.log_writer()).try_init(),
+        (LogFormat::Human, None) => builder.with_writer(std::io::stderr).try_init(),
+        (LogFormat::Json, _) => builder.with_writer(std::io::stderr).json().try_init(),
     };
     Ok(())
 }
@@ -223,9 +230,21 @@ pub fn run(args: RunArgs) -> Result<()> {
     let (trigger, _) = shutdown::channel();
     runtime.block_on(async { install_signal_handlers(trigger.clone()) })?;
     let (cfg, explicit) = resolve(&args).map_err(|e| with_flag(&args, DaemonError::Config(e)))?;
-    init_logging(&cfg)?;
-    let daemon = Daemon::build(cfg, explicit).map_err(|e| with_flag(&args, e))?;
-    let report = runtime.block_on(async move { daemon.run(trigger).await.map_err(anyhow::Error::new) })?;
+    let mut line = match cfg.log.format {
+        LogFormat::Human => StatusLine::on_terminal(),
+        LogFormat::Json => None,
+    };
+    init_logging(&cfg, line.as_ref())?;
+    let mut daemon = Daemon::build(cfg, explicit).map_err(|e| with_flag(&args, e))?;
+    if let Some(l) = &mut line {
+        daemon = daemon.with_status(l.status());
+        l.start();
+    }
+    let result = runtime.block_on(async move { daemon.run(trigger).await.map_err(anyhow::Error::new) });
+    if let Some(l) = line {
+        l.finish();
+    }
+    let report = result?;
     // Do not wait for blocking threads still parked in the pool.
     runtime.shutdown_timeout(std::time::Duration::from_millis(100));
     if let Some(rec) = &report.recording {

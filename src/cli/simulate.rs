@@ -11,6 +11,9 @@
 //! the decoder's baseline). MCAP batches hold 1000 samples; simulated time
 //! starts at the Unix epoch (t = 0), so the same model and seed give the same
 //! messages.
+//!
+//! At a terminal a progress bar (samples written of the run's total) shows once
+//! the run takes more than a moment ([`super::progress::DelayedBar`]).
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
@@ -25,6 +28,7 @@ use crate::sink::messages::{RawBatch, SinkMessage};
 use crate::sink::meta::RecordingMeta;
 use crate::source::bench::{SIM_START_COUNTER, SIM_START_SEQ};
 use crate::source::frame::{FrameEncoder, FrameWriter, STATUS_ALL_OK};
+use super::progress::{DelayedBar, LineCounter};
 
 /// Output format of `sagnac simulate`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -77,17 +81,19 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
             }
         );
     }
+    let mut bar = DelayedBar::new("simulating", "samples");
     match args.format {
         SimFormat::Csv => {}
         SimFormat::Frames => {
             let frames = if to_stdout {
-                write_frames(&mut simulator, std::io::stdout().lock())
+                write_frames(&mut simulator, std::io::stdout().lock(), &mut bar)
             } else {
                 let file = File::create(&args.out)
                     .with_context(|| format!("creating {}", args.out.display()))?;
-                write_frames(&mut simulator, file)
+                write_frames(&mut simulator, file, &mut bar)
             }
             .with_context(|| format!("writing frames to {}", args.out.display()))?;
+            bar.finish();
             tracing::debug!(frames, "simulate: done");
             return Ok(());
         }
@@ -97,20 +103,24 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
                 .with_context(|| format!("reading {}", args.model.display()))?;
             let mut meta = RecordingMeta::counts(simulator.sample_rate_hz(), simulator.pulse_weight_arcsec());
             meta.model = Some(text);
-            let messages = write_mcap(&mut simulator, &meta, &args.out)
+            let messages = write_mcap(&mut simulator, &meta, &args.out, &mut bar)
                 .with_context(|| format!("writing MCAP recording {}", args.out.display()))?;
+            bar.finish();
             tracing::debug!(messages, "simulate: done");
             return Ok(());
         }
     }
+    // the bar counts the CSV rows as they are written (after the header)
+    let total = simulator.samples_total();
     let rows = if args.out.as_os_str() == "-" {
-        sim::write_csv(&mut simulator, std::io::stdout().lock())
+        sim::write_csv(&mut simulator, LineCounter::new(std::io::stdout().lock(), &mut bar, total, 1))
     } else {
         let file =
             File::create(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-        sim::write_csv(&mut simulator, file)
+        sim::write_csv(&mut simulator, LineCounter::new(file, &mut bar, total, 1))
     }
     .with_context(|| format!("writing {}", args.out.display()))?;
+    bar.finish();
     tracing::debug!(rows, "simulate: done");
     Ok(())
 }
@@ -119,7 +129,7 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
 const BLOCK: usize = 65_536;
 
 /// Write the frames of the whole run; returns the number of frames.
-fn write_frames<W: std::io::Write>(sim: &mut Simulator, out: W) -> anyhow::Result<u64> {
+fn write_frames<W: std::io::Write>(sim: &mut Simulator, out: W, bar: &mut DelayedBar) -> anyhow::Result<u64> {
     let mut enc = FrameEncoder::new(SIM_START_SEQ, SIM_START_COUNTER);
     if let Some(t) = sim.temperature_at(0.0) {
         enc.set_temp_c(t);
@@ -143,6 +153,7 @@ fn write_frames<W: std::io::Write>(sim: &mut Simulator, out: W) -> anyhow::Resul
             w.write_increment(c)?;
         }
         frames += n as u64;
+        bar.update(frames - 1, sim.samples_total());
     }
     w.into_inner()?;
     Ok(frames)
@@ -152,7 +163,7 @@ fn write_frames<W: std::io::Write>(sim: &mut Simulator, out: W) -> anyhow::Resul
 const MCAP_BATCH: usize = 1000;
 
 /// Write the run as `/gyro/raw` messages to `out`; returns the number of messages.
-fn write_mcap(sim: &mut Simulator, meta: &RecordingMeta, out: &Path) -> anyhow::Result<u64> {
+fn write_mcap(sim: &mut Simulator, meta: &RecordingMeta, out: &Path, bar: &mut DelayedBar) -> anyhow::Result<u64> {
     // The recorder names its file by time in a directory: write next to `out`
     // under that name, then rename.
     // The directory must exist (the recorder would create it), and the rename
@@ -193,6 +204,7 @@ fn write_mcap(sim: &mut Simulator, meta: &RecordingMeta, out: &Path) -> anyhow::
             status: u32::from(STATUS_ALL_OK),
         });
         seq += n as u64;
+        bar.update(seq, sim.samples_total());
         if let Err(e) = recorder.send(msg) {
             sent = Err(e);
             break;

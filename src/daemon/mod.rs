@@ -12,6 +12,8 @@
 //! * [`run`]: [`run::Daemon`], wiring sources, pipeline, recorder and the
 //!   `/metrics` server ([`http`]) with bounded channels and a drained shutdown
 //!   ([`shutdown`]);
+//! * [`summary`]: the 10 Hz `/gyro/summary` windows;
+//! * [`status`]: the live status a terminal shows (`sagnac run`);
 //! * [`telemetry`]: the daemon's own metrics next to [`crate::sink::metrics`].
 //!
 //! The sources live in [`crate::source`]: `serial`, `replay`, `bench`.
@@ -23,4 +25,6 @@ pub mod process;
 pub mod queue;
 pub mod run;
 pub mod shutdown;
+pub mod status;
+pub mod summary;
 pub mod telemetry;

@@ -43,6 +43,7 @@
 //!   shutdown (drain, final estimates, finished recording).
 
 use std::collections::{BTreeMap, VecDeque};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use crate::daemon::shutdown::{Shutdown, ShutdownTrigger};
@@ -51,13 +52,15 @@ use crate::model::spec::{SequentialSpec, Spec, SpecReport, Verdict};
 use crate::allan::AllanPoint;
 use crate::daemon::batch::{Delivery, SourceBatch};
 use crate::daemon::queue::BatchReceiver;
+use crate::daemon::status::{LiveStatus, StatusEstimate, format_coefficient};
+use crate::daemon::summary::{Place, SummaryAcc};
 use crate::daemon::telemetry::Telemetry;
 use crate::model::estimate::Coefficient;
 use crate::pipeline::{Analysis, Pipeline, PipelineConfig, PipelineError, PipelineOutput};
 use crate::sink::mcap::{RecordError, RecordSender};
 use crate::sink::messages::{
     AllanCurve, AllanUpdate, EstimateUpdate, Event, EventKind, Gap, RateBatch, RawBatch,
-    SinkMessage, TermEstimate, VerdictUpdate, terms,
+    SinkMessage, SummaryUpdate, VerdictUpdate,
 };
 use crate::sink::metrics::{AllanChannel, Bounds95};
 use crate::source::frame::FilledSeries;
@@ -157,6 +160,10 @@ pub struct Outputs {
     /// drained without intermediate estimator updates (the final update is always
     /// made), so SIGTERM is prompt even when the pipeline is far behind.
     pub stop: Option<Shutdown>,
+    /// The live status a terminal shows (`sagnac run` at a terminal); while it
+    /// is shown, the intermediate estimate log lines go to `debug` (the final
+    /// one stays at `info`).
+    pub status: Option<Arc<LiveStatus>>,
 }
 
 impl std::fmt::Debug for Outputs {
@@ -238,6 +245,9 @@ struct Run<'a> {
     /// (uniform index one past a batch's last sample, its arrival), oldest first.
     arrivals: VecDeque<(u64, Instant)>,
     pout: PipelineOutput,
+    /// `/gyro/summary` windows being assembled, and those ready to record.
+    summary: SummaryAcc,
+    summaries: Vec<SummaryUpdate>,
     next_update_at: u64,
     /// Start and cost of the last estimator update.
     last_update: Option<(Instant, Duration)>,
@@ -280,6 +290,7 @@ impl Processor {
         mut outputs: Outputs,
     ) -> ProcessReport {
         let first_update = self.interval_samples;
+        let summary = SummaryAcc::new(self.cfg.pipeline.rate_hz, self.cfg.pipeline.pulse_arcsec.unwrap_or(1.0));
         let mut run = Run {
             p: &mut self,
             out: &mut outputs,
@@ -296,6 +307,8 @@ impl Processor {
             push_filled: Vec::new(),
             arrivals: VecDeque::new(),
             pout: PipelineOutput::default(),
+            summary,
+            summaries: Vec::new(),
             next_update_at: first_update,
             last_update: None,
             updates: 0,
@@ -317,23 +330,26 @@ fn bounds(c: &Coefficient) -> Bounds95 {
     }
 }
 
-fn term(c: &Coefficient) -> TermEstimate {
-    let b = bounds(c);
+/// `c` as recorded: non-finite numbers dropped (JSON cannot carry them).
+fn recordable(c: &Coefficient) -> Coefficient {
     let finite = |v: Option<f64>| v.filter(|x| x.is_finite());
-    TermEstimate {
-        value: finite(b.estimate),
-        lo95: finite(b.lower95),
-        hi95: finite(b.upper95),
+    Coefficient {
+        value: finite(c.value),
+        ci95: c.ci95.filter(|ci| ci.iter().all(|x| x.is_finite())),
+        upper95: finite(c.upper95),
     }
 }
 
-/// "0.351 [0.349, 0.353]", or "< 0.002" for an upper bound, or "-".
-pub fn format_coefficient(c: &Coefficient) -> String {
-    match (c.value, c.ci95, c.upper95) {
-        (Some(v), Some([lo, hi]), _) => format!("{v:.4e} [{lo:.4e}, {hi:.4e}]"),
-        (Some(v), None, _) => format!("{v:.4e}"),
-        (None, _, Some(u)) => format!("< {u:.4e}"),
-        _ => "-".into(),
+/// Uniform sample `u` of the time segments `segments` (each anchored at its
+/// first sample), ns: `t0 + (u - u_start) * period_ns`.
+fn time_at(segments: &VecDeque<Segment>, period_ns: f64, u: u64) -> u64 {
+    let seg = segments.iter().rev().find(|s| s.u_start <= u).or(segments.front());
+    match seg {
+        Some(s) => {
+            let d = u as f64 - s.u_start as f64;
+            (s.t_start_ns as f64 + d * period_ns).round().max(0.0) as u64
+        }
+        None => 0,
     }
 }
 
@@ -357,21 +373,7 @@ fn curve(points: &[AllanPoint]) -> AllanCurve {
 
 impl Run<'_> {
     fn time_of(&self, u: u64) -> u64 {
-        let seg = self
-            .segments
-            .iter()
-            .rev()
-            .find(|s| s.u_start <= u)
-            .or(self.segments.front());
-        match seg {
-            Some(s) => {
-                let d = u as f64 - s.u_start as f64;
-                (s.t_start_ns as f64 + d * self.p.period_ns)
-                    .round()
-                    .max(0.0) as u64
-            }
-            None => 0,
-        }
+        time_at(&self.segments, self.p.period_ns, u)
     }
 
     fn seq_of(&self, u: u64) -> u64 {
@@ -447,6 +449,13 @@ impl Run<'_> {
         }
     }
 
+    fn record_summaries(&mut self) {
+        let ready = std::mem::take(&mut self.summaries);
+        for m in ready {
+            self.record(SinkMessage::Summary(m));
+        }
+    }
+
     fn flush_raw(&mut self) {
         if self.raw.counts.is_empty() {
             return;
@@ -485,6 +494,8 @@ impl Run<'_> {
 
     /// Take the pipeline's clean/noise output into the rate messages.
     fn take_output(&mut self) {
+        self.summary.push_clean(self.emitted, &self.pout.clean_dph, &mut self.summaries);
+        self.record_summaries();
         let n = self.pout.clean_dph.len();
         let bs = self.p.cfg.batch_samples;
         let mut i = 0;
@@ -565,6 +576,9 @@ impl Run<'_> {
             }
         }
         self.samples += b.counts.len() as u64;
+        if let Some(st) = &self.out.status {
+            st.set_counts(self.samples, self.lost);
+        }
         self.arrivals
             .push_back((self.pushed + self.pending.len() as u64, b.arrived));
         self.push_ready(false);
@@ -601,6 +615,22 @@ impl Run<'_> {
             };
             self.push_filled.clear();
             self.pending.filled_in(start..start + n, &mut self.push_filled);
+            let (segments, period_ns) = (&self.segments, self.p.period_ns);
+            let place = |u: u64| {
+                let k = segments.partition_point(|s| s.u_start <= u);
+                Place {
+                    segment_start: k.checked_sub(1).map_or(0, |i| segments[i].u_start),
+                    next_segment: segments.get(k).map(|s| s.u_start),
+                    t_ns: time_at(segments, period_ns, u),
+                }
+            };
+            self.summary.push_raw(
+                self.pushed,
+                &self.pending.counts[start..start + n],
+                &self.push_filled,
+                self.temp_c,
+                &place,
+            );
             self.p.pipeline.push_counts_filled(
                 &self.pending.counts[start..start + n],
                 &self.push_filled,
@@ -683,38 +713,56 @@ impl Run<'_> {
         }
         self.updates += 1;
         let t_ns = self.time_of(self.pushed.saturating_sub(1));
-        let mut terms_map = BTreeMap::new();
-        for (k, c) in [
-            (terms::QN_ARCSEC, &e.quantization_arcsec),
-            (terms::ARW_DPSH, &e.arw_dpsh),
-            (terms::BIAS_INSTABILITY_DPH, &e.bias_instability_dph),
-            (terms::RRW_DPHSH, &e.rrw_dphsh),
-            (terms::RAMP_DPHH, &e.rate_ramp_dphh),
-        ] {
-            terms_map.insert(k.to_string(), term(c));
-        }
+        let estimates = crate::model::estimate::NoiseEstimates {
+            quantization_arcsec: recordable(&e.quantization_arcsec),
+            arw_dpsh: recordable(&e.arw_dpsh),
+            bias_instability_dph: recordable(&e.bias_instability_dph),
+            rrw_dphsh: recordable(&e.rrw_dphsh),
+            rate_ramp_dphh: recordable(&e.rate_ramp_dphh),
+        };
         self.record(SinkMessage::Estimates(EstimateUpdate {
             t_ns,
-            n_samples: a.samples,
+            samples: a.samples,
             duration_s: a.duration_s,
-            terms: terms_map,
+            estimates,
         }));
         let mut curves = BTreeMap::new();
         curves.insert("raw".to_string(), curve(&a.allan.raw));
         curves.insert("clean".to_string(), curve(&a.allan.clean));
         curves.insert("noise".to_string(), curve(&a.allan.noise));
         self.record(SinkMessage::Allan(AllanUpdate { t_ns, curves }));
-        tracing::info!(
-            final_update = last,
-            samples = a.samples,
-            duration_s = a.duration_s,
-            lost = self.lost,
-            qn_arcsec = %format_coefficient(&e.quantization_arcsec),
-            arw_dpsh = %format_coefficient(&e.arw_dpsh),
-            bias_instability_dph = %format_coefficient(&e.bias_instability_dph),
-            latency_s = latency,
-            "estimate"
-        );
+        if let Some(st) = &self.out.status {
+            st.set_estimate(StatusEstimate {
+                quantization_arcsec: e.quantization_arcsec,
+                arw_dpsh: e.arw_dpsh,
+                fit: a.fit,
+                final_update: last,
+            });
+        }
+        // fixed notation, names as in `analyze --json`; at a terminal the status
+        // line shows the intermediate updates
+        macro_rules! estimate_line {
+            ($level:expr) => {
+                tracing::event!(
+                    $level,
+                    final_update = last,
+                    samples = a.samples,
+                    duration_s = a.duration_s,
+                    lost = self.lost,
+                    quantization_arcsec = %format_coefficient(&e.quantization_arcsec),
+                    arw_dpsh = %format_coefficient(&e.arw_dpsh),
+                    bias_instability_dph = %format_coefficient(&e.bias_instability_dph),
+                    fit_ok = a.fit.ok,
+                    latency_s = latency,
+                    "estimate"
+                )
+            };
+        }
+        if self.out.status.is_some() && !last {
+            estimate_line!(tracing::Level::DEBUG);
+        } else {
+            estimate_line!(tracing::Level::INFO);
+        }
         self.judge(a, t_ns, last);
     }
 
@@ -765,6 +813,8 @@ impl Run<'_> {
         self.push_ready(true);
         self.p.pipeline.finish(&mut self.pout);
         self.take_output();
+        self.summary.finish(self.pushed, &mut self.summaries);
+        self.record_summaries();
         self.flush_raw();
         self.flush_rates();
         let a = self.p.pipeline.analysis();

@@ -36,6 +36,7 @@ use crate::daemon::http::{self, HttpError};
 use crate::daemon::queue::QueueBound;
 use crate::daemon::process::{Outputs, ProcessConfig, ProcessError, ProcessReport, Processor};
 use crate::daemon::shutdown::{self, ShutdownTrigger};
+use crate::daemon::status::LiveStatus;
 use crate::daemon::telemetry::Telemetry;
 use crate::model::{GyroModel, ModelError};
 use crate::pipeline::PipelineConfig;
@@ -122,6 +123,8 @@ pub struct Daemon {
     metrics_addr: Option<SocketAddr>,
     /// The metadata record of the recording.
     recording_meta: RecordingMeta,
+    /// The live status a terminal shows, if any.
+    status: Option<Arc<LiveStatus>>,
 }
 
 /// What a run did.
@@ -319,7 +322,15 @@ impl Daemon {
             processor,
             metrics_addr,
             recording_meta,
+            status: None,
         })
+    }
+
+    /// Keep `status` up to date during the run (samples, estimates, and a
+    /// replay's progress through its file), for a terminal's status line.
+    pub fn with_status(mut self, status: Arc<LiveStatus>) -> Self {
+        self.status = Some(status);
+        self
     }
 
     /// The configuration in effect (after the source's own settings were applied).
@@ -335,6 +346,7 @@ impl Daemon {
             mut processor,
             metrics_addr,
             recording_meta,
+            status,
         } = self;
         if config.spec.stop_when_decided {
             // --stop-when-decided: the ordinary shutdown once every coefficient is decided
@@ -346,6 +358,11 @@ impl Daemon {
         }
         let gyro = config.gyro.info(crate::sink::metrics::DEFAULT_GYRO);
         let telemetry = Telemetry::new(Arc::new(Metrics::new()?), &gyro)?;
+        if let (Some(st), Source::Replay(_)) = (&status, &source)
+            && let Ok(m) = std::fs::metadata(&config.source.replay_path)
+        {
+            st.set_replay(m.len(), Arc::clone(&telemetry.metrics));
+        }
         let (drain_guard, drained) = shutdown::drain_channel();
 
         // The metrics server stops last, after the final estimates are in.
@@ -403,6 +420,7 @@ impl Daemon {
             recorder: recorder.as_ref().map(Recorder::sender),
             telemetry: telemetry.clone(),
             stop: Some(trigger.subscribe()),
+            status,
         };
         let guard = drain_guard.clone();
         let process_task = tokio::task::spawn_blocking(move || {

@@ -13,13 +13,16 @@
 //! | `/gyro/raw` | [`RawBatch`]: per-sample pulse increments with gaps | `t0_ns` |
 //! | `/gyro/clean` | [`RateBatch`]: wavelet-cleaned rate, deg/h | `t0_ns` |
 //! | `/gyro/noise` | [`RateBatch`]: quantization-noise component, deg/h | `t0_ns` |
-//! | `/gyro/estimates` | [`EstimateUpdate`]: noise coefficients with 95 % CIs | `t_ns` |
+//! | `/gyro/estimates` | [`EstimateUpdate`]: noise coefficients with 95 % intervals, as `analyze --json` names them | `t_ns` |
 //! | `/gyro/allan` | [`AllanUpdate`]: octave Allan curves with CIs | `t_ns` |
 //! | `/gyro/events` | [`Event`]: gaps, resyncs, CRC errors, device changes, drops | `t_ns` |
 //! | `/gyro/verdict` | [`VerdictUpdate`]: acceptance-test verdicts (`sagnac run --spec`) | `t_ns` |
+//! | `/gyro/summary` | [`SummaryUpdate`]: 10 Hz scalars for plotting (mean raw and clean rate, temperature) | `timestamp` |
 //!
 //! Times are nanoseconds; the daemon uses nanoseconds since the Unix epoch (host
-//! clock) so Foxglove shows wall time.
+//! clock) so Foxglove shows wall time. `/gyro/summary` states its time as
+//! Foxglove's `{sec, nsec}` (and its scalar fields are what Foxglove's Plot panel
+//! can draw over time, which the 1000-value arrays of the sample channels are not).
 //!
 //! Rate values (`/gyro/clean`, `/gyro/noise`) are written with a fixed resolution
 //! of [`RATE_RESOLUTION_DPH`] = 1e-3 deg/h (three decimals, `%.3f`), not as
@@ -47,26 +50,14 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 
+use crate::model::estimate::{Coefficient, NoiseEstimates};
 use crate::model::spec::{CoefficientVerdict, SpecReport, Verdict};
+use crate::units;
 
 /// Schema encoding written in the MCAP Schema records.
 pub const SCHEMA_ENCODING: &str = "jsonschema";
 /// Message encoding written in the MCAP Channel records.
 pub const MESSAGE_ENCODING: &str = "json";
-
-/// Suggested keys of [`EstimateUpdate::terms`]; the unit is part of the name.
-pub mod terms {
-    /// Quantization noise Q, arcsec.
-    pub const QN_ARCSEC: &str = "qn_arcsec";
-    /// Angle random walk N, deg/sqrt(h).
-    pub const ARW_DPSH: &str = "arw_dpsh";
-    /// Bias instability B, deg/h.
-    pub const BIAS_INSTABILITY_DPH: &str = "bias_instability_dph";
-    /// Rate random walk K, deg/h/sqrt(h).
-    pub const RRW_DPHSH: &str = "rrw_dphsh";
-    /// Rate ramp R, deg/h/h.
-    pub const RAMP_DPHH: &str = "ramp_dphh";
-}
 
 /// Errors of message validation: what cannot be recorded faithfully.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -203,32 +194,100 @@ fn serialize_rates<S: serde::Serializer>(values: &[f64], s: S) -> Result<S::Ok, 
     s.collect_seq(values.iter().map(|&v| quantize_rate(v)))
 }
 
-/// One noise coefficient with its 95 % confidence interval, in the unit its key names.
-///
-/// `value: None, hi95: Some(u)` means "not resolved, below the upper bound u".
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct TermEstimate {
-    /// Point estimate.
-    pub value: Option<f64>,
-    /// Lower end of the 95 % interval.
-    pub lo95: Option<f64>,
-    /// Upper end of the 95 % interval (or the 95 % upper bound).
-    pub hi95: Option<f64>,
+fn serialize_rate<S: serde::Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_f64(quantize_rate(*v))
 }
 
-/// `/gyro/estimates`: one estimator update.
+/// `/gyro/estimates`: one estimator update, with the fields of `sagnac analyze
+/// --json` of the same name: `samples`, `duration_s` and `estimates` (the five
+/// coefficients `quantization_arcsec`, `arw_dpsh`, `bias_instability_dph`,
+/// `rrw_dphsh`, `rate_ramp_dphh`, each `{value, ci95: [lo, hi]}` or, when the data
+/// do not resolve the term, `{value: null, upper95}`; units in the names,
+/// [`units::COEFFICIENTS`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct EstimateUpdate {
     /// Time of the update (time of the last sample used), ns.
     pub t_ns: u64,
     /// Samples used.
-    pub n_samples: u64,
+    pub samples: u64,
     /// Span of data used, s.
     pub duration_s: f64,
-    /// Coefficient name (unit in the name, see [`terms`]) -> estimate.
-    pub terms: BTreeMap<String, TermEstimate>,
+    /// The five coefficients.
+    pub estimates: NoiseEstimates,
+}
+
+impl EstimateUpdate {
+    /// The coefficients by key, in the order of [`units::COEFFICIENTS`].
+    pub fn coefficients(&self) -> [(&'static str, &Coefficient); 5] {
+        let e = &self.estimates;
+        [
+            (units::COEFFICIENTS[0].0, &e.quantization_arcsec),
+            (units::COEFFICIENTS[1].0, &e.arw_dpsh),
+            (units::COEFFICIENTS[2].0, &e.bias_instability_dph),
+            (units::COEFFICIENTS[3].0, &e.rrw_dphsh),
+            (units::COEFFICIENTS[4].0, &e.rate_ramp_dphh),
+        ]
+    }
+}
+
+/// A time as Foxglove's messages state it: whole seconds and nanoseconds since
+/// the Unix epoch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Timestamp {
+    pub sec: u64,
+    /// 0..=999_999_999.
+    pub nsec: u32,
+}
+
+impl Timestamp {
+    /// `t_ns` nanoseconds since the epoch.
+    pub fn from_ns(t_ns: u64) -> Self {
+        Timestamp { sec: t_ns / 1_000_000_000, nsec: (t_ns % 1_000_000_000) as u32 }
+    }
+    /// Nanoseconds since the epoch.
+    pub fn ns(self) -> u64 {
+        self.sec * 1_000_000_000 + u64::from(self.nsec)
+    }
+}
+
+/// `/gyro/summary`: one window of [`SUMMARY_PERIOD_S`] (0.1 s) of samples as
+/// scalars, for plots over time.
+///
+/// The window holds [`summary_window_samples`] consecutive sample periods
+/// (gap-filled ones included), cut short at the start of a new time segment and
+/// at the end of the run. The rates are means over the window's periods: the raw
+/// rate of the gap-filled pulse increments (`pulses x pulse_arcsec x rate_hz`,
+/// what the pipeline sees) and the wavelet-cleaned rate of the same periods
+/// (of the values before the rounding of `/gyro/clean`); both are recorded on
+/// the same 1e-3 deg/h grid ([`quantize_rate`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SummaryUpdate {
+    /// Time of the window's first sample.
+    pub timestamp: Timestamp,
+    /// Sample periods in the window (gap-filled ones included).
+    pub samples: u64,
+    /// Of those, periods whose sample was lost (gap-filled).
+    pub lost_samples: u64,
+    /// Mean raw rate, deg/h (recorded to 1e-3 deg/h).
+    #[serde(serialize_with = "serialize_rate")]
+    pub raw_rate_dph: f64,
+    /// Mean wavelet-cleaned rate, deg/h (recorded to 1e-3 deg/h).
+    #[serde(serialize_with = "serialize_rate")]
+    pub clean_rate_dph: f64,
+    /// Device temperature, deg C (the last one received in the window), when the frames carry one.
+    pub temp_c: Option<f64>,
+}
+
+/// Nominal length of a `/gyro/summary` window, s (10 Hz).
+pub const SUMMARY_PERIOD_S: f64 = 0.1;
+
+/// Sample periods per `/gyro/summary` window at `rate_hz`: `rate_hz x 0.1`
+/// rounded, at least 1 (exactly 10 Hz when `rate_hz` is a multiple of 10).
+pub fn summary_window_samples(rate_hz: f64) -> u64 {
+    (rate_hz * SUMMARY_PERIOD_S).round().max(1.0) as u64
 }
 
 /// An octave Allan-deviation curve in columns of equal length.
@@ -291,7 +350,6 @@ pub enum EventKind {
     BackpressureDrop { sink: String, dropped: u64 },
 }
 
-/// The six channels of a recording.
 /// `/gyro/verdict`: the acceptance test's verdicts after an estimator update
 /// ([`crate::model::spec`]; the same fields as `spec` in `sagnac analyze --spec`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -339,6 +397,7 @@ impl VerdictUpdate {
     }
 }
 
+/// The channels of a recording.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Topic {
     Raw,
@@ -348,11 +407,12 @@ pub enum Topic {
     Allan,
     Events,
     Verdict,
+    Summary,
 }
 
 impl Topic {
     /// All topics, in channel-id order of a recording.
-    pub const ALL: [Topic; 7] = [
+    pub const ALL: [Topic; 8] = [
         Topic::Raw,
         Topic::Clean,
         Topic::Noise,
@@ -360,6 +420,7 @@ impl Topic {
         Topic::Allan,
         Topic::Events,
         Topic::Verdict,
+        Topic::Summary,
     ];
 
     /// The MCAP topic name.
@@ -372,6 +433,7 @@ impl Topic {
             Topic::Allan => "/gyro/allan",
             Topic::Events => "/gyro/events",
             Topic::Verdict => "/gyro/verdict",
+            Topic::Summary => "/gyro/summary",
         }
     }
 
@@ -389,6 +451,7 @@ impl Topic {
             Topic::Allan => "sagnac.AllanUpdate",
             Topic::Events => "sagnac.Event",
             Topic::Verdict => "sagnac.VerdictUpdate",
+            Topic::Summary => "sagnac.SummaryUpdate",
         }
     }
 
@@ -402,11 +465,12 @@ impl Topic {
             Topic::Allan => allan_update_schema(),
             Topic::Events => event_schema(),
             Topic::Verdict => verdict_update_schema(),
+            Topic::Summary => summary_update_schema(),
         }
     }
 }
 
-/// A message on one of the six channels.
+/// A message on one of the channels.
 #[derive(Debug, Clone, PartialEq)]
 pub enum SinkMessage {
     Raw(RawBatch),
@@ -416,6 +480,7 @@ pub enum SinkMessage {
     Allan(AllanUpdate),
     Event(Event),
     Verdict(VerdictUpdate),
+    Summary(SummaryUpdate),
 }
 
 impl SinkMessage {
@@ -429,6 +494,7 @@ impl SinkMessage {
             SinkMessage::Allan(_) => Topic::Allan,
             SinkMessage::Event(_) => Topic::Events,
             SinkMessage::Verdict(_) => Topic::Verdict,
+            SinkMessage::Summary(_) => Topic::Summary,
         }
     }
 
@@ -441,11 +507,13 @@ impl SinkMessage {
             SinkMessage::Allan(m) => m.t_ns,
             SinkMessage::Event(m) => m.t_ns,
             SinkMessage::Verdict(m) => m.t_ns,
+            SinkMessage::Summary(m) => m.timestamp.ns(),
         }
     }
 
     /// The message as a recording gives it back: rate values (`/gyro/clean`,
-    /// `/gyro/noise`) on the 1e-3 deg/h grid ([`quantize_rate`]), all else unchanged.
+    /// `/gyro/noise`, the rates of `/gyro/summary`) on the 1e-3 deg/h grid
+    /// ([`quantize_rate`]), all else unchanged.
     pub fn recorded(&self) -> SinkMessage {
         let q = |m: &RateBatch| RateBatch {
             t0_ns: m.t0_ns,
@@ -455,6 +523,11 @@ impl SinkMessage {
         match self {
             SinkMessage::Clean(m) => SinkMessage::Clean(q(m)),
             SinkMessage::Noise(m) => SinkMessage::Noise(q(m)),
+            SinkMessage::Summary(m) => SinkMessage::Summary(SummaryUpdate {
+                raw_rate_dph: quantize_rate(m.raw_rate_dph),
+                clean_rate_dph: quantize_rate(m.clean_rate_dph),
+                ..m.clone()
+            }),
             other => other.clone(),
         }
     }
@@ -469,6 +542,7 @@ impl SinkMessage {
             SinkMessage::Allan(m) => serde_json::to_vec(m),
             SinkMessage::Event(m) => serde_json::to_vec(m),
             SinkMessage::Verdict(m) => serde_json::to_vec(m),
+            SinkMessage::Summary(m) => serde_json::to_vec(m),
         }
     }
 
@@ -487,6 +561,7 @@ impl SinkMessage {
             SinkMessage::Allan(m) => serde_json::to_writer(&mut *out, m)?,
             SinkMessage::Event(m) => serde_json::to_writer(&mut *out, m)?,
             SinkMessage::Verdict(m) => serde_json::to_writer(&mut *out, m)?,
+            SinkMessage::Summary(m) => serde_json::to_writer(&mut *out, m)?,
         }
         Ok(())
     }
@@ -516,6 +591,9 @@ impl SinkMessage {
             }
             Topic::Verdict => {
                 SinkMessage::Verdict(serde_json::from_slice(payload).map_err(decode_err)?)
+            }
+            Topic::Summary => {
+                SinkMessage::Summary(serde_json::from_slice(payload).map_err(decode_err)?)
             }
         };
         msg.validate()?;
@@ -569,12 +647,25 @@ impl SinkMessage {
             }
             SinkMessage::Estimates(m) => {
                 finite(topic, "duration_s", m.duration_s)?;
-                for (name, t) in &m.terms {
-                    finite_opt(topic, &format!("terms.{name}.value"), t.value)?;
-                    finite_opt(topic, &format!("terms.{name}.lo95"), t.lo95)?;
-                    finite_opt(topic, &format!("terms.{name}.hi95"), t.hi95)?;
+                for (name, c) in m.coefficients() {
+                    finite_opt(topic, &format!("estimates.{name}.value"), c.value)?;
+                    if let Some(ci) = c.ci95 {
+                        finite_slice(topic, &format!("estimates.{name}.ci95"), &ci)?;
+                    }
+                    finite_opt(topic, &format!("estimates.{name}.upper95"), c.upper95)?;
                 }
                 Ok(())
+            }
+            SinkMessage::Summary(m) => {
+                if m.timestamp.nsec >= 1_000_000_000 {
+                    return Err(MessageError::Decode {
+                        topic,
+                        reason: format!("timestamp.nsec = {} is not below 1e9", m.timestamp.nsec),
+                    });
+                }
+                finite(topic, "raw_rate_dph", m.raw_rate_dph)?;
+                finite(topic, "clean_rate_dph", m.clean_rate_dph)?;
+                finite_opt(topic, "temp_c", m.temp_c)
             }
             SinkMessage::Allan(m) => {
                 for (name, c) in &m.curves {
@@ -865,24 +956,65 @@ fn rate_batch_schema(what: &str) -> Value {
     )
 }
 
+/// One coefficient as `sagnac analyze --json` writes it: `value` and `ci95`, or
+/// `value: null` and `upper95`.
+fn coefficient_schema(key: &str, unit: &str, what: &str) -> Value {
+    json!({
+        "title": "sagnac.Coefficient",
+        "description": format!("{what}, {unit}: value with its 95 % interval, or null with a 95 % upper bound when the data do not resolve it"),
+        "type": "object",
+        "properties": {
+            "value": nullable_number(&format!("{key}: point estimate, {unit} (null: only an upper bound)")),
+            "ci95": {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2,
+                     "description": format!("95 % interval [lower, upper], {unit}")},
+            "upper95": number(&format!("95 % upper bound, {unit} (when value is null)")),
+        },
+        "required": ["value"],
+        "additionalProperties": false,
+    })
+}
+
 fn estimate_update_schema() -> Value {
-    let term = object(
-        "sagnac.TermEstimate",
-        "a noise coefficient with its 95 % interval, in the unit its name carries",
+    let mut coefficients = serde_json::Map::new();
+    for (key, unit, what) in units::COEFFICIENTS {
+        coefficients.insert(key.to_string(), coefficient_schema(key, unit, what));
+    }
+    let names: Vec<&str> = units::COEFFICIENTS.iter().map(|c| c.0).collect();
+    object(
+        "sagnac.EstimateUpdate",
+        "noise-coefficient estimates, named as in `sagnac analyze --json` (units in the names)",
         json!({
-            "value": nullable_number("point estimate (null: only an upper bound)"),
-            "lo95": nullable_number("lower end of the 95 % interval"),
-            "hi95": nullable_number("upper end of the 95 % interval, or the 95 % upper bound"),
+            "t_ns": uint("time of the update, ns since the Unix epoch"),
+            "samples": uint("samples used"),
+            "duration_s": number("span of data used, s"),
+            "estimates": object(
+                "sagnac.NoiseEstimates",
+                &format!("the IEEE 952 coefficients: {}", names.join(", ")),
+                Value::Object(coefficients),
+            ),
+        }),
+    )
+}
+
+fn summary_update_schema() -> Value {
+    let timestamp = object(
+        "time",
+        "time of the window's first sample since the Unix epoch (Foxglove time: sec, nsec)",
+        json!({
+            "sec": uint("whole seconds"),
+            "nsec": {"type": "integer", "minimum": 0, "maximum": 999_999_999, "description": "nanoseconds"},
         }),
     );
     object(
-        "sagnac.EstimateUpdate",
-        "noise-coefficient estimates (qn_arcsec, arw_dpsh, bias_instability_dph, rrw_dphsh, ramp_dphh)",
+        "sagnac.SummaryUpdate",
+        "0.1 s of samples as scalars (10 Hz), for plots over time",
         json!({
-            "t_ns": uint("time of the update, ns since the Unix epoch"),
-            "n_samples": uint("samples used"),
-            "duration_s": number("span of data used, s"),
-            "terms": {"type": "object", "additionalProperties": term, "description": "coefficient name -> estimate"},
+            "timestamp": timestamp,
+            "samples": uint("sample periods in the window (gap-filled ones included)"),
+            "lost_samples": uint("periods of the window whose sample was lost (gap-filled)"),
+            "raw_rate_dph": number("mean raw rate over the window, deg/h, recorded to 1e-3 deg/h"),
+            "clean_rate_dph": number("mean wavelet-cleaned rate over the window, deg/h, recorded to 1e-3 deg/h"),
+            "temp_c": nullable_number("device temperature, deg C (null: the frames carry none)"),
         }),
     )
 }

@@ -10,7 +10,7 @@ use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
 use sagnac::model::estimate::Coefficient;
-use sagnac::sink::messages::{EstimateUpdate, RawBatch, SinkMessage, TermEstimate};
+use sagnac::sink::messages::{EstimateUpdate, RawBatch, SinkMessage};
 use sagnac::sink::reader::read_recording;
 
 pub fn repo() -> PathBuf {
@@ -112,7 +112,7 @@ pub fn read_mcap_py_fast(path: &Path) -> serde_json::Value {
     read_mcap_py_with(path, &["--no-schema"])
 }
 
-fn read_mcap_py_with(path: &Path, flags: &[&str]) -> serde_json::Value {
+pub fn read_mcap_py_with(path: &Path, flags: &[&str]) -> serde_json::Value {
     let out = Command::new("python3")
         .arg(repo().join("scripts/read-mcap.py"))
         .args(flags)
@@ -126,6 +126,29 @@ fn read_mcap_py_with(path: &Path, flags: &[&str]) -> serde_json::Value {
         String::from_utf8_lossy(&out.stderr)
     );
     serde_json::from_slice(&out.stdout).unwrap()
+}
+
+/// The `/gyro/summary` messages of a recording against the same windows
+/// recomputed by `scripts/read-mcap.py --summary` from `/gyro/raw` and
+/// `/gyro/clean`: same count, times, sample and lost counts; the raw mean within
+/// its recorded 0.5e-3 deg/h rounding, the clean mean within that and the
+/// rounding of `/gyro/clean`; the temperature within the raw batches' range.
+/// Returns the number of messages.
+pub fn check_summary(py: &serde_json::Value) -> usize {
+    let rec = py["summary_recorded"].as_array().expect("read-mcap.py --summary");
+    let exp = py["summary_expected"].as_array().unwrap();
+    assert_eq!(rec.len(), exp.len(), "summary windows: recorded vs recomputed");
+    let f = |v: &serde_json::Value| v.as_f64().unwrap();
+    for (i, (r, e)) in rec.iter().zip(exp).enumerate() {
+        assert_eq!((&r[0], &r[1], &r[2]), (&e[0], &e[1], &e[2]), "window {i}: time, samples, lost");
+        assert!((f(&r[3]) - f(&e[3])).abs() <= 0.5e-3 + 1e-9 * f(&e[3]).abs(), "window {i}: raw {r:?} vs {e:?}");
+        assert!((f(&r[4]) - f(&e[4])).abs() <= 1e-3 + 1e-9 * f(&e[4]).abs(), "window {i}: clean {r:?} vs {e:?}");
+        match (&r[5], &e[5]) {
+            (serde_json::Value::Null, serde_json::Value::Null) => {}
+            (t, range) => assert!(f(&range[0]) <= f(t) && f(t) <= f(&range[1]), "window {i}: temp {t} outside {range}"),
+        }
+    }
+    rec.len()
 }
 
 /// The single `.mcap` file in `dir`.
@@ -277,39 +300,41 @@ pub fn final_and_raw(rec: &Path) -> (EstimateUpdate, Vec<RawBatch>) {
     (last.expect("estimates recorded"), raw)
 }
 
-/// A coefficient of `sagnac analyze --json` in the daemon's recorded form.
-pub fn term(c: &Coefficient) -> TermEstimate {
-    TermEstimate {
-        value: c.value,
-        lo95: c.ci95.map(|c| c[0]),
-        hi95: c.ci95.map(|c| c[1]).or(c.upper95),
-    }
-}
-
 /// Equal to rounding (relative 1e-9): the same `Pipeline` on the same samples,
 /// pushed in other block sizes (its sums are not bit-invariant to the split).
-pub fn close(a: &TermEstimate, b: &TermEstimate, what: &str) {
-    for (x, y) in [(a.value, b.value), (a.lo95, b.lo95), (a.hi95, b.hi95)] {
-        match (x, y) {
-            (Some(x), Some(y)) => assert!(
-                (x - y).abs() <= 1e-9 * x.abs().max(y.abs()),
-                "{what}: {a:?} vs {b:?}"
-            ),
-            (None, None) => {}
-            _ => panic!("{what}: {a:?} vs {b:?}"),
+/// Returns the largest relative difference.
+pub fn close(a: &Coefficient, b: &Coefficient, what: &str) -> f64 {
+    let (ca, cb) = (a.ci95.unwrap_or([f64::NAN; 2]), b.ci95.unwrap_or([f64::NAN; 2]));
+    assert_eq!(
+        (a.value.is_some(), a.ci95.is_some(), a.upper95.is_some()),
+        (b.value.is_some(), b.ci95.is_some(), b.upper95.is_some()),
+        "{what}: {a:?} vs {b:?}"
+    );
+    let mut worst: f64 = 0.0;
+    for (x, y) in [(a.value, b.value), (Some(ca[0]), Some(cb[0])), (Some(ca[1]), Some(cb[1])), (a.upper95, b.upper95)] {
+        if let (Some(x), Some(y)) = (x, y)
+            && !(x.is_nan() && y.is_nan())
+        {
+            let rel = (x - y).abs() / x.abs().max(y.abs()).max(f64::MIN_POSITIVE);
+            assert!(rel <= 1e-9, "{what}: {a:?} vs {b:?}");
+            worst = worst.max(rel);
         }
     }
+    worst
 }
 
-/// The daemon's `/gyro/estimates` term and the key of the same coefficient in
-/// `sagnac analyze --json`.
-pub const ESTIMATE_KEYS: [(&str, &str); 5] = [
-    ("qn_arcsec", "quantization_arcsec"),
-    ("arw_dpsh", "arw_dpsh"),
-    ("bias_instability_dph", "bias_instability_dph"),
-    ("rrw_dphsh", "rrw_dphsh"),
-    ("ramp_dphh", "rate_ramp_dphh"),
-];
+/// The five coefficients of `/gyro/estimates` and of `sagnac analyze --json`
+/// (one name each, [`sagnac::units::COEFFICIENTS`]) match to rounding; the
+/// largest relative difference.
+pub fn close_estimates(recorded: &EstimateUpdate, analyze: &serde_json::Value, what: &str) -> f64 {
+    let mut worst: f64 = 0.0;
+    for (key, c) in recorded.coefficients() {
+        let a: Coefficient = serde_json::from_value(analyze["estimates"][key].clone())
+            .unwrap_or_else(|e| panic!("{what}: analyze's estimates.{key}: {e}"));
+        worst = worst.max(close(c, &a, &format!("{key}: {what}")));
+    }
+    worst
+}
 
 /// `sagnac analyze --format FORMAT --input INPUT --json OUT`, its JSON report.
 pub fn analyze_json(format: &str, input: &Path, out: &Path) -> serde_json::Value {

@@ -7,8 +7,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sagnac::sink::messages::{
     AllanCurve, AllanUpdate, EstimateUpdate, Event, EventKind, Gap, RateBatch, RawBatch,
-    SinkMessage, TermEstimate, VerdictUpdate, terms,
+    SinkMessage, SummaryUpdate, Timestamp, VerdictUpdate,
 };
+use sagnac::model::estimate::{Coefficient, NoiseEstimates};
 use sagnac::model::spec::{CoefficientVerdict, Verdict};
 
 /// 2026-11-21T20:03:01Z, ns since the epoch.
@@ -61,35 +62,37 @@ pub fn rate_batch(rng: &mut ChaCha8Rng, i: u64, len: usize) -> RateBatch {
 }
 
 pub fn estimate(rng: &mut ChaCha8Rng, i: u64) -> EstimateUpdate {
-    let mut t = BTreeMap::new();
-    for name in [
-        terms::QN_ARCSEC,
-        terms::ARW_DPSH,
-        terms::BIAS_INSTABILITY_DPH,
-        terms::RRW_DPHSH,
-        terms::RAMP_DPHH,
-    ] {
+    let mut coef = || {
         let v = awkward_f64(rng).abs();
-        let e = if rng.random_bool(0.7) {
-            TermEstimate {
-                value: Some(v),
-                lo95: Some(v * 0.9),
-                hi95: Some(v * 1.1),
-            }
+        if rng.random_bool(0.7) {
+            Coefficient { value: Some(v), ci95: Some([v * 0.9, v * 1.1]), upper95: None }
         } else {
-            TermEstimate {
-                value: None,
-                lo95: None,
-                hi95: Some(v),
-            }
-        };
-        t.insert(name.to_string(), e);
-    }
+            Coefficient { value: None, ci95: None, upper95: Some(v) }
+        }
+    };
     EstimateUpdate {
         t_ns: T0_NS + i * 1_000_000_000,
-        n_samples: 1000 * (i + 1),
+        samples: 1000 * (i + 1),
         duration_s: (i + 1) as f64,
-        terms: t,
+        estimates: NoiseEstimates {
+            quantization_arcsec: coef(),
+            arw_dpsh: coef(),
+            bias_instability_dph: coef(),
+            rrw_dphsh: coef(),
+            rate_ramp_dphh: coef(),
+        },
+    }
+}
+
+pub fn summary(rng: &mut ChaCha8Rng, i: u64) -> SummaryUpdate {
+    let lost = rng.random_range(0..3);
+    SummaryUpdate {
+        timestamp: Timestamp::from_ns(T0_NS + i * 100_000_000 + rng.random_range(0..1_000_000)),
+        samples: 100,
+        lost_samples: lost,
+        raw_rate_dph: awkward_f64(rng),
+        clean_rate_dph: awkward_f64(rng),
+        temp_c: rng.random_bool(0.7).then(|| 25.0 + awkward_f64(rng).fract()),
     }
 }
 
@@ -189,18 +192,19 @@ pub fn verdict(rng: &mut ChaCha8Rng, i: u64) -> VerdictUpdate {
     }
 }
 
-/// A deterministic stream of `n` messages cycling over all seven channels.
+/// A deterministic stream of `n` messages cycling over all eight channels.
 pub fn stream(seed: u64, n: usize) -> Vec<SinkMessage> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     (0..n as u64)
-        .map(|i| match i % 7 {
+        .map(|i| match i % 8 {
             0 => SinkMessage::Raw(raw_batch(&mut rng, i, 64)),
             1 => SinkMessage::Clean(rate_batch(&mut rng, i, 64)),
             2 => SinkMessage::Noise(rate_batch(&mut rng, i, 64)),
             3 => SinkMessage::Estimates(estimate(&mut rng, i)),
             4 => SinkMessage::Allan(allan(&mut rng, i)),
-            5 => SinkMessage::Event(event(&mut rng, i / 7)),
-            _ => SinkMessage::Verdict(verdict(&mut rng, i)),
+            5 => SinkMessage::Event(event(&mut rng, i / 8)),
+            6 => SinkMessage::Verdict(verdict(&mut rng, i)),
+            _ => SinkMessage::Summary(summary(&mut rng, i)),
         })
         .collect()
 }

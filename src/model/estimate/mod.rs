@@ -182,6 +182,7 @@ impl RampAccumulator {
 /// One coefficient as reported: a value with its 95 % interval, or `null`
 /// with a 95 % upper bound when the data do not support the term.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Coefficient {
     pub value: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none", default)]
@@ -192,6 +193,7 @@ pub struct Coefficient {
 
 /// The five IEEE 952 coefficients.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct NoiseEstimates {
     pub quantization_arcsec: Coefficient,
     pub arw_dpsh: Coefficient,

@@ -1,0 +1,239 @@
+//! The live status of a run, for the one-line display `sagnac run` redraws at a
+//! terminal: elapsed time, samples, lost samples, QN and ARW with their 95 %
+//! intervals, the fit verdict, and a replay's progress through its file.
+//!
+//! The pipeline thread writes [`LiveStatus`] (samples at every batch, the
+//! coefficients at every estimator update); the terminal side reads a
+//! [`StatusSnapshot`] and draws [`format_status`], a pure function. Numbers are
+//! in fixed notation ([`fixed`]), never with an exponent, here and in the
+//! estimate log lines ([`format_coefficient`]).
+
+use std::sync::{Arc, Mutex, OnceLock};
+use std::time::Instant;
+
+use crate::model::estimate::Coefficient;
+use crate::pipeline::FitSummary;
+use crate::sink::metrics::Metrics;
+
+/// The coefficients of the last estimator update.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StatusEstimate {
+    pub quantization_arcsec: Coefficient,
+    pub arw_dpsh: Coefficient,
+    pub fit: FitSummary,
+    /// The final update (after the end of the stream).
+    pub final_update: bool,
+}
+
+/// What the status line shows.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StatusSnapshot {
+    /// Wall time since the run started, s.
+    pub elapsed_s: f64,
+    /// Samples decoded.
+    pub samples: u64,
+    /// Sample periods lost (gaps, drops).
+    pub lost: u64,
+    pub estimate: Option<StatusEstimate>,
+    /// A replay's (bytes read, file size).
+    pub replay_bytes: Option<(u64, u64)>,
+}
+
+#[derive(Debug, Default)]
+struct State {
+    samples: u64,
+    lost: u64,
+    estimate: Option<StatusEstimate>,
+}
+
+/// A replay's file size and where to read how far the replay has got.
+struct ReplayProgress {
+    total_bytes: u64,
+    metrics: Arc<Metrics>,
+}
+
+/// Shared between the pipeline thread (writer) and the display (reader).
+pub struct LiveStatus {
+    started: Instant,
+    state: Mutex<State>,
+    replay: OnceLock<ReplayProgress>,
+}
+
+impl std::fmt::Debug for LiveStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LiveStatus").field("state", &self.state).finish_non_exhaustive()
+    }
+}
+
+impl Default for LiveStatus {
+    fn default() -> Self {
+        LiveStatus { started: Instant::now(), state: Mutex::default(), replay: OnceLock::new() }
+    }
+}
+
+impl LiveStatus {
+    /// A status whose elapsed time starts now.
+    pub fn new() -> Arc<Self> {
+        Arc::new(Self::default())
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, State> {
+        // the state is plain numbers: a panic elsewhere cannot leave it half-written
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Samples decoded and periods lost so far.
+    pub fn set_counts(&self, samples: u64, lost: u64) {
+        let mut s = self.lock();
+        (s.samples, s.lost) = (samples, lost);
+    }
+
+    /// The coefficients of an estimator update.
+    pub fn set_estimate(&self, e: StatusEstimate) {
+        self.lock().estimate = Some(e);
+    }
+
+    /// A replay of a file of `total_bytes`: its progress is the
+    /// `sagnac_bytes_read_total` counter of `metrics`.
+    pub fn set_replay(&self, total_bytes: u64, metrics: Arc<Metrics>) {
+        let _ = self.replay.set(ReplayProgress { total_bytes, metrics });
+    }
+
+    /// What to show now.
+    pub fn snapshot(&self) -> StatusSnapshot {
+        let s = self.lock();
+        let replay_bytes = self.replay.get().map(|r| (bytes_read(&r.metrics), r.total_bytes));
+        StatusSnapshot {
+            elapsed_s: self.started.elapsed().as_secs_f64(),
+            samples: s.samples,
+            lost: s.lost,
+            estimate: s.estimate,
+            replay_bytes,
+        }
+    }
+}
+
+/// The `sagnac_bytes_read_total` counter.
+fn bytes_read(m: &Metrics) -> u64 {
+    m.registry()
+        .gather()
+        .iter()
+        .find(|f| f.name() == "sagnac_bytes_read_total")
+        .and_then(|f| f.get_metric().first().map(|c| c.get_counter().get_value() as u64))
+        .unwrap_or(0)
+}
+
+/// Decimals that give `v` `sig` significant digits in fixed notation (at most 12).
+fn decimals_for(v: f64, sig: usize) -> usize {
+    if !v.is_finite() || v == 0.0 {
+        return sig.saturating_sub(1);
+    }
+    let e = v.abs().log10().floor() as i64;
+    (sig as i64 - 1 - e).clamp(0, 12) as usize
+}
+
+/// `v` with `sig` significant digits in fixed notation: `0.000987`, `1236`, never `9.87e-4`.
+pub fn fixed(v: f64, sig: usize) -> String {
+    format!("{v:.*}", decimals_for(v, sig))
+}
+
+/// "0.351 [0.349, 0.353]" (the interval with the value's decimals), "< 0.00200"
+/// for a 95 % upper bound, or "-"; fixed notation, 3 significant digits.
+pub fn format_coefficient(c: &Coefficient) -> String {
+    match (c.value, c.ci95, c.upper95) {
+        (Some(v), Some([lo, hi]), _) => {
+            let d = decimals_for(v, 3);
+            format!("{v:.d$} [{lo:.d$}, {hi:.d$}]")
+        }
+        (Some(v), None, _) => fixed(v, 3),
+        (None, _, Some(u)) => format!("< {}", fixed(u, 3)),
+        _ => "-".into(),
+    }
+}
+
+/// `12.3 s | 12300 samples, 0 lost | Q 0.351 [0.349, 0.353] arcsec | N 0.000990
+/// [0.000641, 0.00120] deg/sqrt(h) | fit ok`, preceded by `replay 45 % |` for a
+/// replay; `estimating...` before the first update.
+pub fn format_status(s: &StatusSnapshot) -> String {
+    let mut parts = Vec::with_capacity(6);
+    if let Some((done, total)) = s.replay_bytes
+        && total > 0
+    {
+        parts.push(format!("replay {:.0} %", 100.0 * (done.min(total) as f64) / total as f64));
+    }
+    parts.push(format!("{:.1} s", s.elapsed_s));
+    parts.push(format!("{} samples, {} lost", s.samples, s.lost));
+    match &s.estimate {
+        Some(e) => {
+            parts.push(format!("Q {} arcsec", format_coefficient(&e.quantization_arcsec)));
+            parts.push(format!("N {} deg/sqrt(h)", format_coefficient(&e.arw_dpsh)));
+            parts.push(if e.fit.ok {
+                format!("fit ok (chi2/dof {:.2})", e.fit.chi2_per_dof)
+            } else {
+                format!("MODEL MISFIT (chi2/dof {:.2}): run sagnac diagnose", e.fit.chi2_per_dof)
+            });
+        }
+        None => parts.push("estimating...".into()),
+    }
+    parts.join(" | ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn coef(value: Option<f64>, ci95: Option<[f64; 2]>, upper95: Option<f64>) -> Coefficient {
+        Coefficient { value, ci95, upper95 }
+    }
+
+    #[test]
+    fn fixed_notation_never_has_an_exponent() {
+        assert_eq!(fixed(0.35123, 3), "0.351");
+        assert_eq!(fixed(0.000987654, 3), "0.000988");
+        assert_eq!(fixed(1235.6, 3), "1236");
+        assert_eq!(fixed(1.5e-7, 2), "0.00000015");
+        assert_eq!(fixed(0.0, 3), "0.00");
+        // below 1e-12 the digits run out, still without an exponent
+        assert_eq!(fixed(3e-15, 3), "0.000000000000");
+        for v in [1e-9, 2.5e-6, 0.5, 7.0, 3e5, 1e9] {
+            assert!(!fixed(v, 3).contains('e'), "{v}: {}", fixed(v, 3));
+        }
+    }
+
+    #[test]
+    fn coefficients_with_intervals_and_bounds() {
+        assert_eq!(format_coefficient(&coef(Some(0.35054), Some([0.34086, 0.35996]), None)), "0.351 [0.341, 0.360]");
+        // the interval takes the value's decimals
+        assert_eq!(
+            format_coefficient(&coef(Some(0.00099011), Some([0.00064116, 0.0012039]), None)),
+            "0.000990 [0.000641, 0.001204]"
+        );
+        assert_eq!(format_coefficient(&coef(None, None, Some(0.1688))), "< 0.169");
+        assert_eq!(format_coefficient(&coef(Some(2.0), None, None)), "2.00");
+        assert_eq!(format_coefficient(&coef(None, None, None)), "-");
+    }
+
+    #[test]
+    fn the_status_line() {
+        let fit = FitSummary { chi2_per_dof: 0.13, dof: 1.0, ok: true, observations: 2 };
+        let mut s = StatusSnapshot { elapsed_s: 12.34, samples: 12_300, lost: 3, ..StatusSnapshot::default() };
+        assert_eq!(format_status(&s), "12.3 s | 12300 samples, 3 lost | estimating...");
+        s.estimate = Some(StatusEstimate {
+            quantization_arcsec: coef(Some(0.35054), Some([0.34086, 0.35996]), None),
+            arw_dpsh: coef(None, None, Some(0.0012)),
+            fit,
+            final_update: false,
+        });
+        assert_eq!(
+            format_status(&s),
+            "12.3 s | 12300 samples, 3 lost | Q 0.351 [0.341, 0.360] arcsec | N < 0.00120 deg/sqrt(h) | fit ok (chi2/dof 0.13)"
+        );
+        s.replay_bytes = Some((450, 1000));
+        s.estimate.as_mut().unwrap().fit = FitSummary { chi2_per_dof: 7.5, ok: false, ..fit };
+        assert_eq!(
+            format_status(&s),
+            "replay 45 % | 12.3 s | 12300 samples, 3 lost | Q 0.351 [0.341, 0.360] arcsec | N < 0.00120 deg/sqrt(h) \
+             | MODEL MISFIT (chi2/dof 7.50): run sagnac diagnose"
+        );
+    }
+}
