@@ -1,6 +1,6 @@
 //! `sagnac diagnose`: compare a recording with its gyro model, locate the
 //! mismatch, name and fit the missing physics, and show the fit improve
-//! (see [`crate::model::diagnose`] for the method).
+//! (see [`crate::diagnose`] for the method).
 //!
 //! Inputs: the model TOML and a recording as CSV (`counts` column of pulse
 //! increments, optional `temp_c`), a raw frame capture (`frames`) or an MCAP
@@ -18,7 +18,7 @@ use anyhow::{Context, bail};
 use clap::{Args, ValueEnum};
 
 use crate::model::GyroModel;
-use crate::model::diagnose::{self, DiagnoseOptions, Recording};
+use crate::diagnose::{self, DiagnoseOptions, Recording};
 use crate::sink::messages::SinkMessage;
 use crate::sink::meta::GyroOutput;
 use crate::source::capture::CaptureReader;
