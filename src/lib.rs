@@ -6,18 +6,22 @@
 //! source (serial, replay, frame decoding, file input)
 //!   -> dsp (streaming wavelet bank, quantization-noise removal)
 //!   -> allan (batch and streaming Allan statistics with confidence intervals)
-//!   -> model (noise terms, estimation, simulation, diagnosis)
-//!   -> sink (MCAP recording, Prometheus metrics)
+//!   -> model (noise terms, estimation, simulation)
+//!   -> pipeline (dsp -> allan -> model, synchronously)
+//!   -> diagnose (a recording against its gyro model)
+//!   -> sink (MCAP recording, Prometheus metrics, reports)
 //! ```
 //!
-//! `pipeline` chains dsp -> allan -> model synchronously; `analyze` and the
-//! daemon both run it. `daemon` wires sources and sinks around it with tokio
-//! tasks; `cli` holds the subcommands. The numeric modules (`dsp`, `allan`,
-//! `model`, `pipeline`) are plain synchronous Rust and never import tokio.
+//! `analyze` and the daemon both run the `pipeline`; `diagnose` simulates the
+//! model and runs the pipeline's estimators on the recording. `daemon` wires
+//! sources and sinks around the pipeline with tokio tasks; `cli` holds the
+//! subcommands. The numeric modules (`dsp`, `allan`, `model`, `pipeline`,
+//! `diagnose`) are plain synchronous Rust and never import tokio.
 
 pub mod allan;
 pub mod cli;
 pub mod daemon;
+pub mod diagnose;
 pub mod dsp;
 pub mod font;
 pub mod model;

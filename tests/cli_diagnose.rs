@@ -331,3 +331,67 @@ fn a_recording_at_another_rate_is_noted_and_the_written_model_has_its_rate() {
     let m = sagnac::model::GyroModel::from_toml_str(&new, "new.toml").unwrap();
     assert_eq!(m.gyro.sample_rate_hz, 500.0, "{new}");
 }
+
+/// `--report` alone is enough (the summary goes to stdout); the figure says
+/// the verdict in words and lists the findings; with neither `--json` nor
+/// `--report` there is nothing to write, and that is said before any work.
+#[test]
+fn the_report_alone_suffices_and_the_figure_states_verdict_and_findings() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path();
+    std::fs::write(p.join("model.toml"), MODEL).unwrap();
+    std::fs::write(p.join("truth.toml"), TRUTH).unwrap();
+    simulate(&p.join("truth.toml"), &p.join("rec.csv"), "csv", "600", "5");
+    let out = bin()
+        .args(["diagnose", "--model"])
+        .arg(p.join("model.toml"))
+        .arg("--recording")
+        .arg(p.join("rec.csv"))
+        .arg("--report")
+        .arg(p.join("out.svg"))
+        .output()
+        .unwrap();
+    ok(&out);
+    assert!(String::from_utf8_lossy(&out.stdout).starts_with("verdict: Mismatch"), "{out:?}");
+    let svg = std::fs::read_to_string(p.join("out.svg")).unwrap();
+    assert!(svg.contains("Verdict: mismatch. The recording departs from the model at tau"), "no verdict sentence");
+    assert!(svg.contains("Added: gauss_markov: sigma_dph"), "no finding on the figure");
+    assert!(svg.contains("with the updated model"), "no chi2/dof after");
+    // one legend per panel, drawn above the plotting area: each legend's
+    // "recording" label sits higher than every data point of its panel's row
+    // (y, content) of every text element
+    let texts: Vec<(f64, String)> = svg
+        .split("<text")
+        .skip(1)
+        .filter_map(|t| {
+            let (tag, rest) = t.split_once('>')?;
+            let y = tag.split(" y=\"").nth(1)?.split('"').next()?.parse().ok()?;
+            Some((y, rest.split("</text>").next()?.trim().to_string()))
+        })
+        .collect();
+    let mut legend_y: Vec<f64> = texts.iter().filter(|t| t.1 == "recording").map(|t| t.0).collect();
+    assert_eq!(legend_y.len(), 4, "one legend per panel");
+    legend_y.sort_by(f64::total_cmp);
+    let (top, bottom) = (legend_y[0], legend_y[3]);
+    let circles: Vec<f64> = svg
+        .split("<circle")
+        .skip(1)
+        // the data points (radius 3; the legend's marker has radius 4)
+        .filter(|c| c.split("/>").next().is_some_and(|t| t.contains("r=\"3\"")))
+        .filter_map(|c| c.split("cy=\"").nth(1)?.split('"').next()?.parse().ok())
+        .collect();
+    assert!(circles.len() > 20, "{} data points", circles.len());
+    for cy in circles {
+        let row_legend = if cy < bottom - 5.0 { top } else { bottom };
+        assert!(cy > row_legend + 10.0, "a data point at y {cy} is not below its legend at y {row_legend}");
+    }
+    fails_with(
+        &[
+            "--model".as_ref(),
+            p.join("model.toml").as_os_str(),
+            "--recording".as_ref(),
+            p.join("rec.csv").as_os_str(),
+        ],
+        "nothing to write",
+    );
+}

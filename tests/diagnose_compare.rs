@@ -6,7 +6,7 @@
 //! its threshold calibrated on the model's own runs, must find it and name it
 //! with intervals that cover the truth.
 
-use sagnac::model::diagnose::{self, DiagnoseOptions, Diagnosis, Recording, Verdict};
+use sagnac::diagnose::{self, DiagnoseOptions, Diagnosis, Recording, Verdict};
 use sagnac::model::{GyroModel, Simulator};
 
 /// The paper's gyro: pulse 1.21", dither residual 0.5", Earth rate ~10 deg/h.
@@ -110,10 +110,10 @@ fn issue_14_gauss_markov_below_the_point_gate_is_detected_and_named() {
 #[test]
 #[ignore]
 fn debug_candidates() {
-    use sagnac::model::diagnose::compare::Family;
-    use sagnac::model::diagnose::compare_models;
-    use sagnac::model::diagnose::explain::{Basis, LevelData};
-    use sagnac::model::diagnose::stats::StatLayout;
+    use sagnac::diagnose::compare::Family;
+    use sagnac::diagnose::candidates;
+    use sagnac::diagnose::wvar_fit::{Basis, LevelData};
+    use sagnac::diagnose::stats::StatLayout;
     let model = paper("");
     let truth = paper("[[noise.gauss_markov]]\nsigma_dph = 0.03\ntau_c_s = 5.0\n");
     let seeds: Vec<u64> = std::env::var("SEEDS").map_or(vec![1], |s| s.split(',').map(|x| x.parse().unwrap()).collect());
@@ -137,7 +137,7 @@ fn debug_candidates() {
     };
     let basis = Basis::new(&layout.lo, &layout.hi, 1e-3, &layout.levels);
     let l0 = data.loglik(&data.e0);
-    for c in compare_models::candidates(&data, &basis, &model, 3600.0) {
+    for c in candidates::candidates(&data, &basis, &model, 3600.0) {
         eprintln!("{:30} LR {:7.2} theta {:.4e} ci {:?} shape {:?} {:?}", c.name, 2.0 * (c.fit.loglik - l0), c.fit.theta, c.fit.theta_ci, c.fit.shape, c.fit.shape_ci);
     }
     eprintln!("{}", summary(&d));

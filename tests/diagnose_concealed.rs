@@ -15,8 +15,8 @@
 
 use std::time::Instant;
 
-use sagnac::model::diagnose::compare::{Family, bonferroni_z};
-use sagnac::model::diagnose::{self, DiagnoseOptions, Diagnosis, Recording, Verdict};
+use sagnac::diagnose::compare::{Family, bonferroni_z};
+use sagnac::diagnose::{self, DiagnoseOptions, Diagnosis, Recording, Verdict};
 use sagnac::model::{GyroModel, Simulator};
 
 /// What the diagnosis must find.

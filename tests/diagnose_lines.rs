@@ -1,9 +1,9 @@
 //! Issue 14: spectral lines at the whole record's resolution
-//! (`model::diagnose::lines`): located to the Fisher bound, intervals that
+//! (`diagnose::line_search`): located to the Fisher bound, intervals that
 //! cover, and no lines on matched recordings.
 
-use sagnac::model::diagnose::lines::SearchParams;
-use sagnac::model::diagnose::{self, Recording};
+use sagnac::diagnose::line_search::SearchParams;
+use sagnac::diagnose::{self, Recording};
 use sagnac::model::{GyroModel, Simulator};
 
 /// The issue's gyro: pulse 1.21", dither residual 0.5" (Q = sqrt(d^2/12 + 0.5^2)),

@@ -9,7 +9,7 @@
 
 use std::time::Instant;
 
-use sagnac::model::diagnose::{self, DiagnoseOptions, Recording, Verdict};
+use sagnac::diagnose::{self, DiagnoseOptions, Recording, Verdict};
 use sagnac::model::{GyroModel, Simulator};
 
 fn model(fs: f64, input_dph: f64, q: f64, n: f64, extra: &str) -> GyroModel {

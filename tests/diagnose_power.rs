@@ -19,9 +19,9 @@
 
 use std::time::Instant;
 
-use sagnac::model::diagnose::compare::{Family, Point, bonferroni_z};
-use sagnac::model::diagnose::reference::points_against;
-use sagnac::model::diagnose::{self, DiagnoseOptions, DiagnosisReport, Recording, Verdict};
+use sagnac::diagnose::compare::{Family, Point, bonferroni_z};
+use sagnac::diagnose::reference::points_against;
+use sagnac::diagnose::{self, DiagnoseOptions, DiagnosisReport, Recording, Verdict};
 use sagnac::model::{GyroModel, Simulator};
 
 struct Effect {

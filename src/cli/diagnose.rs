@@ -1,6 +1,6 @@
 //! `sagnac diagnose`: compare a recording with its gyro model, locate the
 //! mismatch, name and fit the missing physics, and show the fit improve
-//! (see [`crate::model::diagnose`] for the method).
+//! (see [`crate::diagnose`] for the method).
 //!
 //! Inputs: the model TOML and a recording as CSV (`counts` column of pulse
 //! increments, optional `temp_c`), a raw frame capture (`frames`) or an MCAP
@@ -8,7 +8,7 @@
 //! from the model's `[gyro]`, except that an MCAP recording's own values
 //! override them: those of its `sagnac` metadata record ([`crate::sink::meta`]),
 //! or for an older recording without one its sample period (`dt_ns`). Outputs: the JSON verdict (`--json`), an SVG
-//! report (`--report`) and the updated model (`--write-model`).
+//! report (`--report`; at least one of the two) and the updated model (`--write-model`).
 //!
 //! The JSON verdict also says how it was made: `sagnac_version`, `input` (the
 //! recording, its format, the sample rate and pulse weight used and where they
@@ -23,7 +23,7 @@ use anyhow::{Context, bail};
 use clap::{Args, ValueEnum};
 
 use crate::model::GyroModel;
-use crate::model::diagnose::{self, DiagnoseOptions, Recording};
+use crate::diagnose::{self, DiagnoseOptions, Recording};
 use crate::sink::messages::SinkMessage;
 use crate::sink::provenance::{InputSettings, Provenance};
 use crate::sink::meta::GyroOutput;
@@ -54,9 +54,9 @@ pub struct DiagnoseArgs {
     /// Recording format.
     #[arg(long, value_enum, default_value_t = RecordingFormat::Csv)]
     pub format: RecordingFormat,
-    /// Where to write the JSON verdict ("-" = stdout).
+    /// Where to write the JSON verdict ("-" = stdout); optional with --report.
     #[arg(long)]
-    pub json: PathBuf,
+    pub json: Option<PathBuf>,
     /// Write an SVG report (recording, old and new model, mismatch shaded).
     #[arg(long)]
     pub report: Option<PathBuf>,
@@ -76,8 +76,11 @@ pub struct DiagnoseArgs {
 
 /// Run `sagnac diagnose`.
 pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
+    if args.json.is_none() && args.report.is_none() {
+        bail!("nothing to write: give --json OUT (the verdict, \"-\" for stdout), --report OUT.svg, or both");
+    }
     // the outputs are checked before a diagnosis that may take a minute
-    let outputs = [("--json", Some(&args.json)), ("--report", args.report.as_ref()), ("--write-model", args.write_model.as_ref())];
+    let outputs = [("--json", args.json.as_ref()), ("--report", args.report.as_ref()), ("--write-model", args.write_model.as_ref())];
     for (flag, path) in outputs {
         if let Some(p) = path {
             check_output_path(flag, p)?;
@@ -125,11 +128,12 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
     let mut value = serde_json::to_value(&diag.report).context("serialising the verdict")?;
     provenance(&args, &model, &rec).insert_into(&mut value);
     let json = serde_json::to_string_pretty(&value).context("serialising the verdict")?;
-    if args.json.as_os_str() == "-" {
+    if args.json.as_ref().is_some_and(|p| p.as_os_str() == "-") {
         super::write_stdout(&json)?;
     } else {
-        std::fs::write(&args.json, json + "\n")
-            .with_context(|| format!("writing {}", args.json.display()))?;
+        if let Some(path) = &args.json {
+            std::fs::write(path, json + "\n").with_context(|| format!("writing {}", path.display()))?;
+        }
         let r = &diag.report;
         let mut summary = format!(
             "verdict: {:?}; chi2/dof {:.2} -> {:.2}",

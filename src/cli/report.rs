@@ -17,7 +17,7 @@ use super::progress::{DelayedBar, Spinner};
 
 use super::analyze::AnalyzeFormat;
 use crate::model::GyroModel;
-use crate::model::diagnose::{self, DiagnoseOptions, Recording};
+use crate::diagnose::{self, DiagnoseOptions, Recording};
 use crate::offline::{self, OfflineError, RateUnit, TapBlock};
 use crate::pipeline::{Pipeline, PipelineConfig};
 use crate::sink::report::{self, Collector, DiagnosisPart, Metadata};

@@ -1,11 +1,12 @@
-//! Noise models: IEEE 952 terms and their Allan signatures, estimation,
-//! simulation of the gyro, and diagnosis of model-versus-recording mismatch.
+//! Noise models: IEEE 952 terms and their Allan signatures, estimation and
+//! simulation of the gyro (the diagnosis, which also runs the pipeline, is
+//! [`crate::diagnose`]).
 //!
 //! * [`terms`]: the noise-term library. Each term (quantization, ARW, bias
 //!   instability, RRW, rate ramp, and the catalog terms Gauss-Markov, sinusoid,
 //!   random telegraph) knows its IEEE 952 coefficient in user units, its one-sided
 //!   rate PSD and its closed-form Allan variance. The estimator fits these curves;
-//!   the diagnosis prints their physical explanations.
+//!   the diagnosis ([`crate::diagnose`]) prints their physical explanations.
 //! * [`config`]: the gyro model file (TOML): sample rate, pulse weight, input rate,
 //!   the noise coefficients and an optional thermal profile. Parsed strictly
 //!   (unknown keys are errors), validated, and serialisable back to TOML.
@@ -25,7 +26,6 @@
 
 pub mod baseline;
 pub mod config;
-pub mod diagnose;
 pub mod estimate;
 pub mod filter;
 pub mod fit;

@@ -1,5 +1,5 @@
 //! The diagnosis part of the page: the diagnosis SVG
-//! ([`crate::model::diagnose::svg`]) and its findings in words: the verdict,
+//! ([`crate::diagnose::svg`]) and its findings in words: the verdict,
 //! where the recording leaves the model, and each changed or added term
 //! named with what it means physically.
 
@@ -8,7 +8,7 @@ use std::fmt::Write;
 use super::html::esc;
 use super::{DiagnosisPart, ReportError, fmt_sig};
 use crate::model::Term;
-use crate::model::diagnose::{self, Verdict};
+use crate::diagnose::{self, Verdict};
 
 /// The term a model-file key belongs to (`arw_dpsh`, `gauss_markov[0].tau_c_s`, ...),
 /// with placeholder parameters: only its name and explanation are used.

@@ -29,7 +29,7 @@ use std::path::{Path, PathBuf};
 
 use plotters::prelude::*;
 
-use crate::model::diagnose::Diagnosis;
+use crate::diagnose::Diagnosis;
 use crate::pipeline::Analysis;
 use crate::source::frame::DecoderStats;
 

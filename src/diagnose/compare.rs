@@ -1,7 +1,6 @@
 //! Comparison of the recording's statistics with the model's Monte-Carlo
 //! reference: per-point z-scores on the log scale, the detection threshold,
-//! mismatch regions on the tau axis, the spectral line search and the
-//! chi-square summary.
+//! mismatch regions on the tau axis and the chi-square summary.
 //!
 //! z-score of a point: `(ln x_obs - mean_r ln x_r) / (s sqrt(1 + 1/R))`, with
 //! `x_r` the R Monte-Carlo values and `s` the larger of their standard
@@ -12,7 +11,7 @@
 //! estimator, so the mean of logs is the right centre whatever the estimator's
 //! bias.
 
-use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor, Normal};
+use statrs::distribution::{ChiSquared, ContinuousCDF, Normal};
 
 /// Which statistic a point belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -411,103 +410,11 @@ pub fn nu_from_log_var(var: f64) -> f64 {
 /// A narrow spectral line found in the recording.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LineHit {
-    /// Fine bin index (absolute Welch bin).
+    /// Bin of the whole record's periodogram (`f = bin / T`).
     pub bin: usize,
     pub f_hz: f64,
-    /// Ratio to the model's spectrum after the local-continuum correction.
+    /// Whitened periodogram over its local level.
     pub ratio: f64,
     /// Equivalent z of the Bonferroni-corrected tail probability.
     pub z: f64,
-}
-
-/// Search the fine Welch bins for narrow lines the model does not have.
-///
-/// Each usable bin's ratio `obs / model_mean` is divided by the median ratio of
-/// its neighbours (16 bins each side, excluding +-2), so a broadband mismatch is
-/// not mistaken for lines. Under the model the corrected ratio is
-/// `F(nu, R nu)`-distributed (`nu_bin[i]` = EDF of bin i, pooled from the runs
-/// over its neighbourhood); a bin
-/// is a line when its upper-tail probability is below `alpha / n_bins`.
-/// Adjacent hits are merged into one line at the largest ratio.
-#[allow(clippy::too_many_arguments)] // the spectrum, its layout and the test level
-pub fn line_search(
-    obs: &[f64],
-    model_mean: &[f64],
-    mask: &[bool],
-    nu_bin: &[f64],
-    runs: usize,
-    alpha: f64,
-    bin0: usize,
-    bin_hz: f64,
-) -> Vec<LineHit> {
-    let n = obs.len();
-    let ratio: Vec<f64> = (0..n)
-        .map(|i| {
-            if model_mean[i] > 0.0 {
-                obs[i] / model_mean[i]
-            } else {
-                f64::NAN
-            }
-        })
-        .collect();
-    let usable: Vec<usize> = (0..n)
-        .filter(|&i| mask[i] && ratio[i].is_finite())
-        .collect();
-    if usable.is_empty() {
-        return Vec::new();
-    }
-    let p_crit = alpha / usable.len() as f64;
-    let mut hits: Vec<(usize, f64, f64)> = Vec::new();
-    let mut neigh = Vec::with_capacity(32);
-    for &i in &usable {
-        neigh.clear();
-        let lo = i.saturating_sub(18);
-        let hi = (i + 19).min(n);
-        for j in lo..hi {
-            if (j as i64 - i as i64).abs() > 2 && mask[j] && ratio[j].is_finite() {
-                neigh.push(ratio[j]);
-            }
-        }
-        if neigh.len() < 8 {
-            continue;
-        }
-        neigh.sort_by(|a, b| a.total_cmp(b));
-        let med = neigh[neigh.len() / 2];
-        let nu = nu_bin[i];
-        if !(nu > 0.0 && nu.is_finite()) {
-            continue;
-        }
-        let Ok(f) = FisherSnedecor::new(nu, nu * runs as f64) else {
-            continue;
-        };
-        // the median of chi2_nu/nu sits below 1 by about 2/(3 nu)
-        let cont = med / (1.0 - 2.0 / (3.0 * nu)).max(0.5);
-        let q = ratio[i] / cont;
-        let p = f.sf(q);
-        if p < p_crit {
-            hits.push((i, q, p));
-        }
-    }
-    let norm = Normal::new(0.0, 1.0).expect("standard normal");
-    let mut out: Vec<LineHit> = Vec::new();
-    let mut last_i: Option<usize> = None;
-    for (i, q, p) in hits {
-        let z = -norm.inverse_cdf(p.max(1e-300));
-        let hit = LineHit {
-            bin: bin0 + i,
-            f_hz: (bin0 + i) as f64 * bin_hz,
-            ratio: q,
-            z,
-        };
-        match (last_i, out.last_mut()) {
-            (Some(li), Some(prev)) if i <= li + 2 => {
-                if q > prev.ratio {
-                    *prev = hit;
-                }
-            }
-            _ => out.push(hit),
-        }
-        last_i = Some(i);
-    }
-    out
 }

@@ -1,5 +1,5 @@
-//! Detection by model comparison (issue 14): every catalog change the
-//! broadband stage knows how to fit ([`super::explain`]) is fitted on the
+//! Phase 4a, the candidate tests (detection by model comparison): every
+//! catalog change the broadband stage knows how to fit ([`super::wvar_fit`]) is fitted on the
 //! recording's wavelet variances and tested against the model by its
 //! likelihood ratio `LR = 2 (l_candidate - l_model)`; the largest LR over all
 //! candidates is the test statistic.
@@ -31,10 +31,19 @@
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 use super::compare::{Point, Region};
-use super::explain::{self, Basis, Fit, LevelData};
+use super::locate::{Located, floors};
+use super::reference::Reference;
 use super::stats::{StatLayout, StatSet};
+use super::wvar_fit::{self, Basis, Fit, LevelData};
 use crate::model::GyroModel;
 use crate::units;
+
+/// The candidate tests of the diagnosis: `data0` (the recording's level data,
+/// [`super::broadband::level_data`]) against the reference's runs.
+pub fn test(data0: &LevelData, basis: &Basis, r: &Reference, loc: &Located, alpha: f64) -> Option<ModelComparison> {
+    let fw = floors(&r.layout, &r.model, &loc.mc_mean).0;
+    compare(data0, basis, &r.model, &r.layout, &r.runs, &fw, &loc.wavelet_points(), alpha)
+}
 
 /// The model comparison of one recording.
 #[derive(Debug, Clone)]
@@ -78,13 +87,13 @@ pub fn candidates(data: &LevelData, basis: &Basis, model: &GyroModel, dur_s: f64
             out.push(Scored { name, fit });
         }
     };
-    let amp = |phi: &[f64], t0: f64, floor: f64| Some(explain::fit_amplitude(data, phi, t0, floor));
+    let amp = |phi: &[f64], t0: f64, floor: f64| Some(wvar_fit::fit_amplitude(data, phi, t0, floor));
     push("quantization_arcsec".into(), amp(&basis.white_angle(), q * q, d2_12));
     push("arw_dpsh".into(), amp(&basis.white_rate(), arw * arw, 0.0));
     let flicker = basis.flicker(model.flicker_f_lo_hz());
     push("bias_instability_dph".into(), amp(&flicker, b2, 0.0));
     push("rrw_dphsh".into(), amp(&basis.rrw(), k2, 0.0));
-    let tc_grid = explain::log_grid(4.0 * tau0, dur_s / 3.0, 4);
+    let tc_grid = wvar_fit::log_grid(4.0 * tau0, dur_s / 3.0, 4);
     let gm = |t: f64| basis.gauss_markov(t);
     for (i, g) in nz.gauss_markov.iter().enumerate() {
         let s2 = g.sigma_dph * g.sigma_dph;
@@ -92,7 +101,7 @@ pub fn candidates(data: &LevelData, basis: &Basis, model: &GyroModel, dur_s: f64
         push(format!("gauss_markov[{i}].sigma_dph"), amp(&phi0, s2, 0.0));
         push(
             format!("gauss_markov[{i}]"),
-            explain::fit_shape(data, &tc_grid, &gm, Some((s2, &phi0))),
+            wvar_fit::fit_shape(data, &tc_grid, &gm, Some((s2, &phi0))),
         );
     }
     for (i, r) in nz.random_telegraph.iter().enumerate() {
@@ -100,15 +109,15 @@ pub fn candidates(data: &LevelData, basis: &Basis, model: &GyroModel, dur_s: f64
         let a2 = r.amplitude_dph * r.amplitude_dph;
         push(format!("random_telegraph[{i}].amplitude_dph"), amp(&phi0, a2, 0.0));
     }
-    push("gauss_markov".into(), explain::fit_shape(data, &tc_grid, &gm, None));
-    let p_grid = explain::log_grid(
-        dur_s / super::lines::SearchParams::default().min_cycles,
+    push("gauss_markov".into(), wvar_fit::fit_shape(data, &tc_grid, &gm, None));
+    let p_grid = wvar_fit::log_grid(
+        dur_s / super::line_search::SearchParams::default().min_cycles,
         dur_s / 2.0,
         4,
     );
     if p_grid.len() > 1 {
         let sine = |p: f64| basis.sinusoid(1.0 / p);
-        push("sinusoid".into(), explain::fit_shape(data, &p_grid, &sine, None));
+        push("sinusoid".into(), wvar_fit::fit_shape(data, &p_grid, &sine, None));
     }
     out
 }

@@ -1,6 +1,7 @@
-//! Explaining a broadband mismatch: the catalog of physical changes tested
-//! against the wavelet variances, their maximum-likelihood fits, profile
-//! intervals and the choice by information criterion.
+//! Fits on the wavelet variances: the level data, the closed-form basis of
+//! each catalog shape, maximum-likelihood fits of an amplitude (and a time
+//! constant or period) and their profile intervals. The candidate tests, the
+//! broadband fit and the refinement all fit with these.
 //!
 //! Observations: the recording's sym8 detail variances `y_j`. Under a
 //! candidate, their expectation is the model's Monte-Carlo mean `E0_j` plus the
@@ -13,13 +14,10 @@
 //! `l = -sum_j (nu_j/2) (ln mu_j + y_j/mu_j)` (the likelihood of
 //! [`crate::model::fit`], with an offset).
 //!
-//! Candidates: a change of one existing term's parameters (Q, N, B, K, a
-//! Gauss-Markov or random-telegraph term's amplitude, or amplitude and time
-//! constant), or a new Gauss-Markov, rate-random-walk, bias-instability or
-//! long-period sinusoid term. Each is fitted (amplitude by Fisher scoring,
-//! time constant or period on a log grid refined by golden section); the
-//! choice is by AIC, and a parameter-only change wins unless a new term is
-//! better by more than 2 (it then "explains the data as well").
+//! An amplitude is fitted by Fisher scoring ([`fit_amplitude`]); a time
+//! constant or period on a log grid refined by golden section
+//! ([`fit_shape`]). Which candidates are fitted, and how one is chosen, is
+//! the business of [`super::candidates`] and [`super::broadband`].
 
 use std::f64::consts::PI;
 

@@ -1,6 +1,9 @@
-//! Lines become sinusoid findings: the diagnosis's explain step for the lines
-//! the whole-record search ([`super::lines`]) found.
+//! Phase 3, lines: narrow spectral lines at the whole record's resolution
+//! ([`super::line_search`]) become sinusoid findings.
 //!
+//! The rate (mean and trend removed) is searched from ten cycles per record to
+//! Nyquist against the model's own PSD, with the counter's harmonic line cores
+//! masked ([`super::reference::counter_lines`]). Then:
 //! * A line near one of the model's sinusoids (within three bins or five of
 //!   its frequency standard deviations) is that sinusoid: it is a finding only
 //!   when its amplitude or its frequency differs from the model's by more than
@@ -11,7 +14,7 @@
 //!   squares, the local continuum from the spectrum): a significantly weaker
 //!   or stronger amplitude is a parameter change.
 //!
-//! Every interval is the line fit's Fisher interval ([`super::lines::LineFit`]).
+//! Every interval is the line fit's Fisher interval ([`super::line_search::LineFit`]).
 
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
@@ -19,15 +22,80 @@ use std::f64::consts::PI;
 use statrs::distribution::{ContinuousCDF, Normal};
 
 use super::compare::{self, LineHit};
-use super::lines::{self, Detection, LineFit};
-use super::{ALPHA_LINES, AddedTerm, Edit, Finding, LineScan, ParameterChange, fmt_g};
+use super::findings::{Edit, Finding, fmt_g};
+use super::line_search::{self as lines, Detection, LineFit};
+use super::reference::{Reference, counter_lines, model_psd, rate_wander};
+use super::stats::{self, StatLayout};
+use super::{ALPHA_LINES, AddedTerm, ParameterChange, Recording};
 use crate::model::config::SinusoidParams;
 use crate::model::{GyroModel, Term};
 use crate::units;
 
+/// The whole-record line search of a recording ([`super::line_search`]).
+#[derive(Debug, Clone)]
+pub struct LineScan {
+    pub spectrum: lines::LineSpectrum,
+    /// Detected lines with their fits, strongest first.
+    pub lines: Vec<(lines::Detection, lines::LineFit)>,
+    /// The counter's line cores left out, `(f_true Hz, half-width Hz)`.
+    pub masked: Vec<(f64, f64)>,
+    /// The rate (arcsec/s), mean and linear trend removed.
+    pub detrended_rate: Vec<f64>,
+}
+
+/// The search parameters of the diagnosis (family-wise [`ALPHA_LINES`]).
+pub fn search_params() -> lines::SearchParams {
+    lines::SearchParams { alpha: ALPHA_LINES, ..lines::SearchParams::default() }
+}
+
+/// The line phase of the diagnosis: scan the recording against the reference
+/// model and turn the lines into findings.
+pub(crate) fn find(r: &Reference, rec: &Recording) -> LineFindings {
+    let (fs, d) = (r.layout.fs_hz, r.layout.pulse_arcsec);
+    let params = search_params();
+    let rate = stats::counts_to_rate(&rec.counts, d, fs);
+    let scan = scan_lines(&r.model, &rate, fs, d, r.wander(), &params);
+    line_findings(&scan, &r.model, params.half_width)
+}
+
+/// Scan the rate for lines against `model` (simulated at the recording's rate
+/// and pulse weight); `wander` is [`rate_wander`].
+fn scan_lines(model: &GyroModel, rate: &[f64], fs: f64, d: f64, wander: f64, params: &lines::SearchParams) -> LineScan {
+    let mean_rate = rate.iter().sum::<f64>() / rate.len() as f64;
+    let x = lines::detrend(rate);
+    let df = fs / rate.len() as f64;
+    let masked = counter_lines(model, mean_rate, wander, fs, d, df);
+    let spectrum = lines::LineSpectrum::new(&x, fs, &model_psd(model), &masked);
+    let found = lines::search(&spectrum, params)
+        .into_iter()
+        .filter_map(|det| {
+            let s = spectrum.local_psd(det.f_hz, params.half_width)?;
+            Some((det, lines::fit_line(&x, fs, det.f_hz, s)))
+        })
+        .collect();
+    LineScan { spectrum, lines: found, masked, detrended_rate: x }
+}
+
+/// The line search of [`super::diagnose`] on its own: `rec` against `model`
+/// (whose sample rate and pulse weight are taken from the recording).
+pub fn line_scan(model: &GyroModel, rec: &Recording, params: &lines::SearchParams) -> LineScan {
+    let fs = rec.sample_rate_hz;
+    let d = rec.pulse_arcsec;
+    let mut m = model.clone();
+    m.gyro.sample_rate_hz = fs;
+    m.gyro.pulse_weight_arcsec = d;
+    let rate = stats::counts_to_rate(&rec.counts, d, fs);
+    let layout = StatLayout::new(rate.len(), fs, d);
+    let lv = stats::dwt_level_mean_squares(&rate, &layout.lo, &layout.hi, layout.levels.len() as u32, stats::MIN_LEVEL_COEFS);
+    let wvar: Vec<f64> = lv.iter().map(|t| t.2).collect();
+    let mean_rate = rate.iter().sum::<f64>() / rate.len() as f64;
+    let wander = rate_wander(&layout.levels, &wvar, fs, mean_rate.abs() / d);
+    scan_lines(&m, &rate, fs, d, wander, params)
+}
+
 /// What the lines contribute to the diagnosis.
 #[derive(Debug, Default)]
-pub(super) struct LineFindings {
+pub(crate) struct LineFindings {
     pub findings: Vec<Finding>,
     /// The lines the model does not explain.
     pub hits: Vec<LineHit>,
@@ -37,7 +105,7 @@ pub(super) struct LineFindings {
 }
 
 /// Turn the scan's lines (and the model's sinusoids) into findings.
-pub(super) fn line_findings(scan: &LineScan, model: &GyroModel, half_width: usize) -> LineFindings {
+fn line_findings(scan: &LineScan, model: &GyroModel, half_width: usize) -> LineFindings {
     let sines = &model.noise.sinusoid;
     let z_check = compare::bonferroni_z(ALPHA_LINES, sines.len().max(1));
     let df = scan.spectrum.df();

@@ -607,6 +607,22 @@ pub fn dft_hann(x: &[f64], tau0: f64, f_hz: f64) -> Complex64 {
     acc
 }
 
+/// Plain DFT `sum x_k e^{-2 pi i f k tau0}` (the phasor re-anchored every
+/// 4096 samples against round-off).
+pub fn dft_plain(x: &[f64], tau0: f64, f: f64) -> Complex64 {
+    let step = Complex64::from_polar(1.0, -2.0 * PI * f * tau0);
+    let mut ph = Complex64::new(1.0, 0.0);
+    let mut acc = Complex64::new(0.0, 0.0);
+    for (k, &v) in x.iter().enumerate() {
+        acc += ph * v;
+        ph *= step;
+        if k % 4096 == 4095 {
+            ph = Complex64::from_polar(1.0, -2.0 * PI * f * tau0 * (k + 1) as f64);
+        }
+    }
+    acc
+}
+
 /// A sinusoid measured in the whole record: frequency, amplitude (arcsec/s)
 /// and their standard deviations given the background one-sided PSD `s_bg`.
 #[derive(Debug, Clone, Copy)]

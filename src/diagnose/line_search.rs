@@ -8,7 +8,7 @@
 //!    removed, Hann-windowed, one FFT of the whole record (`N` samples, bins
 //!    `f_k = k / T`): the one-sided periodogram `P_k = 2 |X_k|^2 / (fs sum w^2)`
 //!    (`E P_k = S(f_k)` for a smooth PSD `S`). It is whitened by the model's
-//!    own PSD (its Gaussian terms, [`super::model_spectral_terms`]), so that a
+//!    own PSD (its Gaussian terms, [`super::reference::model_spectral_terms`]), so that a
 //!    steep continuum (flicker, random walk) is flat around every bin.
 //! 2. **Detection** ([`search`]): each usable bin `k` (not in a masked
 //!    interval, e.g. the counter's own harmonic lines) is compared with its

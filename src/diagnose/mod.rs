@@ -1,0 +1,281 @@
+//! Diagnosis of a model-versus-recording mismatch (`sagnac diagnose`):
+//! locate where a recording departs from its gyro model, name the physics the
+//! model leaves out, fit it, and show the fit improve.
+//!
+//! # Reading order
+//! [`diagnose`] is a short sequence of phases, one file each:
+//! 1. [`reference`]: the model simulated like the recording (same length,
+//!    rate, pulse weight and mean input), R Monte-Carlo runs; recording and
+//!    runs reduced to the same statistics ([`stats`], [`mc`]): sym8 wavelet
+//!    variances of the rate, modified and raw Allan variances, the Welch
+//!    spectrum, the rate slope and the rate-on-temperature slope, the
+//!    low-passed rate's kurtosis. These see through the quantization noise
+//!    that dominates the raw Allan variance at short taus.
+//! 2. [`locate`] (compare and locate): each point gets a log-scale z-score
+//!    against the runs ([`compare`]), the spread floored by the estimator's
+//!    chi-square EDF; points and Stouffer windows beyond a Bonferroni
+//!    threshold (family-wise 1 %) form the mismatch regions.
+//! 3. [`lines`]: narrow lines in the whole record's spectrum, from ten cycles
+//!    per record to Nyquist ([`line_search`], 0.1 % family-wise against the
+//!    model-whitened local continuum, the counter's own harmonics masked),
+//!    become sinusoids or changes of the model's own, with intervals from the
+//!    line's Fisher information.
+//! 4. The broadband residual: [`candidates`] tests every catalog change
+//!    against the model by its likelihood ratio on the wavelet variances
+//!    ([`wvar_fit`]), calibrated on the model's own runs (a parametric
+//!    bootstrap), so coherent evidence below the per-point gate is kept;
+//!    [`telegraph`] checks that the model's Gauss-Markov and telegraph terms
+//!    have the right distribution; [`broadband`] names the changes (AIC,
+//!    parameter-only changes preferred unless beaten by more than 2, each
+//!    kept only if its LR test passes at 1 %, up to three).
+//! 5. [`slopes`]: a rate ramp, and a thermal sensitivity when the recording
+//!    has a temperature, judged against the slope spread of the noise the
+//!    recording actually has.
+//! 6. [`refine`]: the updated model simulated again and compared on the same
+//!    points (chi2/dof before and after); a new Gauss-Markov term tested
+//!    against a random telegraph; the broadband parameters refitted about the
+//!    updated model's own runs until they stop moving.
+//! 7. [`report`]: the JSON document and the notes; [`svg`] draws the figure.
+//!
+//! The vocabulary the phases share (an [`findings::Edit`] of the model and the
+//! finding that reports it) is in [`findings`]. When nothing exceeds the
+//! thresholds the verdict is "consistent" and nothing is added.
+//!
+//! Layering: the diagnosis runs the simulator and the estimators of
+//! [`crate::model`] and the `analyze` pipeline ([`crate::pipeline`]); the
+//! report ([`crate::sink::report`]) and the CLI use it.
+
+// `!(x > 0.0)` is used on purpose throughout: it also rejects NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+pub mod broadband;
+pub mod candidates;
+pub mod compare;
+pub(crate) mod findings;
+pub mod line_search;
+pub mod lines;
+pub mod locate;
+pub mod mc;
+pub mod reference;
+pub mod refine;
+pub mod report;
+pub mod slopes;
+pub mod stats;
+pub mod svg;
+pub mod telegraph;
+pub mod wvar_fit;
+
+use self::compare::{LineHit, Point};
+use self::findings::Finding;
+use self::reference::Reference;
+use self::wvar_fit::Basis;
+use crate::model::{GyroModel, ModelError};
+
+pub use self::lines::{LineScan, line_scan};
+pub use self::reference::{model_psd, model_spectral_terms};
+pub use self::report::{AddedTerm, DiagnosisReport, FitQuality, MismatchRegion, ParameterChange, Verdict};
+
+/// A recording to diagnose: pulse increments (and optionally a temperature
+/// per sample) with the readout's sample rate and pulse weight.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Recording {
+    pub counts: Vec<i64>,
+    pub temp_c: Option<Vec<f64>>,
+    pub sample_rate_hz: f64,
+    pub pulse_arcsec: f64,
+}
+
+/// Tuning of the diagnosis.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DiagnoseOptions {
+    /// Monte-Carlo runs of the model (the bands).
+    pub runs: usize,
+    /// Monte-Carlo runs of the updated model (the "after" fit and the
+    /// random-telegraph test).
+    pub runs_after: usize,
+    /// Base seed of the Monte-Carlo runs.
+    pub seed: u64,
+    /// Worker threads (0 = all cores).
+    pub threads: usize,
+    /// Family-wise false-alarm probability of the broadband test.
+    pub alpha: f64,
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> Self {
+        DiagnoseOptions { runs: 16, runs_after: 8, seed: 0x5A6_AC00, threads: 0, alpha: 0.01 }
+    }
+}
+
+/// Family-wise false-alarm probability of the spectral line search.
+pub const ALPHA_LINES: f64 = 0.001;
+/// Two-sided false-alarm probability of each slope test (ramp, temperature).
+pub const ALPHA_SLOPE: f64 = 0.0025;
+/// Smallest recording, samples.
+pub const MIN_SAMPLES: usize = 4096;
+
+/// Errors of the diagnosis.
+#[derive(Debug, thiserror::Error)]
+pub enum DiagnoseError {
+    #[error("the recording has {n} samples; the diagnosis needs at least {need}")]
+    TooShort { n: usize, need: usize },
+    #[error("recording sample rate {0} Hz: must be finite and > 0")]
+    BadRate(f64),
+    #[error("recording pulse weight {0} arcsec: must be finite and > 0")]
+    BadPulse(f64),
+    #[error("the temperature channel has {got} values for {n} samples")]
+    TempLength { got: usize, n: usize },
+    #[error("temperature at sample {index} is not finite ({value})")]
+    TempNonFinite { index: usize, value: f64 },
+    #[error("options: {0}")]
+    Options(String),
+    #[error(transparent)]
+    Model(#[from] ModelError),
+}
+
+/// The random-telegraph versus Gauss-Markov distribution test.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TelegraphTest {
+    /// Low-pass cut-off, Hz.
+    pub cutoff_hz: f64,
+    /// Excess kurtosis of the recording's low-passed rate.
+    pub observed: f64,
+    /// Mean and sd over the Gauss-Markov model's runs.
+    pub gauss_markov: (f64, f64),
+    /// Mean and sd over the random-telegraph model's runs.
+    pub telegraph: (f64, f64),
+    /// Chose the random telegraph.
+    pub telegraph_chosen: bool,
+}
+
+/// Everything the diagnosis found.
+#[derive(Debug, Clone)]
+pub struct Diagnosis {
+    pub report: DiagnosisReport,
+    /// The model with the changes applied (None when consistent or unexplained).
+    pub updated_model: Option<GyroModel>,
+    /// Compared points against the model (wavelet, MDEV, spectrum, raw Allan).
+    pub before: Vec<Point>,
+    /// The same points against the updated model's Monte-Carlo runs.
+    pub after: Vec<Point>,
+    /// Detection threshold on |z| of the broadband points.
+    pub z_crit: f64,
+    /// Largest |z| of the raw overlapping Allan variance against the model.
+    pub raw_allan_max_z: f64,
+    /// Largest |z| of the detection points (wavelet, MDEV, spectral bands).
+    pub max_abs_z: f64,
+    pub lines: Vec<LineHit>,
+    /// z of the rate slope and of the temperature slope.
+    pub ramp_z: f64,
+    pub thermal_z: Option<f64>,
+    pub telegraph_test: Option<TelegraphTest>,
+    /// Detection by model comparison: the largest likelihood ratio of a
+    /// catalog change against its bootstrap threshold ([`candidates`]).
+    pub model_comparison: Option<candidates::ModelComparison>,
+    /// Input rate the Monte-Carlo runs used (the recording's mean), deg/h.
+    pub mc_input_rate_dph: f64,
+    /// Human-readable findings, one per line.
+    pub notes: Vec<String>,
+}
+
+/// Run the diagnosis of `rec` against `model`.
+pub fn diagnose(model: &GyroModel, rec: &Recording, opts: &DiagnoseOptions) -> Result<Diagnosis, DiagnoseError> {
+    check_recording(rec, opts)?;
+    model.validate()?;
+    // 1-2: the reference, and where the recording leaves its band
+    let reference = Reference::simulate(model, rec, opts)?;
+    let r = &reference;
+    let located = locate::locate(r, opts.alpha);
+    let mut notes: Vec<String> = report::rate_note(r.layout.fs_hz, model.gyro.sample_rate_hz).into_iter().collect();
+    // 3: lines
+    let lines = lines::find(r, rec);
+    let mut findings: Vec<Finding> = lines.findings;
+    // 4: the broadband residual: candidate tests, distribution, broadband fit
+    let basis = Basis::new(&r.layout.lo, &r.layout.hi, r.tau0_s(), &r.layout.levels);
+    let data0 = broadband::level_data(r, &located, &basis, &lines.sines);
+    let comparison = data0.as_ref().and_then(|d0| candidates::test(d0, &basis, r, &located, opts.alpha));
+    let lr_detected = comparison.as_ref().is_some_and(|c| c.detected);
+    let regions = match &comparison {
+        Some(c) if located.regions.is_empty() && c.detected => c.regions.clone(),
+        _ => located.regions.clone(),
+    };
+    if let Some(c) = comparison.as_ref().filter(|c| c.detected) {
+        notes.push(report::comparison_note(c, opts.alpha, located.max_abs_z, located.z_crit));
+    }
+    findings.extend(telegraph::model_terms(r, &located, &basis, data0.as_ref()));
+    let mut telegraph_pending = None;
+    if (!regions.is_empty() || lr_detected)
+        && let Some(d0) = &data0
+    {
+        for (f, is_new_gm) in broadband::fit(d0, &basis, r, &regions) {
+            if is_new_gm {
+                telegraph_pending = Some(findings.len());
+            }
+            findings.push(f);
+        }
+    }
+    // 5: slopes
+    let slopes = slopes::test(r, rec, &findings);
+    findings.extend(slopes.findings.iter().cloned());
+    let mismatch =
+        !regions.is_empty() || lr_detected || !lines.hits.is_empty() || slopes.significant() || !findings.is_empty();
+    // 6: the updated model, simulated again and refined
+    let refined =
+        refine::refine(r, rec, model, &mut findings, telegraph_pending, located.chi2_before, opts, &mut notes)?;
+    // 7: report
+    notes.extend(report::closing_notes(
+        &findings,
+        comparison.as_ref(),
+        mismatch,
+        located.max_abs_z,
+        located.z_crit,
+    ));
+    Ok(Diagnosis {
+        report: report::document(mismatch, &regions, &findings, located.chi2_before, refined.chi2_after),
+        updated_model: refined.updated,
+        before: located.before,
+        after: refined.after,
+        z_crit: located.z_crit,
+        raw_allan_max_z: located.raw_allan_max_z,
+        max_abs_z: located.max_abs_z,
+        lines: lines.hits,
+        ramp_z: slopes.ramp_z,
+        thermal_z: slopes.thermal_z,
+        telegraph_test: refined.telegraph_test,
+        model_comparison: comparison,
+        mc_input_rate_dph: r.model.gyro.input_rate_dph,
+        notes,
+    })
+}
+
+/// Check the recording and the options.
+fn check_recording(rec: &Recording, opts: &DiagnoseOptions) -> Result<(), DiagnoseError> {
+    let n = rec.counts.len();
+    if n < MIN_SAMPLES {
+        return Err(DiagnoseError::TooShort { n, need: MIN_SAMPLES });
+    }
+    if !(rec.sample_rate_hz.is_finite() && rec.sample_rate_hz > 0.0) {
+        return Err(DiagnoseError::BadRate(rec.sample_rate_hz));
+    }
+    if !(rec.pulse_arcsec.is_finite() && rec.pulse_arcsec > 0.0) {
+        return Err(DiagnoseError::BadPulse(rec.pulse_arcsec));
+    }
+    if let Some(t) = &rec.temp_c {
+        if t.len() != n {
+            return Err(DiagnoseError::TempLength { got: t.len(), n });
+        }
+        if let Some(i) = t.iter().position(|v| !v.is_finite()) {
+            return Err(DiagnoseError::TempNonFinite { index: i, value: t[i] });
+        }
+    }
+    if opts.runs < 4 || opts.runs_after < 2 {
+        return Err(DiagnoseError::Options(format!(
+            "runs = {} and runs_after = {}: need at least 4 and 2 Monte-Carlo runs",
+            opts.runs, opts.runs_after
+        )));
+    }
+    if !(opts.alpha > 0.0 && opts.alpha < 0.5) {
+        return Err(DiagnoseError::Options(format!("alpha = {}: must be in (0, 0.5)", opts.alpha)));
+    }
+    Ok(())
+}

@@ -1,0 +1,253 @@
+//! Phase 1, the reference: the model simulated like the recording.
+//!
+//! The recording is reduced to its statistics ([`super::stats`]); the model is
+//! simulated `runs` times at the recording's length, sample rate, pulse weight
+//! and mean input (so that the counter's sawtooth lines land in the same
+//! Welch bins), and every run is reduced the same way ([`super::mc`]). The
+//! counter's own harmonic lines, whose exact place depends on the record's
+//! mean rate and wander, are masked out of the spectral bands first.
+//!
+//! [`points_against`] gives the compared points of a recording against any
+//! model without the rest of the diagnosis: used to judge an effect against
+//! the band of the simulator that made the recording (an effect is
+//! "concealed" only when the raw Allan deviation misses it against that band)
+//! and to measure how far an effect moves each statistic (the power bench).
+
+use std::f64::consts::PI;
+
+use super::compare::Point;
+use super::locate::{KTerm, all_points, kurtosis_scales};
+use super::stats::{self, StatLayout, StatSet};
+use super::{DiagnoseError, DiagnoseOptions, Recording, check_recording, mc};
+use crate::model::GyroModel;
+use crate::model::wvar::SpectralTerm;
+use crate::units;
+
+/// The recording and the model's Monte-Carlo runs, reduced to the same statistics.
+#[derive(Debug, Clone)]
+pub struct Reference {
+    /// What is computed and where (the counter's line cores masked).
+    pub layout: StatLayout,
+    /// The recording's statistics.
+    pub obs: StatSet,
+    /// The model as simulated: the recording's rate, pulse weight and mean input.
+    pub model: GyroModel,
+    /// The Monte-Carlo runs' statistics.
+    pub runs: Vec<StatSet>,
+    /// Low-pass cut-offs of the kurtosis statistics (one per model
+    /// Gauss-Markov or telegraph term), their tau spans and terms.
+    pub cutoffs_hz: Vec<f64>,
+    pub kurt_taus: Vec<(f64, f64)>,
+    pub kterms: Vec<KTerm>,
+    /// Worker threads of the Monte-Carlo runs.
+    pub threads: usize,
+}
+
+impl Reference {
+    /// Reduce `rec` and `opts.runs` runs of `model` (checked by the caller).
+    pub fn simulate(model: &GyroModel, rec: &Recording, opts: &DiagnoseOptions) -> Result<Self, DiagnoseError> {
+        let threads = if opts.threads == 0 {
+            std::thread::available_parallelism().map_or(1, |n| n.get())
+        } else {
+            opts.threads
+        };
+        let n = rec.counts.len();
+        let temp = rec.temp_c.as_deref();
+        let mut layout = StatLayout::new(n, rec.sample_rate_hz, rec.pulse_arcsec);
+        let ks = kurtosis_scales(model);
+        let cutoffs_hz: Vec<f64> = ks.iter().map(|k| k.0).collect();
+        let kurt_taus: Vec<(f64, f64)> = ks.iter().map(|k| k.1).collect();
+        let kterms: Vec<KTerm> = ks.iter().map(|k| k.2).collect();
+        let mut obs = stats::compute(&layout, &rec.counts, temp, &cutoffs_hz);
+        let ref_model = reference_model(model, rec, obs.mean_rate);
+        mask_counter_lines(&mut layout, &ref_model, &obs);
+        obs.band_psd = stats::band_means(&layout, &obs.psd);
+        let seeds: Vec<u64> = (0..opts.runs as u64).map(|r| opts.seed.wrapping_add(r)).collect();
+        let job = mc::McJob {
+            model: &ref_model,
+            layout: &layout,
+            temp_c: temp,
+            lp_cutoffs_hz: &cutoffs_hz,
+            threads,
+            full: true,
+            sine_probes: &[],
+        };
+        let runs = mc::run(&job, &seeds)?;
+        Ok(Reference { layout, obs, model: ref_model, runs, cutoffs_hz, kurt_taus, kterms, threads })
+    }
+
+    /// A Monte-Carlo job over the reference's layout, for `model`.
+    pub fn job<'a>(&'a self, model: &'a GyroModel, temp_c: Option<&'a [f64]>, cutoffs_hz: &'a [f64]) -> mc::McJob<'a> {
+        mc::McJob {
+            model,
+            layout: &self.layout,
+            temp_c,
+            lp_cutoffs_hz: cutoffs_hz,
+            threads: self.threads,
+            full: true,
+            sine_probes: &[],
+        }
+    }
+
+    /// Sample period, s.
+    pub fn tau0_s(&self) -> f64 {
+        self.layout.tau0_s()
+    }
+
+    /// Record length, s.
+    pub fn duration_s(&self) -> f64 {
+        self.layout.n_samples as f64 * self.layout.tau0_s()
+    }
+
+    /// Slow rate wander of the recording ([`rate_wander`]).
+    pub fn wander(&self) -> f64 {
+        let d = self.layout.pulse_arcsec;
+        rate_wander(&self.layout.levels, &self.obs.wvar, self.layout.fs_hz, self.obs.mean_rate.abs() / d)
+    }
+}
+
+/// The points (wavelet, MDEV, spectral bands, raw Allan, kurtosis) of `rec`
+/// against `opts.runs` Monte-Carlo runs of `model` at the recording's rate,
+/// pulse weight and mean input.
+pub fn points_against(model: &GyroModel, rec: &Recording, opts: &DiagnoseOptions) -> Result<Vec<Point>, DiagnoseError> {
+    check_recording(rec, opts)?;
+    model.validate()?;
+    let r = Reference::simulate(model, rec, opts)?;
+    Ok(all_points(&r.layout, &r.model, &r.obs, &r.runs, &r.kurt_taus))
+}
+
+/// The model as simulated for the comparison: the recording's sample rate and
+/// pulse weight, and a constant input that reproduces the recording's mean rate.
+pub(crate) fn reference_model(model: &GyroModel, rec: &Recording, mean_rate: f64) -> GyroModel {
+    let mut m = model.clone();
+    m.gyro.sample_rate_hz = rec.sample_rate_hz;
+    m.gyro.pulse_weight_arcsec = rec.pulse_arcsec;
+    let dur = rec.counts.len() as f64 / rec.sample_rate_hz;
+    // deterministic parts of the model with a non-zero mean over the record
+    let ramp = units::dphh_to_arcsec_per_s2(m.noise.rate_ramp_dphh.unwrap_or(0.0)) * dur / 2.0;
+    let thermal = m.thermal.as_ref().map_or(0.0, |t| {
+        units::dph_to_arcsec_per_s(t.bias_sensitivity_dph_per_c) * t.ramp_c_per_h / units::S_PER_H * dur / 2.0
+    });
+    m.gyro.input_rate_dph = units::arcsec_per_s_to_dph(mean_rate - ramp - thermal);
+    m
+}
+
+/// The model's Gaussian terms as spectral shapes with their squared
+/// coefficients (arcsec/s units); sinusoids are deterministic and left out,
+/// a random telegraph enters as its Gauss-Markov twin.
+pub fn model_spectral_terms(model: &GyroModel) -> (Vec<SpectralTerm>, Vec<f64>) {
+    let mut terms = vec![SpectralTerm::WhiteAngle];
+    let q = model.quantization_q_arcsec();
+    let mut theta = vec![q * q];
+    let n = &model.noise;
+    let arw = units::dpsh_to_arcsec_per_sqrt_s(n.arw_dpsh.unwrap_or(0.0));
+    terms.push(SpectralTerm::WhiteRate);
+    theta.push(arw * arw);
+    if let Some(b) = n.bias_instability_dph.filter(|b| *b > 0.0) {
+        terms.push(SpectralTerm::Flicker { f_lo_hz: model.flicker_f_lo_hz() });
+        theta.push(b * b);
+    }
+    if let Some(k) = n.rrw_dphsh.filter(|k| *k > 0.0) {
+        let k = units::dphsh_to_arcsec_per_s_sqrt_s(k);
+        terms.push(SpectralTerm::RateRandomWalk);
+        theta.push(k * k);
+    }
+    for g in &n.gauss_markov {
+        terms.push(SpectralTerm::GaussMarkov { tau_c_s: g.tau_c_s });
+        theta.push(g.sigma_dph * g.sigma_dph);
+    }
+    for r in &n.random_telegraph {
+        terms.push(SpectralTerm::GaussMarkov { tau_c_s: 0.5 * r.mean_dwell_s });
+        theta.push(r.amplitude_dph * r.amplitude_dph);
+    }
+    (terms, theta)
+}
+
+/// The model's one-sided rate PSD (its Gaussian terms), (arcsec/s)^2/Hz at `f` Hz.
+pub fn model_psd(model: &GyroModel) -> impl Fn(f64) -> f64 {
+    let (terms, theta) = model_spectral_terms(model);
+    let tau0 = 1.0 / model.gyro.sample_rate_hz;
+    move |f: f64| terms.iter().zip(&theta).map(|(t, th)| th * t.psd_cs(f * tau0, tau0) * tau0).sum()
+}
+
+/// The counter's own lines, `(f_true Hz, half-width Hz)` of each core to mask
+/// in a spectrum with bins `df` Hz wide.
+///
+/// At a constant input `r` the counter's error is a sawtooth of the angle:
+/// harmonics `k r / d` with angle amplitude `d/(pi k)`, damped by the dither
+/// residual (`exp(-2 pi^2 k^2 s^2)`, `s` = dither/d) and seen in the rate
+/// through the first difference (`2 |sin(pi f tau0)| / tau0`, aliased into
+/// `[0, fs/2]`). Angle random walk diffuses each harmonic's phase into a
+/// Lorentzian of half-width `(2 pi k N/d)^2 / (4 pi)` Hz; slow rate wander
+/// (`wander`, arcsec/s: the recording's low-frequency wavelet energy) moves it
+/// by `k wander / d`. A harmonic whose peak density exceeds a fifth of the
+/// continuum (ARW plus white dither) has its core masked (three widths, plus
+/// three bins, plus the wander shift): there the spectrum depends on the exact
+/// mean rate and wander of the record, which the Monte-Carlo runs reproduce
+/// only in distribution. The tails are left in: they follow from the model's ARW.
+pub(crate) fn counter_lines(model: &GyroModel, mean_rate: f64, wander: f64, fs: f64, d: f64, df: f64) -> Vec<(f64, f64)> {
+    let tau0 = 1.0 / fs;
+    let f1 = mean_rate.abs() / d;
+    let mut out = Vec::new();
+    if !(f1 > 0.0) {
+        return out;
+    }
+    let s = model.dither_sigma_arcsec() / d;
+    let sd_dither = model.dither_sigma_arcsec();
+    let arw = units::dpsh_to_arcsec_per_sqrt_s(model.noise.arw_dpsh.unwrap_or(0.0));
+    for k in 1..=100_000usize {
+        let kf = k as f64;
+        let damp = (-2.0 * PI * PI * kf * kf * s * s).exp();
+        if damp < 1e-6 {
+            break;
+        }
+        let f_true = kf * f1;
+        let a = d / (PI * kf) * 2.0 * (PI * f_true * tau0).sin().abs() / tau0 * damp;
+        let p = 0.5 * a * a;
+        let mut fa = f_true.rem_euclid(fs);
+        if fa > fs / 2.0 {
+            fa = fs - fa;
+        }
+        let bg = (2.0 * arw * arw + 8.0 * sd_dither * sd_dither * (PI * fa * tau0).sin().powi(2) / tau0).max(1e-300);
+        let gamma = (2.0 * PI * kf * arw / d).powi(2) / (4.0 * PI);
+        let width = gamma.max(kf * wander / d).max(df);
+        let peak = p / (PI * width);
+        if peak < 0.2 * bg {
+            if 1.0 / kf < 1e-3 && p < 1e-6 * bg * df {
+                // later harmonics are weaker still (amplitude ~ 1/k)
+                break;
+            }
+            continue;
+        }
+        // the core only: the Lorentzian tails follow from the model's ARW and
+        // are reproduced by the runs; the core depends on the record's exact
+        // mean rate and wander
+        let reach = (p * width / (PI * 0.2 * bg) - width * width).max(0.0).sqrt().min(3.0 * width);
+        out.push((f_true, reach + 3.0 * df + 4.0 * kf * wander / d));
+    }
+    out
+}
+
+/// Slow rate wander (arcsec/s): the wavelet energy of the levels below
+/// `f1 / 2` (`f1` the counter's fundamental, Hz).
+pub(crate) fn rate_wander(levels: &[u32], wvar: &[f64], fs: f64, f1: f64) -> f64 {
+    levels
+        .iter()
+        .zip(wvar)
+        .filter(|(j, _)| fs / 2f64.powi(**j as i32) <= (f1 / 2.0).max(1e-9))
+        .map(|(j, w)| w * 2f64.powi(-(*j as i32)))
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// Mask the counter's own lines ([`counter_lines`]) in the layout's Welch bins.
+fn mask_counter_lines(layout: &mut StatLayout, model: &GyroModel, obs: &StatSet) {
+    let d = layout.pulse_arcsec;
+    let fs = layout.fs_hz;
+    let wander = rate_wander(&layout.levels, &obs.wvar, fs, obs.mean_rate.abs() / d);
+    let df = layout.bin_width_hz();
+    for (f, hw) in counter_lines(model, obs.mean_rate, wander, fs, d, df) {
+        layout.mask_line(f, hw);
+    }
+    layout.rebuild_bands();
+}
