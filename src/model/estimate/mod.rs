@@ -459,15 +459,7 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         term_coefficient(&widen_term(t, widen), CONV[i])
     };
     let ramp_term = fit.terms.get(terms.len()).filter(|_| lf.ramp_col);
-    // The slope's spread comes from every term the record cannot rule out: an
-    // unresolved term (an ARW or RRW seen only as a bound) at its upper bound,
-    // not at 0, or a short record's slope looks decisive on white angle noise alone.
-    let theta_slope: Vec<f64> = fit.terms[..terms.len()]
-        .iter()
-        .zip(&theta_lf)
-        .map(|(t, &th)| if t.included { th } else { th.max(t.upper95.unwrap_or(0.0)) })
-        .collect();
-    let ramp = ramp_slope(input, &terms, &theta_slope).map(|(s, sd)| (s, sd * widen));
+    let ramp = ramp_slope(input, &terms, &theta_lf).map(|(s, sd)| (s, sd * widen));
     EstimatorOutput {
         estimates: NoiseEstimates {
             quantization_arcsec: quantization::coefficient(q2, q2_sd * widen),
