@@ -42,6 +42,7 @@ sys.exit(p.returncode)
         .args(args)
         .current_dir(cwd)
         .env_remove("RUST_LOG")
+        .env("SAGNAC_PROGRESS_DELAY_S", "0")
         .output()
         .expect("python3");
     (String::from_utf8_lossy(&out.stdout).into_owned(), out.status.code().unwrap_or(-1))

@@ -20,6 +20,16 @@ use crate::daemon::status::{LiveStatus, format_status};
 /// A job shorter than this shows no progress at all.
 pub const SHOW_AFTER: Duration = Duration::from_millis(700);
 
+/// [`SHOW_AFTER`], or the seconds in `SAGNAC_PROGRESS_DELAY_S` (0 shows every
+/// bar at once: the terminal tests use it, so a fast run still draws one).
+pub fn show_after() -> Duration {
+    std::env::var("SAGNAC_PROGRESS_DELAY_S")
+        .ok()
+        .and_then(|v| v.parse::<f64>().ok())
+        .filter(|v| v.is_finite() && *v >= 0.0)
+        .map_or(SHOW_AFTER, Duration::from_secs_f64)
+}
+
 /// Whether stderr is a terminal (progress is drawn only then).
 pub fn stderr_is_terminal() -> bool {
     std::io::stderr().is_terminal()
@@ -48,7 +58,7 @@ impl DelayedBar {
 
     /// `done` of `total` (if known) so far.
     pub fn update(&mut self, done: u64, total: Option<u64>) {
-        if !self.shown && self.started.elapsed() > SHOW_AFTER {
+        if !self.shown && self.started.elapsed() >= show_after() {
             self.shown = true;
             let (label, what) = (&self.label, self.what);
             match total {
@@ -97,7 +107,7 @@ impl Spinner {
         let thread = std::thread::Builder::new()
             .name("sagnac-spinner".into())
             .spawn(move || {
-                if let Err(RecvTimeoutError::Timeout) = rx.recv_timeout(SHOW_AFTER) {
+                if let Err(RecvTimeoutError::Timeout) = rx.recv_timeout(show_after()) {
                     b.set_draw_target(ProgressDrawTarget::stderr());
                     b.enable_steady_tick(Duration::from_millis(150));
                 }
