@@ -460,13 +460,23 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
     };
     let ramp_term = fit.terms.get(terms.len()).filter(|_| lf.ramp_col);
     let ramp = ramp_slope(input, &terms, &theta_lf).map(|(s, sd)| (s, sd * widen));
+    // The ramp's interval allows every term the record cannot rule out at its
+    // upper bound (an unresolved bias instability or RRW wanders the rate as
+    // much as a ramp over the record); whether a ramp is reported at all stays
+    // the z test under the fitted spectrum with the Allan ramp column kept.
+    let theta_slope: Vec<f64> = fit.terms[..terms.len()]
+        .iter()
+        .zip(&theta_lf)
+        .map(|(t, &th)| if t.included { th } else { th.max(t.upper95.unwrap_or(0.0)) })
+        .collect();
+    let ramp_wide = ramp_slope(input, &terms, &theta_slope).map(|(s, sd)| (s, sd * widen));
     EstimatorOutput {
         estimates: NoiseEstimates {
             quantization_arcsec: quantization::coefficient(q2, q2_sd * widen),
             arw_dpsh: coef(1),
             bias_instability_dph: coef(2),
             rrw_dphsh: coef(3),
-            rate_ramp_dphh: ramp_coefficient(ramp, lf.ramp_col, ramp_term.is_some_and(|t| t.included), opts.ci_lr),
+            rate_ramp_dphh: ramp_coefficient(ramp, ramp_wide, lf.ramp_col, ramp_term.is_some_and(|t| t.included), opts.ci_lr),
         },
         fit,
         theta,
@@ -554,17 +564,23 @@ fn ramp_slope(input: &EstimatorInput, terms: &[SpectralTerm], theta: &[f64]) -> 
 }
 
 /// The reported ramp: a signed parameter, included when its likelihood-ratio
-/// (z^2) test passes and, where the long-tau Allan points had a ramp column,
-/// the fit kept it (the tau^2 growth is there: a slope alone can come from
-/// low-frequency noise the fit left out).
-fn ramp_coefficient(ramp: Option<(f64, f64)>, ramp_col: bool, col_kept: bool, ci_lr: f64) -> Coefficient {
+/// (z^2) test passes under the fitted spectrum (`ramp`) and, where the
+/// long-tau Allan points had a ramp column, the fit kept it (the tau^2 growth
+/// is there: a slope alone can come from low-frequency noise the fit left
+/// out). Its interval and bound use the spread `wide`, with the unresolved
+/// terms at their upper bounds: the slope of one record cannot tell a ramp
+/// from the low-frequency noise the record does not exclude, so the interval
+/// may reach zero although the test found a ramp.
+fn ramp_coefficient(ramp: Option<(f64, f64)>, wide: Option<(f64, f64)>, ramp_col: bool, col_kept: bool, ci_lr: f64) -> Coefficient {
     let z = 1.959_964;
     let to = units::arcsec_per_s2_to_dphh;
+    let sd_wide = |sd: f64| wide.map_or(sd, |(_, w)| w.max(sd));
     match ramp {
         Some((s, sd)) if sd > 0.0 && (s / sd).powi(2) >= ci_lr && (!ramp_col || col_kept) => {
-            Coefficient { value: Some(to(s)), ci95: Some([to(s - z * sd), to(s + z * sd)]), upper95: None }
+            let w = sd_wide(sd);
+            Coefficient { value: Some(to(s)), ci95: Some([to(s - z * w), to(s + z * w)]), upper95: None }
         }
-        Some((s, sd)) => Coefficient { value: None, ci95: None, upper95: Some(to(s.abs() + z * sd)) },
+        Some((s, sd)) => Coefficient { value: None, ci95: None, upper95: Some(to(s.abs() + z * sd_wide(sd))) },
         None => Coefficient { value: None, ci95: None, upper95: None },
     }
 }
