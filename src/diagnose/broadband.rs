@@ -21,6 +21,8 @@ use super::compare::Region;
 use super::findings::{Edit, Finding, UnitConv, fmt_g, sqrt_ci};
 use super::line_search::SearchParams;
 use super::locate::Located;
+use super::lowfreq;
+use super::stats::StatSet;
 use super::reference::Reference;
 use super::wvar_fit::{self, Basis, Fit, LevelData};
 use super::{AddedTerm, ParameterChange};
@@ -40,19 +42,23 @@ pub(crate) fn level_data(r: &Reference, loc: &Located, basis: &Basis, sines: &[(
         return None;
     }
     let runs = r.runs.len() as f64;
-    let mut e0 = loc.mc_mean.wvar.clone();
-    for &(f, amp) in sines {
-        let phi = basis.sinusoid(f);
-        for j in 0..e0.len() {
-            e0[j] += amp * amp * phi[j];
-        }
-    }
-    Some(LevelData {
+    let mut data = LevelData {
         levels: r.layout.levels.clone(),
         y: r.obs.wvar.clone(),
-        e0,
+        e0: loc.mc_mean.wvar.clone(),
         nu: wpts.iter().map(|p| 2.0 / (p.sd_log * p.sd_log * (1.0 + 1.0 / runs))).collect(),
-    })
+    };
+    if basis.has_lf() {
+        let all: Vec<&StatSet> = r.runs.iter().collect();
+        lowfreq::append_rows(&mut data, &r.layout.lf, &r.obs.lf_psd, &all);
+    }
+    for &(f, amp) in sines {
+        let phi = basis.sinusoid(f);
+        for j in 0..data.e0.len() {
+            data.e0[j] += amp * amp * phi[j];
+        }
+    }
+    Some(data)
 }
 
 /// A candidate of the broadband stage.

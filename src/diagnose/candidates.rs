@@ -32,6 +32,7 @@ use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 use super::compare::{Point, Region};
 use super::locate::{Located, floors};
+use super::lowfreq;
 use super::reference::Reference;
 use super::stats::{StatLayout, StatSet};
 use super::wvar_fit::{self, Basis, Fit, LevelData};
@@ -155,7 +156,7 @@ impl ModelComparison {
 
 /// The level data of run `k` judged against the other runs (leave-one-out):
 /// expectation their mean, EDF from their log spread (floored by `floor_sd`).
-pub fn leave_one_out(layout: &StatLayout, runs: &[StatSet], k: usize, floor_sd: &[f64]) -> LevelData {
+pub fn leave_one_out(layout: &StatLayout, runs: &[StatSet], k: usize, floor_sd: &[f64], lf: bool) -> LevelData {
     let others: Vec<&StatSet> = runs
         .iter()
         .enumerate()
@@ -175,12 +176,16 @@ pub fn leave_one_out(layout: &StatLayout, runs: &[StatSet], k: usize, floor_sd: 
         let sd = var.sqrt().max(floor_sd[j]);
         nu[j] = 2.0 / (sd * sd * (1.0 + 1.0 / r));
     }
-    LevelData {
+    let mut data = LevelData {
         levels: layout.levels.clone(),
         y: runs[k].wvar.clone(),
         e0,
         nu,
+    };
+    if lf {
+        lowfreq::append_rows(&mut data, &layout.lf, &runs[k].lf_psd, &others);
     }
+    data
 }
 
 /// A scaled chi-square `c chi2_k` fitted to `x` by moments (k clamped to
@@ -230,7 +235,7 @@ pub fn compare(
     let (lr, best) = all.first().map(|(l, c)| (*l, c))?;
     let null_max: Vec<f64> = (0..runs.len())
         .filter_map(|k| {
-            let d = leave_one_out(layout, runs, k, floor_sd);
+            let d = leave_one_out(layout, runs, k, floor_sd, basis.has_lf());
             max_lr(&d, basis, model, dur).map(|x| x.0)
         })
         .collect();

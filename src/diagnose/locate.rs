@@ -121,6 +121,7 @@ pub fn mean_stats(runs: &[StatSet]) -> StatSet {
         temp_slope: None,
         kurtosis: avg(&|s| &s.kurtosis),
         sines: Vec::new(),
+        lf_psd: avg(&|s| &s.lf_psd),
     }
 }
 

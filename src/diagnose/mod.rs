@@ -22,7 +22,8 @@
 //!    line's Fisher information.
 //! 4. The broadband residual: [`candidates`] tests every catalog change
 //!    against the model by its likelihood ratio on the wavelet variances
-//!    ([`wvar_fit`]), calibrated on the model's own runs (a parametric
+//!    ([`wvar_fit`]) and the low-frequency periodogram below the deepest
+//!    level ([`lowfreq`]), calibrated on the model's own runs (a parametric
 //!    bootstrap), so coherent evidence below the per-point gate is kept;
 //!    [`telegraph`] checks that the model's Gauss-Markov and telegraph terms
 //!    have the right distribution; [`broadband`] names the changes (AIC,
@@ -55,6 +56,7 @@ pub(crate) mod findings;
 pub mod line_search;
 pub mod lines;
 pub mod locate;
+pub mod lowfreq;
 pub mod mc;
 pub mod reference;
 pub mod refine;
@@ -191,7 +193,7 @@ pub fn diagnose(model: &GyroModel, rec: &Recording, opts: &DiagnoseOptions) -> R
     let lines = lines::find(r, rec);
     let mut findings: Vec<Finding> = lines.findings;
     // 4: the broadband residual: candidate tests, distribution, broadband fit
-    let basis = Basis::new(&r.layout.lo, &r.layout.hi, r.tau0_s(), &r.layout.levels);
+    let basis = Basis::new(&r.layout.lo, &r.layout.hi, r.tau0_s(), &r.layout.levels).with_lf(&r.layout.lf);
     let data0 = broadband::level_data(r, &located, &basis, &lines.sines);
     let comparison = data0.as_ref().and_then(|d0| candidates::test(d0, &basis, r, &located, opts.alpha));
     let lr_detected = comparison.as_ref().is_some_and(|c| c.detected);

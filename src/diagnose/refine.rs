@@ -16,6 +16,7 @@
 use super::compare::{self, Family, Point};
 use super::findings::{Edit, Finding, UnitConv, fitted_parameters, fmt_g, sqrt_ci, tidy, with_findings};
 use super::locate::{all_points, detect_points, mean_stats};
+use super::lowfreq;
 use super::reference::Reference;
 use super::stats::StatSet;
 use super::telegraph::{self, telegraph_alternative};
@@ -88,7 +89,7 @@ pub(crate) fn refine(
     let after = all_points(&r.layout, &model, &r.obs, &runs, &r.kurt_taus);
     let chi2 = compare::chi2_per_dof(&detect_points(&after), fitted_parameters(findings));
     let mut cur = Current { model, runs, after, chi2 };
-    let basis = Basis::new(&r.layout.lo, &r.layout.hi, r.tau0_s(), &r.layout.levels);
+    let basis = Basis::new(&r.layout.lo, &r.layout.hi, r.tau0_s(), &r.layout.levels).with_lf(&r.layout.lf);
     for round in 0..REFINE_ROUNDS {
         if !refine_round(r, &basis, &mut cur, findings, round, &seeds_after, &cutoffs, temp, notes)? {
             break;
@@ -292,6 +293,10 @@ fn refine_broadband(
         e0: mean_stats(runs).wvar,
         nu: wpts.iter().map(|p| 2.0 / (p.sd_log * p.sd_log * (1.0 + 1.0 / nr))).collect(),
     };
+    if basis.has_lf() {
+        let all: Vec<&StatSet> = runs.iter().collect();
+        lowfreq::append_rows(&mut data, &layout.lf, &r.obs.lf_psd, &all);
+    }
     // (knob, basis shape, current theta, floor, theta -> model units)
     let mut state: Vec<(Knob, Vec<f64>, f64, f64, UnitConv)> =
         knobs.iter().map(|&kn| knob_state(kn, basis, model)).collect();

@@ -24,6 +24,7 @@ use std::sync::Arc;
 use rustfft::num_complex::Complex64;
 use rustfft::{Fft, FftPlanner};
 
+use super::lowfreq::LfLayout;
 use crate::allan::{self, Phase, Stat};
 use crate::model::estimate::RampAccumulator;
 
@@ -261,6 +262,8 @@ pub struct StatLayout {
     pub bands: Vec<Band>,
     pub lo: Vec<f64>,
     pub hi: Vec<f64>,
+    /// The low-frequency periodogram rows below the deepest level ([`super::lowfreq`]).
+    pub lf: LfLayout,
 }
 
 /// Smallest count of valid coefficients for a wavelet level to be compared.
@@ -294,6 +297,7 @@ impl StatLayout {
         let k_lo = 2;
         let k_hi = seg / 2; // exclusive: Nyquist bin left out
         let mask = vec![true; k_hi - k_lo];
+        let lf = LfLayout::new(n, fs_hz, probe.len() as u32);
         let mut lay = StatLayout {
             fs_hz,
             pulse_arcsec,
@@ -309,6 +313,7 @@ impl StatLayout {
             bands: Vec::new(),
             lo,
             hi,
+            lf,
         };
         lay.rebuild_bands();
         lay
@@ -427,6 +432,8 @@ pub struct StatSet {
     /// Re-estimated sinusoids `(frequency Hz, amplitude arcsec/s)`, one per
     /// requested probe (the parametric bootstrap of a fitted line).
     pub sines: Vec<(f64, f64)>,
+    /// Band means of the low-frequency periodogram, (arcsec/s)^2/Hz.
+    pub lf_psd: Vec<f64>,
 }
 
 /// Rate in arcsec/s from pulse increments.
@@ -498,6 +505,7 @@ pub fn compute(
         temp_slope,
         kurtosis,
         sines: Vec::new(),
+        lf_psd: layout.lf.psd(&rate),
     }
 }
 

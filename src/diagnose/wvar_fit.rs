@@ -20,7 +20,9 @@
 //! the business of [`super::candidates`] and [`super::broadband`].
 
 use std::f64::consts::PI;
+use std::sync::Arc;
 
+use super::lowfreq::{LfLayout, LfWindows};
 use crate::model::wvar::{self, LevelBasis, SpectralTerm};
 
 /// Wavelet-level data for the fits.
@@ -59,6 +61,8 @@ pub struct Basis {
     white_angle: Vec<f64>,
     white_rate: Vec<f64>,
     rrw: Vec<f64>,
+    /// The low-frequency periodogram rows after the levels, when present.
+    lf: Option<Arc<LfWindows>>,
 }
 
 impl Basis {
@@ -89,7 +93,35 @@ impl Basis {
             white_angle: col(0),
             white_rate: col(1),
             rrw: col(2),
+            lf: None,
         }
+    }
+
+    /// The basis with the low-frequency periodogram rows of `layout` after the
+    /// levels ([`super::lowfreq`]); unchanged when the layout has none.
+    pub fn with_lf(mut self, layout: &LfLayout) -> Basis {
+        if layout.bands.is_empty() {
+            return self;
+        }
+        let win = LfWindows::new(layout, self.tau0_s);
+        self.white_angle.extend(win.term(SpectralTerm::WhiteAngle));
+        self.white_rate.extend(win.term(SpectralTerm::WhiteRate));
+        self.rrw.extend(win.term(SpectralTerm::RateRandomWalk));
+        self.lf = Some(Arc::new(win));
+        self
+    }
+
+    /// Whether the rows include the low-frequency periodogram.
+    pub fn has_lf(&self) -> bool {
+        self.lf.is_some()
+    }
+
+    /// `levels` followed by the low-frequency rows of `term`.
+    fn with_rows(&self, mut levels: Vec<f64>, term: SpectralTerm) -> Vec<f64> {
+        if let Some(w) = &self.lf {
+            levels.extend(w.term(term));
+        }
+        levels
     }
 
     /// White angle noise, per unit Q^2 (arcsec^2).
@@ -114,13 +146,14 @@ impl Basis {
             &self.levels,
             &[SpectralTerm::Flicker { f_lo_hz }],
         );
-        lb.phi.iter().map(|r| r[0]).collect()
+        self.with_rows(lb.phi.iter().map(|r| r[0]).collect(), SpectralTerm::Flicker { f_lo_hz })
     }
 
     /// Gauss-Markov with correlation time `tc_s`, per unit sigma^2.
     pub fn gauss_markov(&self, tc_s: f64) -> Vec<f64> {
         let t = SpectralTerm::GaussMarkov { tau_c_s: tc_s };
-        self.nodes
+        let levels = self
+            .nodes
             .iter()
             .map(|nodes| {
                 nodes
@@ -128,7 +161,8 @@ impl Basis {
                     .map(|&(nu, w, h2)| w * h2 * t.psd_cs(nu, self.tau0_s))
                     .sum()
             })
-            .collect()
+            .collect();
+        self.with_rows(levels, t)
     }
 
     /// A sinusoid of frequency `f_hz`, per unit A^2 ((arcsec/s)^2): power
@@ -141,10 +175,15 @@ impl Basis {
         } else {
             (x.sin() / x).powi(2)
         };
-        self.levels
+        let mut rows: Vec<f64> = self
+            .levels
             .iter()
             .map(|&j| 0.5 * sinc2 * wvar::level_power_response(&self.lo, &self.hi, j, nu))
-            .collect()
+            .collect();
+        if let Some(w) = &self.lf {
+            rows.extend(w.sinusoid(f_hz));
+        }
+        rows
     }
 }
 
