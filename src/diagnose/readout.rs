@@ -187,13 +187,24 @@ pub(crate) fn finding(ff: &FilterFit, model: &GyroModel, n2_model: f64, regions:
         (ReadoutFilter::FirstOrder { .. }, _) => "a first-order (one-pole) low-pass, as an anti-alias RC stage".into(),
     };
     let had = model.readout_filter();
+    let at_edge = matches!(f, ReadoutFilter::FirstOrder { .. }) && ff.corner_ci_cycles.1 >= 0.98 * FO_HI;
+    let edge = if at_edge {
+        format!(
+            " The corner is at the top of the search ({} cycles per sample): the finest level falls less \
+             than any one-pole filter below Nyquist makes it, as an average over a fraction of an output \
+             sample (decimation from a faster internal rate) does.",
+            FO_HI
+        )
+    } else {
+        String::new()
+    };
     let explanation = format!(
         "A readout filter the model {}: {what}, -3 dB at {} Hz (95 % {}..{} Hz), group delay {} ms ({} samples). \
          The electronics low-pass the rate before it is output (an anti-alias filter ahead of the sampling, or \
          the averaging that strips a dither), so the white rate noise falls off above the corner: the finest \
          wavelet levels (tau below about {} s) lie below the white plateau an unfiltered readout gives \
          (mismatch at {regions}). Below the corner the white level is unchanged: ARW {} deg/sqrt(h) \
-         (the model: {}). A rate word's LSB rounding comes after the filter and stays white.",
+         (the model: {}). A rate word's LSB rounding comes after the filter and stays white.{edge}",
         if had.is_some() { "describes wrongly" } else { "lacks" },
         fmt_g(fc),
         fmt_g(ci[0]),
