@@ -36,6 +36,19 @@ pub enum RateUnit {
     RadS,
 }
 
+impl RateUnit {
+    /// A sample in this unit as deg/h (`pulse_arcsec`, `tau0_s`: the
+    /// counter's pulse weight and sample period, for `Counts`).
+    pub fn to_dph(self, v: f64, pulse_arcsec: f64, tau0_s: f64) -> f64 {
+        match self {
+            RateUnit::Counts => units::counts_to_dph(v, pulse_arcsec, tau0_s),
+            RateUnit::Dph => v,
+            RateUnit::Dps => units::dps_to_dph(v),
+            RateUnit::RadS => units::rad_s_to_dph(v),
+        }
+    }
+}
+
 /// Errors of the offline readers.
 #[derive(Debug, thiserror::Error)]
 pub enum OfflineError {
@@ -196,14 +209,7 @@ fn feed_file(
     let mut buf = Vec::with_capacity(BLOCK);
     let mut ints = Vec::with_capacity(BLOCK);
     let tau0 = 1.0 / cfg.rate_hz;
-    let to_dph = |v: f64| -> f64 {
-        match unit {
-            RateUnit::Counts => units::counts_to_dph(v, cfg.pulse_arcsec.unwrap_or(1.0), tau0),
-            RateUnit::Dph => v,
-            RateUnit::Dps => units::dps_to_dph(v),
-            RateUnit::RadS => units::rad_s_to_dph(v),
-        }
-    };
+    let to_dph = |v: f64| unit.to_dph(v, cfg.pulse_arcsec.unwrap_or(1.0), tau0);
     loop {
         let n = reader.next_block(&mut buf, BLOCK)?;
         if n == 0 {

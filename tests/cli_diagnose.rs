@@ -111,7 +111,8 @@ fn check_contract(j: &Value) {
                 "rrw_dphsh",
                 "rate_ramp_dphh",
                 "bias_instability_dph",
-                "thermal"
+                "thermal",
+                "readout_filter"
             ]
             .iter()
             .any(|k| t.starts_with(k)),
@@ -394,4 +395,69 @@ fn the_report_alone_suffices_and_the_figure_states_verdict_and_findings() {
         ],
         "nothing to write",
     );
+}
+
+/// A rate-output gyro without a filter, and the truth with an anti-alias filter.
+const RATE_MODEL: &str = "[gyro]\nsample_rate_hz = 200.0\noutput = \"rate\"\nrate_lsb_dps = 0.01\n\
+[noise]\narw_dpsh = 0.5\nbias_instability_dph = 5.0\n";
+
+#[test]
+fn a_rate_column_is_read_with_column_and_unit_and_its_filter_named() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("model.toml"), RATE_MODEL).unwrap();
+    let truth = format!("{RATE_MODEL}[readout_filter]\nkind = \"first_order\"\ncorner_hz = 20.0\n");
+    std::fs::write(dir.path().join("truth.toml"), truth).unwrap();
+    simulate(&dir.path().join("truth.toml"), &dir.path().join("sim.csv"), "csv", "300", "5");
+    // the column under another name, as a real recording has it
+    let text = std::fs::read_to_string(dir.path().join("sim.csv")).unwrap();
+    assert!(text.starts_with("rate_dps\n"), "{}", &text[..40]);
+    std::fs::write(dir.path().join("rec.csv"), text.replacen("rate_dps", "gyro_x_dps", 1)).unwrap();
+    let mut c = diagnose(dir.path(), "rec.csv", "csv");
+    c.args(["--column", "gyro_x_dps", "--unit", "dps", "--write-model"]).arg(dir.path().join("new.toml"));
+    ok(&c.output().unwrap());
+    let j: Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("out.json")).unwrap()).unwrap();
+    check_contract(&j);
+    assert_eq!(j["verdict"], "mismatch");
+    assert_eq!(j["input"]["column"], "gyro_x_dps");
+    assert_eq!(j["input"]["unit"], "dps");
+    assert_eq!(num(&j["input"]["rate_lsb_dps"]), 0.01);
+    let f = j["added_terms"].as_array().unwrap().iter().find(|a| a["term"] == "readout_filter").expect("readout_filter");
+    assert_eq!(f["params"]["kind"], "first_order");
+    let ci = f["ci95"]["corner_hz"].as_array().unwrap();
+    assert!(num(&ci[0]) <= 20.0 && 20.0 <= num(&ci[1]), "truth 20 Hz outside {ci:?}");
+    let written = std::fs::read_to_string(dir.path().join("new.toml")).unwrap();
+    assert!(written.contains("[readout_filter]") && written.contains("first_order"), "{written}");
+    sagnac::model::GyroModel::from_toml_str(&written, "written").unwrap();
+    // the wrong kind of recording for the model, either way, is a clear error
+    let model = dir.path().join("model.toml");
+    let rec = dir.path().join("rec.csv");
+    let out = dir.path().join("x.json");
+    fails_with(
+        &["--model".as_ref(), model.as_os_str(), "--recording".as_ref(), rec.as_os_str(), "--json".as_ref(), out.as_os_str()],
+        "--column NAME --unit dps|dph|rad_s",
+    );
+    std::fs::write(dir.path().join("counts.toml"), MODEL).unwrap();
+    let counts_model = dir.path().join("counts.toml");
+    fails_with(
+        &[
+            "--model".as_ref(),
+            counts_model.as_os_str(),
+            "--recording".as_ref(),
+            rec.as_os_str(),
+            "--column".as_ref(),
+            "gyro_x_dps".as_ref(),
+            "--unit".as_ref(),
+            "dps".as_ref(),
+            "--json".as_ref(),
+            out.as_os_str(),
+        ],
+        "pulse counter",
+    );
+    // a misspelt column names the file
+    let mut c = diagnose(dir.path(), "rec.csv", "csv");
+    c.args(["--column", "gyro_q_dps", "--unit", "dps"]);
+    let o = c.output().unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("gyro_q_dps") && err.contains("rec.csv"), "{err}");
 }

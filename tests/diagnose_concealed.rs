@@ -223,6 +223,7 @@ fn simulate(model: &GyroModel, seed: u64, dur_s: f64) -> Recording {
         temp_c: (!temp.is_empty()).then_some(temp),
         sample_rate_hz: model.gyro.sample_rate_hz,
         pulse_arcsec: model.gyro.pulse_weight_arcsec,
+        output: Default::default(),
     }
 }
 

@@ -82,6 +82,7 @@ fn simulate(m: &GyroModel, seed: u64, dur_s: f64) -> Recording {
         temp_c: None,
         sample_rate_hz: m.gyro.sample_rate_hz,
         pulse_arcsec: m.gyro.pulse_weight_arcsec,
+        output: Default::default(),
     }
 }
 

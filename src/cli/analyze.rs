@@ -229,7 +229,7 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
 }
 
 /// The `--unit` value as the flag spells it.
-fn unit_key(u: RateUnit) -> String {
+pub(crate) fn unit_key(u: RateUnit) -> String {
     use clap::ValueEnum;
     u.to_possible_value().map_or_else(|| format!("{u:?}"), |v| v.get_name().to_string())
 }

@@ -3,7 +3,8 @@
 //! (see [`crate::diagnose`] for the method).
 //!
 //! Inputs: the model TOML and a recording as CSV (`counts` column of pulse
-//! increments, optional `temp_c`), a raw frame capture (`frames`) or an MCAP
+//! increments, optional `temp_c`; for a rate-output model, `--column NAME
+//! --unit dps|dph|rad_s` reads its rate column, the units as `analyze` reads them), a raw frame capture (`frames`) or an MCAP
 //! recording (`mcap`, topic `/gyro/raw`). The sample rate and pulse weight come
 //! from the model's `[gyro]`, except that an MCAP recording's own values
 //! override them: those of its `sagnac` metadata record ([`crate::sink::meta`]),
@@ -23,6 +24,9 @@ use anyhow::{Context, bail};
 use clap::{Args, ValueEnum};
 
 use crate::model::GyroModel;
+use crate::model::config::OutputKind;
+use crate::offline::RateUnit;
+use crate::units;
 use crate::diagnose::{self, DiagnoseOptions, Recording};
 use crate::sink::messages::SinkMessage;
 use crate::sink::provenance::{InputSettings, Provenance};
@@ -72,6 +76,15 @@ pub struct DiagnoseArgs {
     /// Base seed of the Monte-Carlo runs.
     #[arg(long, default_value_t = DiagnoseOptions::default().seed)]
     pub seed: u64,
+    /// CSV column to read (default `counts`, or `rate_dps` with a rate --unit:
+    /// what `sagnac simulate` writes).
+    #[arg(long, value_name = "NAME")]
+    pub column: Option<String>,
+    /// Unit of the column: pulse counts per sample (a counter's recording),
+    /// or a rate in deg/h, deg/s or rad/s (a rate-output gyro's, for a model
+    /// with `[gyro] output = "rate"`).
+    #[arg(long, value_enum, default_value = "counts")]
+    pub unit: RateUnit,
 }
 
 /// Run `sagnac diagnose`.
@@ -87,9 +100,11 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
         }
     }
     let model = GyroModel::load(&args.model).context("loading the gyro model")?;
+    check_input_kind(&args, &model)?;
     let spinner = super::progress::Spinner::start(format!("reading {}", args.recording.display()));
     let rec = match args.format {
-        RecordingFormat::Csv => read_csv(&args.recording, &model)?,
+        RecordingFormat::Csv if args.unit != RateUnit::Counts => read_rate_csv(&args, &model)?,
+        RecordingFormat::Csv => read_csv(&args.recording, args.column.as_deref().unwrap_or("counts"), &model)?,
         RecordingFormat::Frames => read_frames(&args.recording, &model)?,
         RecordingFormat::Mcap => read_mcap(&args.recording, &model)?,
     };
@@ -185,12 +200,24 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
 /// What `--json` says about how the verdict was made.
 fn provenance(args: &DiagnoseArgs, model: &GyroModel, rec: &Recording) -> Provenance {
     let own = |v: f64, m: f64| if v == m { "the model's [gyro]" } else { "the recording's metadata" };
-    let mut input = InputSettings::new(&args.recording, format_name(args.format), rec.sample_rate_hz, Some(rec.pulse_arcsec));
-    input.origin = Some(format!(
-        "sample rate from {}, pulse weight from {}",
-        own(rec.sample_rate_hz, model.gyro.sample_rate_hz),
-        own(rec.pulse_arcsec, model.gyro.pulse_weight_arcsec)
-    ));
+    let mut input;
+    if rec.output == OutputKind::Rate {
+        input = InputSettings::new(&args.recording, format_name(args.format), rec.sample_rate_hz, None);
+        input.rate_lsb_dps = (model.gyro.rate_lsb_dps > 0.0).then_some(model.gyro.rate_lsb_dps);
+        input.column = args.column.clone();
+        input.unit = Some(super::analyze::unit_key(args.unit));
+        input.origin = Some(format!(
+            "sample rate and rate LSB from the model's [gyro]; rate words counted in {} deg/s",
+            rec.rate_quantum_dps()
+        ));
+    } else {
+        input = InputSettings::new(&args.recording, format_name(args.format), rec.sample_rate_hz, Some(rec.pulse_arcsec));
+        input.origin = Some(format!(
+            "sample rate from {}, pulse weight from {}",
+            own(rec.sample_rate_hz, model.gyro.sample_rate_hz),
+            own(rec.pulse_arcsec, model.gyro.pulse_weight_arcsec)
+        ));
+    }
     input.model = Some(args.model.display().to_string());
     Provenance::new(input, diagnose_units())
 }
@@ -230,6 +257,7 @@ fn recording(
         temp_c,
         sample_rate_hz: rate.unwrap_or(model.gyro.sample_rate_hz),
         pulse_arcsec: pulse.unwrap_or(model.gyro.pulse_weight_arcsec),
+        output: Default::default(),
     }
 }
 
@@ -239,13 +267,54 @@ fn informative(t: Vec<f64>) -> Option<Vec<f64>> {
     t.iter().any(|v| *v != first).then_some(t)
 }
 
-fn read_csv(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
-    let counts: Vec<i64> = SampleReader::open(path, InputFormat::Csv, Some("counts"))
-        .and_then(|r| r.require_integers(true).read_to_end())
-        .with_context(|| format!("reading the counts column of {}", path.display()))?
+/// The recording must be of the model's kind of sensor: `--unit` counts for
+/// a counter, a rate unit for a rate-output model; a rate comes from a CSV column.
+fn check_input_kind(args: &DiagnoseArgs, model: &GyroModel) -> anyhow::Result<()> {
+    let rate_input = args.unit != RateUnit::Counts;
+    if args.column.is_some() && args.format != RecordingFormat::Csv {
+        bail!("--column applies to CSV recordings only (frame captures and MCAP recordings hold pulse counts)");
+    }
+    match (model.gyro.output, rate_input) {
+        (OutputKind::Rate, false) => bail!(
+            "{}: the model has [gyro] output = \"rate\" (a rate-output gyro), but the recording is read as pulse \
+             counts: give the rate column and its unit, --column NAME --unit dps|dph|rad_s",
+            args.model.display()
+        ),
+        (OutputKind::Counts, true) => bail!(
+            "{}: the model is a pulse counter ([gyro] output = \"counts\"), but --unit {} reads rate samples: \
+             diagnose a rate recording with a model that has [gyro] output = \"rate\" and rate_lsb_dps, or give \
+             the counts column with --unit counts",
+            args.model.display(),
+            super::analyze::unit_key(args.unit)
+        ),
+        _ => {}
+    }
+    if rate_input && args.format != RecordingFormat::Csv {
+        bail!("--unit {} reads a CSV rate column: use --format csv", super::analyze::unit_key(args.unit));
+    }
+    Ok(())
+}
+
+/// A rate-output gyro's recording: the CSV column `--column` in `--unit`,
+/// at the model's sample rate, counted in the model's LSB when its values
+/// lie on that grid ([`Recording::from_rates`]).
+fn read_rate_csv(args: &DiagnoseArgs, model: &GyroModel) -> anyhow::Result<Recording> {
+    let path = &args.recording;
+    let column = args.column.as_deref().unwrap_or("rate_dps");
+    let tau0 = model.tau0_s();
+    let rates_dps: Vec<f64> = SampleReader::open(path, InputFormat::Csv, Some(column))
+        .and_then(|mut r| r.read_to_end())
+        .with_context(|| format!("reading the {column} column of {}", path.display()))?
         .into_iter()
-        .map(|v| v as i64)
+        .map(|v| args.unit.to_dph(v, 0.0, tau0) / units::S_PER_H)
         .collect();
+    let temp = read_temp(path, rates_dps.len())?;
+    Recording::from_rates(&rates_dps, temp.and_then(informative), model.gyro.sample_rate_hz, model.gyro.rate_lsb_dps)
+        .with_context(|| format!("{}: column {column}", path.display()))
+}
+
+/// The optional `temp_c` column, as long as the data.
+fn read_temp(path: &Path, n: usize) -> anyhow::Result<Option<Vec<f64>>> {
     let temp = match SampleReader::open(path, InputFormat::Csv, Some("temp_c")) {
         Ok(mut r) => Some(
             r.read_to_end()
@@ -255,15 +324,21 @@ fn read_csv(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
         Err(e) => return Err(e).with_context(|| format!("reading {}", path.display())),
     };
     if let Some(t) = &temp
-        && t.len() != counts.len()
+        && t.len() != n
     {
-        bail!(
-            "{}: temp_c has {} values, counts {}",
-            path.display(),
-            t.len(),
-            counts.len()
-        );
+        bail!("{}: temp_c has {} values, the data {n}", path.display(), t.len());
     }
+    Ok(temp)
+}
+
+fn read_csv(path: &Path, column: &str, model: &GyroModel) -> anyhow::Result<Recording> {
+    let counts: Vec<i64> = SampleReader::open(path, InputFormat::Csv, Some(column))
+        .and_then(|r| r.require_integers(true).read_to_end())
+        .with_context(|| format!("reading the {column} column of {}", path.display()))?
+        .into_iter()
+        .map(|v| v as i64)
+        .collect();
+    let temp = read_temp(path, counts.len())?;
     Ok(recording(model, counts, temp.and_then(informative), None, None))
 }
 

@@ -221,6 +221,7 @@ fn run_diagnosis(model: &GyroModel, c: &Collector, meta: &Metadata, input: &Path
         temp_c,
         sample_rate_hz: meta.rate_hz,
         pulse_arcsec: meta.pulse_arcsec.unwrap_or(f64::NAN),
+        output: Default::default(),
     };
     let spinner = Spinner::start("diagnosing against the model (Monte-Carlo runs)");
     let d = diagnose::diagnose(model, &rec, &DiagnoseOptions::default())

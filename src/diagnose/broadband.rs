@@ -23,9 +23,11 @@ use super::line_search::SearchParams;
 use super::locate::Located;
 use super::lowfreq;
 use super::stats::StatSet;
+use super::readout;
 use super::reference::Reference;
 use super::wvar_fit::{self, Basis, Fit, LevelData};
 use super::{AddedTerm, ParameterChange};
+use crate::model::filter::{ReadoutFilter, ReadoutFilterParams};
 use crate::model::{GyroModel, Term};
 use crate::units;
 
@@ -79,6 +81,9 @@ struct Current {
     k2: f64,
     gm: Vec<(f64, f64)>,
     rtn: Vec<(f64, f64)>,
+    /// The readout filter the white rate goes through.
+    filter: Option<ReadoutFilter>,
+    tau0_s: f64,
 }
 
 impl Current {
@@ -93,6 +98,8 @@ impl Current {
             k2: units::dphsh_to_arcsec_per_s_sqrt_s(nz.rrw_dphsh.unwrap_or(0.0)).powi(2),
             gm: nz.gauss_markov.iter().map(|g| (g.sigma_dph * g.sigma_dph, g.tau_c_s)).collect(),
             rtn: nz.random_telegraph.iter().map(|r| (r.amplitude_dph * r.amplitude_dph, r.mean_dwell_s)).collect(),
+            filter: model.readout_filter(),
+            tau0_s: model.tau0_s(),
         }
     }
 
@@ -109,6 +116,10 @@ impl Current {
             Edit::GaussMarkov { index: None, sigma_dph, tau_c_s } => self.gm.push((sigma_dph * sigma_dph, *tau_c_s)),
             Edit::Telegraph { index: Some(i), amplitude_dph, mean_dwell_s } => {
                 self.rtn[*i] = (amplitude_dph * amplitude_dph, *mean_dwell_s)
+            }
+            Edit::ReadoutFilter { params, arw_dpsh } => {
+                self.filter = params.filter(self.tau0_s).ok();
+                self.n2 = units::dpsh_to_arcsec_per_sqrt_s(*arw_dpsh).powi(2);
             }
             _ => {}
         }
@@ -163,6 +174,14 @@ pub(crate) fn fit(data0: &LevelData, basis: &Basis, r: &Reference, regions: &[Re
             p_grid: &p_grid,
         };
         let mut cands = parameter_candidates(&ctx);
+        if readout::offered(model)
+            && let Some(ff) = readout::fit(&data, basis, cur.n2, cur.filter)
+        {
+            let mut m = model.clone();
+            m.readout_filter = cur.filter.map(|f| ReadoutFilterParams::from_filter(&f, model.tau0_s()));
+            let finding = readout::finding(&ff, &m, cur.n2, &region_text);
+            cands.push(Candidate { fit: ff.fit, param_only: cur.filter.is_some(), finding });
+        }
         let new_gm_index = cands.len();
         let has_new_gm = new_gauss_markov(&ctx).map(|c| cands.push(c)).is_some();
         cands.extend(new_sinusoid(&ctx));
@@ -277,7 +296,7 @@ fn quantization_candidate(c: &Ctx) -> Candidate {
 
 fn arw_candidate(c: &Ctx) -> Candidate {
     let n2 = c.cur.n2;
-    let fit = wvar_fit::fit_amplitude(c.data, &c.basis.white_rate(), n2, 0.0);
+    let fit = wvar_fit::fit_amplitude(c.data, &c.basis.white_rate_through(c.cur.filter), n2, 0.0);
     let v = units::arcsec_per_sqrt_s_to_dpsh(fit.theta.sqrt());
     let old = units::arcsec_per_sqrt_s_to_dpsh(n2.sqrt());
     Candidate {
@@ -340,6 +359,7 @@ fn flicker_or_rrw(c: &Ctx, flicker: bool) -> Candidate {
         );
         let added = AddedTerm {
             term: key.into(),
+            kind: None,
             params: BTreeMap::from([(key.to_string(), v)]),
             explanation,
             ci95: BTreeMap::from([(key.to_string(), ci)]),
@@ -441,7 +461,7 @@ fn new_gauss_markov(c: &Ctx) -> Option<Candidate> {
         finding: Finding {
             edit: Edit::GaussMarkov { index: None, sigma_dph: v, tau_c_s: t },
             changes: vec![],
-            added: Some(AddedTerm { term: "gauss_markov".into(), params, explanation: expl, ci95: ci }),
+            added: Some(AddedTerm { term: "gauss_markov".into(), params, kind: None, explanation: expl, ci95: ci }),
             n_par: 2,
             note: format!("new gauss_markov: sigma {} deg/h, tau_c {} s", fmt_g(v), fmt_g(t)),
         },
@@ -477,7 +497,7 @@ fn new_sinusoid(c: &Ctx) -> Option<Candidate> {
         finding: Finding {
             edit: Edit::Sinusoid { index: None, amplitude_dph: amp, period_s: p },
             changes: vec![],
-            added: Some(AddedTerm { term: "sinusoid".into(), params, explanation, ci95: ci }),
+            added: Some(AddedTerm { term: "sinusoid".into(), params, kind: None, explanation, ci95: ci }),
             n_par: 2,
             note: format!("new long-period sinusoid: amplitude {} deg/h, period {} s", fmt_g(amp), fmt_g(p)),
         },

@@ -90,7 +90,10 @@ pub fn candidates(data: &LevelData, basis: &Basis, model: &GyroModel, dur_s: f64
     };
     let amp = |phi: &[f64], t0: f64, floor: f64| Some(wvar_fit::fit_amplitude(data, phi, t0, floor));
     push("quantization_arcsec".into(), amp(&basis.white_angle(), q * q, d2_12));
-    push("arw_dpsh".into(), amp(&basis.white_rate(), arw * arw, 0.0));
+    push("arw_dpsh".into(), amp(&basis.white_rate_through(model.readout_filter()), arw * arw, 0.0));
+    if super::readout::offered(model) {
+        push("readout_filter".into(), super::readout::fit(data, basis, arw * arw, model.readout_filter()).map(|f| f.fit));
+    }
     let flicker = basis.flicker(model.flicker_f_lo_hz());
     push("bias_instability_dph".into(), amp(&flicker, b2, 0.0));
     push("rrw_dphsh".into(), amp(&basis.rrw(), k2, 0.0));

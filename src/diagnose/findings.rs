@@ -10,6 +10,7 @@ use std::collections::BTreeMap;
 
 use super::{AddedTerm, ParameterChange};
 use crate::model::GyroModel;
+use crate::model::filter::ReadoutFilterParams;
 use crate::model::config::{GaussMarkovParams, RandomTelegraphParams, SinusoidParams, ThermalParams};
 
 /// A unit conversion (internal units to the model file's).
@@ -39,6 +40,12 @@ pub(crate) enum Edit {
         period_s: f64,
     },
     Thermal(ThermalParams),
+    /// A readout filter (new or replacing the model's) with the white level
+    /// refitted through it.
+    ReadoutFilter {
+        params: ReadoutFilterParams,
+        arw_dpsh: f64,
+    },
     /// Replace gauss_markov[i] by a telegraph (amplitude, mean dwell), fitted
     /// on the recording's wavelet variances.
     GaussMarkovToTelegraph(usize, f64, f64),
@@ -77,6 +84,10 @@ impl Edit {
                 }
             }
             Edit::Thermal(t) => m.thermal = Some(t.clone()),
+            Edit::ReadoutFilter { params, arw_dpsh } => {
+                m.readout_filter = Some(params.clone());
+                m.noise.arw_dpsh = Some(*arw_dpsh);
+            }
             Edit::GaussMarkovToTelegraph(i, amplitude_dph, mean_dwell_s) => {
                 // zero amplitude keeps the indices of the other edits valid;
                 // zero terms are dropped by `tidy`
@@ -148,6 +159,7 @@ impl Finding {
             },
             added: (!had).then(|| AddedTerm {
                 term: term.into(),
+                kind: None,
                 params: BTreeMap::from([(key.to_string(), fitted)]),
                 explanation: note.clone(),
                 ci95: BTreeMap::from([(key.to_string(), ci95)]),

@@ -83,7 +83,9 @@ pub fn line_scan(model: &GyroModel, rec: &Recording, params: &lines::SearchParam
     let d = rec.pulse_arcsec;
     let mut m = model.clone();
     m.gyro.sample_rate_hz = fs;
-    m.gyro.pulse_weight_arcsec = d;
+    if m.gyro.output == crate::model::config::OutputKind::Counts {
+        m.gyro.pulse_weight_arcsec = d;
+    }
     let rate = stats::counts_to_rate(&rec.counts, d, fs);
     let layout = StatLayout::new(rate.len(), fs, d);
     let lv = stats::dwt_level_mean_squares(&rate, &layout.lo, &layout.hi, layout.levels.len() as u32, stats::MIN_LEVEL_COEFS);
@@ -237,6 +239,7 @@ fn new_sine(det: &Detection, fit: &LineFit, z: f64) -> Finding {
         changes: vec![],
         added: Some(AddedTerm {
             term: "sinusoid".into(),
+            kind: None,
             params: BTreeMap::from([
                 ("amplitude_dph".to_string(), amp),
                 ("period_s".to_string(), per),

@@ -5,13 +5,16 @@
 //! it captures what closed forms miss (the counter's sawtooth quantization at a
 //! slow input, lines, non-Gaussian terms, estimator details). Runs are spread
 //! over threads; the result does not depend on the thread count (each run is
-//! a pure function of its seed).
+//! a pure function of its seed). A rate-output model's runs are its rate
+//! words, counted in the recording's quantum ([`super::Recording`]).
 
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use super::stats::{self, StatLayout, StatSet};
+use crate::model::config::OutputKind;
 use crate::model::{GyroModel, ModelError, Simulator};
+use crate::units;
 
 /// What to simulate and reduce.
 #[derive(Debug, Clone, Copy)]
@@ -38,13 +41,6 @@ pub fn run(job: &McJob, seeds: &[u64]) -> Result<Vec<StatSet>, ModelError> {
     let fs = job.layout.fs_hz;
     // validate once up front so workers cannot fail on the model
     Simulator::new(job.model, 0, Some(n as f64 / fs))?;
-    if job.model.gyro.output != crate::model::config::OutputKind::Counts {
-        return Err(ModelError::invalid(
-            "gyro.output",
-            "rate",
-            "the diagnosis compares pulse-counter recordings; rate-output gyros are not diagnosed yet",
-        ));
-    }
     let next = AtomicUsize::new(0);
     let slots: Mutex<Vec<Option<StatSet>>> = Mutex::new(vec![None; seeds.len()]);
     let err: Mutex<Option<ModelError>> = Mutex::new(None);
@@ -86,7 +82,11 @@ fn one_run(job: &McJob, seed: u64) -> Result<StatSet, ModelError> {
     let fs = job.layout.fs_hz;
     let mut sim = Simulator::new(job.model, seed, Some(n as f64 / fs))?;
     let mut counts = Vec::with_capacity(n);
-    sim.next_block(n, &mut counts);
+    if sim.output() == OutputKind::Rate {
+        rate_words(&mut sim, n, job.layout.pulse_arcsec, &mut counts);
+    } else {
+        sim.next_block(n, &mut counts);
+    }
     // duration rounding can in principle differ by one sample: pad or cut
     counts.resize(n, counts.last().copied().unwrap_or(0));
     if job.full {
@@ -115,4 +115,14 @@ fn one_run(job: &McJob, seed: u64) -> Result<StatSet, ModelError> {
             ..StatSet::default()
         })
     }
+}
+
+/// `n` rate words of a rate-output simulator in the recording's quantum
+/// (`pulse_arcsec` = quantum x tau0, see [`super::Recording`]): exact when
+/// the model's LSB is the recording's quantum.
+fn rate_words(sim: &mut Simulator, n: usize, pulse_arcsec: f64, out: &mut Vec<i64>) {
+    let quantum_dps = pulse_arcsec * sim.sample_rate_hz() / units::ARCSEC_PER_DEG;
+    let (mut rates, mut temp) = (Vec::with_capacity(n), Vec::new());
+    sim.next_block_rates(n, &mut rates, &mut temp);
+    out.extend(rates.iter().map(|v| (v / quantum_dps).round() as i64));
 }

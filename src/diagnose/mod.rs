@@ -58,6 +58,7 @@ pub mod lines;
 pub mod locate;
 pub mod lowfreq;
 pub mod mc;
+pub mod readout;
 pub mod reference;
 pub mod refine;
 pub mod report;
@@ -71,20 +72,84 @@ use self::compare::{LineHit, Point};
 use self::findings::Finding;
 use self::reference::Reference;
 use self::wvar_fit::Basis;
+use crate::model::config::OutputKind;
 use crate::model::{GyroModel, ModelError};
 
 pub use self::lines::{LineScan, line_scan};
 pub use self::reference::{model_psd, model_spectral_terms};
 pub use self::report::{AddedTerm, DiagnosisReport, FitQuality, MismatchRegion, ParameterChange, Verdict};
 
-/// A recording to diagnose: pulse increments (and optionally a temperature
-/// per sample) with the readout's sample rate and pulse weight.
+/// A recording to diagnose: integer increments (and optionally a temperature
+/// per sample) with the readout's sample rate and the angle of one increment.
+///
+/// A pulse counter's recording (`output` = counts) holds its pulse
+/// increments and pulse weight. A rate-output gyro's recording (`output` =
+/// rate, [`Recording::from_rates`]) holds its rate words as integers: sample
+/// `k`'s rate is `counts[k]` quanta, and one quantum held for one sample
+/// period is the angle `pulse_arcsec` (= quantum in arcsec/s x tau0). Every
+/// statistic of the diagnosis is computed on the rate `counts[k] x
+/// pulse_arcsec / tau0`, so both kinds go through the same code; what
+/// differs is the physics the reference simulates (a counter, or a rate
+/// word with its LSB rounding and readout filter).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Recording {
     pub counts: Vec<i64>,
     pub temp_c: Option<Vec<f64>>,
     pub sample_rate_hz: f64,
     pub pulse_arcsec: f64,
+    /// What the sensor output: pulse counts or rate words.
+    pub output: OutputKind,
+}
+
+/// Largest rate word a rate recording may hold, in its quantum (2^52: exact in f64).
+const MAX_RATE_WORD: f64 = 4.5e15;
+
+impl Recording {
+    /// A rate-output recording from rates in deg/s sampled at `sample_rate_hz`.
+    ///
+    /// When every rate is a multiple of `rate_lsb_dps` (> 0; within 1e-3 of
+    /// an LSB, which absorbs decimal printing) the words are exactly the LSB
+    /// counts. Otherwise (no LSB, or rates off its grid) they are counted in
+    /// a quantum 1e-4 of the rate's sample-to-sample spread (or of the LSB),
+    /// whose rounding adds a white noise 1e-8 of the recording's own.
+    pub fn from_rates(
+        rates_dps: &[f64],
+        temp_c: Option<Vec<f64>>,
+        sample_rate_hz: f64,
+        rate_lsb_dps: f64,
+    ) -> Result<Recording, DiagnoseError> {
+        if let Some(i) = rates_dps.iter().position(|v| !v.is_finite()) {
+            return Err(DiagnoseError::RateNonFinite { index: i, value: rates_dps[i] });
+        }
+        let on_grid = |q: f64| rates_dps.iter().all(|v| ((v / q) - (v / q).round()).abs() < 1e-3);
+        let quantum_dps = if rate_lsb_dps > 0.0 && on_grid(rate_lsb_dps) {
+            rate_lsb_dps
+        } else {
+            let n = rates_dps.len().max(2);
+            let diff2 = rates_dps.windows(2).map(|w| (w[1] - w[0]).powi(2)).sum::<f64>() / (n - 1) as f64;
+            let spread = diff2.sqrt().max(rate_lsb_dps);
+            if !(spread > 0.0) {
+                return Err(DiagnoseError::RateConstant { n: rates_dps.len() });
+            }
+            1e-4 * spread
+        };
+        let peak = rates_dps.iter().fold(0.0f64, |a, v| a.max(v.abs())) / quantum_dps;
+        if peak > MAX_RATE_WORD {
+            return Err(DiagnoseError::RateRange { peak_dps: peak * quantum_dps, quantum_dps });
+        }
+        Ok(Recording {
+            counts: rates_dps.iter().map(|v| (v / quantum_dps).round() as i64).collect(),
+            temp_c,
+            sample_rate_hz,
+            pulse_arcsec: quantum_dps * crate::units::ARCSEC_PER_DEG / sample_rate_hz,
+            output: OutputKind::Rate,
+        })
+    }
+
+    /// The rate word's quantum, deg/s (rate recordings).
+    pub fn rate_quantum_dps(&self) -> f64 {
+        self.pulse_arcsec * self.sample_rate_hz / crate::units::ARCSEC_PER_DEG
+    }
 }
 
 /// Tuning of the diagnosis.
@@ -129,6 +194,18 @@ pub enum DiagnoseError {
     TempLength { got: usize, n: usize },
     #[error("temperature at sample {index} is not finite ({value})")]
     TempNonFinite { index: usize, value: f64 },
+    #[error("rate sample {index} is not finite ({value})")]
+    RateNonFinite { index: usize, value: f64 },
+    #[error("all {n} rate samples are equal: no noise to compare with the model (a dead gyro or a stuck output?)")]
+    RateConstant { n: usize },
+    #[error("rates up to {peak_dps} deg/s are too large to count in quanta of {quantum_dps} deg/s")]
+    RateRange { peak_dps: f64, quantum_dps: f64 },
+    #[error(
+        "the model's [gyro] output = \"{model}\" but the recording holds {}: a rate-output model needs a \
+         rate recording (CSV --column NAME --unit dps|dph|rad_s) and a counts model a recording of pulse counts",
+        if *recording == OutputKind::Rate { "rate samples" } else { "pulse counts" }
+    )]
+    OutputMismatch { model: &'static str, recording: OutputKind },
     #[error("options: {0}")]
     Options(String),
     #[error(transparent)]
@@ -184,6 +261,7 @@ pub struct Diagnosis {
 pub fn diagnose(model: &GyroModel, rec: &Recording, opts: &DiagnoseOptions) -> Result<Diagnosis, DiagnoseError> {
     check_recording(rec, opts)?;
     model.validate()?;
+    check_output(model, rec)?;
     // 1-2: the reference, and where the recording leaves its band
     let reference = Reference::simulate(model, rec, opts)?;
     let r = &reference;
@@ -248,6 +326,14 @@ pub fn diagnose(model: &GyroModel, rec: &Recording, opts: &DiagnoseOptions) -> R
         mc_input_rate_dph: r.model.gyro.input_rate_dph,
         notes,
     })
+}
+
+/// The model and the recording must be of the same kind of sensor.
+pub(crate) fn check_output(model: &GyroModel, rec: &Recording) -> Result<(), DiagnoseError> {
+    if model.gyro.output != rec.output {
+        return Err(DiagnoseError::OutputMismatch { model: model.gyro.output.name(), recording: rec.output });
+    }
+    Ok(())
 }
 
 /// Check the recording and the options.

@@ -20,6 +20,7 @@ use super::locate::{KTerm, all_points, kurtosis_scales};
 use super::stats::{self, StatLayout, StatSet};
 use super::{DiagnoseError, DiagnoseOptions, Recording, check_recording, mc};
 use crate::model::GyroModel;
+use crate::model::config::OutputKind;
 use crate::model::wvar::SpectralTerm;
 use crate::units;
 
@@ -121,7 +122,10 @@ pub fn points_against(model: &GyroModel, rec: &Recording, opts: &DiagnoseOptions
 pub(crate) fn reference_model(model: &GyroModel, rec: &Recording, mean_rate: f64) -> GyroModel {
     let mut m = model.clone();
     m.gyro.sample_rate_hz = rec.sample_rate_hz;
-    m.gyro.pulse_weight_arcsec = rec.pulse_arcsec;
+    // a rate word's LSB is the model's own (the recording's quantum only counts it)
+    if m.gyro.output == OutputKind::Counts {
+        m.gyro.pulse_weight_arcsec = rec.pulse_arcsec;
+    }
     let dur = rec.counts.len() as f64 / rec.sample_rate_hz;
     // deterministic parts of the model with a non-zero mean over the record
     let ramp = units::dphh_to_arcsec_per_s2(m.noise.rate_ramp_dphh.unwrap_or(0.0)) * dur / 2.0;
@@ -134,15 +138,25 @@ pub(crate) fn reference_model(model: &GyroModel, rec: &Recording, mean_rate: f64
 
 /// The model's Gaussian terms as spectral shapes with their squared
 /// coefficients (arcsec/s units); sinusoids are deterministic and left out,
-/// a random telegraph enters as its Gauss-Markov twin.
+/// a random telegraph enters as its Gauss-Markov twin. The white rate goes
+/// through the model's readout filter; a rate word's LSB rounding is white
+/// rate noise after it ([`rate_lsb_theta`]).
 pub fn model_spectral_terms(model: &GyroModel) -> (Vec<SpectralTerm>, Vec<f64>) {
     let mut terms = vec![SpectralTerm::WhiteAngle];
     let q = model.quantization_q_arcsec();
     let mut theta = vec![q * q];
     let n = &model.noise;
     let arw = units::dpsh_to_arcsec_per_sqrt_s(n.arw_dpsh.unwrap_or(0.0));
-    terms.push(SpectralTerm::WhiteRate);
+    terms.push(match model.readout_filter() {
+        Some(filter) => SpectralTerm::FilteredWhiteRate { filter },
+        None => SpectralTerm::WhiteRate,
+    });
     theta.push(arw * arw);
+    let lsb = rate_lsb_theta(model);
+    if lsb > 0.0 {
+        terms.push(SpectralTerm::WhiteRate);
+        theta.push(lsb);
+    }
     if let Some(b) = n.bias_instability_dph.filter(|b| *b > 0.0) {
         terms.push(SpectralTerm::Flicker { f_lo_hz: model.flicker_f_lo_hz() });
         theta.push(b * b);
@@ -161,6 +175,17 @@ pub fn model_spectral_terms(model: &GyroModel) -> (Vec<SpectralTerm>, Vec<f64>) 
         theta.push(r.amplitude_dph * r.amplitude_dph);
     }
     (terms, theta)
+}
+
+/// A rate word's LSB rounding as white rate noise: variance `lsb^2 / 12` per
+/// sample, i.e. `theta = N^2 = (lsb in arcsec/s)^2 tau0 / 12` (0 for a
+/// counter or an unquantised rate).
+pub fn rate_lsb_theta(model: &GyroModel) -> f64 {
+    if model.gyro.output != OutputKind::Rate {
+        return 0.0;
+    }
+    let lsb = model.gyro.rate_lsb_dps * units::ARCSEC_PER_DEG;
+    lsb * lsb * model.tau0_s() / 12.0
 }
 
 /// The model's one-sided rate PSD (its Gaussian terms), (arcsec/s)^2/Hz at `f` Hz.
@@ -189,7 +214,8 @@ pub(crate) fn counter_lines(model: &GyroModel, mean_rate: f64, wander: f64, fs: 
     let tau0 = 1.0 / fs;
     let f1 = mean_rate.abs() / d;
     let mut out = Vec::new();
-    if !(f1 > 0.0) {
+    // a rate word has no counter (its rounding is white at a noisy input)
+    if !(f1 > 0.0) || model.gyro.output == OutputKind::Rate {
         return out;
     }
     let s = model.dither_sigma_arcsec() / d;

@@ -334,7 +334,8 @@ fn knob_state(kn: Knob, basis: &Basis, model: &GyroModel) -> (Knob, Vec<f64>, f6
         }
         Knob::Arw => {
             let arw = units::dpsh_to_arcsec_per_sqrt_s(nz.arw_dpsh.unwrap_or(0.0));
-            (kn, basis.white_rate(), arw * arw, 0.0, units::arcsec_per_sqrt_s_to_dpsh as UnitConv)
+            let phi = basis.white_rate_through(model.readout_filter());
+            (kn, phi, arw * arw, 0.0, units::arcsec_per_sqrt_s_to_dpsh as UnitConv)
         }
         Knob::BiasInstability => (
             kn,

@@ -43,15 +43,57 @@ pub struct ParameterChange {
 
 /// A term the model lacks (JSON).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(into = "AddedTermJson", try_from = "AddedTermJson")]
 pub struct AddedTerm {
     /// Model-file key (`gauss_markov`, `sinusoid`, `random_telegraph`, `rrw_dphsh`, ...).
     pub term: String,
     /// Model-file parameter names and fitted values.
     pub params: BTreeMap<String, f64>,
+    /// The term's kind when it has several (`readout_filter`: `moving_average`
+    /// or `first_order`); in the JSON it is `params.kind`.
+    pub kind: Option<String>,
     pub explanation: String,
     /// 95 % intervals of the parameters (same names as `params`).
-    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub ci95: BTreeMap<String, [f64; 2]>,
+}
+
+/// [`AddedTerm`] as written: the kind among the parameters.
+#[derive(Serialize, Deserialize)]
+struct AddedTermJson {
+    term: String,
+    params: BTreeMap<String, serde_json::Value>,
+    explanation: String,
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    ci95: BTreeMap<String, [f64; 2]>,
+}
+
+impl From<AddedTerm> for AddedTermJson {
+    fn from(a: AddedTerm) -> Self {
+        let mut params: BTreeMap<String, serde_json::Value> =
+            a.params.into_iter().map(|(k, v)| (k, serde_json::Value::from(v))).collect();
+        if let Some(kind) = a.kind {
+            params.insert("kind".into(), serde_json::Value::String(kind));
+        }
+        AddedTermJson { term: a.term, params, explanation: a.explanation, ci95: a.ci95 }
+    }
+}
+
+impl TryFrom<AddedTermJson> for AddedTerm {
+    type Error = String;
+    fn try_from(j: AddedTermJson) -> Result<Self, String> {
+        let mut params = BTreeMap::new();
+        let mut kind = None;
+        for (k, v) in j.params {
+            match (k.as_str(), v) {
+                ("kind", serde_json::Value::String(s)) => kind = Some(s),
+                (_, v) => {
+                    let x = v.as_f64().ok_or_else(|| format!("added term {}: params.{k} is not a number", j.term))?;
+                    params.insert(k, x);
+                }
+            }
+        }
+        Ok(AddedTerm { term: j.term, params, kind, explanation: j.explanation, ci95: j.ci95 })
+    }
 }
 
 /// Chi-square per degree of freedom over the compared points (JSON).

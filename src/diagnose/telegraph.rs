@@ -103,7 +103,7 @@ fn gauss_markov_to_telegraph(r: &Reference, i: usize, p: &Point, basis: &Basis, 
             fitted: 0.0,
             ci95: [0.0, 0.0],
         }],
-        added: Some(AddedTerm { term: "random_telegraph".into(), params, explanation: expl.clone(), ci95: ci }),
+        added: Some(AddedTerm { term: "random_telegraph".into(), params, kind: None, explanation: expl.clone(), ci95: ci }),
         n_par,
         note: expl,
     }
@@ -138,6 +138,7 @@ fn telegraph_to_gauss_markov(model: &GyroModel, i: usize, p: &Point) -> Finding 
         }],
         added: Some(AddedTerm {
             term: "gauss_markov".into(),
+            kind: None,
             params,
             explanation: expl.clone(),
             ci95: BTreeMap::new(),
@@ -261,7 +262,7 @@ fn as_telegraph(old: &Finding, t: &TelegraphTest) -> Option<Finding> {
     Some(Finding {
         edit: Edit::Telegraph { index: None, amplitude_dph: sigma_dph, mean_dwell_s: 2.0 * tau_c_s },
         changes: vec![],
-        added: Some(AddedTerm { term: "random_telegraph".into(), params, explanation: expl.clone(), ci95: ci }),
+        added: Some(AddedTerm { term: "random_telegraph".into(), params, kind: None, explanation: expl.clone(), ci95: ci }),
         n_par: 2,
         note: expl,
     })

@@ -23,6 +23,7 @@ use std::f64::consts::PI;
 use std::sync::Arc;
 
 use super::lowfreq::{LfLayout, LfWindows};
+use crate::model::filter::ReadoutFilter;
 use crate::model::wvar::{self, LevelBasis, SpectralTerm};
 
 /// Wavelet-level data for the fits.
@@ -135,6 +136,32 @@ impl Basis {
     /// Rate random walk, per unit K^2 ((arcsec/s)^2/s).
     pub fn rrw(&self) -> Vec<f64> {
         self.rrw.clone()
+    }
+
+    /// White rate noise through a readout filter (`None`: the exact white
+    /// column, [`Basis::white_rate`]), per unit N^2 of the unfiltered band.
+    pub fn white_rate_through(&self, filter: Option<ReadoutFilter>) -> Vec<f64> {
+        match filter {
+            None => self.white_rate(),
+            Some(f) => self.filtered_white_rate(Some(f)),
+        }
+    }
+
+    /// White rate noise through `filter` (or unfiltered, `None`) by the
+    /// level quadrature ([`wvar::level_nodes`]; the filter's signature is
+    /// [`SpectralTerm::FilteredWhiteRate`]): both sides of a change of
+    /// filter computed alike, so an unchanged filter changes nothing.
+    pub fn filtered_white_rate(&self, filter: Option<ReadoutFilter>) -> Vec<f64> {
+        let t = match filter {
+            Some(filter) => SpectralTerm::FilteredWhiteRate { filter },
+            None => SpectralTerm::WhiteRate,
+        };
+        let levels = self
+            .nodes
+            .iter()
+            .map(|nodes| nodes.iter().map(|&(nu, w, h2)| w * h2 * t.psd_cs(nu, self.tau0_s)).sum())
+            .collect();
+        self.with_rows(levels, t)
     }
 
     /// Flicker from `f_lo_hz`, per unit B^2 ((arcsec/s)^2).
