@@ -164,3 +164,54 @@ fn mcap_output_only_replaces_a_regular_file_in_an_existing_directory() {
     names.sort();
     assert_eq!(names, ["link.mcap", "ok.mcap"]);
 }
+
+/// `--format triad-frames`: three models in one 24-byte-frame capture; each
+/// axis decodes to exactly the pulses its model writes as CSV with seeds S,
+/// S + 1, S + 2; models with different sample rates, or a count other than
+/// three, are errors.
+#[test]
+fn triad_frames_carry_each_axis_csv_stream() {
+    use sagnac::source::frame::{Decoded, DecoderConfig, FrameDecoder, Triad};
+    let dir = tempfile::tempdir().unwrap();
+    let mut models = Vec::new();
+    for (k, arw) in [0.001, 0.003, 0.0005].iter().enumerate() {
+        let m = dir.path().join(format!("m{k}.toml"));
+        std::fs::write(&m, format!("[gyro]\nsample_rate_hz = 500.0\npulse_weight_arcsec = 1.21\ninput_rate_dph = {}\n[noise]\narw_dpsh = {arw}\n", 10.0 * k as f64)).unwrap();
+        models.push(m);
+    }
+    let list = models.iter().map(|m| m.to_str().unwrap()).collect::<Vec<_>>().join(",");
+    let out = dir.path().join("triad.bin");
+    let r = bin()
+        .args(["simulate", "--model", &list, "--duration-s", "3", "--seed", "11", "--format", "triad-frames", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let bytes = std::fs::read(&out).unwrap();
+    assert_eq!(bytes.len(), (1500 + 1) * 24);
+    let (items, st) = FrameDecoder::<Triad>::decode_all_wire(&bytes, DecoderConfig::default());
+    assert_eq!((st.bytes_skipped, st.crc_errors, st.lost_samples), (0, 0, 0));
+    let incs: Vec<[i64; 3]> =
+        items.iter().filter_map(|d| if let Decoded::Sample(s) = d { Some(s.increment) } else { None }).collect();
+    for (k, m) in models.iter().enumerate() {
+        let csv = dir.path().join(format!("axis{k}.csv"));
+        let r = simulate(m, "3", &(11 + k).to_string(), &csv, &[]);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        let want: Vec<i64> =
+            std::fs::read_to_string(&csv).unwrap().lines().skip(1).map(|l| l.parse().unwrap()).collect();
+        let got: Vec<i64> = incs.iter().map(|i| i[k]).collect();
+        assert_eq!(got, want, "axis {k}");
+    }
+    // errors: two models; a model with another rate; three models without triad-frames
+    let two = format!("{},{}", models[0].display(), models[1].display());
+    let r = bin().args(["simulate", "--model", &two, "--duration-s", "1", "--seed", "1", "--format", "triad-frames", "--out"]).arg(&out).output().unwrap();
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.code() == Some(2) && err.contains("three models") && err.contains("got 2"), "{err}");
+    std::fs::write(&models[2], "[gyro]\nsample_rate_hz = 400.0\npulse_weight_arcsec = 1.21\n").unwrap();
+    let r = bin().args(["simulate", "--model", &list, "--duration-s", "1", "--seed", "1", "--format", "triad-frames", "--out"]).arg(&out).output().unwrap();
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.code() == Some(2) && err.contains("m2.toml") && err.contains("sample clock"), "{err}");
+    let r = bin().args(["simulate", "--model", &list, "--duration-s", "1", "--seed", "1", "--format", "frames", "--out"]).arg(&out).output().unwrap();
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.code() == Some(2) && err.contains("one model file"), "{err}");
+}

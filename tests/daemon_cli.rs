@@ -71,7 +71,7 @@ fn bad_values_exit_2_naming_the_key_and_the_flag() {
             vec!["/nonexistent/capture.bin"],
         ),
         (
-            vec!["--serial", "/nonexistent/ttyUSB9"],
+            vec!["--serial", "/nonexistent/ttyUSB9", "--rate-hz", "1000", "--pulse-arcsec", "1.21"],
             vec!["cannot open serial port /nonexistent/ttyUSB9"],
         ),
         // an explicit rate that contradicts the simulated model
@@ -125,6 +125,10 @@ fn bad_values_exit_2_naming_the_key_and_the_flag() {
     let r = run(&[
         "--replay",
         garbage.to_str().unwrap(),
+        "--rate-hz",
+        "1000",
+        "--pulse-arcsec",
+        "1.21",
         "--record-dir",
         rec,
         "--metrics-addr",
@@ -154,6 +158,53 @@ fn bad_values_exit_2_naming_the_key_and_the_flag() {
     assert!(err.contains("bad value for --rate-hz") && err.contains("got -4"), "{err}");
 }
 
+/// Serial input and raw frame captures carry neither the sample rate nor the
+/// pulse weight: without a flag or a config key giving them, `sagnac run`
+/// exits 2 naming both (never a silent 1000 Hz / 1.21"). A key present in the
+/// config file counts as given, even at the default value.
+#[test]
+fn raw_sources_need_the_rate_and_pulse_weight_given() {
+    let dir = tempfile::tempdir().unwrap();
+    let bin = dir.path().join("cap.bin");
+    let sim = Command::new(env!("CARGO_BIN_EXE_sagnac"))
+        .args(["simulate", "--model"])
+        .arg(repo().join("config/paper_gyro.toml"))
+        .args(["--duration-s", "2", "--seed", "3", "--format", "frames", "--out"])
+        .arg(&bin)
+        .output()
+        .unwrap();
+    assert!(sim.status.success(), "{}", String::from_utf8_lossy(&sim.stderr));
+    let b = bin.to_str().unwrap();
+    let both = ["--rate-hz", "--pulse-arcsec", "gyro.rate_hz", "gyro.pulse_arcsec"];
+    let cases: Vec<(Vec<&str>, Vec<&str>)> = vec![
+        (vec!["--serial", "/nonexistent/ttyUSB9"], [&["serial input /nonexistent/ttyUSB9"][..], &both].concat()),
+        (vec!["--replay", b], [&["raw frame capture", "cap.bin"][..], &both].concat()),
+        (vec!["--replay", b, "--rate-hz", "1000"], vec!["pulse weight", "--pulse-arcsec", "gyro.pulse_arcsec"]),
+        (vec!["--replay", b, "--pulse-arcsec", "1.21"], vec!["sample rate", "--rate-hz", "gyro.rate_hz"]),
+    ];
+    for (args, needles) in cases {
+        let mut a = args.clone();
+        a.extend_from_slice(&["--record-dir", "", "--metrics-addr", ""]);
+        let r = run(&a);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(2), "{args:?}: {err}");
+        for n in needles {
+            assert!(err.contains(n), "{args:?}: expected {n:?} in:\n{err}");
+        }
+    }
+    // given in the config file (by presence, at the default values): runs
+    let cfg = dir.path().join("gyro.toml");
+    std::fs::write(&cfg, "[gyro]\nrate_hz = 1000.0\npulse_arcsec = 1.21\n").unwrap();
+    let r = run(&["--config", cfg.to_str().unwrap(), "--replay", b, "--record-dir", "", "--metrics-addr", ""]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    assert!(err.contains("rate_hz=1000") && err.contains("pulse_arcsec=1.21"), "{err}");
+    // one key in the file, the other as a flag
+    std::fs::write(&cfg, "[gyro]\nrate_hz = 1000.0\n").unwrap();
+    let r = run(&["--config", cfg.to_str().unwrap(), "--replay", b, "--pulse-arcsec", "1.21", "--record-dir", "", "--metrics-addr", ""]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+}
+
 #[test]
 fn short_and_cut_captures_end_cleanly() {
     // Captures too short for any statistic, and one cut inside a frame: a clear
@@ -174,7 +225,7 @@ fn short_and_cut_captures_end_cleanly() {
         let path = dir.path().join(&name);
         std::fs::write(&path, &bytes[..16 * frames + extra]).unwrap();
         let p = path.to_str().unwrap();
-        let r = run(&["--replay", p, "--record-dir", "", "--metrics-addr", ""]);
+        let r = run(&["--replay", p, "--rate-hz", "1000", "--pulse-arcsec", "1.21", "--record-dir", "", "--metrics-addr", ""]);
         let err = String::from_utf8_lossy(&r.stderr);
         assert_eq!(r.status.code(), Some(rc), "{name}: {err}");
         assert!(!err.contains("panicked"), "{name}: {err}");

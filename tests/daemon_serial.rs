@@ -27,7 +27,9 @@ fn config_file(dir: &Path) -> std::path::PathBuf {
     let p = dir.join("daemon.toml");
     std::fs::write(
         &p,
-        "[estimator]\ninterval_s = 10.0\n\n[source]\nreconnect_initial_s = 0.1\nreconnect_max_s = 0.4\n",
+        // serial frames do not carry the rate or pulse weight: the file gives them
+        // (present at the default values, which is enough)
+        "[gyro]\nrate_hz = 1000.0\npulse_arcsec = 1.21\n\n[estimator]\ninterval_s = 10.0\n\n[source]\nreconnect_initial_s = 0.1\nreconnect_max_s = 0.4\n",
     )
     .unwrap();
     p
@@ -340,7 +342,7 @@ fn serial_overload_drops_are_counted_recorded_and_lose_no_angle() {
     let cfg = dir.path().join("overload.toml");
     std::fs::write(
         &cfg,
-        "[estimator]\ninterval_s = 0.01\n\n[source]\nqueue_budget_mib = 0.0625\n\n[record]\nbatch_samples = 100\n",
+        "[gyro]\nrate_hz = 1000.0\npulse_arcsec = 1.21\n\n[estimator]\ninterval_s = 0.01\n\n[source]\nqueue_budget_mib = 0.0625\n\n[record]\nbatch_samples = 100\n",
     )
     .unwrap();
     let mut daemon = start_serial_daemon(dir.path(), &cfg, &socat.b, addr, &rec_dir);
@@ -417,7 +419,7 @@ fn issue_13_a_600_s_burst_at_full_speed_drops_nothing_and_equals_analyze() {
     let rec_dir = dir.path().join("rec");
     let cfg = dir.path().join("burst.toml");
     // An update per minute of data: ten updates to wait for, not 120.
-    std::fs::write(&cfg, "[estimator]\ninterval_s = 60.0\n").unwrap();
+    std::fs::write(&cfg, "[gyro]\nrate_hz = 1000.0\npulse_arcsec = 1.21\n[estimator]\ninterval_s = 60.0\n").unwrap();
     let mut daemon = start_serial_daemon(dir.path(), &cfg, &socat.b, addr, &rec_dir);
 
     let mut w = socat.writer();

@@ -25,7 +25,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::{ArgGroup, Args};
 
-use crate::daemon::config::{Config, ConfigError, GyroConfig, LogFormat, SourceKind};
+use crate::daemon::config::{Config, ConfigError, KeysPresent, LogFormat, SourceKind};
 use crate::daemon::run::{Daemon, DaemonError, Explicit};
 use crate::daemon::shutdown;
 use super::progress::StatusLine;
@@ -114,16 +114,14 @@ fn flag_of(args: &RunArgs, key: &str) -> Option<(&'static str, bool)> {
 /// The configuration: the file (or the defaults) with the flags applied, and
 /// which gyro settings were given explicitly.
 pub fn resolve(args: &RunArgs) -> Result<(Config, Explicit), ConfigError> {
-    let mut cfg = match &args.config {
-        Some(p) => Config::load(p)?,
-        None => Config::default(),
+    let (mut cfg, keys) = match &args.config {
+        Some(p) => Config::load_with_keys(p)?,
+        None => (Config::default(), KeysPresent::default()),
     };
-    let from_file = args.config.is_some();
-    let defaults = GyroConfig::default();
+    // Given = the flag, or the key present in the file (whatever its value).
     let explicit = Explicit {
-        rate_hz: args.rate_hz.is_some() || (from_file && cfg.gyro.rate_hz != defaults.rate_hz),
-        pulse_arcsec: args.pulse_arcsec.is_some()
-            || (from_file && cfg.gyro.pulse_arcsec != defaults.pulse_arcsec),
+        rate_hz: args.rate_hz.is_some() || keys.contains("gyro.rate_hz"),
+        pulse_arcsec: args.pulse_arcsec.is_some() || keys.contains("gyro.pulse_arcsec"),
     };
     if let Some(p) = &args.serial {
         cfg.source.kind = SourceKind::Serial;

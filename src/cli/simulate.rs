@@ -12,6 +12,13 @@
 //! starts at the Unix epoch (t = 0), so the same model and seed give the same
 //! messages.
 //!
+//! `--format triad-frames` writes a triad capture (the 24-byte frames of
+//! [`crate::source::frame::triad`]) from three models given as
+//! `--model X.toml,Y.toml,Z.toml`: axis x runs with `--seed S`, y with S + 1, z
+//! with S + 2; the three must have the same sample rate and count pulses; the
+//! temperature field is axis x's. It starts at the same `seq` and the same counter
+//! on every axis as the single-frame capture.
+//!
 //! At a terminal a progress bar (samples written of the run's total) shows once
 //! the run takes more than a moment ([`super::progress::DelayedBar`]).
 
@@ -27,7 +34,7 @@ use crate::sink::mcap::{Recorder, RecorderConfig};
 use crate::sink::messages::{RawBatch, SinkMessage};
 use crate::sink::meta::RecordingMeta;
 use crate::source::bench::{SIM_START_COUNTER, SIM_START_SEQ};
-use crate::source::frame::{FrameEncoder, FrameWriter, STATUS_ALL_OK};
+use crate::source::frame::{FrameEncoder, FrameWriter, STATUS_ALL_OK, TriadEncoder};
 use super::progress::{DelayedBar, LineCounter};
 
 /// Output format of `sagnac simulate`.
@@ -37,6 +44,8 @@ pub enum SimFormat {
     Csv,
     /// Raw gyro frames, 16 bytes each (a `.bin` capture).
     Frames,
+    /// Raw triad frames, 24 bytes each, from three models (--model X.toml,Y.toml,Z.toml).
+    TriadFrames,
     /// MCAP recording with the `/gyro/raw` channel (not to stdout).
     Mcap,
 }
@@ -44,9 +53,10 @@ pub enum SimFormat {
 /// Simulate a gyro from a model file.
 #[derive(Debug, Args)]
 pub struct SimulateArgs {
-    /// Gyro model (TOML), e.g. config/paper_gyro.toml.
-    #[arg(long)]
-    pub model: PathBuf,
+    /// Gyro model (TOML), e.g. config/paper_gyro.toml; for --format triad-frames
+    /// three, comma-separated: X.toml,Y.toml,Z.toml.
+    #[arg(long, value_delimiter = ',', required = true)]
+    pub model: Vec<PathBuf>,
     /// Run length, seconds.
     #[arg(long)]
     pub duration_s: f64,
@@ -67,23 +77,30 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     if args.format == SimFormat::Mcap && to_stdout {
         bail!("--format mcap cannot go to stdout (MCAP needs a seekable file): give --out FILE");
     }
-    let model = GyroModel::load(&args.model).context("loading the gyro model")?;
+    if args.format == SimFormat::TriadFrames {
+        return run_triad(&args, to_stdout);
+    }
+    let [model_path] = args.model.as_slice() else {
+        bail!(
+            "--model takes one model file with --format {} (three, comma-separated, only with --format triad-frames); got {}",
+            format_name(args.format),
+            args.model.len()
+        );
+    };
+    let model = GyroModel::load(model_path).context("loading the gyro model")?;
     let mut simulator = Simulator::new(&model, args.seed, Some(args.duration_s))
-        .with_context(|| format!("setting up the simulator for {}", args.model.display()))?;
+        .with_context(|| format!("setting up the simulator for {}", model_path.display()))?;
     if simulator.output() == OutputKind::Rate && args.format != SimFormat::Csv {
         bail!(
             "{}: gyro.output = \"rate\" is written as CSV (column rate_dps, deg/s); --format {} carries \
              pulse counts",
-            args.model.display(),
-            match args.format {
-                SimFormat::Frames => "frames",
-                _ => "mcap",
-            }
+            model_path.display(),
+            format_name(args.format)
         );
     }
     let mut bar = DelayedBar::new("simulating", "samples");
     match args.format {
-        SimFormat::Csv => {}
+        SimFormat::Csv | SimFormat::TriadFrames => {}
         SimFormat::Frames => {
             let frames = if to_stdout {
                 write_frames(&mut simulator, std::io::stdout().lock(), &mut bar)
@@ -99,8 +116,8 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
         }
         SimFormat::Mcap => {
             // the recording carries its rate, pulse weight and model (the file's text)
-            let text = std::fs::read_to_string(&args.model)
-                .with_context(|| format!("reading {}", args.model.display()))?;
+            let text = std::fs::read_to_string(model_path)
+                .with_context(|| format!("reading {}", model_path.display()))?;
             let mut meta = RecordingMeta::counts(simulator.sample_rate_hz(), simulator.pulse_weight_arcsec());
             meta.model = Some(text);
             let messages = write_mcap(&mut simulator, &meta, &args.out, &mut bar)
@@ -127,6 +144,102 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
 
 /// Samples generated per simulator call.
 const BLOCK: usize = 65_536;
+
+fn format_name(f: SimFormat) -> &'static str {
+    match f {
+        SimFormat::Csv => "csv",
+        SimFormat::Frames => "frames",
+        SimFormat::TriadFrames => "triad-frames",
+        SimFormat::Mcap => "mcap",
+    }
+}
+
+/// `--format triad-frames`: three models, one triad capture.
+fn run_triad(args: &SimulateArgs, to_stdout: bool) -> anyhow::Result<()> {
+    let [_, _, _] = args.model.as_slice() else {
+        bail!(
+            "--format triad-frames takes three models, --model X.toml,Y.toml,Z.toml (axes x, y, z); got {}",
+            args.model.len()
+        );
+    };
+    let mut sims = Vec::with_capacity(3);
+    for (k, path) in args.model.iter().enumerate() {
+        let model = GyroModel::load(path).with_context(|| format!("loading the gyro model {}", path.display()))?;
+        let sim = Simulator::new(&model, args.seed.wrapping_add(k as u64), Some(args.duration_s))
+            .with_context(|| format!("setting up the simulator for {}", path.display()))?;
+        if sim.output() == OutputKind::Rate {
+            bail!("{}: gyro.output = \"rate\": a triad frame carries pulse counters", path.display());
+        }
+        sims.push(sim);
+    }
+    let rate = sims[0].sample_rate_hz();
+    for (sim, path) in sims.iter().zip(&args.model).skip(1) {
+        if sim.sample_rate_hz() != rate {
+            bail!(
+                "{}: gyro.sample_rate_hz = {} differs from axis x's {} ({}): the three gyros of a triad frame share one sample clock",
+                path.display(),
+                sim.sample_rate_hz(),
+                rate,
+                args.model[0].display()
+            );
+        }
+    }
+    let mut bar = DelayedBar::new("simulating", "samples");
+    let frames = if to_stdout {
+        write_triad_frames(&mut sims, std::io::stdout().lock(), &mut bar)
+    } else {
+        let file = File::create(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+        write_triad_frames(&mut sims, file, &mut bar)
+    }
+    .with_context(|| format!("writing triad frames to {}", args.out.display()))?;
+    bar.finish();
+    tracing::debug!(frames, "simulate: done");
+    Ok(())
+}
+
+/// Write the triad frames of the whole run; returns the number of frames.
+fn write_triad_frames<W: std::io::Write>(
+    sims: &mut [Simulator],
+    out: W,
+    bar: &mut DelayedBar,
+) -> anyhow::Result<u64> {
+    use std::io::Write as _;
+    let start = SIM_START_COUNTER;
+    let mut enc = TriadEncoder::new(SIM_START_SEQ, [start; 3]);
+    if let Some(t) = sims[0].temperature_at(0.0) {
+        enc.set_temp_c(t);
+    }
+    let thermal = sims[0].has_temperature();
+    let mut w = std::io::BufWriter::with_capacity(1 << 20, out);
+    w.write_all(&enc.current_frame())?;
+    let mut counts: [Vec<i64>; 3] = std::array::from_fn(|_| Vec::with_capacity(BLOCK));
+    let mut temps: [Vec<f64>; 3] = std::array::from_fn(|_| Vec::with_capacity(BLOCK));
+    let mut frames = 1u64;
+    loop {
+        let mut n = [0usize; 3];
+        for k in 0..3 {
+            counts[k].clear();
+            temps[k].clear();
+            n[k] = sims[k].next_block_with_temp(BLOCK, &mut counts[k], &mut temps[k]);
+        }
+        if n[0] != n[1] || n[0] != n[2] {
+            bail!("the three simulators produced {n:?} samples in one block (same rate and duration expected)");
+        }
+        if n[0] == 0 {
+            break;
+        }
+        for i in 0..n[0] {
+            if thermal {
+                enc.set_temp_c(temps[0][i]);
+            }
+            w.write_all(&enc.step([counts[0][i], counts[1][i], counts[2][i]])?)?;
+        }
+        frames += n[0] as u64;
+        bar.update(frames - 1, sims[0].samples_total());
+    }
+    w.flush()?;
+    Ok(frames)
+}
 
 /// Write the frames of the whole run; returns the number of frames.
 fn write_frames<W: std::io::Write>(sim: &mut Simulator, out: W, bar: &mut DelayedBar) -> anyhow::Result<u64> {

@@ -280,6 +280,34 @@ pub struct Config {
     pub spec: SpecRunConfig,
 }
 
+/// Which keys a config file sets, by presence (a key set to its default value
+/// counts as set).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct KeysPresent {
+    keys: std::collections::BTreeSet<String>,
+}
+
+impl KeysPresent {
+    /// The dotted keys (`gyro.rate_hz`) of TOML text that parsed as a [`Config`].
+    pub fn of_toml(text: &str) -> KeysPresent {
+        let mut keys = std::collections::BTreeSet::new();
+        if let Ok(table) = text.parse::<toml::Table>() {
+            for (section, value) in &table {
+                keys.insert(section.clone());
+                if let Some(t) = value.as_table() {
+                    keys.extend(t.keys().map(|k| format!("{section}.{k}")));
+                }
+            }
+        }
+        KeysPresent { keys }
+    }
+
+    /// Whether the file sets `key` (dotted: `gyro.rate_hz`).
+    pub fn contains(&self, key: &str) -> bool {
+        self.keys.contains(key)
+    }
+}
+
 fn invalid(key: &'static str, value: impl ToString, message: &'static str) -> ConfigError {
     ConfigError::Invalid { key, value: value.to_string(), message }
 }
@@ -298,8 +326,15 @@ impl Config {
 
     /// Read and parse a file (not yet validated: flags may still override).
     pub fn load(path: &Path) -> Result<Config, ConfigError> {
+        Config::load_with_keys(path).map(|(cfg, _)| cfg)
+    }
+
+    /// Read and parse a file, and say which keys it sets ([`KeysPresent`]),
+    /// whatever their values.
+    pub fn load_with_keys(path: &Path) -> Result<(Config, KeysPresent), ConfigError> {
         let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read { path: path.to_path_buf(), source })?;
-        Config::from_toml(&text, path)
+        let cfg = Config::from_toml(&text, path)?;
+        Ok((cfg, KeysPresent::of_toml(&text)))
     }
 
     /// Check every value; the first problem is reported with its key.
@@ -385,6 +420,14 @@ mod tests {
         let cfg = Config::from_toml(&default_toml(), Path::new("config/default.toml")).unwrap();
         cfg.validate().unwrap();
         assert_eq!(cfg, Config::default(), "config/default.toml must document the built-in defaults");
+    }
+
+    #[test]
+    fn keys_present_are_found_by_presence_not_value() {
+        let k = KeysPresent::of_toml("[gyro]\nrate_hz = 1000.0\n[source]\nkind = \"serial\"\n");
+        assert!(k.contains("gyro.rate_hz") && k.contains("source.kind") && k.contains("gyro"));
+        assert!(!k.contains("gyro.pulse_arcsec"));
+        assert_eq!(KeysPresent::of_toml(""), KeysPresent::default());
     }
 
     #[test]

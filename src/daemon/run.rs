@@ -96,13 +96,21 @@ pub enum DaemonError {
     /// An explicit gyro setting contradicts what the replayed recording says.
     #[error(transparent)]
     Contradiction(#[from] Contradiction),
+    /// A source that does not carry the gyro's rate or pulse weight (serial
+    /// input, a raw frame capture) and no flag or config key giving them.
+    #[error(
+        "{input} does not carry the gyro's {missing}: give {how} (raw frames have no metadata; \
+         an MCAP recording made by `sagnac run` and the simulated bench carry them)"
+    )]
+    GyroUnspecified { input: String, missing: &'static str, how: &'static str },
     #[error("the {task} task failed: {message}")]
     Task { task: &'static str, message: String },
 }
 
-/// Which gyro settings the user gave explicitly (a flag, or a config file
-/// value other than the default): those must agree with what a simulated model
-/// or an MCAP recording says; otherwise the source's own values are used.
+/// Which gyro settings the user gave explicitly (a flag, or the key present in
+/// the config file, whatever its value): those must agree with what a simulated
+/// model or an MCAP recording says; otherwise the source's own values are used.
+/// Serial input and raw frame captures carry neither, so both must be given.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Explicit {
     pub rate_hz: bool,
@@ -138,6 +146,21 @@ pub struct RunReport {
     pub recording: Option<RecordingSummary>,
     /// Where `/metrics` was served, if anywhere.
     pub metrics_addr: Option<SocketAddr>,
+}
+
+/// Serial input and raw frame captures do not carry the rate or pulse weight:
+/// both must be given explicitly.
+fn require_explicit(explicit: Explicit, input: String) -> Result<(), DaemonError> {
+    let (missing, how) = match (explicit.rate_hz, explicit.pulse_arcsec) {
+        (true, true) => return Ok(()),
+        (false, false) => (
+            "sample rate and pulse weight",
+            "--rate-hz and --pulse-arcsec (config keys `gyro.rate_hz`, `gyro.pulse_arcsec`)",
+        ),
+        (false, true) => ("sample rate", "--rate-hz (config key `gyro.rate_hz`)"),
+        (true, false) => ("pulse weight", "--pulse-arcsec (config key `gyro.pulse_arcsec`)"),
+    };
+    Err(DaemonError::GyroUnspecified { input, missing, how })
 }
 
 fn mismatch(key: &'static str, value: f64, message: &'static str) -> DaemonError {
@@ -246,6 +269,8 @@ impl Daemon {
                     )? {
                         config.gyro.pulse_arcsec = p;
                     }
+                } else {
+                    require_explicit(explicit, format!("raw frame capture {}", path.display()))?;
                 }
                 tracing::info!(path = %path.display(), speed, "source: replay");
                 Source::Replay(Box::new(
@@ -260,6 +285,7 @@ impl Daemon {
                 ))
             }
             SourceKind::Serial => {
+                require_explicit(explicit, format!("serial input {}", config.source.serial_path))?;
                 tracing::info!(
                     device = config.source.serial_path,
                     baud = config.source.baud,

@@ -95,6 +95,13 @@
 //! [`DecodeEvent::StatusChange`] and counted. A frame with a non-zero reserved
 //! field but a valid CRC is accepted and counted in `reserved_nonzero`.
 //!
+//! # The triad frame
+//!
+//! A 24-byte frame carrying three counters (x, y, z) under one `seq`, sync
+//! `0xA5 0x5B`: see [`triad`]. The decoder is generic over the wire format
+//! ([`Wire`]: [`Single`], the default, or [`Triad`]); everything above holds for
+//! both, with 24 in place of 16.
+//!
 //! # Submodules
 //!
 //! * `decoder`: [`FrameDecoder`] and its output types;
@@ -103,6 +110,7 @@
 //! * `fill`: [`FilledSeries`], [`fill_gap`], [`GapFiller`], [`spread_increment`];
 //! * [`inject`]: a seeded corruption injector with an exact ledger, for tests and
 //!   the daemon's emulator;
+//! * [`triad`]: the triad frame's layout, [`Triad`] and [`TriadEncoder`];
 //! * [`codec`]: the `tokio_util::codec::Decoder` adapter (the only part that
 //!   touches the tokio ecosystem).
 
@@ -111,10 +119,13 @@ mod decoder;
 mod encoder;
 mod fill;
 pub mod inject;
+pub mod triad;
 
 pub use decoder::{
-    DecodeEvent, Decoded, DecoderConfig, DecoderStats, FrameDecoder, RunEnd, Sample, increment_between,
+    DecodeEvent, Decoded, DecoderConfig, DecoderStats, FrameDecoder, RunEnd, Sample, WireDecoded,
+    increment_between,
 };
+pub use triad::{TRIAD_FRAME_LEN, TRIAD_SYNC, Triad, TriadEncoder, encode_triad_frame};
 pub use encoder::{FrameEncoder, FrameWriter, encode_increments};
 pub use fill::{FilledSeries, GapFiller, UniformSample, fill_gap, spread_increment};
 
@@ -150,7 +161,7 @@ const CRC_POS: [[u16; 256]; 14] = crc_position_tables();
 /// The register after 14 zero bytes with the init value 0xFFFF.
 const CRC_INIT_14: u16 = crc_init_through(14);
 
-const fn crc_step_zero(crc: u16) -> u16 {
+pub(crate) const fn crc_step_zero(crc: u16) -> u16 {
     // one zero byte through the MSB-first register (poly 0x1021)
     let mut c = crc;
     let mut k = 0;
@@ -165,7 +176,7 @@ const fn crc_step_zero(crc: u16) -> u16 {
     c
 }
 
-const fn crc_init_through(n: usize) -> u16 {
+pub(crate) const fn crc_init_through(n: usize) -> u16 {
     let mut c = 0xFFFF;
     let mut i = 0;
     while i < n {
@@ -175,13 +186,13 @@ const fn crc_init_through(n: usize) -> u16 {
     c
 }
 
-const fn crc_position_tables() -> [[u16; 256]; 14] {
-    let mut t = [[0u16; 256]; 14];
+pub(crate) const fn crc_position_tables<const N: usize>() -> [[u16; 256]; N] {
+    let mut t = [[0u16; 256]; N];
     let mut b = 0;
     while b < 256 {
-        // byte b last (position 13): one step from register b << 8
+        // byte b last (position N - 1): one step from register b << 8
         let mut c = crc_step_zero((b as u16) << 8);
-        let mut i = 14;
+        let mut i = N;
         while i > 0 {
             i -= 1;
             t[i][b] = c;
@@ -235,13 +246,14 @@ pub enum FrameError {
     },
 }
 
-/// The fields of one frame, as on the wire.
+/// The fields of one frame, as on the wire (`C`: `u32` for the single frame,
+/// `[u32; 3]` for the triad frame).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct RawFrame {
+pub struct RawFrame<C = u32> {
     /// Sequence number, +1 per sample period, wraps.
     pub seq: u16,
-    /// Cumulative up/down pulse counter, wraps at 2^32.
-    pub counter: u32,
+    /// Cumulative up/down pulse counter(s), wrap at 2^32.
+    pub counter: C,
     /// Temperature in units of 0.01 deg C.
     pub temp_raw: i16,
     /// Status flags (`STATUS_*`).
@@ -252,7 +264,7 @@ pub struct RawFrame {
     pub crc: u16,
 }
 
-impl RawFrame {
+impl<C> RawFrame<C> {
     /// Temperature in deg C.
     pub fn temp_c(&self) -> f64 {
         f64::from(self.temp_raw) * TEMP_C_PER_LSB
@@ -331,4 +343,48 @@ pub fn encode_frame(seq: u16, counter: u32, temp_raw: i16, status: u16) -> [u8; 
     let crc = crc16(&f[..14]);
     f[14..16].copy_from_slice(&crc.to_le_bytes());
     f
+}
+
+/// A wire format the generic [`FrameDecoder`] reads: its length, sync pattern,
+/// `check`/`parse` steps and how two counter readings make an increment. The
+/// decoding policies (resync, CRC error vs false sync on the `LEN`-byte grid,
+/// gaps, duplicates, discontinuities) do not depend on it.
+pub trait Wire: Copy + std::fmt::Debug + 'static {
+    /// Frame length, bytes.
+    const LEN: usize;
+    /// The two sync bytes.
+    const SYNC: [u8; 2];
+    /// The cumulative counter(s) of a frame.
+    type Counter: Copy + std::fmt::Debug + PartialEq + Eq;
+    /// Pulses between two frames.
+    type Increment: Copy + std::fmt::Debug + PartialEq;
+    /// Is a whole, valid frame at the front of `buf`?
+    fn check(buf: &[u8]) -> Result<(), NotAFrame>;
+    /// The fields of the frame at the front of `buf` (not validated).
+    fn parse(buf: &[u8]) -> Option<RawFrame<Self::Counter>>;
+    /// Pulses from `prev` to `next` (wrapping 32-bit differences).
+    fn increment(prev: Self::Counter, next: Self::Counter) -> Self::Increment;
+}
+
+/// The 16-byte single-gyro frame (sync `0xA5 0x5A`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Single;
+
+impl Wire for Single {
+    const LEN: usize = FRAME_LEN;
+    const SYNC: [u8; 2] = SYNC;
+    type Counter = u32;
+    type Increment = i64;
+    #[inline]
+    fn check(buf: &[u8]) -> Result<(), NotAFrame> {
+        check(buf)
+    }
+    #[inline]
+    fn parse(buf: &[u8]) -> Option<RawFrame> {
+        parse(buf)
+    }
+    #[inline]
+    fn increment(prev: u32, next: u32) -> i64 {
+        increment_between(prev, next)
+    }
 }

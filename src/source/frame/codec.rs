@@ -9,15 +9,22 @@
 
 use bytes::BytesMut;
 
-use super::{Decoded, DecoderConfig, DecoderStats, FrameDecoder, FrameError};
+use super::{DecoderConfig, DecoderStats, FrameDecoder, FrameError, Single, Wire, WireDecoded};
 
-/// `FramedRead::new(reader, FrameCodec::new())` yields [`Decoded`] items.
-#[derive(Debug, Clone, Default)]
-pub struct FrameCodec {
-    decoder: FrameDecoder,
+/// `FramedRead::new(reader, FrameCodec::new())` yields [`super::Decoded`]
+/// items; `FrameCodec::<Triad>::for_wire(config)` decodes triad frames.
+#[derive(Debug, Clone)]
+pub struct FrameCodec<W: Wire = Single> {
+    decoder: FrameDecoder<W>,
 }
 
-impl FrameCodec {
+impl Default for FrameCodec<Single> {
+    fn default() -> Self {
+        FrameCodec { decoder: FrameDecoder::default() }
+    }
+}
+
+impl FrameCodec<Single> {
     /// With the default decoder configuration.
     pub fn new() -> Self {
         Self::default()
@@ -29,6 +36,13 @@ impl FrameCodec {
             decoder: FrameDecoder::with_config(config),
         }
     }
+}
+
+impl<W: Wire> FrameCodec<W> {
+    /// A codec for wire format `W` with `config`.
+    pub fn for_wire(config: DecoderConfig) -> Self {
+        FrameCodec { decoder: FrameDecoder::for_wire(config) }
+    }
 
     /// Counts so far (reach it through `FramedRead::decoder()`).
     pub fn stats(&self) -> &DecoderStats {
@@ -36,25 +50,25 @@ impl FrameCodec {
     }
 
     /// The wrapped decoder.
-    pub fn decoder(&self) -> &FrameDecoder {
+    pub fn decoder(&self) -> &FrameDecoder<W> {
         &self.decoder
     }
 
     /// The wrapped decoder, mutably (e.g. `reset_sequence` after a reconnect).
-    pub fn decoder_mut(&mut self) -> &mut FrameDecoder {
+    pub fn decoder_mut(&mut self) -> &mut FrameDecoder<W> {
         &mut self.decoder
     }
 }
 
-impl tokio_util::codec::Decoder for FrameCodec {
-    type Item = Decoded;
+impl<W: Wire> tokio_util::codec::Decoder for FrameCodec<W> {
+    type Item = WireDecoded<W>;
     type Error = FrameError;
 
-    fn decode(&mut self, src: &mut BytesMut) -> Result<Option<Decoded>, FrameError> {
+    fn decode(&mut self, src: &mut BytesMut) -> Result<Option<WireDecoded<W>>, FrameError> {
         Ok(self.decoder.decode(src))
     }
 
-    fn decode_eof(&mut self, src: &mut BytesMut) -> Result<Option<Decoded>, FrameError> {
+    fn decode_eof(&mut self, src: &mut BytesMut) -> Result<Option<WireDecoded<W>>, FrameError> {
         Ok(self.decoder.decode_eof(src))
     }
 }

@@ -11,7 +11,7 @@ use std::collections::VecDeque;
 
 use bytes::{Buf, BytesMut};
 
-use super::{FRAME_LEN, NotAFrame, RawFrame, SYNC, check, parse};
+use super::{NotAFrame, RawFrame, Single, Wire};
 
 /// Pulses between two counter readings: `(next - prev) mod 2^32` read as a
 /// two's-complement `i32`, so wraps at 2^32 in either direction are handled.
@@ -35,16 +35,18 @@ impl Default for DecoderConfig {
     }
 }
 
-/// One decoded sample period: a frame accepted after the baseline.
+/// One decoded sample period: a frame accepted after the baseline. `C` is the
+/// frame's counter (`u32`, or `[u32; 3]` for a triad frame), `I` its increment
+/// (`i64`, or `[i64; 3]`).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Sample {
+pub struct Sample<C = u32, I = i64> {
     /// Sequence number of the frame.
     pub seq: u16,
     /// Raw cumulative counter of the frame.
-    pub counter: u32,
+    pub counter: C,
     /// Pulses since the previous accepted frame. After a gap this is the WHOLE
     /// difference over the gap (`lost_before + 1` sample periods).
-    pub increment: i64,
+    pub increment: I,
     /// Samples lost immediately before this one (0 when contiguous).
     pub lost_before: u16,
     /// Temperature, deg C.
@@ -70,7 +72,7 @@ pub struct RunEnd {
 
 /// Something the decoder noticed. Offsets are absolute stream offsets.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum DecodeEvent {
+pub enum DecodeEvent<C = u32> {
     /// The first accepted frame (or the first after
     /// [`FrameDecoder::reset_sequence`]): it sets the counter reference and
     /// produces no sample.
@@ -78,7 +80,7 @@ pub enum DecodeEvent {
         /// Sequence number of the frame.
         seq: u16,
         /// Its counter.
-        counter: u32,
+        counter: C,
         /// Its status flags.
         status: u16,
         /// Its offset.
@@ -164,11 +166,11 @@ pub enum DecodeEvent {
 
 /// One output item of the decoder, in stream order.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Decoded {
+pub enum Decoded<C = u32, I = i64> {
     /// A sample.
-    Sample(Sample),
+    Sample(Sample<C, I>),
     /// An event (precedes the sample it concerns).
-    Event(DecodeEvent),
+    Event(DecodeEvent<C>),
 }
 
 /// Exact counts since the decoder was created.
@@ -211,15 +213,15 @@ pub struct DecoderStats {
 }
 
 #[derive(Debug, Clone, Copy)]
-struct Anchor {
+struct Anchor<C> {
     seq: u16,
-    counter: u32,
+    counter: C,
     offset: u64,
     status: u16,
 }
 
-impl Anchor {
-    fn of(raw: &RawFrame, offset: u64) -> Self {
+impl<C: Copy> Anchor<C> {
+    fn of(raw: &RawFrame<C>, offset: u64) -> Self {
         Anchor {
             seq: raw.seq,
             counter: raw.counter,
@@ -231,9 +233,11 @@ impl Anchor {
 
 /// The sans-IO decoder. Feed it the same `BytesMut` over and over (append new
 /// bytes at the end, never remove any yourself); it consumes frames and skipped
-/// bytes from the front.
-#[derive(Debug, Clone, Default)]
-pub struct FrameDecoder {
+/// bytes from the front. `W` is the wire format: [`Single`] (the 16-byte
+/// single-gyro frame, the default) or [`super::Triad`] (the 24-byte triad
+/// frame); the policies and the accounting are the same.
+#[derive(Debug, Clone)]
+pub struct FrameDecoder<W: Wire = Single> {
     config: DecoderConfig,
     stats: DecoderStats,
     /// Absolute offset of the buffer's first byte.
@@ -243,26 +247,63 @@ pub struct FrameDecoder {
     /// Bytes skipped since the last valid frame (a multiple of 16 = on its grid).
     skip_run: u64,
     /// Last accepted frame.
-    last: Option<Anchor>,
+    last: Option<Anchor<W::Counter>>,
     /// Last out-of-sequence frame, a candidate new baseline.
-    pending: Option<Anchor>,
+    pending: Option<Anchor<W::Counter>>,
     /// Status flags of the last accepted frame.
     last_status: Option<u16>,
-    queue: VecDeque<Decoded>,
+    queue: VecDeque<Decoded<W::Counter, W::Increment>>,
 }
 
-impl FrameDecoder {
-    /// A decoder with the default configuration.
+impl Default for FrameDecoder<Single> {
+    fn default() -> Self {
+        FrameDecoder::for_wire(DecoderConfig::default())
+    }
+}
+
+/// Items a decoder of wire format `W` yields.
+pub type WireDecoded<W> = Decoded<<W as Wire>::Counter, <W as Wire>::Increment>;
+
+impl FrameDecoder<Single> {
+    /// A single-frame decoder with the default configuration.
     pub fn new() -> Self {
         Self::default()
     }
 
-    /// A decoder with `config`.
+    /// A single-frame decoder with `config`.
     pub fn with_config(config: DecoderConfig) -> Self {
+        FrameDecoder::for_wire(config)
+    }
+
+    /// One-shot: decode a whole single-frame stream held in memory.
+    pub fn decode_all(bytes: &[u8], config: DecoderConfig) -> (Vec<Decoded>, DecoderStats) {
+        FrameDecoder::<Single>::decode_all_wire(bytes, config)
+    }
+}
+
+impl<W: Wire> FrameDecoder<W> {
+    /// A decoder of wire format `W` with `config`.
+    pub fn for_wire(config: DecoderConfig) -> Self {
         FrameDecoder {
             config,
-            ..Self::default()
+            stats: DecoderStats::default(),
+            offset: 0,
+            buffered: 0,
+            skip_run: 0,
+            last: None,
+            pending: None,
+            last_status: None,
+            queue: VecDeque::new(),
         }
+    }
+
+    /// One-shot: decode a whole stream of wire format `W` held in memory.
+    pub fn decode_all_wire(bytes: &[u8], config: DecoderConfig) -> (Vec<WireDecoded<W>>, DecoderStats) {
+        let mut dec = FrameDecoder::<W>::for_wire(config);
+        let mut buf = BytesMut::from(bytes);
+        let mut out = Vec::new();
+        dec.finish(&mut buf, &mut out);
+        (out, dec.stats)
     }
 
     /// The configuration.
@@ -298,7 +339,7 @@ impl FrameDecoder {
     ///
     /// Contract: the bytes of `buf` beyond what the previous call left are new
     /// input (they are added to `bytes_read`).
-    pub fn decode(&mut self, buf: &mut BytesMut) -> Option<Decoded> {
+    pub fn decode(&mut self, buf: &mut BytesMut) -> Option<WireDecoded<W>> {
         if buf.len() > self.buffered {
             self.stats.bytes_read += (buf.len() - self.buffered) as u64;
         }
@@ -323,19 +364,19 @@ impl FrameDecoder {
     /// the state and counts [`step`](Self::step) would leave; anything else is
     /// left to `step` (`None`, nothing consumed).
     #[inline]
-    fn next_in_sequence(&mut self, buf: &mut BytesMut) -> Option<Sample> {
+    fn next_in_sequence(&mut self, buf: &mut BytesMut) -> Option<Sample<W::Counter, W::Increment>> {
         if !self.queue.is_empty() || self.skip_run != 0 {
             return None;
         }
         let last = self.last?;
-        check(buf).ok()?;
-        let raw = parse(buf)?;
+        W::check(buf).ok()?;
+        let raw = W::parse(buf)?;
         if raw.seq != last.seq.wrapping_add(1) || self.last_status != Some(raw.status) {
             return None;
         }
         let offset = self.offset;
-        buf.advance(FRAME_LEN);
-        self.offset += FRAME_LEN as u64;
+        buf.advance(W::LEN);
+        self.offset += W::LEN as u64;
         self.stats.frames_decoded += 1;
         if raw.reserved != 0 {
             self.stats.reserved_nonzero += 1;
@@ -346,7 +387,7 @@ impl FrameDecoder {
         Some(Sample {
             seq: raw.seq,
             counter: raw.counter,
-            increment: increment_between(last.counter, raw.counter),
+            increment: W::increment(last.counter, raw.counter),
             lost_before: 0,
             temp_c: raw.temp_c(),
             status: raw.status,
@@ -363,7 +404,7 @@ impl FrameDecoder {
     /// [`Decoded::Sample`]s with `lost_before == 0`); `None`, with nothing
     /// consumed, when the front of `buf` is anything else, which `decode` then
     /// handles.
-    pub fn decode_run(&mut self, buf: &mut BytesMut, max: usize, increments: &mut Vec<i64>) -> Option<RunEnd> {
+    pub fn decode_run(&mut self, buf: &mut BytesMut, max: usize, increments: &mut Vec<W::Increment>) -> Option<RunEnd> {
         if !self.queue.is_empty() || self.skip_run != 0 || max == 0 {
             return None;
         }
@@ -373,16 +414,16 @@ impl FrameDecoder {
         let mut reserved_nonzero = 0u64;
         let mut n = 0usize;
         let mut last_raw = None;
-        for frame in buf.chunks_exact(FRAME_LEN).take(max) {
-            let Some(raw) = check(frame).ok().and_then(|()| parse(frame)) else {
+        for frame in buf.chunks_exact(W::LEN).take(max) {
+            let Some(raw) = W::check(frame).ok().and_then(|()| W::parse(frame)) else {
                 break;
             };
             if raw.seq != prev.seq.wrapping_add(1) || raw.status != status {
                 break;
             }
-            increments.push(increment_between(prev.counter, raw.counter));
+            increments.push(W::increment(prev.counter, raw.counter));
             reserved_nonzero += u64::from(raw.reserved != 0);
-            prev = Anchor::of(&raw, self.offset + (n * FRAME_LEN) as u64);
+            prev = Anchor::of(&raw, self.offset + (n * W::LEN) as u64);
             last_raw = Some(raw);
             n += 1;
         }
@@ -390,9 +431,9 @@ impl FrameDecoder {
         if buf.len() > self.buffered {
             self.stats.bytes_read += (buf.len() - self.buffered) as u64;
         }
-        buf.advance(n * FRAME_LEN);
+        buf.advance(n * W::LEN);
         self.buffered = buf.len();
-        self.offset += (n * FRAME_LEN) as u64;
+        self.offset += (n * W::LEN) as u64;
         self.stats.frames_decoded += n as u64;
         self.stats.samples += n as u64;
         self.stats.reserved_nonzero += reserved_nonzero;
@@ -406,7 +447,7 @@ impl FrameDecoder {
     /// (`trailing_bytes`, `bytes_skipped`), and an open run of skipped bytes is
     /// reported by [`DecodeEvent::EndOfStream`]. Returns `None` when done; the
     /// buffer is then empty.
-    pub fn decode_eof(&mut self, buf: &mut BytesMut) -> Option<Decoded> {
+    pub fn decode_eof(&mut self, buf: &mut BytesMut) -> Option<WireDecoded<W>> {
         if let Some(item) = self.decode(buf) {
             return Some(item);
         }
@@ -429,26 +470,17 @@ impl FrameDecoder {
     }
 
     /// Decode everything currently decodable in `buf` into `out`.
-    pub fn decode_available(&mut self, buf: &mut BytesMut, out: &mut Vec<Decoded>) {
+    pub fn decode_available(&mut self, buf: &mut BytesMut, out: &mut Vec<WireDecoded<W>>) {
         while let Some(item) = self.decode(buf) {
             out.push(item);
         }
     }
 
     /// Decode everything in `buf` as the end of the stream into `out`.
-    pub fn finish(&mut self, buf: &mut BytesMut, out: &mut Vec<Decoded>) {
+    pub fn finish(&mut self, buf: &mut BytesMut, out: &mut Vec<WireDecoded<W>>) {
         while let Some(item) = self.decode_eof(buf) {
             out.push(item);
         }
-    }
-
-    /// One-shot: decode a whole stream held in memory.
-    pub fn decode_all(bytes: &[u8], config: DecoderConfig) -> (Vec<Decoded>, DecoderStats) {
-        let mut dec = FrameDecoder::with_config(config);
-        let mut buf = BytesMut::from(bytes);
-        let mut out = Vec::new();
-        dec.finish(&mut buf, &mut out);
-        (out, dec.stats)
     }
 
     fn skip(&mut self, buf: &mut BytesMut, n: usize) {
@@ -462,14 +494,14 @@ impl FrameDecoder {
     /// return `false` when more bytes are needed.
     fn step(&mut self, buf: &mut BytesMut) -> bool {
         loop {
-            match check(buf) {
+            match W::check(buf) {
                 Ok(()) => {
-                    let Some(raw) = parse(buf) else {
+                    let Some(raw) = W::parse(buf) else {
                         return false; // unreachable: check saw 16 bytes
                     };
                     let offset = self.offset;
-                    buf.advance(FRAME_LEN);
-                    self.offset += FRAME_LEN as u64;
+                    buf.advance(W::LEN);
+                    self.offset += W::LEN as u64;
                     self.stats.frames_decoded += 1;
                     if self.skip_run > 0 {
                         self.stats.resyncs += 1;
@@ -488,13 +520,13 @@ impl FrameDecoder {
                     // between is a one-byte slide that cannot start a frame).
                     let n = buf[1..]
                         .iter()
-                        .position(|&b| b == SYNC[0])
+                        .position(|&b| b == W::SYNC[0])
                         .map_or(buf.len(), |p| p + 1);
                     self.skip(buf, n);
                 }
                 Err(NotAFrame::BadCrc { computed, received }) => {
                     let offset = self.offset;
-                    if self.skip_run.is_multiple_of(FRAME_LEN as u64) {
+                    if self.skip_run.is_multiple_of(W::LEN as u64) {
                         self.stats.crc_errors += 1;
                         self.push(DecodeEvent::CrcError {
                             offset,
@@ -512,7 +544,7 @@ impl FrameDecoder {
         }
     }
 
-    fn push(&mut self, ev: DecodeEvent) {
+    fn push(&mut self, ev: DecodeEvent<W::Counter>) {
         self.queue.push_back(Decoded::Event(ev));
     }
 
@@ -530,7 +562,7 @@ impl FrameDecoder {
         self.last_status = Some(status);
     }
 
-    fn baseline(&mut self, anchor: Anchor) {
+    fn baseline(&mut self, anchor: Anchor<W::Counter>) {
         self.track_status(anchor.seq, anchor.status);
         self.push(DecodeEvent::Baseline {
             seq: anchor.seq,
@@ -542,7 +574,7 @@ impl FrameDecoder {
     }
 
     /// A frame with a valid CRC: place it in the sequence.
-    fn accept(&mut self, raw: &RawFrame, offset: u64) {
+    fn accept(&mut self, raw: &RawFrame<W::Counter>, offset: u64) {
         if raw.reserved != 0 {
             self.stats.reserved_nonzero += 1;
         }
@@ -591,7 +623,7 @@ impl FrameDecoder {
         self.pending = Some(here);
     }
 
-    fn emit_sample(&mut self, prev: Anchor, raw: &RawFrame, offset: u64, lost: u16) {
+    fn emit_sample(&mut self, prev: Anchor<W::Counter>, raw: &RawFrame<W::Counter>, offset: u64, lost: u16) {
         if lost > 0 {
             self.stats.gaps += 1;
             self.stats.lost_samples += u64::from(lost);
@@ -605,7 +637,7 @@ impl FrameDecoder {
         self.queue.push_back(Decoded::Sample(Sample {
             seq: raw.seq,
             counter: raw.counter,
-            increment: increment_between(prev.counter, raw.counter),
+            increment: W::increment(prev.counter, raw.counter),
             lost_before: lost,
             temp_c: raw.temp_c(),
             status: raw.status,

@@ -21,9 +21,10 @@
 //! documented policy independently of the decoder's state machine: every byte
 //! outside intact frames is skipped; each maximal run of skipped bytes ended by
 //! an intact frame is one resync; inside a run, every position holding the sync
-//! pattern with 16 bytes of stream left is one bad-CRC candidate, a CRC error
-//! when its distance from the start of the run is a multiple of 16 (on the
-//! frame grid, where a frame was expected), a false sync otherwise; seq steps
+//! pattern with a frame length (16 bytes; 24 for the triad frame,
+//! [`inject_wire`]) of stream left is one bad-CRC candidate, a CRC error when
+//! its distance from the start of the run is a multiple of the frame length (on
+//! the frame grid, where a frame was expected), a false sync otherwise; seq steps
 //! between intact frames give gaps, lost samples and duplicates. It holds when `max_seq_step <= max_gap + 1` and no candidate
 //! window happens to carry a valid CRC (`spurious_windows == 0`); both are
 //! recorded so callers can check.
@@ -33,7 +34,7 @@ use std::collections::BTreeMap;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::{DecoderStats, FRAME_LEN, SYNC, check, crc16, parse};
+use super::{DecoderStats, FRAME_LEN, Single, Wire};
 
 /// What happens to one frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -43,7 +44,8 @@ pub enum FrameAction {
     Keep,
     /// Not sent.
     Drop,
-    /// Sent with bit `n % 128` flipped (bit `n % 8` of byte `n / 8 % 16`).
+    /// Sent with bit `n % (8 * LEN)` flipped (bit `n % 8` of byte `n / 8 % LEN`;
+    /// `LEN` = 16 for the single frame, 24 for the triad frame).
     FlipBit(u8),
     /// Sent twice.
     Duplicate,
@@ -137,8 +139,15 @@ impl FaultPlan {
         self
     }
 
-    /// A seeded random plan for `n_frames` frames.
+    /// A seeded random plan for `n_frames` single frames.
     pub fn random(n_frames: usize, cfg: &InjectorConfig, seed: u64) -> Self {
+        Self::random_for::<Single>(n_frames, cfg, seed)
+    }
+
+    /// A seeded random plan for `n_frames` frames of wire format `W` (bit flips
+    /// anywhere in its `W::LEN` bytes).
+    pub fn random_for<W: Wire>(n_frames: usize, cfg: &InjectorConfig, seed: u64) -> Self {
+        let bits = (8 * W::LEN).min(256) as u16;
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let (p_drop, p_flip, p_dup) = (
             prob(cfg.drop_prob),
@@ -151,7 +160,7 @@ impl FaultPlan {
             if rng.random_bool(prob(cfg.garbage_prob)) {
                 let len = rng.random_range(1..=cfg.garbage_max_len.max(1));
                 if rng.random_bool(prob(cfg.false_sync_prob)) {
-                    ff.garbage_before.extend_from_slice(&SYNC);
+                    ff.garbage_before.extend_from_slice(&W::SYNC);
                 }
                 ff.garbage_before
                     .extend((0..len).map(|_| rng.random::<u8>()));
@@ -163,7 +172,7 @@ impl FaultPlan {
                 ff.action = if u < p_drop {
                     FrameAction::Drop
                 } else if u < p_drop + p_flip {
-                    FrameAction::FlipBit(rng.random_range(0..128))
+                    FrameAction::FlipBit(rng.random_range(0..bits) as u8)
                 } else if u < p_drop + p_flip + p_dup {
                     FrameAction::Duplicate
                 } else {
@@ -177,7 +186,7 @@ impl FaultPlan {
         if cfg.tail_max_len > 0 {
             let len = rng.random_range(0..=cfg.tail_max_len);
             if len >= 2 && rng.random_bool(0.5) {
-                plan.tail.extend_from_slice(&SYNC);
+                plan.tail.extend_from_slice(&W::SYNC);
                 plan.tail.extend((2..len).map(|_| rng.random::<u8>()));
             } else {
                 plan.tail.extend((0..len).map(|_| rng.random::<u8>()));
@@ -277,19 +286,25 @@ pub struct Injected {
     pub ledger: Ledger,
 }
 
-/// Apply `plan` to `frames` (frames that do not pass [`check`] are never
-/// counted as intact).
+/// Apply `plan` to single `frames` (frames that do not pass
+/// [`super::check`] are never counted as intact).
 pub fn inject(frames: &[[u8; FRAME_LEN]], plan: &FaultPlan) -> Injected {
-    let mut out: Vec<u8> = Vec::with_capacity(frames.len() * FRAME_LEN);
+    inject_wire::<Single>(frames, plan)
+}
+
+/// Apply `plan` to `frames` of wire format `W` (each `W::LEN` bytes; frames
+/// that do not pass `W::check` are never counted as intact).
+pub fn inject_wire<W: Wire>(frames: &[impl AsRef<[u8]>], plan: &FaultPlan) -> Injected {
+    let mut out: Vec<u8> = Vec::with_capacity(frames.len() * W::LEN);
     let mut led = Ledger {
         frames_in: frames.len() as u64,
         ..Ledger::default()
     };
     // (offset in `out`, seq, clean index) of intact frames.
     let mut intact: Vec<(usize, u16, usize)> = Vec::new();
-    let mut put_intact = |out: &mut Vec<u8>, f: &[u8; FRAME_LEN], i: usize| {
-        if check(f).is_ok()
-            && let Some(raw) = parse(f)
+    let mut put_intact = |out: &mut Vec<u8>, f: &[u8], i: usize| {
+        if W::check(f).is_ok()
+            && let Some(raw) = W::parse(f)
         {
             intact.push((out.len(), raw.seq, i));
         }
@@ -297,6 +312,7 @@ pub fn inject(frames: &[[u8; FRAME_LEN]], plan: &FaultPlan) -> Injected {
     };
     let keep = FrameFault::default();
     for (i, f) in frames.iter().enumerate() {
+        let f = f.as_ref();
         let ff = plan.faults.get(&i).unwrap_or(&keep);
         if !ff.garbage_before.is_empty() {
             led.garbage_runs += 1;
@@ -307,11 +323,11 @@ pub fn inject(frames: &[[u8; FRAME_LEN]], plan: &FaultPlan) -> Injected {
             FrameAction::Keep => put_intact(&mut out, f, i),
             FrameAction::Drop => led.dropped += 1,
             FrameAction::FlipBit(n) => {
-                let bit = usize::from(n % 128);
-                let mut g = *f;
+                let bit = usize::from(n) % (8 * W::LEN);
+                let mut g = f.to_vec();
                 g[bit / 8] ^= 1 << (bit % 8);
                 led.bit_flipped += 1;
-                if bit / 8 < SYNC.len() {
+                if bit / 8 < W::SYNC.len() {
                     led.sync_flipped += 1;
                 }
                 out.extend_from_slice(&g);
@@ -325,7 +341,7 @@ pub fn inject(frames: &[[u8; FRAME_LEN]], plan: &FaultPlan) -> Injected {
     }
     out.extend_from_slice(&plan.tail);
     led.tail_bytes = plan.tail.len() as u64;
-    led.expected = derive_expected(&out, &intact);
+    led.expected = derive_expected::<W>(&out, &intact);
     led.intact = intact.iter().map(|&(_, _, i)| i).collect();
     Injected {
         bytes: out,
@@ -334,24 +350,23 @@ pub fn inject(frames: &[[u8; FRAME_LEN]], plan: &FaultPlan) -> Injected {
 }
 
 /// The counts implied by the stream and the intact-frame positions.
-fn derive_expected(bytes: &[u8], intact: &[(usize, u16, usize)]) -> Expected {
+fn derive_expected<W: Wire>(bytes: &[u8], intact: &[(usize, u16, usize)]) -> Expected {
     let len = bytes.len();
     let mut e = Expected {
         bytes_read: len as u64,
         frames_decoded: intact.len() as u64,
-        bytes_skipped: (len - FRAME_LEN * intact.len()) as u64,
+        bytes_skipped: (len - W::LEN * intact.len()) as u64,
         ..Expected::default()
     };
     let scan = |e: &mut Expected, start: usize, end: usize| {
         for p in start..end {
-            if p + FRAME_LEN <= len && bytes[p] == SYNC[0] && bytes[p + 1] == SYNC[1] {
-                if (p - start).is_multiple_of(FRAME_LEN) {
+            if p + W::LEN <= len && bytes[p] == W::SYNC[0] && bytes[p + 1] == W::SYNC[1] {
+                if (p - start).is_multiple_of(W::LEN) {
                     e.crc_errors += 1;
                 } else {
                     e.false_syncs += 1;
                 }
-                let w = &bytes[p..p + FRAME_LEN];
-                if crc16(&w[..14]) == u16::from_le_bytes([w[14], w[15]]) {
+                if W::check(&bytes[p..p + W::LEN]).is_ok() {
                     e.spurious_windows += 1;
                 }
             }
@@ -363,7 +378,7 @@ fn derive_expected(bytes: &[u8], intact: &[(usize, u16, usize)]) -> Expected {
             e.resyncs += 1;
         }
         scan(&mut e, prev_end, off);
-        prev_end = off + FRAME_LEN;
+        prev_end = off + W::LEN;
     }
     e.end_skip_run = (len - prev_end) as u64;
     scan(&mut e, prev_end, len);
