@@ -29,6 +29,7 @@
 
 use std::f64::consts::PI;
 
+use super::line_search::detrend;
 use super::stats::StatSet;
 use super::wvar_fit::LevelData;
 use crate::model::wvar::SpectralTerm;
@@ -82,8 +83,8 @@ impl LfLayout {
             return Vec::new();
         }
         let b = self.block_len;
-        let mut x: Vec<f64> = (0..LF_BLOCKS).map(|i| rate[i * b..(i + 1) * b].iter().sum::<f64>() / b as f64).collect();
-        detrend(&mut x);
+        let means: Vec<f64> = (0..LF_BLOCKS).map(|i| rate[i * b..(i + 1) * b].iter().sum::<f64>() / b as f64).collect();
+        let x = detrend(&means);
         let w = hann();
         let sw2: f64 = w.iter().map(|v| v * v).sum();
         let bin = |k: usize| {
@@ -143,23 +144,6 @@ pub fn append_rows(data: &mut LevelData, layout: &LfLayout, y: &[f64], runs: &[&
 /// The periodic Hann taper over the blocks.
 fn hann() -> Vec<f64> {
     (0..LF_BLOCKS).map(|n| 0.5 * (1.0 - (2.0 * PI * n as f64 / LF_BLOCKS as f64).cos())).collect()
-}
-
-/// Remove the least-squares line of `x` in place.
-fn detrend(x: &mut [f64]) {
-    let n = x.len() as f64;
-    let tbar = 0.5 * (n - 1.0);
-    let mean = x.iter().sum::<f64>() / n;
-    let (mut sxy, mut sxx) = (0.0, 0.0);
-    for (i, &v) in x.iter().enumerate() {
-        let t = i as f64 - tbar;
-        sxy += t * (v - mean);
-        sxx += t * t;
-    }
-    let slope = sxy / sxx;
-    for (i, v) in x.iter_mut().enumerate() {
-        *v -= mean + slope * (i as f64 - tbar);
-    }
 }
 
 /// `psi'(x)`, x > 0: recurrence up to 10, then the asymptotic series.
