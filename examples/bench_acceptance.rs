@@ -102,7 +102,13 @@ fn model_toml(f: &Family, truth: f64, i: usize) -> (String, f64, f64) {
         SpecCoefficient::BiasInstability => (0.4 * pulse, 0.0005, truth, 0.0, 0.0),
         SpecCoefficient::Rrw => (0.4 * pulse, 0.0005, 0.002, truth, 0.0),
         // the sign of a ramp alternates over the runs: the limit is on its magnitude
-        SpecCoefficient::RateRamp => (0.4 * pulse, 0.0005, 0.002, 0.0, if i % 2 == 0 { truth } else { -truth }),
+        SpecCoefficient::RateRamp => (
+            0.4 * pulse,
+            0.0005,
+            0.002,
+            0.0,
+            if i % 2 == 0 { truth } else { -truth },
+        ),
     };
     let toml = format!(
         "[gyro]\nsample_rate_hz = {rate}\npulse_weight_arcsec = {pulse}\ninput_rate_dph = 12.3\n\

@@ -30,7 +30,8 @@ pub fn register() -> Result<(), FontError> {
     static DONE: OnceLock<Result<(), FontError>> = OnceLock::new();
     *DONE.get_or_init(|| {
         // plotters falls back to Normal for the other styles (bold, italic)
-        plotters::style::register_font(FAMILY, FontStyle::Normal, DEJAVU_SANS).map_err(|_| FontError)
+        plotters::style::register_font(FAMILY, FontStyle::Normal, DEJAVU_SANS)
+            .map_err(|_| FontError)
     })
 }
 

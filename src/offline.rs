@@ -62,18 +62,36 @@ pub enum OfflineError {
     Pipeline(#[from] PipelineError),
     #[error("{path}: no samples")]
     Empty { path: PathBuf },
-    #[error("{path}: /gyro/raw batches disagree on the sample period ({first_ns} ns, then {other_ns} ns)")]
-    MixedRate { path: PathBuf, first_ns: u64, other_ns: u64 },
+    #[error(
+        "{path}: /gyro/raw batches disagree on the sample period ({first_ns} ns, then {other_ns} ns)"
+    )]
+    MixedRate {
+        path: PathBuf,
+        first_ns: u64,
+        other_ns: u64,
+    },
     #[error(
         "{path}: the /gyro/raw batch at t0 = {t0_ns} ns has a gap of {lost} lost samples \
          (more than {MAX_GAP_SAMPLES}: not a recording of a gyro that kept running)"
     )]
-    ImplausibleGap { path: PathBuf, t0_ns: u64, lost: u64 },
+    ImplausibleGap {
+        path: PathBuf,
+        t0_ns: u64,
+        lost: u64,
+    },
     #[error("{path}: no samples before the file becomes unreadable at byte {offset}: {reason}")]
-    BrokenBeforeSamples { path: PathBuf, offset: u64, reason: String },
+    BrokenBeforeSamples {
+        path: PathBuf,
+        offset: u64,
+        reason: String,
+    },
     /// A value the input does not carry and no flag gave.
     #[error("{flag} is required: {} carries no {what}", path.display())]
-    FlagRequired { flag: &'static str, path: PathBuf, what: &'static str },
+    FlagRequired {
+        flag: &'static str,
+        path: PathBuf,
+        what: &'static str,
+    },
     /// A flag that contradicts the recording.
     #[error(transparent)]
     Contradiction(#[from] Contradiction),
@@ -149,10 +167,20 @@ pub fn run_file_tapped(
     mut tap: Option<Tap>,
 ) -> Result<Pipeline, OfflineError> {
     let integral = unit == RateUnit::Counts && cfg.pulse_arcsec.is_some();
-    match feed_file(path, format, column, unit, cfg, integral, progress, reborrow(&mut tap)) {
+    match feed_file(
+        path,
+        format,
+        column,
+        unit,
+        cfg,
+        integral,
+        progress,
+        reborrow(&mut tap),
+    ) {
         Err(FeedError::NotInteger) => {
             let mut noop = |_: u64, _: Option<u64>| {};
-            feed_file(path, format, column, unit, cfg, false, &mut noop, tap).map_err(FeedError::into_offline)
+            feed_file(path, format, column, unit, cfg, false, &mut noop, tap)
+                .map_err(FeedError::into_offline)
         }
         other => other.map_err(FeedError::into_offline),
     }
@@ -246,12 +274,23 @@ fn feed_file(
                 }
             }
             let counts = integral.then_some(&ints[..]);
-            tap(&TapBlock { first_sample, counts, rate_dph: &buf, temp_c, gaps: 0, lost_samples: 0, out: &out });
+            tap(&TapBlock {
+                first_sample,
+                counts,
+                rate_dph: &buf,
+                temp_c,
+                gaps: 0,
+                lost_samples: 0,
+                out: &out,
+            });
         }
         progress(pipe.samples(), hint);
     }
     if pipe.samples() == 0 {
-        return Err(OfflineError::Empty { path: path.to_path_buf() }.into());
+        return Err(OfflineError::Empty {
+            path: path.to_path_buf(),
+        }
+        .into());
     }
     out.clear();
     pipe.finish(&mut out);
@@ -313,7 +352,10 @@ pub fn run_capture_tapped(
             temps.clear();
             let (mut gaps, mut lost) = (0, 0);
             for s in &block.samples {
-                temps.extend(std::iter::repeat_n(s.temp_c, usize::from(s.lost_before) + 1));
+                temps.extend(std::iter::repeat_n(
+                    s.temp_c,
+                    usize::from(s.lost_before) + 1,
+                ));
                 gaps += u64::from(s.lost_before > 0);
                 lost += u64::from(s.lost_before);
             }
@@ -330,7 +372,9 @@ pub fn run_capture_tapped(
         progress(pipe.samples(), hint);
     }
     if pipe.samples() == 0 {
-        return Err(OfflineError::Empty { path: path.to_path_buf() });
+        return Err(OfflineError::Empty {
+            path: path.to_path_buf(),
+        });
     }
     out.clear();
     pipe.finish(&mut out);
@@ -362,12 +406,28 @@ pub fn recording_gyro(
     let (rate, pulse) = match read_metadata(path)? {
         Some(meta) => {
             if meta.output == GyroOutput::Rate {
-                return Err(OfflineError::RateOutput { path: path.to_path_buf() });
+                return Err(OfflineError::RateOutput {
+                    path: path.to_path_buf(),
+                });
             }
             let origin = "in its sagnac metadata record";
             (
-                check_flag("--rate-hz", rate_flag, Some(meta.sample_rate_hz), path, origin, AGREE_REL)?,
-                check_flag("--pulse-arcsec", pulse_flag, meta.pulse_arcsec, path, origin, AGREE_REL)?,
+                check_flag(
+                    "--rate-hz",
+                    rate_flag,
+                    Some(meta.sample_rate_hz),
+                    path,
+                    origin,
+                    AGREE_REL,
+                )?,
+                check_flag(
+                    "--pulse-arcsec",
+                    pulse_flag,
+                    meta.pulse_arcsec,
+                    path,
+                    origin,
+                    AGREE_REL,
+                )?,
             )
         }
         None => {
@@ -375,15 +435,33 @@ pub fn recording_gyro(
             let recorded = dt.map(|dt| 1e9 / dt as f64);
             let tol = dt.map_or(0.0, |dt| 1.0 / dt as f64);
             (
-                check_flag("--rate-hz", rate_flag, recorded, path, "as the sample period of /gyro/raw", tol)?,
+                check_flag(
+                    "--rate-hz",
+                    rate_flag,
+                    recorded,
+                    path,
+                    "as the sample period of /gyro/raw",
+                    tol,
+                )?,
                 pulse_flag,
             )
         }
     };
-    let required = |flag, what| OfflineError::FlagRequired { flag, path: path.to_path_buf(), what };
+    let required = |flag, what| OfflineError::FlagRequired {
+        flag,
+        path: path.to_path_buf(),
+        what,
+    };
     Ok(RecordingGyro {
-        rate_hz: rate.ok_or_else(|| required("--rate-hz", "sample rate (no metadata record, no /gyro/raw sample)"))?,
-        pulse_arcsec: pulse.ok_or_else(|| required("--pulse-arcsec", "pulse weight (no sagnac metadata record)"))?,
+        rate_hz: rate.ok_or_else(|| {
+            required(
+                "--rate-hz",
+                "sample rate (no metadata record, no /gyro/raw sample)",
+            )
+        })?,
+        pulse_arcsec: pulse.ok_or_else(|| {
+            required("--pulse-arcsec", "pulse weight (no sagnac metadata record)")
+        })?,
     })
 }
 
@@ -392,9 +470,10 @@ pub fn recording_period_ns(path: &Path) -> Result<Option<u64>, OfflineError> {
     let mut dt = None;
     scan_recording(path, false, &mut |m| {
         if dt.is_none()
-            && let SinkMessage::Raw(b) = &m.message {
-                dt = Some(b.dt_ns);
-            }
+            && let SinkMessage::Raw(b) = &m.message
+        {
+            dt = Some(b.dt_ns);
+        }
     })?;
     Ok(dt)
 }
@@ -474,15 +553,29 @@ pub fn run_recording_tapped(
         }
     })?;
     if let Some((t0_ns, lost)) = implausible {
-        return Err(OfflineError::ImplausibleGap { path: path.to_path_buf(), t0_ns, lost });
+        return Err(OfflineError::ImplausibleGap {
+            path: path.to_path_buf(),
+            t0_ns,
+            lost,
+        });
     }
     if let (Some(a), Some(b)) = (first_dt, mixed) {
-        return Err(OfflineError::MixedRate { path: path.to_path_buf(), first_ns: a, other_ns: b });
+        return Err(OfflineError::MixedRate {
+            path: path.to_path_buf(),
+            first_ns: a,
+            other_ns: b,
+        });
     }
     if pipe.samples() == 0 {
         return Err(match report.break_at {
-            Some(b) => OfflineError::BrokenBeforeSamples { path: path.to_path_buf(), offset: b.offset, reason: b.reason },
-            None => OfflineError::Empty { path: path.to_path_buf() },
+            Some(b) => OfflineError::BrokenBeforeSamples {
+                path: path.to_path_buf(),
+                offset: b.offset,
+                reason: b.reason,
+            },
+            None => OfflineError::Empty {
+                path: path.to_path_buf(),
+            },
         });
     }
     out.clear();

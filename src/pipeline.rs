@@ -27,20 +27,27 @@ use serde::Serialize;
 
 use crate::allan::streaming::{OctaveAllan, StreamConfig, StreamError, StreamPoint};
 use crate::allan::{self, AllanPoint};
+use crate::dsp::DspError;
 use crate::dsp::bank::{AnalysisOutput, MAX_LEVELS, StreamingAnalysis};
+use crate::dsp::gaps::{MaskCascade, good_segments};
 use crate::dsp::qn::{QnConfig, QnSplitter};
 use crate::dsp::wavelet::Wavelet;
-use crate::dsp::gaps::{MaskCascade, good_segments};
-use crate::dsp::DspError;
 use crate::model::baseline::{self, AdevPoint, BaselineEstimates};
-use crate::model::estimate::{self, AllanObs, EstimatorInput, EstimatorOutput, FilterEstimate, NoiseEstimates, RampAccumulator};
+use crate::model::estimate::{
+    self, AllanObs, EstimatorInput, EstimatorOutput, FilterEstimate, NoiseEstimates,
+    RampAccumulator,
+};
 use crate::model::fit::{FitOptions, LevelObs};
 
 /// Errors building or running the pipeline.
 #[derive(Debug, thiserror::Error)]
 pub enum PipelineError {
     #[error("pipeline configuration: `{key}` = {value}: {reason}")]
-    Config { key: &'static str, value: String, reason: &'static str },
+    Config {
+        key: &'static str,
+        value: String,
+        reason: &'static str,
+    },
     #[error("wavelet stage: {0}")]
     Dsp(#[from] DspError),
     #[error("Allan stage: {0}")]
@@ -65,20 +72,38 @@ pub struct PipelineConfig {
 impl PipelineConfig {
     /// Defaults for count input at `rate_hz` with pulse weight `pulse_arcsec`.
     pub fn counts(rate_hz: f64, pulse_arcsec: f64) -> Self {
-        PipelineConfig { rate_hz, pulse_arcsec: Some(pulse_arcsec), wavelet: "sym8".into(), levels: None, allan_cap: 1 << 16 }
+        PipelineConfig {
+            rate_hz,
+            pulse_arcsec: Some(pulse_arcsec),
+            wavelet: "sym8".into(),
+            levels: None,
+            allan_cap: 1 << 16,
+        }
     }
     /// Defaults for rate input (deg/h) at `rate_hz`.
     pub fn rates(rate_hz: f64) -> Self {
-        PipelineConfig { pulse_arcsec: None, ..Self::counts(rate_hz, 1.0) }
+        PipelineConfig {
+            pulse_arcsec: None,
+            ..Self::counts(rate_hz, 1.0)
+        }
     }
     fn validate(&self) -> Result<(), PipelineError> {
         if !(self.rate_hz.is_finite() && self.rate_hz > 0.0) {
-            return Err(PipelineError::Config { key: "rate_hz", value: self.rate_hz.to_string(), reason: "must be > 0" });
+            return Err(PipelineError::Config {
+                key: "rate_hz",
+                value: self.rate_hz.to_string(),
+                reason: "must be > 0",
+            });
         }
         if let Some(d) = self.pulse_arcsec
-            && !(d.is_finite() && d > 0.0) {
-                return Err(PipelineError::Config { key: "pulse_arcsec", value: d.to_string(), reason: "must be > 0" });
-            }
+            && !(d.is_finite() && d > 0.0)
+        {
+            return Err(PipelineError::Config {
+                key: "pulse_arcsec",
+                value: d.to_string(),
+                reason: "must be > 0",
+            });
+        }
         Ok(())
     }
 }
@@ -200,8 +225,10 @@ impl BlockSums {
     fn merge(&mut self) {
         self.span_log2 += 1;
         for level in &mut self.sums {
-            let merged: Vec<(f64, u64)> =
-                level.chunks(2).map(|c| c.iter().fold((0.0, 0), |a, x| (a.0 + x.0, a.1 + x.1))).collect();
+            let merged: Vec<(f64, u64)> = level
+                .chunks(2)
+                .map(|c| c.iter().fold((0.0, 0), |a, x| (a.0 + x.0, a.1 + x.1)))
+                .collect();
             *level = merged;
         }
     }
@@ -210,7 +237,11 @@ impl BlockSums {
 impl LevelAccumulator {
     fn new(w: &Wavelet, levels: u32) -> Result<Self, PipelineError> {
         let l1 = levels.min(MAX_LEVELS);
-        let second = if levels > l1 { Some(StreamingAnalysis::new(w, (levels - l1).min(MAX_LEVELS))?) } else { None };
+        let second = if levels > l1 {
+            Some(StreamingAnalysis::new(w, (levels - l1).min(MAX_LEVELS))?)
+        } else {
+            None
+        };
         Ok(LevelAccumulator {
             first: StreamingAnalysis::new(w, l1)?,
             second,
@@ -230,7 +261,10 @@ impl LevelAccumulator {
 
     /// Also keep per-block sums (for a batch-means variance).
     fn with_blocks(mut self) -> Self {
-        self.blocks = Some(BlockSums { span_log2: 16, sums: vec![Vec::new(); self.seen.len()] });
+        self.blocks = Some(BlockSums {
+            span_log2: 16,
+            sums: vec![Vec::new(); self.seen.len()],
+        });
         self
     }
 
@@ -290,7 +324,8 @@ impl LevelAccumulator {
             return;
         }
         self.bad.clear();
-        self.mask.bad_spans(j, seen + start as u64, seen + d.len() as u64, &mut self.bad);
+        self.mask
+            .bad_spans(j, seen + start as u64, seen + d.len() as u64, &mut self.bad);
         let d = &d[start..];
         let first = seen + start as u64;
         let mut s = 0.0;
@@ -309,7 +344,9 @@ impl LevelAccumulator {
     /// The per-block observations (blocks of equal length; a last block
     /// shorter than half of them is left out).
     fn block_observations(&self) -> Vec<Vec<LevelObs>> {
-        let Some(b) = &self.blocks else { return Vec::new() };
+        let Some(b) = &self.blocks else {
+            return Vec::new();
+        };
         let n_blocks = b.sums.first().map_or(0, |l| l.len());
         let full = 1u64 << b.span_log2.saturating_sub(1);
         (0..n_blocks)
@@ -334,7 +371,11 @@ impl LevelAccumulator {
         (0..self.seen.len())
             .filter_map(|j| {
                 let n = self.count[j];
-                (n > 0).then(|| LevelObs { level: j as u32 + 1, n_coef: n as f64, mean_sq: self.sum_sq[j] / n as f64 })
+                (n > 0).then(|| LevelObs {
+                    level: j as u32 + 1,
+                    n_coef: n as f64,
+                    mean_sq: self.sum_sq[j] / n as f64,
+                })
             })
             .collect()
     }
@@ -380,7 +421,12 @@ impl Pipeline {
         qn.validate()?;
         let splitter = QnSplitter::new(&qn)?;
         let j = splitter.levels();
-        let scfg = |scale: f64| StreamConfig { tau0_s, full_overlap_cap: cfg.allan_cap, scale, ..StreamConfig::default() };
+        let scfg = |scale: f64| StreamConfig {
+            tau0_s,
+            full_overlap_cap: cfg.allan_cap,
+            scale,
+            ..StreamConfig::default()
+        };
         let (raw_counts, raw_rate) = match cfg.pulse_arcsec {
             Some(d) => (Some(OctaveAllan::counts(scfg(d))?), None),
             None => (None, Some(OctaveAllan::freq(scfg(1.0))?)),
@@ -442,8 +488,17 @@ impl Pipeline {
 
     /// Push pulse increments with `filled[i]` true for a sample made up by the
     /// gap fill (see [`Self::push_counts_filled`]).
-    pub fn push_counts_masked(&mut self, counts: &[i64], filled: &[bool], out: &mut PipelineOutput) {
-        assert_eq!(counts.len(), filled.len(), "push_counts_masked: one flag per sample");
+    pub fn push_counts_masked(
+        &mut self,
+        counts: &[i64],
+        filled: &[bool],
+        out: &mut PipelineOutput,
+    ) {
+        assert_eq!(
+            counts.len(),
+            filled.len(),
+            "push_counts_masked: one flag per sample"
+        );
         self.push_counts_filled(counts, &crate::dsp::gaps::spans_of(filled), out);
     }
 
@@ -460,7 +515,12 @@ impl Pipeline {
     /// that this does not depend on how the pushes split a gap, a span that
     /// runs on past the end of `counts` is given whole (its end beyond
     /// `counts.len()`), as [`crate::source::frame::FilledSeries::filled_in`] does.
-    pub fn push_counts_filled(&mut self, counts: &[i64], filled: &[Range<usize>], out: &mut PipelineOutput) {
+    pub fn push_counts_filled(
+        &mut self,
+        counts: &[i64],
+        filled: &[Range<usize>],
+        out: &mut PipelineOutput,
+    ) {
         self.set_filled(filled, counts.len());
         let d = self.cfg.pulse_arcsec.unwrap_or(1.0);
         if let Some(a) = &mut self.raw_counts {
@@ -476,7 +536,11 @@ impl Pipeline {
     }
 
     /// Push rates in deg/h (== arcsec/s) (rate input).
-    pub fn push_rates_dph(&mut self, rates: &[f64], out: &mut PipelineOutput) -> Result<(), PipelineError> {
+    pub fn push_rates_dph(
+        &mut self,
+        rates: &[f64],
+        out: &mut PipelineOutput,
+    ) -> Result<(), PipelineError> {
         self.push_rates_dph_filled(rates, &[], out)
     }
 
@@ -527,15 +591,18 @@ impl Pipeline {
 
     fn process_rates(&mut self, out: &mut PipelineOutput) {
         let n0 = out.clean_dph.len();
-        self.splitter.push(&self.rate_buf, &mut out.clean_dph, &mut out.noise_dph);
-        self.rate_levels.push_masked(&self.rate_buf, &self.fill_rate);
+        self.splitter
+            .push(&self.rate_buf, &mut out.clean_dph, &mut out.noise_dph);
+        self.rate_levels
+            .push_masked(&self.rate_buf, &self.fill_rate);
         self.ramp.push_slice(&self.rate_buf);
         self.angle_buf.clear();
         for &r in &self.rate_buf {
             self.angle += r * self.tau0_s;
             self.angle_buf.push(self.angle);
         }
-        self.angle_levels.push_masked(&self.angle_buf, &self.fill_abs);
+        self.angle_levels
+            .push_masked(&self.angle_buf, &self.fill_abs);
         self.samples += self.rate_buf.len() as u64;
         self.feed_channels(n0, out);
     }
@@ -576,7 +643,13 @@ impl Pipeline {
         let angle_blocks = self.angle_levels.block_observations();
         let allan_obs: Vec<AllanObs> = raw_points
             .iter()
-            .map(|p| AllanObs { m: p.m, n_phase: self.n_phase(p), avar: p.avar, stride: p.stride, n_terms: p.n })
+            .map(|p| AllanObs {
+                m: p.m,
+                n_phase: self.n_phase(p),
+                avar: p.avar,
+                stride: p.stride,
+                n_terms: p.n,
+            })
             .collect();
         let input = EstimatorInput {
             tau0_s: self.tau0_s,
@@ -607,8 +680,15 @@ impl Pipeline {
         let conf = allan::DEFAULT_CONFIDENCE;
         let raw_points = self.raw_points();
         let est = self.estimate_from(&raw_points);
-        let adev: Vec<AdevPoint> =
-            raw_points.iter().filter(|p| p.n > 0).map(|p| AdevPoint { tau_s: p.tau_s, adev: p.dev, edf: p.edf }).collect();
+        let adev: Vec<AdevPoint> = raw_points
+            .iter()
+            .filter(|p| p.n > 0)
+            .map(|p| AdevPoint {
+                tau_s: p.tau_s,
+                adev: p.dev,
+                edf: p.edf,
+            })
+            .collect();
         Analysis {
             estimates: est.estimates,
             allan: AllanCurves {
@@ -625,13 +705,19 @@ impl Pipeline {
                 observations: est.fit.edf.len(),
             },
             readout_filter: est.readout_filter,
-            baselines: Baselines { graphical: baseline::graphical(&adev), wls_raw: baseline::wls_raw(&adev) },
+            baselines: Baselines {
+                graphical: baseline::graphical(&adev),
+                wls_raw: baseline::wls_raw(&adev),
+            },
         }
     }
 }
 
 fn to_points(p: &[StreamPoint]) -> Vec<AllanPoint> {
-    p.iter().filter(|p| p.n > 0 && p.avar.is_finite()).map(AllanPoint::from).collect()
+    p.iter()
+        .filter(|p| p.n > 0 && p.avar.is_finite())
+        .map(AllanPoint::from)
+        .collect()
 }
 
 #[cfg(test)]

@@ -26,7 +26,10 @@ pub const COEFFICIENTS: [(&str, &str, &str); 5] = [
 
 /// The unit of the coefficient `key` of [`COEFFICIENTS`].
 pub fn coefficient_unit(key: &str) -> Option<&'static str> {
-    COEFFICIENTS.iter().find(|(k, _, _)| *k == key).map(|(_, u, _)| *u)
+    COEFFICIENTS
+        .iter()
+        .find(|(k, _, _)| *k == key)
+        .map(|(_, u, _)| *u)
 }
 
 /// Arcseconds in one degree.
@@ -107,7 +110,9 @@ mod tests {
         assert!((dphh_to_arcsec_per_s2(3600.0) - 1.0).abs() < 1e-15);
         for x in [0.001, 0.37, 12.0] {
             assert!((arcsec_per_sqrt_s_to_dpsh(dpsh_to_arcsec_per_sqrt_s(x)) - x).abs() < 1e-15);
-            assert!((arcsec_per_s_sqrt_s_to_dphsh(dphsh_to_arcsec_per_s_sqrt_s(x)) - x).abs() < 1e-15);
+            assert!(
+                (arcsec_per_s_sqrt_s_to_dphsh(dphsh_to_arcsec_per_s_sqrt_s(x)) - x).abs() < 1e-15
+            );
             assert!((arcsec_per_s2_to_dphh(dphh_to_arcsec_per_s2(x)) - x).abs() < 1e-15);
         }
         // 1.21 arcsec pulses, 1 count per ms = 1210 arcsec/s = 1210 deg/h.

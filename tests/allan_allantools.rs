@@ -123,10 +123,23 @@ fn deviations_match_allantools() {
                 // our decade set is the 1-2-5 sequence (CLI contract); AllanTools' is 1-2-4.
                 // Same decades, same stop: compare the 1 and 2 members of each decade.
                 let ones_twos = |v: &[u64]| -> Vec<u64> {
-                    v.iter().copied().filter(|m| { let mut x = *m; while x % 10 == 0 { x /= 10; } x == 1 || x == 2 }).collect()
+                    v.iter()
+                        .copied()
+                        .filter(|m| {
+                            let mut x = *m;
+                            while x % 10 == 0 {
+                                x /= 10;
+                            }
+                            x == 1 || x == 2
+                        })
+                        .collect()
                 };
                 let (a, b) = (ones_twos(&ours), ones_twos(&theirs));
-                assert!(!a.is_empty() && a.len() <= b.len() && a[..] == b[..a.len()], "{} {stat} decade: {a:?} vs {b:?}", s.name);
+                assert!(
+                    !a.is_empty() && a.len() <= b.len() && a[..] == b[..a.len()],
+                    "{} {stat} decade: {a:?} vs {b:?}",
+                    s.name
+                );
                 continue;
             }
             assert!(

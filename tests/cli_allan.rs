@@ -369,7 +369,17 @@ fn bad_inputs_exit_2_naming_file_and_line() {
     // --column on a one-value-per-line text file is a mistake, not ignored
     fails_with(
         &[
-            "allan", "--input", p(&nan), "--format", "text", "--column", "x", "--data", "phase", "--tau0", "1",
+            "allan",
+            "--input",
+            p(&nan),
+            "--format",
+            "text",
+            "--column",
+            "x",
+            "--data",
+            "phase",
+            "--tau0",
+            "1",
         ],
         &["--column applies to CSV input only"],
     );
@@ -537,7 +547,15 @@ fn streaming_engine_equals_batch_oadev() {
     let counts: Vec<f64> = v.iter().map(|x| (x * 1e3).round()).collect();
     let counts = write(dir.path(), "counts.txt", text_of(&counts).as_bytes());
     for (file, kind) in [(&phase, "phase"), (&freq, "freq"), (&counts, "counts")] {
-        let base = ["allan", "--input", p(file), "--data", kind, "--tau0", "0.01"];
+        let base = [
+            "allan",
+            "--input",
+            p(file),
+            "--data",
+            kind,
+            "--tau0",
+            "0.01",
+        ];
         let (b, _) = run_json(&base, dir.path(), &format!("{kind}-batch"));
         let mut sa = base.to_vec();
         sa.extend_from_slice(&["--engine", "streaming"]);
@@ -545,13 +563,23 @@ fn streaming_engine_equals_batch_oadev() {
         let bp = b["points"].as_array().unwrap();
         let sp = st["points"].as_array().unwrap();
         assert_eq!(st["stat"], "oadev");
-        assert!(sp.len() >= bp.len() - 1 && !bp.is_empty(), "{kind}: {} vs {} points", sp.len(), bp.len());
+        assert!(
+            sp.len() >= bp.len() - 1 && !bp.is_empty(),
+            "{kind}: {} vs {} points",
+            sp.len(),
+            bp.len()
+        );
         for q in bp {
             let m = q["m"].as_u64().unwrap();
-            let Some(r) = sp.iter().find(|r| r["m"].as_u64() == Some(m)) else { continue };
+            let Some(r) = sp.iter().find(|r| r["m"].as_u64() == Some(m)) else {
+                continue;
+            };
             assert_eq!(q["n"], r["n"], "{kind} m={m}: term counts");
             let (x, y) = (q["dev"].as_f64().unwrap(), r["dev"].as_f64().unwrap());
-            assert!((x - y).abs() <= 1e-12 * x.abs(), "{kind} m={m}: batch {x} streaming {y}");
+            assert!(
+                (x - y).abs() <= 1e-12 * x.abs(),
+                "{kind} m={m}: batch {x} streaming {y}"
+            );
         }
     }
 }
@@ -562,22 +590,47 @@ fn both_engines_accept_the_same_inputs_and_taus() {
     // stop ratio): too few points is the same error, and the largest m agrees
     let dir = tempfile::tempdir().unwrap();
     for n in [3usize, 5] {
-        let few = write(dir.path(), &format!("few{n}.txt"), text_of(&samples(n)).as_bytes());
+        let few = write(
+            dir.path(),
+            &format!("few{n}.txt"),
+            text_of(&samples(n)).as_bytes(),
+        );
         for engine in ["batch", "streaming"] {
             fails_with(
-                &["allan", "--input", p(&few), "--data", "phase", "--tau0", "1", "--engine", engine],
+                &[
+                    "allan",
+                    "--input",
+                    p(&few),
+                    "--data",
+                    "phase",
+                    "--tau0",
+                    "1",
+                    "--engine",
+                    engine,
+                ],
                 &["phase points are too few (need at least 6)"],
             );
         }
     }
     for n in [6usize, 7, 100, 1000] {
-        let f = write(dir.path(), &format!("n{n}.txt"), text_of(&samples(n)).as_bytes());
+        let f = write(
+            dir.path(),
+            &format!("n{n}.txt"),
+            text_of(&samples(n)).as_bytes(),
+        );
         let base = ["allan", "--input", p(&f), "--data", "phase", "--tau0", "1"];
         let (b, _) = run_json(&base, dir.path(), &format!("b{n}"));
         let mut sa = base.to_vec();
         sa.extend_from_slice(&["--engine", "streaming"]);
         let (s, _) = run_json(&sa, dir.path(), &format!("s{n}"));
-        let ms = |j: &Value| -> Vec<u64> { j["points"].as_array().unwrap().iter().map(|q| q["m"].as_u64().unwrap()).collect() };
+        let ms = |j: &Value| -> Vec<u64> {
+            j["points"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|q| q["m"].as_u64().unwrap())
+                .collect()
+        };
         assert_eq!(ms(&b), ms(&s), "n = {n}");
     }
 }

@@ -6,7 +6,10 @@ use std::process::{Command, Output};
 use serde_json::Value;
 
 fn sagnac(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_sagnac")).args(args).output().unwrap()
+    Command::new(env!("CARGO_BIN_EXE_sagnac"))
+        .args(args)
+        .output()
+        .unwrap()
 }
 
 fn simulate(dir: &Path, seconds: &str) -> std::path::PathBuf {
@@ -18,16 +21,31 @@ fn simulate(dir: &Path, seconds: &str) -> std::path::PathBuf {
     )
     .unwrap();
     let csv = dir.join("run.csv");
-    let o = sagnac(&["simulate", "--model", model.to_str().unwrap(), "--duration-s", seconds, "--seed", "5", "--out", csv.to_str().unwrap()]);
+    let o = sagnac(&[
+        "simulate",
+        "--model",
+        model.to_str().unwrap(),
+        "--duration-s",
+        seconds,
+        "--seed",
+        "5",
+        "--out",
+        csv.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     csv
 }
 
 fn check_coefficient(c: &Value, name: &str) {
-    let obj = c.as_object().unwrap_or_else(|| panic!("{name} is not an object"));
+    let obj = c
+        .as_object()
+        .unwrap_or_else(|| panic!("{name} is not an object"));
     assert!(obj.contains_key("value"), "{name}: no value key");
     if c["value"].is_null() {
-        assert!(c["upper95"].as_f64().unwrap() >= 0.0, "{name}: null value needs upper95");
+        assert!(
+            c["upper95"].as_f64().unwrap() >= 0.0,
+            "{name}: null value needs upper95"
+        );
         assert!(!obj.contains_key("ci95"), "{name}");
     } else {
         let v = c["value"].as_f64().unwrap();
@@ -42,10 +60,26 @@ fn json_contract_and_values_on_a_simulated_run() {
     let dir = tempfile::tempdir().unwrap();
     let csv = simulate(dir.path(), "600");
     let out = dir.path().join("a.json");
-    let o = sagnac(&["analyze", "--input", csv.to_str().unwrap(), "--rate-hz", "1000", "--pulse-arcsec", "1.21", "--json", out.to_str().unwrap()]);
+    let o = sagnac(&[
+        "analyze",
+        "--input",
+        csv.to_str().unwrap(),
+        "--rate-hz",
+        "1000",
+        "--pulse-arcsec",
+        "1.21",
+        "--json",
+        out.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
-    for k in ["quantization_arcsec", "arw_dpsh", "bias_instability_dph", "rrw_dphsh", "rate_ramp_dphh"] {
+    for k in [
+        "quantization_arcsec",
+        "arw_dpsh",
+        "bias_instability_dph",
+        "rrw_dphsh",
+        "rate_ramp_dphh",
+    ] {
         check_coefficient(&v["estimates"][k], k);
     }
     // the JSON says its units and input settings
@@ -68,14 +102,27 @@ fn json_contract_and_values_on_a_simulated_run() {
         }
     }
     // truth: Q 0.35", N 0.0015 deg/sqrt(h); 10 minutes is enough for a few %
-    let q = v["estimates"]["quantization_arcsec"]["value"].as_f64().unwrap();
+    let q = v["estimates"]["quantization_arcsec"]["value"]
+        .as_f64()
+        .unwrap();
     let n = v["estimates"]["arw_dpsh"]["value"].as_f64().unwrap();
     assert!((q / 0.35 - 1.0).abs() < 0.01, "Q {q}");
     assert!((n / 0.0015 - 1.0).abs() < 0.1, "N {n}");
     // the readable table
-    let o = sagnac(&["analyze", "--input", csv.to_str().unwrap(), "--rate-hz", "1000", "--pulse-arcsec", "1.21"]);
+    let o = sagnac(&[
+        "analyze",
+        "--input",
+        csv.to_str().unwrap(),
+        "--rate-hz",
+        "1000",
+        "--pulse-arcsec",
+        "1.21",
+    ]);
     let text = String::from_utf8_lossy(&o.stdout);
-    assert!(o.status.success() && text.contains("angle random walk") && text.contains("clean ADEV"), "{text}");
+    assert!(
+        o.status.success() && text.contains("angle random walk") && text.contains("clean ADEV"),
+        "{text}"
+    );
 }
 
 #[test]
@@ -92,14 +139,34 @@ fn rate_columns_in_every_unit_give_the_same_estimates() {
     let mut text = String::from("dph,dps,rad_s,temp_c\n");
     for _ in 0..200_000 {
         let r = 30.0 + 400.0 * u();
-        text.push_str(&format!("{r},{},{},25.0\n", r / 3600.0, (r / 3600.0).to_radians()));
+        text.push_str(&format!(
+            "{r},{},{},25.0\n",
+            r / 3600.0,
+            (r / 3600.0).to_radians()
+        ));
     }
     let csv = dir.path().join("rates.csv");
     std::fs::write(&csv, text).unwrap();
     let mut n = Vec::new();
     for (col, unit) in [("dph", "dph"), ("dps", "dps"), ("rad_s", "rad_s")] {
-        let o = sagnac(&["analyze", "--input", csv.to_str().unwrap(), "--rate-hz", "100", "--column", col, "--unit", unit, "--json", "-"]);
-        assert!(o.status.success(), "{unit}: {}", String::from_utf8_lossy(&o.stderr));
+        let o = sagnac(&[
+            "analyze",
+            "--input",
+            csv.to_str().unwrap(),
+            "--rate-hz",
+            "100",
+            "--column",
+            col,
+            "--unit",
+            unit,
+            "--json",
+            "-",
+        ]);
+        assert!(
+            o.status.success(),
+            "{unit}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
         let v: Value = serde_json::from_slice(&o.stdout).unwrap();
         n.push(v["estimates"]["arw_dpsh"]["value"].as_f64().unwrap());
     }
@@ -116,9 +183,25 @@ fn bad_inputs_exit_2_with_a_clear_message() {
     let dir = tempfile::tempdir().unwrap();
     let csv = simulate(dir.path(), "5");
     let cases: Vec<(Vec<&str>, &str)> = vec![
-        (vec!["--column", "rate", "--rate-hz", "1000", "--pulse-arcsec", "1.21"], "no CSV column named \"rate\""),
-        (vec!["--rate-hz", "-5", "--pulse-arcsec", "1.21"], "--rate-hz"),
-        (vec!["--rate-hz", "1000", "--pulse-arcsec", "0"], "--pulse-arcsec"),
+        (
+            vec![
+                "--column",
+                "rate",
+                "--rate-hz",
+                "1000",
+                "--pulse-arcsec",
+                "1.21",
+            ],
+            "no CSV column named \"rate\"",
+        ),
+        (
+            vec!["--rate-hz", "-5", "--pulse-arcsec", "1.21"],
+            "--rate-hz",
+        ),
+        (
+            vec!["--rate-hz", "1000", "--pulse-arcsec", "0"],
+            "--pulse-arcsec",
+        ),
     ];
     for (extra, needle) in cases {
         let mut a = vec!["analyze", "--input", csv.to_str().unwrap(), "--json", "-"];
@@ -130,10 +213,23 @@ fn bad_inputs_exit_2_with_a_clear_message() {
     }
     let bad = dir.path().join("bad.csv");
     std::fs::write(&bad, "counts\n1\n2\nthree\n4\n").unwrap();
-    let o = sagnac(&["analyze", "--input", bad.to_str().unwrap(), "--rate-hz", "1000", "--pulse-arcsec", "1.21", "--json", "-"]);
+    let o = sagnac(&[
+        "analyze",
+        "--input",
+        bad.to_str().unwrap(),
+        "--rate-hz",
+        "1000",
+        "--pulse-arcsec",
+        "1.21",
+        "--json",
+        "-",
+    ]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
-    assert!(err.contains("bad.csv") && err.contains('4'), "must name the file and line: {err}");
+    assert!(
+        err.contains("bad.csv") && err.contains('4'),
+        "must name the file and line: {err}"
+    );
 }
 
 #[test]
@@ -145,20 +241,71 @@ fn json_to_a_failing_stdout_is_an_error_not_a_panic() {
     let bin = env!("CARGO_BIN_EXE_sagnac");
     let model = concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml");
     let sim = std::process::Command::new(bin)
-        .args(["simulate", "--model", model, "--duration-s", "3", "--seed", "2", "--format", "csv", "--out"])
+        .args([
+            "simulate",
+            "--model",
+            model,
+            "--duration-s",
+            "3",
+            "--seed",
+            "2",
+            "--format",
+            "csv",
+            "--out",
+        ])
         .arg(&csv)
         .output()
         .unwrap();
-    assert!(sim.status.success(), "{}", String::from_utf8_lossy(&sim.stderr));
-    let full = || std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+    assert!(
+        sim.status.success(),
+        "{}",
+        String::from_utf8_lossy(&sim.stderr)
+    );
+    let full = || {
+        std::fs::OpenOptions::new()
+            .write(true)
+            .open("/dev/full")
+            .unwrap()
+    };
     for args in [
-        vec!["analyze", "--input", csv.to_str().unwrap(), "--rate-hz", "1000", "--pulse-arcsec", "1.21", "--json", "-"],
-        vec!["allan", "--input", csv.to_str().unwrap(), "--format", "csv", "--data", "freq", "--tau0", "0.001", "--column", "counts", "--json", "-"],
+        vec![
+            "analyze",
+            "--input",
+            csv.to_str().unwrap(),
+            "--rate-hz",
+            "1000",
+            "--pulse-arcsec",
+            "1.21",
+            "--json",
+            "-",
+        ],
+        vec![
+            "allan",
+            "--input",
+            csv.to_str().unwrap(),
+            "--format",
+            "csv",
+            "--data",
+            "freq",
+            "--tau0",
+            "0.001",
+            "--column",
+            "counts",
+            "--json",
+            "-",
+        ],
     ] {
-        let r = std::process::Command::new(bin).args(&args).stdout(full()).output().unwrap();
+        let r = std::process::Command::new(bin)
+            .args(&args)
+            .stdout(full())
+            .output()
+            .unwrap();
         let err = String::from_utf8_lossy(&r.stderr);
         assert_eq!(r.status.code(), Some(2), "{args:?}: {err}");
-        assert!(err.contains("writing to standard output") && !err.contains("panicked"), "{args:?}: {err}");
+        assert!(
+            err.contains("writing to standard output") && !err.contains("panicked"),
+            "{args:?}: {err}"
+        );
     }
 }
 
@@ -168,7 +315,13 @@ fn damaged_inputs_are_reported_not_silently_dropped() {
     use sagnac::sink::messages::{Gap, RawBatch, SinkMessage};
     let dir = tempfile::tempdir().unwrap();
     let bin = env!("CARGO_BIN_EXE_sagnac");
-    let analyze = |args: &[&str]| Command::new(bin).arg("analyze").args(args).output().unwrap();
+    let analyze = |args: &[&str]| {
+        Command::new(bin)
+            .arg("analyze")
+            .args(args)
+            .output()
+            .unwrap()
+    };
     let cfg = RecorderConfig {
         record_dir: dir.path().to_path_buf(),
         flush_interval_s: 600.0,
@@ -197,34 +350,85 @@ fn damaged_inputs_are_reported_not_silently_dropped() {
     let cut = dir.path().join("cut.mcap");
     std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
     // (recorded without a metadata record: the rate from /gyro/raw, the pulse weight by flag)
-    let r = analyze(&["--format", "mcap", "--pulse-arcsec", "1.21", "--input", cut.to_str().unwrap()]);
+    let r = analyze(&[
+        "--format",
+        "mcap",
+        "--pulse-arcsec",
+        "1.21",
+        "--input",
+        cut.to_str().unwrap(),
+    ]);
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(r.status.success(), "{err}");
-    assert!(err.contains("warning: ") && err.contains("cut.mcap: unreadable from byte"), "{err}");
+    assert!(
+        err.contains("warning: ") && err.contains("cut.mcap: unreadable from byte"),
+        "{err}"
+    );
     // 2. A gap no running gyro could leave: an error, not a huge allocation.
     std::fs::remove_file(&full).unwrap();
     let rec = Recorder::start(&cfg).unwrap();
-    rec.send(batch(0, vec![Gap { index: 500, lost: 1 << 40 }])).unwrap();
+    rec.send(batch(
+        0,
+        vec![Gap {
+            index: 500,
+            lost: 1 << 40,
+        }],
+    ))
+    .unwrap();
     let huge = rec.finish().unwrap().path;
-    let r = analyze(&["--format", "mcap", "--pulse-arcsec", "1.21", "--input", huge.to_str().unwrap()]);
+    let r = analyze(&[
+        "--format",
+        "mcap",
+        "--pulse-arcsec",
+        "1.21",
+        "--input",
+        huge.to_str().unwrap(),
+    ]);
     let err = String::from_utf8_lossy(&r.stderr);
     assert_eq!(r.status.code(), Some(2), "{err}");
-    assert!(err.contains("gap of 1099511627776 lost samples") && !err.contains("panicked"), "{err}");
+    assert!(
+        err.contains("gap of 1099511627776 lost samples") && !err.contains("panicked"),
+        "{err}"
+    );
     // ... and the same error from diagnose, which reads the recording itself
     let model = concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml");
     let r = Command::new(bin)
-        .args(["diagnose", "--model", model, "--format", "mcap", "--json", "-", "--recording"])
+        .args([
+            "diagnose",
+            "--model",
+            model,
+            "--format",
+            "mcap",
+            "--json",
+            "-",
+            "--recording",
+        ])
         .arg(&huge)
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&r.stderr);
     assert_eq!(r.status.code(), Some(2), "{err}");
-    assert!(err.contains("gap of 1099511627776 lost samples") && !err.contains("panicked"), "{err}");
+    assert!(
+        err.contains("gap of 1099511627776 lost samples") && !err.contains("panicked"),
+        "{err}"
+    );
     // 3. A frame capture with lost frames: the decoder's counts on stderr.
     let cap = dir.path().join("cap.bin");
     let sim = Command::new(bin)
-        .args(["simulate", "--model", concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml")])
-        .args(["--duration-s", "2", "--seed", "4", "--format", "frames", "--out"])
+        .args([
+            "simulate",
+            "--model",
+            concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml"),
+        ])
+        .args([
+            "--duration-s",
+            "2",
+            "--seed",
+            "4",
+            "--format",
+            "frames",
+            "--out",
+        ])
         .arg(&cap)
         .output()
         .unwrap();
@@ -232,7 +436,16 @@ fn damaged_inputs_are_reported_not_silently_dropped() {
     let mut frames = std::fs::read(&cap).unwrap();
     frames.drain(16 * 100..16 * 103); // three frames lost
     std::fs::write(&cap, &frames).unwrap();
-    let r = analyze(&["--format", "frames", "--rate-hz", "1000", "--pulse-arcsec", "1.21", "--input", cap.to_str().unwrap()]);
+    let r = analyze(&[
+        "--format",
+        "frames",
+        "--rate-hz",
+        "1000",
+        "--pulse-arcsec",
+        "1.21",
+        "--input",
+        cap.to_str().unwrap(),
+    ]);
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(r.status.success(), "{err}");
     assert!(err.contains("3 samples lost in 1 gaps"), "{err}");
@@ -250,12 +463,35 @@ fn a_constant_recording_finds_nothing_and_says_why() {
         text.push_str("3\n");
     }
     std::fs::write(&csv, text).unwrap();
-    let out = sagnac(&["analyze", "--input", csv.to_str().unwrap(), "--rate-hz", "1000", "--pulse-arcsec", "1.21", "--json", "-"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = sagnac(&[
+        "analyze",
+        "--input",
+        csv.to_str().unwrap(),
+        "--rate-hz",
+        "1000",
+        "--pulse-arcsec",
+        "1.21",
+        "--json",
+        "-",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("stuck.csv") && err.contains("stuck counter"), "{err}");
+    assert!(
+        err.contains("stuck.csv") && err.contains("stuck counter"),
+        "{err}"
+    );
     let v: Value = serde_json::from_slice(&out.stdout).unwrap();
-    for name in ["quantization_arcsec", "arw_dpsh", "bias_instability_dph", "rrw_dphsh", "rate_ramp_dphh"] {
+    for name in [
+        "quantization_arcsec",
+        "arw_dpsh",
+        "bias_instability_dph",
+        "rrw_dphsh",
+        "rate_ramp_dphh",
+    ] {
         let c = &v["estimates"][name];
         assert!(c["value"].is_null(), "{name}: {c}");
         assert_eq!(c["upper95"].as_f64(), Some(0.0), "{name}: {c}");
@@ -268,10 +504,21 @@ fn column_is_refused_for_frame_and_mcap_input() {
     let bin = d.path().join("cap.bin");
     std::fs::write(&bin, [0u8; 32]).unwrap();
     for format in ["frames", "mcap"] {
-        let out = sagnac(&["analyze", "--input", bin.to_str().unwrap(), "--format", format, "--column", "counts"]);
+        let out = sagnac(&[
+            "analyze",
+            "--input",
+            bin.to_str().unwrap(),
+            "--format",
+            format,
+            "--column",
+            "counts",
+        ]);
         assert_eq!(out.status.code(), Some(2), "{format}");
         let err = String::from_utf8_lossy(&out.stderr);
-        assert!(err.contains("--column applies to CSV input only"), "{format}: {err}");
+        assert!(
+            err.contains("--column applies to CSV input only"),
+            "{format}: {err}"
+        );
     }
 }
 
@@ -285,24 +532,66 @@ fn issue_13_csv_and_frames_need_the_rate_and_pulse_flags() {
     let c = csv.to_str().unwrap();
     let cap = dir.path().join("cap.bin");
     let model = dir.path().join("m.toml");
-    let o = sagnac(&["simulate", "--model", model.to_str().unwrap(), "--duration-s", "2", "--seed", "1", "--format", "frames", "--out", cap.to_str().unwrap()]);
+    let o = sagnac(&[
+        "simulate",
+        "--model",
+        model.to_str().unwrap(),
+        "--duration-s",
+        "2",
+        "--seed",
+        "1",
+        "--format",
+        "frames",
+        "--out",
+        cap.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let b = cap.to_str().unwrap();
     let cases: Vec<(Vec<&str>, String)> = vec![
-        (vec!["--input", c, "--pulse-arcsec", "1.21"], format!("--rate-hz is required: {c} carries no sample rate")),
-        (vec!["--input", c, "--rate-hz", "1000"], format!("--pulse-arcsec is required: {c} carries no pulse weight")),
+        (
+            vec!["--input", c, "--pulse-arcsec", "1.21"],
+            format!("--rate-hz is required: {c} carries no sample rate"),
+        ),
+        (
+            vec!["--input", c, "--rate-hz", "1000"],
+            format!("--pulse-arcsec is required: {c} carries no pulse weight"),
+        ),
         (vec!["--input", c], "--rate-hz is required".to_string()),
-        (vec!["--format", "frames", "--input", b, "--pulse-arcsec", "1.21"], format!("--rate-hz is required: {b} carries no sample rate")),
-        (vec!["--format", "frames", "--input", b, "--rate-hz", "1000"], format!("--pulse-arcsec is required: {b} carries no pulse weight")),
+        (
+            vec!["--format", "frames", "--input", b, "--pulse-arcsec", "1.21"],
+            format!("--rate-hz is required: {b} carries no sample rate"),
+        ),
+        (
+            vec!["--format", "frames", "--input", b, "--rate-hz", "1000"],
+            format!("--pulse-arcsec is required: {b} carries no pulse weight"),
+        ),
     ];
     for (args, needle) in cases {
-        let o = Command::new(env!("CARGO_BIN_EXE_sagnac")).arg("analyze").args(&args).args(["--json", "-"]).output().unwrap();
+        let o = Command::new(env!("CARGO_BIN_EXE_sagnac"))
+            .arg("analyze")
+            .args(&args)
+            .args(["--json", "-"])
+            .output()
+            .unwrap();
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
-        assert!(err.contains(&needle) && !err.contains("panicked"), "{args:?}: {err}");
+        assert!(
+            err.contains(&needle) && !err.contains("panicked"),
+            "{args:?}: {err}"
+        );
     }
     // a rate column needs no pulse weight
-    let o = sagnac(&["analyze", "--input", c, "--rate-hz", "1000", "--unit", "dph", "--json", "-"]);
+    let o = sagnac(&[
+        "analyze",
+        "--input",
+        c,
+        "--rate-hz",
+        "1000",
+        "--unit",
+        "dph",
+        "--json",
+        "-",
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
 
@@ -322,40 +611,99 @@ fn issue_13_an_mcap_recording_carries_its_rate_and_pulse_weight() {
     .unwrap();
     let mcap = dir.path().join("sim.mcap");
     let m = mcap.to_str().unwrap();
-    let o = sagnac(&["simulate", "--model", model.to_str().unwrap(), "--duration-s", "120", "--seed", "3", "--format", "mcap", "--out", m]);
+    let o = sagnac(&[
+        "simulate",
+        "--model",
+        model.to_str().unwrap(),
+        "--duration-s",
+        "120",
+        "--seed",
+        "3",
+        "--format",
+        "mcap",
+        "--out",
+        m,
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     // the metadata record, as the library reads it
-    let meta = sagnac::sink::reader::read_metadata(&mcap).unwrap().expect("a sagnac metadata record");
+    let meta = sagnac::sink::reader::read_metadata(&mcap)
+        .unwrap()
+        .expect("a sagnac metadata record");
     assert_eq!((meta.sample_rate_hz, meta.pulse_arcsec), (400.0, Some(0.9)));
-    assert_eq!(meta.model.as_deref(), Some(std::fs::read_to_string(&model).unwrap().as_str()));
+    assert_eq!(
+        meta.model.as_deref(),
+        Some(std::fs::read_to_string(&model).unwrap().as_str())
+    );
     assert_eq!(meta.sagnac_version, env!("CARGO_PKG_VERSION"));
 
     let bare = sagnac(&["analyze", "--format", "mcap", "--input", m, "--json", "-"]);
-    assert!(bare.status.success(), "{}", String::from_utf8_lossy(&bare.stderr));
+    assert!(
+        bare.status.success(),
+        "{}",
+        String::from_utf8_lossy(&bare.stderr)
+    );
     let v: Value = serde_json::from_slice(&bare.stdout).unwrap();
     assert_eq!(v["samples"], 48_000);
-    assert!((v["duration_s"].as_f64().unwrap() - 120.0).abs() < 1e-9, "{}", v["duration_s"]);
+    assert!(
+        (v["duration_s"].as_f64().unwrap() - 120.0).abs() < 1e-9,
+        "{}",
+        v["duration_s"]
+    );
     // truth Q 0.26" (a pulse weight of 1.21" would scale it to 0.35")
-    let q = v["estimates"]["quantization_arcsec"]["value"].as_f64().unwrap();
+    let q = v["estimates"]["quantization_arcsec"]["value"]
+        .as_f64()
+        .unwrap();
     assert!((q / 0.26 - 1.0).abs() < 0.03, "Q {q}");
-    let flagged = sagnac(&["analyze", "--format", "mcap", "--input", m, "--rate-hz", "400", "--pulse-arcsec", "0.9", "--json", "-"]);
-    assert!(flagged.status.success(), "{}", String::from_utf8_lossy(&flagged.stderr));
+    let flagged = sagnac(&[
+        "analyze",
+        "--format",
+        "mcap",
+        "--input",
+        m,
+        "--rate-hz",
+        "400",
+        "--pulse-arcsec",
+        "0.9",
+        "--json",
+        "-",
+    ]);
+    assert!(
+        flagged.status.success(),
+        "{}",
+        String::from_utf8_lossy(&flagged.stderr)
+    );
     // the same numbers; `input` says where the rate and pulse weight came from
     let mut f: Value = serde_json::from_slice(&flagged.stdout).unwrap();
     let mut b = v.clone();
-    for (j, origin) in [(&mut b, "from the recording"), (&mut f, "given on the command line (checked against the recording)")] {
+    for (j, origin) in [
+        (&mut b, "from the recording"),
+        (
+            &mut f,
+            "given on the command line (checked against the recording)",
+        ),
+    ] {
         assert_eq!(j["input"]["origin"], origin);
-        assert_eq!((&j["input"]["sample_rate_hz"], &j["input"]["pulse_arcsec"]), (&Value::from(400.0), &Value::from(0.9)));
+        assert_eq!(
+            (&j["input"]["sample_rate_hz"], &j["input"]["pulse_arcsec"]),
+            (&Value::from(400.0), &Value::from(0.9))
+        );
         assert_eq!(j["input"]["format"], "mcap");
         j["input"].as_object_mut().unwrap().remove("origin");
     }
     assert_eq!(b, f, "the metadata's values are the flags' values");
 
-    for (flag, value, recorded) in [("--rate-hz", "1000", "400"), ("--pulse-arcsec", "1.21", "0.9")] {
-        let o = sagnac(&["analyze", "--format", "mcap", "--input", m, flag, value, "--json", "-"]);
+    for (flag, value, recorded) in [
+        ("--rate-hz", "1000", "400"),
+        ("--pulse-arcsec", "1.21", "0.9"),
+    ] {
+        let o = sagnac(&[
+            "analyze", "--format", "mcap", "--input", m, flag, value, "--json", "-",
+        ]);
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(2), "{flag}: {err}");
-        let want = format!("{flag} {value} contradicts {m}: the recording says {recorded} in its sagnac metadata record");
+        let want = format!(
+            "{flag} {value} contradicts {m}: the recording says {recorded} in its sagnac metadata record"
+        );
         assert!(err.contains(&want), "{flag}: {err}");
     }
 }
@@ -367,7 +715,11 @@ fn issue_13_an_mcap_recording_without_metadata_needs_the_pulse_flag() {
     use sagnac::sink::mcap::{Recorder, RecorderConfig};
     use sagnac::sink::messages::{RawBatch, SinkMessage};
     let dir = tempfile::tempdir().unwrap();
-    let rec = Recorder::start(&RecorderConfig { record_dir: dir.path().to_path_buf(), ..RecorderConfig::default() }).unwrap();
+    let rec = Recorder::start(&RecorderConfig {
+        record_dir: dir.path().to_path_buf(),
+        ..RecorderConfig::default()
+    })
+    .unwrap();
     for k in 0..60u64 {
         rec.send(SinkMessage::Raw(RawBatch {
             t0_ns: k * 1_000_000_000,
@@ -386,13 +738,48 @@ fn issue_13_an_mcap_recording_without_metadata_needs_the_pulse_flag() {
     let o = sagnac(&["analyze", "--format", "mcap", "--input", p, "--json", "-"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
-    assert!(err.contains(&format!("--pulse-arcsec is required: {p} carries no pulse weight")), "{err}");
-    let o = sagnac(&["analyze", "--format", "mcap", "--input", p, "--pulse-arcsec", "1.21", "--json", "-"]);
+    assert!(
+        err.contains(&format!(
+            "--pulse-arcsec is required: {p} carries no pulse weight"
+        )),
+        "{err}"
+    );
+    let o = sagnac(&[
+        "analyze",
+        "--format",
+        "mcap",
+        "--input",
+        p,
+        "--pulse-arcsec",
+        "1.21",
+        "--json",
+        "-",
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: Value = serde_json::from_slice(&o.stdout).unwrap();
-    assert!((v["duration_s"].as_f64().unwrap() - 60.0).abs() < 1e-9, "200 Hz from dt_ns: {}", v["duration_s"]);
-    let o = sagnac(&["analyze", "--format", "mcap", "--input", p, "--pulse-arcsec", "1.21", "--rate-hz", "1000", "--json", "-"]);
+    assert!(
+        (v["duration_s"].as_f64().unwrap() - 60.0).abs() < 1e-9,
+        "200 Hz from dt_ns: {}",
+        v["duration_s"]
+    );
+    let o = sagnac(&[
+        "analyze",
+        "--format",
+        "mcap",
+        "--input",
+        p,
+        "--pulse-arcsec",
+        "1.21",
+        "--rate-hz",
+        "1000",
+        "--json",
+        "-",
+    ]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
-    assert!(err.contains("--rate-hz 1000 contradicts") && err.contains("says 200 as the sample period of /gyro/raw"), "{err}");
+    assert!(
+        err.contains("--rate-hz 1000 contradicts")
+            && err.contains("says 200 as the sample period of /gyro/raw"),
+        "{err}"
+    );
 }

@@ -194,7 +194,14 @@ fn matched_mcap_and_frame_recordings_are_consistent_and_json_goes_to_stdout() {
         check_contract(&j);
         // the input settings used: the recording's own (its metadata record, the same as the model's here)
         let input = &j["input"];
-        assert_eq!((input["format"].as_str(), input["sample_rate_hz"].as_f64(), input["pulse_arcsec"].as_f64()), (Some(format), Some(500.0), Some(1.21)));
+        assert_eq!(
+            (
+                input["format"].as_str(),
+                input["sample_rate_hz"].as_f64(),
+                input["pulse_arcsec"].as_f64()
+            ),
+            (Some(format), Some(500.0), Some(1.21))
+        );
         assert_eq!(input["model"].as_str(), p.join("model.toml").to_str());
         assert_eq!(input["path"].as_str(), p.join(file).to_str());
         assert_eq!(j["verdict"], "consistent", "{format}: {j:#}");
@@ -242,7 +249,10 @@ fn bad_inputs_give_clear_errors() {
     run(&[&p.join("bad.toml"), &p.join("short.csv"), &j], "model");
     // unusable output paths are refused before the diagnosis runs
     run(&[&m, &p.join("short.csv"), p], "is a directory");
-    run(&[&m, &p.join("short.csv"), &p.join("no/such/o.json")], "is not an existing directory");
+    run(
+        &[&m, &p.join("short.csv"), &p.join("no/such/o.json")],
+        "is not an existing directory",
+    );
     assert!(!j.exists());
 }
 
@@ -256,7 +266,11 @@ fn a_model_is_written_only_when_it_fits_better() {
     let paper = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/paper_gyro.toml");
     simulate(&paper, &csv, "csv", "10", "1");
     let model = dir.path().join("g.toml");
-    std::fs::write(&model, "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 1.21\n").unwrap();
+    std::fs::write(
+        &model,
+        "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 1.21\n",
+    )
+    .unwrap();
     let (json, new) = (dir.path().join("out.json"), dir.path().join("new.toml"));
     let r = bin()
         .arg("diagnose")
@@ -270,16 +284,26 @@ fn a_model_is_written_only_when_it_fits_better() {
         .arg(&new)
         .output()
         .unwrap();
-    let (out, err) = (String::from_utf8_lossy(&r.stdout), String::from_utf8_lossy(&r.stderr));
+    let (out, err) = (
+        String::from_utf8_lossy(&r.stdout),
+        String::from_utf8_lossy(&r.stderr),
+    );
     assert!(r.status.success(), "{err}");
     let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
     let before = v["fit_before"]["chi2_per_dof"].as_f64().unwrap();
     let after = v["fit_after"]["chi2_per_dof"].as_f64().unwrap();
     // (an update whose chi2/dof rises but stays acceptable, <= 1.5, is still offered)
     let withheld = after > before && after > 1.5;
-    assert_eq!(new.exists(), !withheld, "chi2/dof {before} -> {after}; stdout {out}; stderr {err}");
+    assert_eq!(
+        new.exists(),
+        !withheld,
+        "chi2/dof {before} -> {after}; stdout {out}; stderr {err}"
+    );
     if withheld {
-        assert!(out.contains("fits worse than the original") && err.contains("no model written"), "{out}\n{err}");
+        assert!(
+            out.contains("fits worse than the original") && err.contains("no model written"),
+            "{out}\n{err}"
+        );
     }
 }
 
@@ -293,14 +317,22 @@ fn a_constant_recording_is_refused_not_called_consistent() {
     }
     std::fs::write(&csv, text).unwrap();
     let r = bin()
-        .args(["diagnose", "--model", concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml"), "--recording"])
+        .args([
+            "diagnose",
+            "--model",
+            concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml"),
+            "--recording",
+        ])
         .arg(&csv)
         .args(["--json", "-"])
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&r.stderr);
     assert_eq!(r.status.code(), Some(2), "{err}");
-    assert!(err.contains("dead.csv: all 20000 increments are 0") && !err.contains("panicked"), "{err}");
+    assert!(
+        err.contains("dead.csv: all 20000 increments are 0") && !err.contains("panicked"),
+        "{err}"
+    );
 }
 
 /// A recording whose sample rate (from the MCAP's dt_ns) differs from the
@@ -312,7 +344,13 @@ fn a_recording_at_another_rate_is_noted_and_the_written_model_has_its_rate() {
     let p = dir.path();
     std::fs::write(p.join("model.toml"), MODEL.replace("500.0", "100.0")).unwrap();
     std::fs::write(p.join("truth.toml"), TRUTH).unwrap();
-    simulate(&p.join("truth.toml"), &p.join("rec.mcap"), "mcap", "300", "8");
+    simulate(
+        &p.join("truth.toml"),
+        &p.join("rec.mcap"),
+        "mcap",
+        "300",
+        "8",
+    );
     let out = diagnose(p, "rec.mcap", "mcap")
         .arg("--write-model")
         .arg(p.join("new.toml"))
@@ -353,10 +391,19 @@ fn the_report_alone_suffices_and_the_figure_states_verdict_and_findings() {
         .output()
         .unwrap();
     ok(&out);
-    assert!(String::from_utf8_lossy(&out.stdout).starts_with("verdict: Mismatch"), "{out:?}");
+    assert!(
+        String::from_utf8_lossy(&out.stdout).starts_with("verdict: Mismatch"),
+        "{out:?}"
+    );
     let svg = std::fs::read_to_string(p.join("out.svg")).unwrap();
-    assert!(svg.contains("Verdict: mismatch. The recording departs from the model at tau"), "no verdict sentence");
-    assert!(svg.contains("Added: gauss_markov: sigma_dph"), "no finding on the figure");
+    assert!(
+        svg.contains("Verdict: mismatch. The recording departs from the model at tau"),
+        "no verdict sentence"
+    );
+    assert!(
+        svg.contains("Added: gauss_markov: sigma_dph"),
+        "no finding on the figure"
+    );
     assert!(svg.contains("with the updated model"), "no chi2/dof after");
     // one legend per panel, drawn above the plotting area: each legend's
     // "recording" label sits higher than every data point of its panel's row
@@ -370,7 +417,11 @@ fn the_report_alone_suffices_and_the_figure_states_verdict_and_findings() {
             Some((y, rest.split("</text>").next()?.trim().to_string()))
         })
         .collect();
-    let mut legend_y: Vec<f64> = texts.iter().filter(|t| t.1 == "recording").map(|t| t.0).collect();
+    let mut legend_y: Vec<f64> = texts
+        .iter()
+        .filter(|t| t.1 == "recording")
+        .map(|t| t.0)
+        .collect();
     assert_eq!(legend_y.len(), 4, "one legend per panel");
     legend_y.sort_by(f64::total_cmp);
     let (top, bottom) = (legend_y[0], legend_y[3]);
@@ -384,7 +435,10 @@ fn the_report_alone_suffices_and_the_figure_states_verdict_and_findings() {
     assert!(circles.len() > 20, "{} data points", circles.len());
     for cy in circles {
         let row_legend = if cy < bottom - 5.0 { top } else { bottom };
-        assert!(cy > row_legend + 10.0, "a data point at y {cy} is not below its legend at y {row_legend}");
+        assert!(
+            cy > row_legend + 10.0,
+            "a data point at y {cy} is not below its legend at y {row_legend}"
+        );
     }
     fails_with(
         &[
@@ -407,33 +461,64 @@ fn a_rate_column_is_read_with_column_and_unit_and_its_filter_named() {
     std::fs::write(dir.path().join("model.toml"), RATE_MODEL).unwrap();
     let truth = format!("{RATE_MODEL}[readout_filter]\nkind = \"first_order\"\ncorner_hz = 20.0\n");
     std::fs::write(dir.path().join("truth.toml"), truth).unwrap();
-    simulate(&dir.path().join("truth.toml"), &dir.path().join("sim.csv"), "csv", "300", "5");
+    simulate(
+        &dir.path().join("truth.toml"),
+        &dir.path().join("sim.csv"),
+        "csv",
+        "300",
+        "5",
+    );
     // the column under another name, as a real recording has it
     let text = std::fs::read_to_string(dir.path().join("sim.csv")).unwrap();
     assert!(text.starts_with("rate_dps\n"), "{}", &text[..40]);
-    std::fs::write(dir.path().join("rec.csv"), text.replacen("rate_dps", "gyro_x_dps", 1)).unwrap();
+    std::fs::write(
+        dir.path().join("rec.csv"),
+        text.replacen("rate_dps", "gyro_x_dps", 1),
+    )
+    .unwrap();
     let mut c = diagnose(dir.path(), "rec.csv", "csv");
-    c.args(["--column", "gyro_x_dps", "--unit", "dps", "--write-model"]).arg(dir.path().join("new.toml"));
+    c.args(["--column", "gyro_x_dps", "--unit", "dps", "--write-model"])
+        .arg(dir.path().join("new.toml"));
     ok(&c.output().unwrap());
-    let j: Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("out.json")).unwrap()).unwrap();
+    let j: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("out.json")).unwrap())
+            .unwrap();
     check_contract(&j);
     assert_eq!(j["verdict"], "mismatch");
     assert_eq!(j["input"]["column"], "gyro_x_dps");
     assert_eq!(j["input"]["unit"], "dps");
     assert_eq!(num(&j["input"]["rate_lsb_dps"]), 0.01);
-    let f = j["added_terms"].as_array().unwrap().iter().find(|a| a["term"] == "readout_filter").expect("readout_filter");
+    let f = j["added_terms"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|a| a["term"] == "readout_filter")
+        .expect("readout_filter");
     assert_eq!(f["params"]["kind"], "first_order");
     let ci = f["ci95"]["corner_hz"].as_array().unwrap();
-    assert!(num(&ci[0]) <= 20.0 && 20.0 <= num(&ci[1]), "truth 20 Hz outside {ci:?}");
+    assert!(
+        num(&ci[0]) <= 20.0 && 20.0 <= num(&ci[1]),
+        "truth 20 Hz outside {ci:?}"
+    );
     let written = std::fs::read_to_string(dir.path().join("new.toml")).unwrap();
-    assert!(written.contains("[readout_filter]") && written.contains("first_order"), "{written}");
+    assert!(
+        written.contains("[readout_filter]") && written.contains("first_order"),
+        "{written}"
+    );
     sagnac::model::GyroModel::from_toml_str(&written, "written").unwrap();
     // the wrong kind of recording for the model, either way, is a clear error
     let model = dir.path().join("model.toml");
     let rec = dir.path().join("rec.csv");
     let out = dir.path().join("x.json");
     fails_with(
-        &["--model".as_ref(), model.as_os_str(), "--recording".as_ref(), rec.as_os_str(), "--json".as_ref(), out.as_os_str()],
+        &[
+            "--model".as_ref(),
+            model.as_os_str(),
+            "--recording".as_ref(),
+            rec.as_os_str(),
+            "--json".as_ref(),
+            out.as_os_str(),
+        ],
         "--column NAME --unit dps|dph|rad_s",
     );
     std::fs::write(dir.path().join("counts.toml"), MODEL).unwrap();
@@ -459,5 +544,8 @@ fn a_rate_column_is_read_with_column_and_unit_and_its_filter_named() {
     let o = c.output().unwrap();
     assert_eq!(o.status.code(), Some(2));
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("gyro_q_dps") && err.contains("rec.csv"), "{err}");
+    assert!(
+        err.contains("gyro_q_dps") && err.contains("rec.csv"),
+        "{err}"
+    );
 }

@@ -140,7 +140,18 @@ fn mcap_output_only_replaces_a_regular_file_in_an_existing_directory() {
     let model = concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml");
     let sim = |out: &std::path::Path| {
         std::process::Command::new(bin)
-            .args(["simulate", "--model", model, "--duration-s", "1", "--seed", "1", "--format", "mcap", "--out"])
+            .args([
+                "simulate",
+                "--model",
+                model,
+                "--duration-s",
+                "1",
+                "--seed",
+                "1",
+                "--format",
+                "mcap",
+                "--out",
+            ])
             .arg(out)
             .output()
             .unwrap()
@@ -155,12 +166,20 @@ fn mcap_output_only_replaces_a_regular_file_in_an_existing_directory() {
     let r = sim(&link);
     assert_eq!(r.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&r.stderr).contains("not a regular file"));
-    assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink(), "the link is left alone");
+    assert!(
+        std::fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink(),
+        "the link is left alone"
+    );
     let ok = dir.path().join("ok.mcap");
     assert!(sim(&ok).status.success());
     // nothing left behind but the outputs
-    let mut names: Vec<String> =
-        std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    let mut names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
     names.sort();
     assert_eq!(names, ["link.mcap", "ok.mcap"]);
 }
@@ -179,10 +198,25 @@ fn triad_frames_carry_each_axis_csv_stream() {
         std::fs::write(&m, format!("[gyro]\nsample_rate_hz = 500.0\npulse_weight_arcsec = 1.21\ninput_rate_dph = {}\n[noise]\narw_dpsh = {arw}\n", 10.0 * k as f64)).unwrap();
         models.push(m);
     }
-    let list = models.iter().map(|m| m.to_str().unwrap()).collect::<Vec<_>>().join(",");
+    let list = models
+        .iter()
+        .map(|m| m.to_str().unwrap())
+        .collect::<Vec<_>>()
+        .join(",");
     let out = dir.path().join("triad.bin");
     let r = bin()
-        .args(["simulate", "--model", &list, "--duration-s", "3", "--seed", "11", "--format", "triad-frames", "--out"])
+        .args([
+            "simulate",
+            "--model",
+            &list,
+            "--duration-s",
+            "3",
+            "--seed",
+            "11",
+            "--format",
+            "triad-frames",
+            "--out",
+        ])
         .arg(&out)
         .output()
         .unwrap();
@@ -190,28 +224,101 @@ fn triad_frames_carry_each_axis_csv_stream() {
     let bytes = std::fs::read(&out).unwrap();
     assert_eq!(bytes.len(), (1500 + 1) * 24);
     let (items, st) = FrameDecoder::<Triad>::decode_all_wire(&bytes, DecoderConfig::default());
-    assert_eq!((st.bytes_skipped, st.crc_errors, st.lost_samples), (0, 0, 0));
-    let incs: Vec<[i64; 3]> =
-        items.iter().filter_map(|d| if let Decoded::Sample(s) = d { Some(s.increment) } else { None }).collect();
+    assert_eq!(
+        (st.bytes_skipped, st.crc_errors, st.lost_samples),
+        (0, 0, 0)
+    );
+    let incs: Vec<[i64; 3]> = items
+        .iter()
+        .filter_map(|d| {
+            if let Decoded::Sample(s) = d {
+                Some(s.increment)
+            } else {
+                None
+            }
+        })
+        .collect();
     for (k, m) in models.iter().enumerate() {
         let csv = dir.path().join(format!("axis{k}.csv"));
         let r = simulate(m, "3", &(11 + k).to_string(), &csv, &[]);
         assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-        let want: Vec<i64> =
-            std::fs::read_to_string(&csv).unwrap().lines().skip(1).map(|l| l.parse().unwrap()).collect();
+        let want: Vec<i64> = std::fs::read_to_string(&csv)
+            .unwrap()
+            .lines()
+            .skip(1)
+            .map(|l| l.parse().unwrap())
+            .collect();
         let got: Vec<i64> = incs.iter().map(|i| i[k]).collect();
         assert_eq!(got, want, "axis {k}");
     }
     // errors: two models; a model with another rate; three models without triad-frames
     let two = format!("{},{}", models[0].display(), models[1].display());
-    let r = bin().args(["simulate", "--model", &two, "--duration-s", "1", "--seed", "1", "--format", "triad-frames", "--out"]).arg(&out).output().unwrap();
+    let r = bin()
+        .args([
+            "simulate",
+            "--model",
+            &two,
+            "--duration-s",
+            "1",
+            "--seed",
+            "1",
+            "--format",
+            "triad-frames",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
     let err = String::from_utf8_lossy(&r.stderr);
-    assert!(r.status.code() == Some(2) && err.contains("three models") && err.contains("got 2"), "{err}");
-    std::fs::write(&models[2], "[gyro]\nsample_rate_hz = 400.0\npulse_weight_arcsec = 1.21\n").unwrap();
-    let r = bin().args(["simulate", "--model", &list, "--duration-s", "1", "--seed", "1", "--format", "triad-frames", "--out"]).arg(&out).output().unwrap();
+    assert!(
+        r.status.code() == Some(2) && err.contains("three models") && err.contains("got 2"),
+        "{err}"
+    );
+    std::fs::write(
+        &models[2],
+        "[gyro]\nsample_rate_hz = 400.0\npulse_weight_arcsec = 1.21\n",
+    )
+    .unwrap();
+    let r = bin()
+        .args([
+            "simulate",
+            "--model",
+            &list,
+            "--duration-s",
+            "1",
+            "--seed",
+            "1",
+            "--format",
+            "triad-frames",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
     let err = String::from_utf8_lossy(&r.stderr);
-    assert!(r.status.code() == Some(2) && err.contains("m2.toml") && err.contains("sample clock"), "{err}");
-    let r = bin().args(["simulate", "--model", &list, "--duration-s", "1", "--seed", "1", "--format", "frames", "--out"]).arg(&out).output().unwrap();
+    assert!(
+        r.status.code() == Some(2) && err.contains("m2.toml") && err.contains("sample clock"),
+        "{err}"
+    );
+    let r = bin()
+        .args([
+            "simulate",
+            "--model",
+            &list,
+            "--duration-s",
+            "1",
+            "--seed",
+            "1",
+            "--format",
+            "frames",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
     let err = String::from_utf8_lossy(&r.stderr);
-    assert!(r.status.code() == Some(2) && err.contains("one model file"), "{err}");
+    assert!(
+        r.status.code() == Some(2) && err.contains("one model file"),
+        "{err}"
+    );
 }

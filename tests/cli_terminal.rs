@@ -45,7 +45,10 @@ sys.exit(p.returncode)
         .env("SAGNAC_PROGRESS_DELAY_S", "0")
         .output()
         .expect("python3");
-    (String::from_utf8_lossy(&out.stdout).into_owned(), out.status.code().unwrap_or(-1))
+    (
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        out.status.code().unwrap_or(-1),
+    )
 }
 
 /// `Q <coefficient> arcsec` and `N <coefficient> deg/sqrt(h)` of a status line,
@@ -56,9 +59,15 @@ fn fixed_notation(line: &str) -> bool {
         let b = a + line[a..].find(to)?;
         Some(line[a..b].to_string())
     };
-    [part("| Q ", " arcsec"), part("| N ", " deg/sqrt(h)")].iter().all(|p| {
-        p.as_ref().is_some_and(|t| !t.is_empty() && t.chars().all(|c| c.is_ascii_digit() || " .,[]<".contains(c)))
-    })
+    [part("| Q ", " arcsec"), part("| N ", " deg/sqrt(h)")]
+        .iter()
+        .all(|p| {
+            p.as_ref().is_some_and(|t| {
+                !t.is_empty()
+                    && t.chars()
+                        .all(|c| c.is_ascii_digit() || " .,[]<".contains(c))
+            })
+        })
 }
 
 #[test]
@@ -66,7 +75,17 @@ fn run_at_a_terminal_redraws_one_status_line() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("c.toml"), "[estimator]\ninterval_s = 1.0\n").unwrap();
     let (tty, code) = on_pty(
-        &["run", "--config", "c.toml", "--duration-s", "3", "--metrics-addr", "", "--record-dir", "rec"],
+        &[
+            "run",
+            "--config",
+            "c.toml",
+            "--duration-s",
+            "3",
+            "--metrics-addr",
+            "",
+            "--record-dir",
+            "rec",
+        ],
         dir.path(),
     );
     assert_eq!(code, 0, "{tty}");
@@ -74,20 +93,45 @@ fn run_at_a_terminal_redraws_one_status_line() {
     assert!(tty.contains("\r\x1b[2K"), "no in-place redraw: {tty:?}");
     let lines: Vec<&str> = tty
         .split(['\r', '\n'])
-        .map(|l| l.trim_start_matches("\x1b[2K").trim_start_matches("\x1b[1A").trim_start_matches("\x1b[1B").trim())
+        .map(|l| {
+            l.trim_start_matches("\x1b[2K")
+                .trim_start_matches("\x1b[1A")
+                .trim_start_matches("\x1b[1B")
+                .trim()
+        })
         .filter(|l| l.contains(" samples, ") && l.contains(" lost"))
         .collect();
-    assert!(lines.len() >= 4, "the status line is redrawn while the run goes: {lines:?}");
+    assert!(
+        lines.len() >= 4,
+        "the status line is redrawn while the run goes: {lines:?}"
+    );
     let last = lines.last().unwrap();
     assert!(last.contains("3000 samples, 0 lost"), "{last}");
     assert!(fixed_notation(last), "QN and ARW in fixed notation: {last}");
-    assert!(last.contains("fit ok") || last.contains("misfit"), "the fit verdict: {last}");
+    assert!(
+        last.contains("fit ok") || last.contains("misfit"),
+        "the fit verdict: {last}"
+    );
     // the elapsed time runs: the first status line says less than the last
-    let secs = |l: &str| l.split(" s |").next().and_then(|t| t.trim().parse::<f64>().ok());
+    let secs = |l: &str| {
+        l.split(" s |")
+            .next()
+            .and_then(|t| t.trim().parse::<f64>().ok())
+    };
     assert!(secs(lines[0]).unwrap() < secs(last).unwrap(), "{lines:?}");
     // the intermediate estimate log lines are left to the status line; the final one stays
-    assert_eq!(tty.matches("final_update\x1b[0m\x1b[2m=\x1b[0mfalse").count(), 0, "{tty}");
-    assert_eq!(tty.matches("final_update\x1b[0m\x1b[2m=\x1b[0mtrue").count(), 1, "{tty}");
+    assert_eq!(
+        tty.matches("final_update\x1b[0m\x1b[2m=\x1b[0mfalse")
+            .count(),
+        0,
+        "{tty}"
+    );
+    assert_eq!(
+        tty.matches("final_update\x1b[0m\x1b[2m=\x1b[0mtrue")
+            .count(),
+        1,
+        "{tty}"
+    );
 }
 
 #[test]
@@ -95,24 +139,45 @@ fn run_without_a_terminal_writes_plain_log_lines() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("c.toml"), "[estimator]\ninterval_s = 1.0\n").unwrap();
     let out = Command::new(SAGNAC)
-        .args(["run", "--config", "c.toml", "--duration-s", "3", "--metrics-addr", "", "--record-dir", "rec"])
+        .args([
+            "run",
+            "--config",
+            "c.toml",
+            "--duration-s",
+            "3",
+            "--metrics-addr",
+            "",
+            "--record-dir",
+            "rec",
+        ])
         .current_dir(dir.path())
         .env_remove("RUST_LOG")
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
-    assert!(!err.contains('\r') && !err.contains('\x1b'), "progress or escape codes in {err:?}");
+    assert!(
+        !err.contains('\r') && !err.contains('\x1b'),
+        "progress or escape codes in {err:?}"
+    );
     let estimates: Vec<&str> = err.lines().filter(|l| l.contains(" estimate ")).collect();
-    assert_eq!(estimates.len(), 4, "three interval updates and the final one:\n{err}");
+    assert_eq!(
+        estimates.len(),
+        4,
+        "three interval updates and the final one:\n{err}"
+    );
     for l in estimates {
         for key in ["quantization_arcsec=", "arw_dpsh=", "bias_instability_dph="] {
-            let v = l.split(key).nth(1).unwrap_or_else(|| panic!("{key} in {l}"));
+            let v = l
+                .split(key)
+                .nth(1)
+                .unwrap_or_else(|| panic!("{key} in {l}"));
             // up to the next key=value field
             let v = v.split('=').next().unwrap();
             let v = v.rsplit_once(' ').map_or(v, |(a, _)| a);
             assert!(
-                v.chars().all(|c| c.is_ascii_digit() || " .,[]<-".contains(c)),
+                v.chars()
+                    .all(|c| c.is_ascii_digit() || " .,[]<-".contains(c)),
                 "{key}{v}: not fixed notation in {l}"
             );
         }
@@ -126,23 +191,72 @@ fn offline_commands_show_progress_on_a_terminal_only() {
     let model = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/paper_gyro.toml");
     let model = model.to_str().unwrap();
     // long enough to pass the bar's 0.7 s delay on this machine (about 2 s)
-    let sim = ["simulate", "--model", model, "--duration-s", "3000", "--seed", "1", "--format", "frames", "--out", "s.bin"];
+    let sim = [
+        "simulate",
+        "--model",
+        model,
+        "--duration-s",
+        "3000",
+        "--seed",
+        "1",
+        "--format",
+        "frames",
+        "--out",
+        "s.bin",
+    ];
     let (tty, code) = on_pty(&sim, dir.path());
     assert_eq!(code, 0, "{tty}");
-    assert!(tty.contains("simulating") && tty.contains("samples") && tty.contains('\r'), "{tty:?}");
+    assert!(
+        tty.contains("simulating") && tty.contains("samples") && tty.contains('\r'),
+        "{tty:?}"
+    );
     for args in [
         sim.to_vec(),
-        vec!["analyze", "--format", "frames", "--input", "s.bin", "--rate-hz", "1000", "--pulse-arcsec", "1.21", "--json", "a.json"],
+        vec![
+            "analyze",
+            "--format",
+            "frames",
+            "--input",
+            "s.bin",
+            "--rate-hz",
+            "1000",
+            "--pulse-arcsec",
+            "1.21",
+            "--json",
+            "a.json",
+        ],
     ] {
-        let out = Command::new(SAGNAC).args(&args).current_dir(dir.path()).output().unwrap();
+        let out = Command::new(SAGNAC)
+            .args(&args)
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(out.status.success(), "{args:?}: {err}");
-        assert!(!err.contains('\r') && !err.contains('\x1b'), "{args:?}: progress on a pipe: {err:?}");
+        assert!(
+            !err.contains('\r') && !err.contains('\x1b'),
+            "{args:?}: progress on a pipe: {err:?}"
+        );
     }
     let (tty, code) = on_pty(
-        &["run", "--replay", "s.bin", "--rate-hz", "1000", "--pulse-arcsec", "1.21", "--metrics-addr", "", "--record-dir", ""],
+        &[
+            "run",
+            "--replay",
+            "s.bin",
+            "--rate-hz",
+            "1000",
+            "--pulse-arcsec",
+            "1.21",
+            "--metrics-addr",
+            "",
+            "--record-dir",
+            "",
+        ],
         dir.path(),
     );
     assert_eq!(code, 0, "{tty}");
-    assert!(tty.contains("replay 100 %"), "a replay shows its progress: {tty:?}");
+    assert!(
+        tty.contains("replay 100 %"),
+        "a replay shows its progress: {tty:?}"
+    );
 }

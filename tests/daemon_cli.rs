@@ -71,7 +71,14 @@ fn bad_values_exit_2_naming_the_key_and_the_flag() {
             vec!["/nonexistent/capture.bin"],
         ),
         (
-            vec!["--serial", "/nonexistent/ttyUSB9", "--rate-hz", "1000", "--pulse-arcsec", "1.21"],
+            vec![
+                "--serial",
+                "/nonexistent/ttyUSB9",
+                "--rate-hz",
+                "1000",
+                "--pulse-arcsec",
+                "1.21",
+            ],
             vec!["cannot open serial port /nonexistent/ttyUSB9"],
         ),
         // an explicit rate that contradicts the simulated model
@@ -150,12 +157,27 @@ fn bad_values_exit_2_naming_the_key_and_the_flag() {
     let r = run(&["--config", cfg, "--record-dir", rec, "--metrics-addr", ""]);
     let err = String::from_utf8_lossy(&r.stderr);
     assert_eq!(r.status.code(), Some(2), "{err}");
-    assert!(err.contains("bad value in") && err.contains("rate.toml") && err.contains("gyro.rate_hz"), "{err}");
+    assert!(
+        err.contains("bad value in") && err.contains("rate.toml") && err.contains("gyro.rate_hz"),
+        "{err}"
+    );
     assert!(!err.contains("--rate-hz"), "{err}");
-    let r = run(&["--config", cfg, "--rate-hz", "-4", "--record-dir", rec, "--metrics-addr", ""]);
+    let r = run(&[
+        "--config",
+        cfg,
+        "--rate-hz",
+        "-4",
+        "--record-dir",
+        rec,
+        "--metrics-addr",
+        "",
+    ]);
     let err = String::from_utf8_lossy(&r.stderr);
     assert_eq!(r.status.code(), Some(2), "{err}");
-    assert!(err.contains("bad value for --rate-hz") && err.contains("got -4"), "{err}");
+    assert!(
+        err.contains("bad value for --rate-hz") && err.contains("got -4"),
+        "{err}"
+    );
 }
 
 /// Serial input and raw frame captures carry neither the sample rate nor the
@@ -169,18 +191,47 @@ fn raw_sources_need_the_rate_and_pulse_weight_given() {
     let sim = Command::new(env!("CARGO_BIN_EXE_sagnac"))
         .args(["simulate", "--model"])
         .arg(repo().join("config/paper_gyro.toml"))
-        .args(["--duration-s", "2", "--seed", "3", "--format", "frames", "--out"])
+        .args([
+            "--duration-s",
+            "2",
+            "--seed",
+            "3",
+            "--format",
+            "frames",
+            "--out",
+        ])
         .arg(&bin)
         .output()
         .unwrap();
-    assert!(sim.status.success(), "{}", String::from_utf8_lossy(&sim.stderr));
+    assert!(
+        sim.status.success(),
+        "{}",
+        String::from_utf8_lossy(&sim.stderr)
+    );
     let b = bin.to_str().unwrap();
-    let both = ["--rate-hz", "--pulse-arcsec", "gyro.rate_hz", "gyro.pulse_arcsec"];
+    let both = [
+        "--rate-hz",
+        "--pulse-arcsec",
+        "gyro.rate_hz",
+        "gyro.pulse_arcsec",
+    ];
     let cases: Vec<(Vec<&str>, Vec<&str>)> = vec![
-        (vec!["--serial", "/nonexistent/ttyUSB9"], [&["serial input /nonexistent/ttyUSB9"][..], &both].concat()),
-        (vec!["--replay", b], [&["raw frame capture", "cap.bin"][..], &both].concat()),
-        (vec!["--replay", b, "--rate-hz", "1000"], vec!["pulse weight", "--pulse-arcsec", "gyro.pulse_arcsec"]),
-        (vec!["--replay", b, "--pulse-arcsec", "1.21"], vec!["sample rate", "--rate-hz", "gyro.rate_hz"]),
+        (
+            vec!["--serial", "/nonexistent/ttyUSB9"],
+            [&["serial input /nonexistent/ttyUSB9"][..], &both].concat(),
+        ),
+        (
+            vec!["--replay", b],
+            [&["raw frame capture", "cap.bin"][..], &both].concat(),
+        ),
+        (
+            vec!["--replay", b, "--rate-hz", "1000"],
+            vec!["pulse weight", "--pulse-arcsec", "gyro.pulse_arcsec"],
+        ),
+        (
+            vec!["--replay", b, "--pulse-arcsec", "1.21"],
+            vec!["sample rate", "--rate-hz", "gyro.rate_hz"],
+        ),
     ];
     for (args, needles) in cases {
         let mut a = args.clone();
@@ -195,13 +246,36 @@ fn raw_sources_need_the_rate_and_pulse_weight_given() {
     // given in the config file (by presence, at the default values): runs
     let cfg = dir.path().join("gyro.toml");
     std::fs::write(&cfg, "[gyro]\nrate_hz = 1000.0\npulse_arcsec = 1.21\n").unwrap();
-    let r = run(&["--config", cfg.to_str().unwrap(), "--replay", b, "--record-dir", "", "--metrics-addr", ""]);
+    let r = run(&[
+        "--config",
+        cfg.to_str().unwrap(),
+        "--replay",
+        b,
+        "--record-dir",
+        "",
+        "--metrics-addr",
+        "",
+    ]);
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(r.status.success(), "{err}");
-    assert!(err.contains("rate_hz=1000") && err.contains("pulse_arcsec=1.21"), "{err}");
+    assert!(
+        err.contains("rate_hz=1000") && err.contains("pulse_arcsec=1.21"),
+        "{err}"
+    );
     // one key in the file, the other as a flag
     std::fs::write(&cfg, "[gyro]\nrate_hz = 1000.0\n").unwrap();
-    let r = run(&["--config", cfg.to_str().unwrap(), "--replay", b, "--pulse-arcsec", "1.21", "--record-dir", "", "--metrics-addr", ""]);
+    let r = run(&[
+        "--config",
+        cfg.to_str().unwrap(),
+        "--replay",
+        b,
+        "--pulse-arcsec",
+        "1.21",
+        "--record-dir",
+        "",
+        "--metrics-addr",
+        "",
+    ]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
 }
 
@@ -214,25 +288,60 @@ fn short_and_cut_captures_end_cleanly() {
     let sim = Command::new(env!("CARGO_BIN_EXE_sagnac"))
         .args(["simulate", "--model"])
         .arg(repo().join("config/paper_gyro.toml"))
-        .args(["--duration-s", "2", "--seed", "3", "--format", "frames", "--out"])
+        .args([
+            "--duration-s",
+            "2",
+            "--seed",
+            "3",
+            "--format",
+            "frames",
+            "--out",
+        ])
         .arg(&full)
         .output()
         .unwrap();
-    assert!(sim.status.success(), "{}", String::from_utf8_lossy(&sim.stderr));
+    assert!(
+        sim.status.success(),
+        "{}",
+        String::from_utf8_lossy(&sim.stderr)
+    );
     let bytes = std::fs::read(&full).unwrap();
-    for (frames, extra, rc) in [(0usize, 0usize, 2), (1, 0, 2), (2, 0, 0), (3, 0, 0), (100, 7, 0)] {
+    for (frames, extra, rc) in [
+        (0usize, 0usize, 2),
+        (1, 0, 2),
+        (2, 0, 0),
+        (3, 0, 0),
+        (100, 7, 0),
+    ] {
         let name = format!("f{frames}_{extra}.bin");
         let path = dir.path().join(&name);
         std::fs::write(&path, &bytes[..16 * frames + extra]).unwrap();
         let p = path.to_str().unwrap();
-        let r = run(&["--replay", p, "--rate-hz", "1000", "--pulse-arcsec", "1.21", "--record-dir", "", "--metrics-addr", ""]);
+        let r = run(&[
+            "--replay",
+            p,
+            "--rate-hz",
+            "1000",
+            "--pulse-arcsec",
+            "1.21",
+            "--record-dir",
+            "",
+            "--metrics-addr",
+            "",
+        ]);
         let err = String::from_utf8_lossy(&r.stderr);
         assert_eq!(r.status.code(), Some(rc), "{name}: {err}");
         assert!(!err.contains("panicked"), "{name}: {err}");
         if rc == 2 {
-            assert!(err.contains(&format!("{name}: no samples in this capture")), "{name}: {err}");
+            assert!(
+                err.contains(&format!("{name}: no samples in this capture")),
+                "{name}: {err}"
+            );
         } else {
-            assert!(err.contains(&format!("samples={}", frames - 1)), "{name}: {err}");
+            assert!(
+                err.contains(&format!("samples={}", frames - 1)),
+                "{name}: {err}"
+            );
         }
         if extra > 0 {
             let want = format!("{extra} bytes from byte offset {}", 16 * frames);
@@ -240,11 +349,24 @@ fn short_and_cut_captures_end_cleanly() {
         }
         if frames >= 2 {
             let a = Command::new(env!("CARGO_BIN_EXE_sagnac"))
-                .args(["analyze", "--format", "frames", "--rate-hz", "1000", "--pulse-arcsec", "1.21", "--input", p])
+                .args([
+                    "analyze",
+                    "--format",
+                    "frames",
+                    "--rate-hz",
+                    "1000",
+                    "--pulse-arcsec",
+                    "1.21",
+                    "--input",
+                    p,
+                ])
                 .output()
                 .unwrap();
             let err = String::from_utf8_lossy(&a.stderr);
-            assert!(a.status.success() && !err.contains("panicked"), "analyze {name}: {err}");
+            assert!(
+                a.status.success() && !err.contains("panicked"),
+                "analyze {name}: {err}"
+            );
         }
     }
 }
@@ -272,13 +394,29 @@ fn sigterm_during_startup_is_a_clean_shutdown() {
     for delay_ms in [0u64, 5, 20] {
         let rec = dir.path().join(format!("rec{delay_ms}"));
         let log = dir.path().join(format!("log{delay_ms}"));
-        let mut d = DaemonProc::start(&["run", "--record-dir", rec.to_str().unwrap(), "--metrics-addr", ""], &log);
+        let mut d = DaemonProc::start(
+            &[
+                "run",
+                "--record-dir",
+                rec.to_str().unwrap(),
+                "--metrics-addr",
+                "",
+            ],
+            &log,
+        );
         let pid = d.child.id();
-        wait_for("the SIGTERM handler", Duration::from_secs(10), || catches_sigterm(pid).then_some(()));
+        wait_for("the SIGTERM handler", Duration::from_secs(10), || {
+            catches_sigterm(pid).then_some(())
+        });
         std::thread::sleep(Duration::from_millis(delay_ms));
         d.sigterm();
         let status = d.wait(Duration::from_secs(10));
-        assert_eq!(status.code(), Some(0), "SIGTERM {delay_ms} ms after the handler: {}", d.log_text());
+        assert_eq!(
+            status.code(),
+            Some(0),
+            "SIGTERM {delay_ms} ms after the handler: {}",
+            d.log_text()
+        );
         if rec.exists() {
             let r = sagnac::sink::reader::read_recording(&only_recording(&rec));
             assert!(r.is_ok(), "after {delay_ms} ms: {r:?}");
@@ -313,8 +451,9 @@ fn default_run_is_the_simulated_bench_promtool_clean_and_drains_on_sigterm() {
     let clean = "sagnac_allan_deviation_degrees_per_hour{channel=\"clean\",gyro=\"gyro\",tau_seconds=\"0.001\"}";
     let text = wait_for("the clean Allan curve", Duration::from_secs(40), || {
         let t = scrape(addr)?;
-        (metric(&t, "sagnac_estimator_updates_total{gyro=\"gyro\"}")? >= 2.0 && metric(&t, clean).is_some())
-            .then_some(t)
+        (metric(&t, "sagnac_estimator_updates_total{gyro=\"gyro\"}")? >= 2.0
+            && metric(&t, clean).is_some())
+        .then_some(t)
     });
     let (ok, out) = promtool(&text);
     assert!(ok, "promtool check metrics:\n{out}\n---\n{text}");
@@ -326,7 +465,10 @@ fn default_run_is_the_simulated_bench_promtool_clean_and_drains_on_sigterm() {
         "{frames} frames, {samples} samples"
     );
     assert_eq!(
-        metric(&text, "sagnac_frame_errors_total{gyro=\"gyro\",kind=\"crc\"}"),
+        metric(
+            &text,
+            "sagnac_frame_errors_total{gyro=\"gyro\",kind=\"crc\"}"
+        ),
         Some(0.0)
     );
     for series in [
@@ -343,10 +485,19 @@ fn default_run_is_the_simulated_bench_promtool_clean_and_drains_on_sigterm() {
         let v = metric(&text, series).unwrap_or_else(|| panic!("{series} missing:\n{text}"));
         assert!(v.is_finite() && v >= 0.0, "{series} = {v}");
     }
-    assert_eq!(metric(&text, "sagnac_temperature_celsius{gyro=\"gyro\"}"), Some(25.0));
+    assert_eq!(
+        metric(&text, "sagnac_temperature_celsius{gyro=\"gyro\"}"),
+        Some(25.0)
+    );
     // no serial device: no device series (a dashboard would read 0 as "disconnected")
     assert!(!text.contains("sagnac_device_"), "{text}");
-    assert_eq!(metric(&text, "sagnac_gyro_info{gyro=\"gyro\",model=\"\",serial_number=\"\"}"), Some(1.0));
+    assert_eq!(
+        metric(
+            &text,
+            "sagnac_gyro_info{gyro=\"gyro\",model=\"\",serial_number=\"\"}"
+        ),
+        Some(1.0)
+    );
 
     let t = Instant::now();
     d.sigterm();
@@ -410,14 +561,24 @@ fn duration_limit_ends_the_run_and_logs_are_json() {
     assert_eq!(last["level"], "INFO");
     assert_eq!(last["fields"]["samples"], 3000);
     assert_eq!(last["fields"]["final_update"], true);
-    for f in ["quantization_arcsec", "arw_dpsh", "bias_instability_dph", "lost"] {
+    for f in [
+        "quantization_arcsec",
+        "arw_dpsh",
+        "bias_instability_dph",
+        "lost",
+    ] {
         assert!(!last["fields"][f].is_null(), "{f} in {last}");
     }
     // the coefficients in fixed notation: "0.351 [0.341, 0.360]" or "< 0.00200"
     for f in ["quantization_arcsec", "arw_dpsh", "bias_instability_dph"] {
-        let text = last["fields"][f].as_str().unwrap_or_else(|| panic!("{f} in {last}"));
+        let text = last["fields"][f]
+            .as_str()
+            .unwrap_or_else(|| panic!("{f} in {last}"));
         assert!(
-            !text.is_empty() && text.chars().all(|c| c.is_ascii_digit() || " .,[]<-".contains(c)),
+            !text.is_empty()
+                && text
+                    .chars()
+                    .all(|c| c.is_ascii_digit() || " .,[]<-".contains(c)),
             "{f} = {text:?}: not fixed notation"
         );
     }
@@ -438,31 +599,78 @@ fn issue_13_a_replayed_recording_supplies_its_rate_and_pulse_weight() {
     let sim = Command::new(env!("CARGO_BIN_EXE_sagnac"))
         .args(["simulate", "--model"])
         .arg(&model)
-        .args(["--duration-s", "20", "--seed", "2", "--format", "mcap", "--out"])
+        .args([
+            "--duration-s",
+            "20",
+            "--seed",
+            "2",
+            "--format",
+            "mcap",
+            "--out",
+        ])
         .arg(&mcap)
         .output()
         .unwrap();
-    assert!(sim.status.success(), "{}", String::from_utf8_lossy(&sim.stderr));
+    assert!(
+        sim.status.success(),
+        "{}",
+        String::from_utf8_lossy(&sim.stderr)
+    );
     let m = mcap.to_str().unwrap();
-    for (flag, value, recorded) in [("--rate-hz", "1000", "500"), ("--pulse-arcsec", "1.21", "0.9")] {
-        let r = run(&["--replay", m, flag, value, "--record-dir", "", "--metrics-addr", ""]);
+    for (flag, value, recorded) in [
+        ("--rate-hz", "1000", "500"),
+        ("--pulse-arcsec", "1.21", "0.9"),
+    ] {
+        let r = run(&[
+            "--replay",
+            m,
+            flag,
+            value,
+            "--record-dir",
+            "",
+            "--metrics-addr",
+            "",
+        ]);
         let err = String::from_utf8_lossy(&r.stderr);
         assert_eq!(r.status.code(), Some(2), "{flag}: {err}");
-        assert!(err.contains(&format!("bad value for {flag}")), "{flag}: {err}");
+        assert!(
+            err.contains(&format!("bad value for {flag}")),
+            "{flag}: {err}"
+        );
         assert!(err.contains(&format!("{value} contradicts {m}: the recording says {recorded} in its sagnac metadata record")), "{flag}: {err}");
     }
     // agreeing flags, and none: the recording's values
     let rec = dir.path().join("rec");
-    let r = run(&["--replay", m, "--rate-hz", "500", "--record-dir", rec.to_str().unwrap(), "--metrics-addr", ""]);
+    let r = run(&[
+        "--replay",
+        m,
+        "--rate-hz",
+        "500",
+        "--record-dir",
+        rec.to_str().unwrap(),
+        "--metrics-addr",
+        "",
+    ]);
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(r.status.success(), "{err}");
-    assert!(err.contains("rate_hz=500") && err.contains("pulse_arcsec=0.9"), "{err}");
-    let made: Vec<_> = std::fs::read_dir(&rec).unwrap().map(|e| e.unwrap().path()).collect();
+    assert!(
+        err.contains("rate_hz=500") && err.contains("pulse_arcsec=0.9"),
+        "{err}"
+    );
+    let made: Vec<_> = std::fs::read_dir(&rec)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
     assert_eq!(made.len(), 1, "{made:?}");
-    let meta = sagnac::sink::reader::read_metadata(&made[0]).unwrap().expect("the daemon writes a metadata record");
+    let meta = sagnac::sink::reader::read_metadata(&made[0])
+        .unwrap()
+        .expect("the daemon writes a metadata record");
     assert_eq!((meta.sample_rate_hz, meta.pulse_arcsec), (500.0, Some(0.9)));
     let config = meta.config.expect("the daemon's config");
-    assert!(config.contains("rate_hz = 500") && config.contains("replay_path"), "{config}");
+    assert!(
+        config.contains("rate_hz = 500") && config.contains("replay_path"),
+        "{config}"
+    );
     assert_eq!(meta.model, None);
 }
 
@@ -494,13 +702,22 @@ fn summary_channel_is_ten_hertz_and_equals_the_averaged_raw_channel() {
     assert_eq!(v["channels"]["/gyro/summary"], 30);
     assert_eq!(check_summary(&v), 30);
     let windows = v["summary_recorded"].as_array().unwrap();
-    assert!(windows.iter().all(|w| w[1] == 100 && w[2] == 0), "full windows, no loss");
+    assert!(
+        windows.iter().all(|w| w[1] == 100 && w[2] == 0),
+        "full windows, no loss"
+    );
     // 10 Hz: consecutive timestamps 0.1 s apart
     for pair in windows.windows(2) {
-        assert_eq!(pair[1][0].as_u64().unwrap() - pair[0][0].as_u64().unwrap(), 100_000_000);
+        assert_eq!(
+            pair[1][0].as_u64().unwrap() - pair[0][0].as_u64().unwrap(),
+            100_000_000
+        );
     }
     assert_eq!(v["schema_invalid"], serde_json::json!([]));
-    assert_eq!(v["time_mismatches"], 0, "log time = the payload's {{sec, nsec}}");
+    assert_eq!(
+        v["time_mismatches"], 0,
+        "log time = the payload's {{sec, nsec}}"
+    );
     let meta = &v["metadata"]["sagnac"];
     assert_eq!(meta["sample_rate_hz"], "1000");
     assert_eq!(meta["pulse_arcsec"], "1.21");

@@ -19,8 +19,8 @@ use std::time::Instant;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sagnac::daemon::batch::{Delivery, SourceBatch};
-use sagnac::daemon::queue::QueueBound;
 use sagnac::daemon::process::{Outputs, ProcessConfig, ProcessReport};
+use sagnac::daemon::queue::QueueBound;
 use sagnac::daemon::telemetry::Telemetry;
 use sagnac::model::estimate::Coefficient;
 use sagnac::model::{GyroModel, Simulator};
@@ -235,6 +235,12 @@ fn the_stage_is_chunking_invariant_keeps_gaps_and_matches_the_pipeline() {
     assert_eq!(per_topic["/gyro/clean"], N);
     assert_eq!(per_topic["/gyro/noise"], N);
     let text = t1.metrics.encode();
-    assert!(text.contains("sagnac_qn_arcseconds{bound=\"estimate\",gyro=\"gyro\"}"), "{text}");
-    assert!(text.contains("sagnac_temperature_celsius{gyro=\"gyro\"} 25\n"), "{text}");
+    assert!(
+        text.contains("sagnac_qn_arcseconds{bound=\"estimate\",gyro=\"gyro\"}"),
+        "{text}"
+    );
+    assert!(
+        text.contains("sagnac_temperature_celsius{gyro=\"gyro\"} 25\n"),
+        "{text}"
+    );
 }

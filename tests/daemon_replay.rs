@@ -73,7 +73,12 @@ fn replays_are_exact_deterministic_and_equal_the_offline_pipeline() {
     // gaps count their lost samples), equal to the raw and clean channels
     // averaged independently
     assert_eq!(check_summary(&v), 3000);
-    let lost: u64 = v["summary_recorded"].as_array().unwrap().iter().map(|w| w[2].as_u64().unwrap()).sum();
+    let lost: u64 = v["summary_recorded"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w[2].as_u64().unwrap())
+        .sum();
     assert_eq!(lost, e.lost_samples);
     assert_eq!(
         v["raw_counts_total"].as_i64(),
@@ -95,7 +100,10 @@ fn replays_are_exact_deterministic_and_equal_the_offline_pipeline() {
     let (f1, raw1) = final_and_raw(&rec1);
     let (f2, raw2) = final_and_raw(&only_recording(&r2));
     let (f3, raw3) = final_and_raw(&only_recording(&r3));
-    assert_eq!(f2.estimates, f3.estimates, "replaying the same recording twice");
+    assert_eq!(
+        f2.estimates, f3.estimates,
+        "replaying the same recording twice"
+    );
     assert_eq!(f1.estimates, f2.estimates, ".bin replay vs its MCAP replay");
     assert_eq!((f1.samples, f2.samples), (300_000, 300_000));
     // /gyro/raw is reproduced: same samples, gaps and sequence numbers, same times.
@@ -106,7 +114,11 @@ fn replays_are_exact_deterministic_and_equal_the_offline_pipeline() {
     // analyze_json gives the flags), and on the daemon's recording of it (its
     // metadata record says them).
     for (format, input) in [("frames", &bin), ("mcap", &rec1)] {
-        let a = analyze_json(format, input, &dir.path().join(format!("analyze-{format}.json")));
+        let a = analyze_json(
+            format,
+            input,
+            &dir.path().join(format!("analyze-{format}.json")),
+        );
         assert_eq!(a["samples"], 300_000);
         // The same Pipeline on the same samples, pushed in other block sizes:
         // equal to rounding (relative 1e-9; the pipeline's sums are not
@@ -117,16 +129,28 @@ fn replays_are_exact_deterministic_and_equal_the_offline_pipeline() {
     // analyze's keys and interval fields, coefficient by coefficient.
     let a = analyze_json("mcap", &rec1, &dir.path().join("analyze-names.json"));
     let shape = |v: &serde_json::Value| -> Vec<(String, Vec<String>)> {
-        v.as_object().unwrap().iter().map(|(k, c)| (k.clone(), c.as_object().unwrap().keys().cloned().collect())).collect()
+        v.as_object()
+            .unwrap()
+            .iter()
+            .map(|(k, c)| (k.clone(), c.as_object().unwrap().keys().cloned().collect()))
+            .collect()
     };
     let recorded = &v["last_estimates"]["estimates"];
     assert_eq!(shape(recorded), shape(&a["estimates"]));
     let keys: Vec<&str> = sagnac::units::COEFFICIENTS.iter().map(|c| c.0).collect();
-    assert_eq!(recorded.as_object().unwrap().keys().map(String::as_str).collect::<Vec<_>>(), {
-        let mut k = keys.clone();
-        k.sort();
-        k
-    });
+    assert_eq!(
+        recorded
+            .as_object()
+            .unwrap()
+            .keys()
+            .map(String::as_str)
+            .collect::<Vec<_>>(),
+        {
+            let mut k = keys.clone();
+            k.sort();
+            k
+        }
+    );
     assert_eq!(v["last_estimates"]["samples"], a["samples"]);
 }
 

@@ -66,15 +66,24 @@ fn exact_counts(text: &str, l: &Ledger) {
     let e = &l.expected;
     for (series, want) in [
         ("sagnac_bytes_read_total", e.bytes_read),
-        ("sagnac_frames_decoded_total{gyro=\"gyro\"}", e.frames_decoded),
+        (
+            "sagnac_frames_decoded_total{gyro=\"gyro\"}",
+            e.frames_decoded,
+        ),
         ("sagnac_samples_total{gyro=\"gyro\"}", e.samples),
         ("sagnac_lost_samples_total{gyro=\"gyro\"}", e.lost_samples),
-        ("sagnac_frame_errors_total{gyro=\"gyro\",kind=\"crc\"}", e.crc_errors),
+        (
+            "sagnac_frame_errors_total{gyro=\"gyro\",kind=\"crc\"}",
+            e.crc_errors,
+        ),
         (
             "sagnac_frame_errors_total{gyro=\"gyro\",kind=\"false_sync\"}",
             e.false_syncs,
         ),
-        ("sagnac_frame_errors_total{gyro=\"gyro\",kind=\"truncated\"}", 0),
+        (
+            "sagnac_frame_errors_total{gyro=\"gyro\",kind=\"truncated\"}",
+            0,
+        ),
         (
             "sagnac_sequence_anomalies_total{gyro=\"gyro\",kind=\"duplicate\"}",
             e.duplicates,
@@ -129,7 +138,13 @@ fn check_recording(
 
 /// Start `sagnac run` on the serial device `device` with config `cfg`, metrics on
 /// `addr` and recording into `rec_dir`; wait until /metrics answers.
-fn start_serial_daemon(dir: &Path, cfg: &Path, device: &Path, addr: std::net::SocketAddr, rec_dir: &Path) -> DaemonProc {
+fn start_serial_daemon(
+    dir: &Path,
+    cfg: &Path,
+    device: &Path,
+    addr: std::net::SocketAddr,
+    rec_dir: &Path,
+) -> DaemonProc {
     let daemon = DaemonProc::start(
         &[
             "run",
@@ -184,9 +199,32 @@ fn serial_pty_exact_counts_live_qn_promtool_sigterm_and_every_pulse_recorded() {
     // Live QN against the model's truth: inside the estimator's own 95 % interval
     // (about +-3 % on 60 s of data), and within 3 % (the model's readout is a
     // sawtooth, not white noise, see config/paper_gyro.toml).
-    let qn = metric(&text, "sagnac_qn_arcseconds{bound=\"estimate\",gyro=\"gyro\"}").unwrap_or_else(|| panic!("{}", text.lines().filter(|l| l.contains("qn") || l.contains("arw") || l.contains("lost") || l.contains("samples")).collect::<Vec<_>>().join("\n")));
-    let lo = metric(&text, "sagnac_qn_arcseconds{bound=\"lower95\",gyro=\"gyro\"}").unwrap();
-    let hi = metric(&text, "sagnac_qn_arcseconds{bound=\"upper95\",gyro=\"gyro\"}").unwrap();
+    let qn = metric(
+        &text,
+        "sagnac_qn_arcseconds{bound=\"estimate\",gyro=\"gyro\"}",
+    )
+    .unwrap_or_else(|| {
+        panic!(
+            "{}",
+            text.lines()
+                .filter(|l| l.contains("qn")
+                    || l.contains("arw")
+                    || l.contains("lost")
+                    || l.contains("samples"))
+                .collect::<Vec<_>>()
+                .join("\n")
+        )
+    });
+    let lo = metric(
+        &text,
+        "sagnac_qn_arcseconds{bound=\"lower95\",gyro=\"gyro\"}",
+    )
+    .unwrap();
+    let hi = metric(
+        &text,
+        "sagnac_qn_arcseconds{bound=\"upper95\",gyro=\"gyro\"}",
+    )
+    .unwrap();
     eprintln!("live QN {qn} [{lo}, {hi}] arcsec (truth {TRUE_QN_ARCSEC})");
     assert!(lo <= qn && qn <= hi);
     assert!(
@@ -198,8 +236,14 @@ fn serial_pty_exact_counts_live_qn_promtool_sigterm_and_every_pulse_recorded() {
         "QN {qn}"
     );
     // the temperature of the frames (25.00 deg C) reached the gauge
-    assert_eq!(metric(&text, "sagnac_temperature_celsius{gyro=\"gyro\"}"), Some(25.0));
-    assert_eq!(metric(&text, "sagnac_device_connected{gyro=\"gyro\"}"), Some(1.0));
+    assert_eq!(
+        metric(&text, "sagnac_temperature_celsius{gyro=\"gyro\"}"),
+        Some(25.0)
+    );
+    assert_eq!(
+        metric(&text, "sagnac_device_connected{gyro=\"gyro\"}"),
+        Some(1.0)
+    );
 
     let (ok, out) = promtool(&text);
     assert!(
@@ -357,13 +401,27 @@ fn serial_overload_drops_are_counted_recorded_and_lose_no_angle() {
         most_queued = most_queued.max(metric(&t, "sagnac_pipeline_queue_bytes")?);
         (metric(&t, "sagnac_dropped_samples_total{gyro=\"gyro\"}")? > 0.0).then_some(t)
     });
-    assert_eq!(metric(&text, "sagnac_pipeline_queue_budget_bytes"), Some(budget));
-    assert!(most_queued <= budget, "queued {most_queued} bytes, budget {budget}");
-    eprintln!("dropped so far: {:?}", metric(&text, "sagnac_dropped_samples_total{gyro=\"gyro\"}"));
+    assert_eq!(
+        metric(&text, "sagnac_pipeline_queue_budget_bytes"),
+        Some(budget)
+    );
+    assert!(
+        most_queued <= budget,
+        "queued {most_queued} bytes, budget {budget}"
+    );
+    eprintln!(
+        "dropped so far: {:?}",
+        metric(&text, "sagnac_dropped_samples_total{gyro=\"gyro\"}")
+    );
     // then the rest at real time: the pipeline catches up, and later batches carry
     // the pulses of the dropped ones
     write_paced(&mut w, &bytes[burst..], RATE_HZ * 16.0).unwrap();
-    let _ = wait_metric(addr, "sagnac_bytes_read_total", bytes.len() as f64, Duration::from_secs(30));
+    let _ = wait_metric(
+        addr,
+        "sagnac_bytes_read_total",
+        bytes.len() as f64,
+        Duration::from_secs(30),
+    );
     // the source sends its last batch right after decoding it
     std::thread::sleep(Duration::from_millis(500));
     let text = scrape(addr).unwrap();
@@ -371,13 +429,21 @@ fn serial_overload_drops_are_counted_recorded_and_lose_no_angle() {
     assert!(queued <= budget, "queued {queued} bytes, budget {budget}");
     let dropped = metric(&text, "sagnac_dropped_samples_total{gyro=\"gyro\"}").unwrap();
     assert!(dropped > 0.0);
-    assert_eq!(metric(&text, "sagnac_lost_samples_total{gyro=\"gyro\"}"), Some(0.0), "nothing lost on the wire");
+    assert_eq!(
+        metric(&text, "sagnac_lost_samples_total{gyro=\"gyro\"}"),
+        Some(0.0),
+        "nothing lost on the wire"
+    );
     let peak = peak_rss_bytes(daemon.child.id()).unwrap();
     assert!(peak < 128 << 20, "peak RSS {} MB", peak >> 20);
 
     daemon.sigterm();
     let status = daemon.wait(Duration::from_secs(20));
-    assert!(status.success(), "exit {status:?}; log:\n{}", daemon.log_text());
+    assert!(
+        status.success(),
+        "exit {status:?}; log:\n{}",
+        daemon.log_text()
+    );
     drop(w);
 
     let v = read_mcap_py_fast(&only_recording(&rec_dir));
@@ -386,14 +452,31 @@ fn serial_overload_drops_are_counted_recorded_and_lose_no_angle() {
         v["raw_counts_total"].as_i64(),
         Some(emu.true_total_pulses()),
         "{v}\nmetrics:\n{}\nlog:\n{}",
-        text.lines().filter(|l| l.contains("dropped")).collect::<Vec<_>>().join("\n"),
-        daemon.log_text().lines().filter(|l| !l.contains(" estimate")).collect::<Vec<_>>().join("\n")
+        text.lines()
+            .filter(|l| l.contains("dropped"))
+            .collect::<Vec<_>>()
+            .join("\n"),
+        daemon
+            .log_text()
+            .lines()
+            .filter(|l| !l.contains(" estimate"))
+            .collect::<Vec<_>>()
+            .join("\n")
     );
     // the dropped samples are gaps of the raw channel (less the one that carries
     // them if the stream ended while samples were held), and events say why
     let lost = v["raw_lost_total"].as_f64().unwrap();
-    assert!(lost == dropped || lost == dropped - 1.0, "lost {lost} dropped {dropped}: {v}");
-    assert!(v["events_by_kind"]["backpressure_drop"].as_u64().unwrap_or(0) >= 1, "{v}");
+    assert!(
+        lost == dropped || lost == dropped - 1.0,
+        "lost {lost} dropped {dropped}: {v}"
+    );
+    assert!(
+        v["events_by_kind"]["backpressure_drop"]
+            .as_u64()
+            .unwrap_or(0)
+            >= 1,
+        "{v}"
+    );
     let periods = v["raw_samples"].as_u64().unwrap() + v["raw_lost_total"].as_u64().unwrap();
     assert_eq!(periods as usize, emu.frames.len() - 1);
     // clean/noise cover every period, dropped ones included (spread over the gap)
@@ -419,34 +502,74 @@ fn issue_13_a_600_s_burst_at_full_speed_drops_nothing_and_equals_analyze() {
     let rec_dir = dir.path().join("rec");
     let cfg = dir.path().join("burst.toml");
     // An update per minute of data: ten updates to wait for, not 120.
-    std::fs::write(&cfg, "[gyro]\nrate_hz = 1000.0\npulse_arcsec = 1.21\n[estimator]\ninterval_s = 60.0\n").unwrap();
+    std::fs::write(
+        &cfg,
+        "[gyro]\nrate_hz = 1000.0\npulse_arcsec = 1.21\n[estimator]\ninterval_s = 60.0\n",
+    )
+    .unwrap();
     let mut daemon = start_serial_daemon(dir.path(), &cfg, &socat.b, addr, &rec_dir);
 
     let mut w = socat.writer();
     let t = std::time::Instant::now();
     std::io::Write::write_all(&mut w, &bytes).unwrap();
-    let text = wait_metric(addr, "sagnac_bytes_read_total", bytes.len() as f64, Duration::from_secs(30));
+    let text = wait_metric(
+        addr,
+        "sagnac_bytes_read_total",
+        bytes.len() as f64,
+        Duration::from_secs(30),
+    );
     eprintln!(
         "{} bytes read in {:?}; queued then: {:?} bytes",
         bytes.len(),
         t.elapsed(),
         metric(&text, "sagnac_pipeline_queue_bytes")
     );
-    assert_eq!(metric(&text, "sagnac_pipeline_queue_budget_bytes"), Some(16.0 * 1024.0 * 1024.0));
-    wait_metric(addr, "sagnac_estimator_updates_total{gyro=\"gyro\"}", 10.0, Duration::from_secs(120));
-    let text = wait_metric(addr, "sagnac_pipeline_queue_bytes", 0.0, Duration::from_secs(10));
-    assert_eq!(metric(&text, "sagnac_dropped_samples_total{gyro=\"gyro\"}"), Some(0.0));
-    assert_eq!(metric(&text, "sagnac_lost_samples_total{gyro=\"gyro\"}"), Some(0.0));
-    assert_eq!(metric(&text, "sagnac_samples_total{gyro=\"gyro\"}"), Some(600_000.0));
+    assert_eq!(
+        metric(&text, "sagnac_pipeline_queue_budget_bytes"),
+        Some(16.0 * 1024.0 * 1024.0)
+    );
+    wait_metric(
+        addr,
+        "sagnac_estimator_updates_total{gyro=\"gyro\"}",
+        10.0,
+        Duration::from_secs(120),
+    );
+    let text = wait_metric(
+        addr,
+        "sagnac_pipeline_queue_bytes",
+        0.0,
+        Duration::from_secs(10),
+    );
+    assert_eq!(
+        metric(&text, "sagnac_dropped_samples_total{gyro=\"gyro\"}"),
+        Some(0.0)
+    );
+    assert_eq!(
+        metric(&text, "sagnac_lost_samples_total{gyro=\"gyro\"}"),
+        Some(0.0)
+    );
+    assert_eq!(
+        metric(&text, "sagnac_samples_total{gyro=\"gyro\"}"),
+        Some(600_000.0)
+    );
 
     daemon.sigterm();
     let status = daemon.wait(Duration::from_secs(20));
-    assert!(status.success(), "exit {status:?}; log:\n{}", daemon.log_text());
+    assert!(
+        status.success(),
+        "exit {status:?}; log:\n{}",
+        daemon.log_text()
+    );
     drop(w);
 
     let (live, raw) = final_and_raw(&only_recording(&rec_dir));
     assert_eq!(live.samples, 600_000);
-    assert_eq!(raw.iter().map(|b| b.counts.iter().sum::<i64>()).sum::<i64>(), emu.true_total_pulses());
+    assert_eq!(
+        raw.iter()
+            .map(|b| b.counts.iter().sum::<i64>())
+            .sum::<i64>(),
+        emu.true_total_pulses()
+    );
     assert!(raw.iter().all(|b| b.gaps.is_empty()), "no gap in /gyro/raw");
     let a = analyze_json("frames", &capture, &dir.path().join("analyze.json"));
     assert_eq!(a["samples"], 600_000);

@@ -41,7 +41,11 @@ fn summary(d: &Diagnosis) -> String {
         c.map_or(f64::NAN, |c| c.max_lr),
         c.map_or("-", |c| c.best.as_str()),
         c.map_or(f64::NAN, |c| c.lr_crit),
-        c.map(|c| c.null_max.iter().map(|v| (v * 10.0).round() / 10.0).collect::<Vec<_>>()),
+        c.map(|c| c
+            .null_max
+            .iter()
+            .map(|v| (v * 10.0).round() / 10.0)
+            .collect::<Vec<_>>()),
         d.report
             .added_terms
             .iter()
@@ -87,17 +91,27 @@ fn issue_14_gauss_markov_below_the_point_gate_is_detected_and_named() {
         }
         let r = &d.report;
         let c = d.model_comparison.as_ref().expect("a model comparison");
-        assert!(c.detected, "seed {seed}: LR {:.1} <= {:.1}", c.max_lr, c.lr_crit);
+        assert!(
+            c.detected,
+            "seed {seed}: LR {:.1} <= {:.1}",
+            c.max_lr, c.lr_crit
+        );
         assert_eq!(r.verdict, Verdict::Mismatch, "seed {seed}");
         assert!(!r.mismatch_regions.is_empty(), "seed {seed}: no region");
         let is_named = r.added_terms.iter().any(|a| a.term == "gauss_markov");
         let tied = c.near_best(4.0).iter().any(|e| e.0 == "gauss_markov");
-        assert!(is_named || tied, "seed {seed}: gauss_markov neither named nor an alternative");
+        assert!(
+            is_named || tied,
+            "seed {seed}: gauss_markov neither named nor an alternative"
+        );
         if is_named {
             named += 1;
         } else {
             assert!(
-                d.notes.iter().any(|n| n.contains("do not exclude these alternatives") && n.contains("gauss_markov")),
+                d.notes
+                    .iter()
+                    .any(|n| n.contains("do not exclude these alternatives")
+                        && n.contains("gauss_markov")),
                 "seed {seed}: the tie is not reported"
             );
         }
@@ -105,43 +119,78 @@ fn issue_14_gauss_markov_below_the_point_gate_is_detected_and_named() {
         assert!(s[0] <= 0.03 && 0.03 <= s[1], "seed {seed}: sigma ci {s:?}");
         assert!(t[0] <= 5.0 && 5.0 <= t[1], "seed {seed}: tau_c ci {t:?}");
     }
-    eprintln!("{below_gate} of 3 seeds below the per-point gate; gauss_markov named at {named} of 3");
+    eprintln!(
+        "{below_gate} of 3 seeds below the per-point gate; gauss_markov named at {named} of 3"
+    );
 }
 
 #[test]
 #[ignore]
 fn debug_candidates() {
-    use sagnac::diagnose::compare::Family;
     use sagnac::diagnose::candidates;
-    use sagnac::diagnose::wvar_fit::{Basis, LevelData};
+    use sagnac::diagnose::compare::Family;
     use sagnac::diagnose::stats::StatLayout;
+    use sagnac::diagnose::wvar_fit::{Basis, LevelData};
     let model = paper("");
     let truth = paper("[[noise.gauss_markov]]\nsigma_dph = 0.03\ntau_c_s = 5.0\n");
-    let seeds: Vec<u64> = std::env::var("SEEDS").map_or(vec![1], |s| s.split(',').map(|x| x.parse().unwrap()).collect());
+    let seeds: Vec<u64> = std::env::var("SEEDS").map_or(vec![1], |s| {
+        s.split(',').map(|x| x.parse().unwrap()).collect()
+    });
     for seed in seeds {
-    eprintln!("=== seed {seed}");
-    let rec = simulate(&truth, seed, 3600.0);
-    let d = diagnose::diagnose(&model, &rec, &DiagnoseOptions::default()).unwrap();
-    let layout = StatLayout::new(rec.counts.len(), 1000.0, 1.21);
-    let w: Vec<_> = d.before.iter().filter(|p| p.family == Family::Wavelet).collect();
-    for p in &w {
-        eprintln!("level {:>2} tau {:8.3}-{:8.3} obs/model {:.3} sd {:.3} z {:.2}", layout.levels[p.index], p.tau_lo_s, p.tau_hi_s, p.obs / p.model_mean, p.sd_log, p.z);
-    }
-    for p in d.before.iter().filter(|p| p.family == Family::Mdev) {
-        eprintln!("mdev tau {:8.3} obs/model {:.3} sd {:.3} z {:.2}", p.tau_lo_s, p.obs / p.model_mean, p.sd_log, p.z);
-    }
-    let data = LevelData {
-        levels: layout.levels.clone(),
-        y: w.iter().map(|p| p.obs).collect(),
-        e0: w.iter().map(|p| p.model_mean).collect(),
-        nu: w.iter().map(|p| 2.0 / (p.sd_log * p.sd_log * (1.0 + 1.0 / p.runs as f64))).collect(),
-    };
-    let basis = Basis::new(&layout.lo, &layout.hi, 1e-3, &layout.levels);
-    let l0 = data.loglik(&data.e0);
-    for c in candidates::candidates(&data, &basis, &model, 3600.0) {
-        eprintln!("{:30} LR {:7.2} theta {:.4e} ci {:?} shape {:?} {:?}", c.name, 2.0 * (c.fit.loglik - l0), c.fit.theta, c.fit.theta_ci, c.fit.shape, c.fit.shape_ci);
-    }
-    eprintln!("{}", summary(&d));
-    for n in &d.notes { eprintln!("note: {n}"); }
+        eprintln!("=== seed {seed}");
+        let rec = simulate(&truth, seed, 3600.0);
+        let d = diagnose::diagnose(&model, &rec, &DiagnoseOptions::default()).unwrap();
+        let layout = StatLayout::new(rec.counts.len(), 1000.0, 1.21);
+        let w: Vec<_> = d
+            .before
+            .iter()
+            .filter(|p| p.family == Family::Wavelet)
+            .collect();
+        for p in &w {
+            eprintln!(
+                "level {:>2} tau {:8.3}-{:8.3} obs/model {:.3} sd {:.3} z {:.2}",
+                layout.levels[p.index],
+                p.tau_lo_s,
+                p.tau_hi_s,
+                p.obs / p.model_mean,
+                p.sd_log,
+                p.z
+            );
+        }
+        for p in d.before.iter().filter(|p| p.family == Family::Mdev) {
+            eprintln!(
+                "mdev tau {:8.3} obs/model {:.3} sd {:.3} z {:.2}",
+                p.tau_lo_s,
+                p.obs / p.model_mean,
+                p.sd_log,
+                p.z
+            );
+        }
+        let data = LevelData {
+            levels: layout.levels.clone(),
+            y: w.iter().map(|p| p.obs).collect(),
+            e0: w.iter().map(|p| p.model_mean).collect(),
+            nu: w
+                .iter()
+                .map(|p| 2.0 / (p.sd_log * p.sd_log * (1.0 + 1.0 / p.runs as f64)))
+                .collect(),
+        };
+        let basis = Basis::new(&layout.lo, &layout.hi, 1e-3, &layout.levels);
+        let l0 = data.loglik(&data.e0);
+        for c in candidates::candidates(&data, &basis, &model, 3600.0) {
+            eprintln!(
+                "{:30} LR {:7.2} theta {:.4e} ci {:?} shape {:?} {:?}",
+                c.name,
+                2.0 * (c.fit.loglik - l0),
+                c.fit.theta,
+                c.fit.theta_ci,
+                c.fit.shape,
+                c.fit.shape_ci
+            );
+        }
+        eprintln!("{}", summary(&d));
+        for n in &d.notes {
+            eprintln!("note: {n}");
+        }
     }
 }

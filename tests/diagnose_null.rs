@@ -186,7 +186,10 @@ fn a_large_arw_excess_is_not_also_called_a_rate_ramp() {
         // one change per parameter, from the model's value to the final fit
         assert_eq!(arw.model, 0.001, "seed {s}");
         assert_eq!(
-            r.parameter_changes.iter().filter(|c| c.term == "arw_dpsh").count(),
+            r.parameter_changes
+                .iter()
+                .filter(|c| c.term == "arw_dpsh")
+                .count(),
             1,
             "seed {s}"
         );
@@ -197,7 +200,9 @@ fn a_large_arw_excess_is_not_also_called_a_rate_ramp() {
             arw.ci95
         );
         if r.added_terms.iter().any(|a| a.term == "rate_ramp_dphh")
-            || r.parameter_changes.iter().any(|c| c.term == "rate_ramp_dphh")
+            || r.parameter_changes
+                .iter()
+                .any(|c| c.term == "rate_ramp_dphh")
         {
             ramps.push(s);
         }

@@ -104,7 +104,9 @@ fn effects() -> Vec<Effect> {
             dur_s: 3600.0,
             model: "",
             arw: 0.002,
-            truth: |s| format!("[[noise.random_telegraph]]\namplitude_dph = {s}\nmean_dwell_s = 10.0\n"),
+            truth: |s| {
+                format!("[[noise.random_telegraph]]\namplitude_dph = {s}\nmean_dwell_s = 10.0\n")
+            },
             sizes: [0.01, 0.02, 0.04],
             unit: "amplitude deg/h",
             named: |r| added(r, "random_telegraph"),
@@ -195,7 +197,11 @@ fn what(r: &DiagnosisReport) -> String {
         .chain(r.parameter_changes.iter().map(|c| c.term.clone()))
         .collect();
     if v.is_empty() {
-        if r.verdict == Verdict::Mismatch { "unexplained".into() } else { "consistent".into() }
+        if r.verdict == Verdict::Mismatch {
+            "unexplained".into()
+        } else {
+            "consistent".into()
+        }
     } else {
         v.join("+")
     }
@@ -212,7 +218,9 @@ fn bench_power() {
     let seeds: u64 = std::env::var("SAGNAC_BENCH_SEEDS").map_or(10, |s| s.parse().unwrap());
     let only = std::env::var("SAGNAC_BENCH_ONLY").ok();
     let t_all = Instant::now();
-    println!("| effect | gyro | size | sigma_w | raw z/crit (median) | concealed | raw sep/crit | detected | named | named as (seeds) |");
+    println!(
+        "| effect | gyro | size | sigma_w | raw z/crit (median) | concealed | raw sep/crit | detected | named | named as (seeds) |"
+    );
     println!("|---|---|---|---|---|---|---|---|---|---|");
     for e in effects() {
         if only.as_deref().is_some_and(|o| !e.name.contains(o)) {
@@ -221,7 +229,11 @@ fn bench_power() {
         let model = gyro(&e, e.arw, "");
         for &size in &e.sizes {
             let extra = (e.truth)(size);
-            let arw = if extra.starts_with("#arw") { size } else { e.arw };
+            let arw = if extra.starts_with("#arw") {
+                size
+            } else {
+                e.arw
+            };
             let truth = gyro(&e, arw, &extra);
             let (mut det, mut named, mut conc) = (0, 0, 0);
             let (mut raw_z, mut sw, mut sep) = (Vec::new(), Vec::new(), Vec::new());
@@ -272,10 +284,21 @@ fn bench_power() {
                 median(sep),
                 100.0 * det as f64 / n,
                 100.0 * named as f64 / n,
-                tally.iter().map(|(k, v)| format!("{k} {v}")).collect::<Vec<_>>().join(", ")
+                tally
+                    .iter()
+                    .map(|(k, v)| format!("{k} {v}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
             );
-            eprintln!("  ({} x {seeds} seeds: {:.0} s)", e.name, t.elapsed().as_secs_f64());
+            eprintln!(
+                "  ({} x {seeds} seeds: {:.0} s)",
+                e.name,
+                t.elapsed().as_secs_f64()
+            );
         }
     }
-    println!("\n{seeds} seeds per row; {:.0} s in all", t_all.elapsed().as_secs_f64());
+    println!(
+        "\n{seeds} seeds per row; {:.0} s in all",
+        t_all.elapsed().as_secs_f64()
+    );
 }

@@ -30,13 +30,25 @@ fn simulate(m: &GyroModel, seed: u64, dur_s: f64) -> Recording {
 const DUR_S: f64 = 1200.0;
 
 fn opts(seed: u64) -> DiagnoseOptions {
-    DiagnoseOptions { seed, ..DiagnoseOptions::default() }
+    DiagnoseOptions {
+        seed,
+        ..DiagnoseOptions::default()
+    }
 }
 
 /// The `readout_filter` entry of a diagnosis: (kind, corner, its ci95).
 fn named_filter(d: &diagnose::Diagnosis) -> Option<(String, f64, [f64; 2], Option<f64>)> {
-    let a = d.report.added_terms.iter().find(|a| a.term == "readout_filter")?;
-    Some((a.kind.clone()?, a.params["corner_hz"], a.ci95["corner_hz"], a.params.get("length").copied()))
+    let a = d
+        .report
+        .added_terms
+        .iter()
+        .find(|a| a.term == "readout_filter")?;
+    Some((
+        a.kind.clone()?,
+        a.params["corner_hz"],
+        a.ci95["corner_hz"],
+        a.params.get("length").copied(),
+    ))
 }
 
 fn check_named(truth_filter: &str, kind: &str, corner_hz: f64, seed: u64) {
@@ -49,7 +61,10 @@ fn check_named(truth_filter: &str, kind: &str, corner_hz: f64, seed: u64) {
     assert_eq!(r.verdict, Verdict::Mismatch);
     let (k, fc, ci, _) = named_filter(&d).expect("readout_filter named");
     assert_eq!(k, kind);
-    assert!(ci[0] <= corner_hz * (1.0 + 1e-9) && corner_hz <= ci[1] * (1.0 + 1e-9), "truth {corner_hz} Hz outside {ci:?} (fitted {fc})");
+    assert!(
+        ci[0] <= corner_hz * (1.0 + 1e-9) && corner_hz <= ci[1] * (1.0 + 1e-9),
+        "truth {corner_hz} Hz outside {ci:?} (fitted {fc})"
+    );
     assert!(
         r.fit_after.chi2_per_dof < r.fit_before.chi2_per_dof,
         "chi2/dof {} -> {}",
@@ -62,23 +77,43 @@ fn check_named(truth_filter: &str, kind: &str, corner_hz: f64, seed: u64) {
     assert!(text.contains("[readout_filter]"), "{text}");
     // the JSON holds the kind among the params
     let v = serde_json::to_value(r).unwrap();
-    let entry = v["added_terms"].as_array().unwrap().iter().find(|a| a["term"] == "readout_filter").unwrap();
+    let entry = v["added_terms"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|a| a["term"] == "readout_filter")
+        .unwrap();
     assert_eq!(entry["params"]["kind"], kind);
     assert!(entry["params"]["corner_hz"].is_f64());
     let expl = entry["explanation"].as_str().unwrap();
-    assert!(expl.contains("-3 dB") && expl.contains("group delay") && expl.contains("anti-alias"), "{expl}");
+    assert!(
+        expl.contains("-3 dB") && expl.contains("group delay") && expl.contains("anti-alias"),
+        "{expl}"
+    );
 }
 
 #[test]
 fn a_first_order_filter_the_model_lacks_is_named_with_its_corner() {
-    check_named("[readout_filter]\nkind = \"first_order\"\ncorner_hz = 15.0\n", "first_order", 15.0, 12);
+    check_named(
+        "[readout_filter]\nkind = \"first_order\"\ncorner_hz = 15.0\n",
+        "first_order",
+        15.0,
+        12,
+    );
 }
 
 #[test]
 fn a_moving_average_the_model_lacks_is_named_with_its_length() {
     // L = 5 at 200 Hz: -3 dB at 18.0 Hz
-    let corner = sagnac::model::filter::ReadoutFilter::moving_average(5).unwrap().corner_hz(1.0 / 200.0);
-    check_named("[readout_filter]\nkind = \"moving_average\"\nlength = 5\n", "moving_average", corner, 21);
+    let corner = sagnac::model::filter::ReadoutFilter::moving_average(5)
+        .unwrap()
+        .corner_hz(1.0 / 200.0);
+    check_named(
+        "[readout_filter]\nkind = \"moving_average\"\nlength = 5\n",
+        "moving_average",
+        corner,
+        21,
+    );
 }
 
 #[test]
@@ -105,7 +140,13 @@ fn a_counts_recording_against_a_rate_model_is_refused() {
     let mut sim = Simulator::new(&counts_model, 1, Some(60.0)).unwrap();
     let mut counts = Vec::new();
     sim.next_block(usize::MAX >> 1, &mut counts);
-    let rec = Recording { counts, temp_c: None, sample_rate_hz: 200.0, pulse_arcsec: 1.21, output: Default::default() };
+    let rec = Recording {
+        counts,
+        temp_c: None,
+        sample_rate_hz: 200.0,
+        pulse_arcsec: 1.21,
+        output: Default::default(),
+    };
     let e = diagnose::diagnose(&model(""), &rec, &opts(1)).unwrap_err();
     assert!(matches!(e, DiagnoseError::OutputMismatch { .. }), "{e}");
     assert!(e.to_string().contains("rate recording"), "{e}");
@@ -127,13 +168,23 @@ fn the_filter_quadrature_matches_the_exact_lag_domain_columns() {
     let white = basis.white_rate();
     let quad = basis.filtered_white_rate(None);
     let ma = ReadoutFilter::moving_average(5).unwrap();
-    let exact_ma = LevelBasis::new(&lo, &hi, tau0, &levels, &[SpectralTerm::FilteredWhiteRate { filter: ma }]);
+    let exact_ma = LevelBasis::new(
+        &lo,
+        &hi,
+        tau0,
+        &levels,
+        &[SpectralTerm::FilteredWhiteRate { filter: ma }],
+    );
     let quad_ma = basis.filtered_white_rate(Some(ma));
     for j in 0..levels.len() {
         let e1 = quad[j] / white[j] - 1.0;
         let e2 = quad_ma[j] / exact_ma.phi[j][0] - 1.0;
         eprintln!("level {}: white {e1:.2e}, MA5 {e2:.2e}", levels[j]);
         // tolerance: 1e-4 relative (the quadrature's accuracy)
-        assert!(e1.abs() < 1e-4 && e2.abs() < 1e-4, "level {}: {e1:e} {e2:e}", levels[j]);
+        assert!(
+            e1.abs() < 1e-4 && e2.abs() < 1e-4,
+            "level {}: {e1:e} {e2:e}",
+            levels[j]
+        );
     }
 }

@@ -8,11 +8,11 @@
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
-use sagnac::model::GyroModel;
 use sagnac::diagnose::compare::{gamma_z, nu_from_log_var, sd_log_chi2, trigamma};
-use sagnac::diagnose::wvar_fit::Basis;
 use sagnac::diagnose::mc::{self, McJob};
 use sagnac::diagnose::stats::{self, StatLayout, Welch};
+use sagnac::diagnose::wvar_fit::Basis;
+use sagnac::model::GyroModel;
 use sagnac::model::wvar::{LevelBasis, SpectralTerm};
 use statrs::distribution::{ChiSquared, ContinuousCDF, Normal};
 

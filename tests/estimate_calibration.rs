@@ -11,7 +11,11 @@ use sagnac::pipeline::{Analysis, Pipeline, PipelineConfig, PipelineOutput};
 fn run(model: &str, seed: u64, duration_s: f64) -> Analysis {
     let m = GyroModel::from_toml_str(model, "test model").unwrap();
     let mut sim = Simulator::new(&m, seed, Some(duration_s)).unwrap();
-    let mut p = Pipeline::new(&PipelineConfig::counts(m.gyro.sample_rate_hz, m.gyro.pulse_weight_arcsec)).unwrap();
+    let mut p = Pipeline::new(&PipelineConfig::counts(
+        m.gyro.sample_rate_hz,
+        m.gyro.pulse_weight_arcsec,
+    ))
+    .unwrap();
     let mut out = PipelineOutput::default();
     let mut c = Vec::new();
     loop {
@@ -60,9 +64,14 @@ fn intervals_cover_the_truth_over_40_seeds() {
         en.push((e.arw_dpsh.value.unwrap_or(0.0) / n - 1.0).abs());
     }
     let (mq, mn) = (median(eq), median(en));
-    eprintln!("coverage Q {cq}/{seeds}, N {cn}/{seeds}, B {cb}/{seeds}; median |err| Q {mq:.4}, N {mn:.4}");
+    eprintln!(
+        "coverage Q {cq}/{seeds}, N {cn}/{seeds}, B {cb}/{seeds}; median |err| Q {mq:.4}, N {mn:.4}"
+    );
     for (name, c) in [("Q", cq), ("N", cn), ("B", cb)] {
-        assert!(c as f64 >= 0.85 * seeds as f64, "{name}: coverage {c}/{seeds} below 85 %");
+        assert!(
+            c as f64 >= 0.85 * seeds as f64,
+            "{name}: coverage {c}/{seeds} below 85 %"
+        );
     }
     // accuracy on 20-minute runs (the 1-hour figures are in scripts/bench-estimate)
     assert!(mq < 0.01, "median |error| of Q {mq}");
@@ -83,7 +92,10 @@ fn white_qn_from_a_dithered_counter_is_estimated_too() {
     let ne = e.arw_dpsh.value.unwrap();
     assert!((qe / q - 1.0).abs() < 0.01, "Q {qe}");
     assert!((ne / n - 1.0).abs() < 0.08, "N {ne}");
-    assert!(covers(&e.quantization_arcsec, q) && covers(&e.arw_dpsh, n), "{e:?}");
+    assert!(
+        covers(&e.quantization_arcsec, q) && covers(&e.arw_dpsh, n),
+        "{e:?}"
+    );
 }
 
 #[test]
@@ -93,8 +105,16 @@ fn absent_terms_are_not_reported() {
                  [noise]\nquantization_arcsec = 0.4\narw_dpsh = 0.0015\n";
     let a = run(model, 11, 1200.0);
     let e = &a.estimates;
-    assert!(e.rrw_dphsh.value.is_none() && e.rrw_dphsh.upper95.is_some(), "{:?}", e.rrw_dphsh);
-    assert!(e.rate_ramp_dphh.value.is_none() && e.rate_ramp_dphh.upper95.is_some(), "{:?}", e.rate_ramp_dphh);
+    assert!(
+        e.rrw_dphsh.value.is_none() && e.rrw_dphsh.upper95.is_some(),
+        "{:?}",
+        e.rrw_dphsh
+    );
+    assert!(
+        e.rate_ramp_dphh.value.is_none() && e.rate_ramp_dphh.upper95.is_some(),
+        "{:?}",
+        e.rate_ramp_dphh
+    );
 }
 
 #[test]
@@ -126,11 +146,17 @@ fn a_moderate_ramp_is_a_ramp_not_rate_random_walk() {
             covered += usize::from(lo <= 0.02 && 0.02 <= hi);
         }
         false_k += usize::from(e.rrw_dphsh.value.is_some());
-        eprintln!("seed {seed}: ramp {:?} K {:?}", e.rate_ramp_dphh, e.rrw_dphsh);
+        eprintln!(
+            "seed {seed}: ramp {:?} K {:?}",
+            e.rate_ramp_dphh, e.rrw_dphsh
+        );
     }
     let n = seeds.count();
     assert!(ramps >= 5, "ramp found in {ramps}/{n}");
-    assert!(covered + 1 >= ramps, "ramp interval covered 0.02 in {covered}/{ramps}");
+    assert!(
+        covered + 1 >= ramps,
+        "ramp interval covered 0.02 in {covered}/{ramps}"
+    );
     assert!(false_k <= 2, "false K in {false_k}/{n}");
 }
 
@@ -160,7 +186,10 @@ fn qn_interval_covers_a_slow_dithered_counter() {
         z2 += ((v - q) / ((hi - lo) / (2.0 * 1.96))).powi(2);
     }
     let rms_z = (z2 / seeds as f64).sqrt();
-    println!("slow dithered counter: QN coverage {cq}/{seeds}, rms z {rms_z:.2}, median |err| {:.5}", median(err.clone()));
+    println!(
+        "slow dithered counter: QN coverage {cq}/{seeds}, rms z {rms_z:.2}, median |err| {:.5}",
+        median(err.clone())
+    );
     assert!(cq as f64 >= 0.85 * seeds as f64, "QN coverage {cq}/{seeds}");
     // calibrated intervals give rms z near 1 (the chi-square interval alone
     // gave 1.36 here)
@@ -180,7 +209,11 @@ fn a_record_shorter_than_the_qn_band_gives_honest_bounds() {
     );
     for seed in 0..5 {
         let e = run(&model, 70 + seed, 10.0).estimates;
-        assert!(covers(&e.quantization_arcsec, q), "{:?}", e.quantization_arcsec);
+        assert!(
+            covers(&e.quantization_arcsec, q),
+            "{:?}",
+            e.quantization_arcsec
+        );
         for (name, c, truth) in [("N", &e.arw_dpsh, n), ("B", &e.bias_instability_dph, b)] {
             assert!(c.value.is_none(), "{name} claimed from 10 s: {c:?}");
             let u = c.upper95.expect("an upper bound");
@@ -209,6 +242,9 @@ fn two_minute_records_keep_their_intervals_calibrated() {
     }
     println!("120 s records: coverage Q {cq}/{seeds}, N {cn}/{seeds}, B {cb}/{seeds}");
     for (name, c) in [("Q", cq), ("N", cn), ("B", cb)] {
-        assert!(c as f64 >= 0.85 * seeds as f64, "{name} coverage {c}/{seeds}");
+        assert!(
+            c as f64 >= 0.85 * seeds as f64,
+            "{name} coverage {c}/{seeds}"
+        );
     }
 }

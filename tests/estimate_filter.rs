@@ -27,15 +27,31 @@ fn first_order_level_variances_match_the_truncated_lag_domain_sum() {
     let (lo, hi) = (w.dec_lo(), w.dec_hi());
     for corner in [5.0, 30.0, 80.0] {
         let f = ReadoutFilter::first_order(corner, tau0).unwrap();
-        let ReadoutFilter::FirstOrder { pole: a } = f else { unreachable!() };
+        let ReadoutFilter::FirstOrder { pole: a } = f else {
+            unreachable!()
+        };
         let lags = ((1e-17f64).ln() / a.ln()).ceil() as usize + 1;
-        let r0: Vec<f64> = (0..lags).map(|k| (1.0 - a) / (1.0 + a) * a.powi(k as i32) / tau0).collect();
+        let r0: Vec<f64> = (0..lags)
+            .map(|k| (1.0 - a) / (1.0 + a) * a.powi(k as i32) / tau0)
+            .collect();
         let exact = finite_level_vars(lo, hi, &r0, 10);
         let levels: Vec<u32> = (1..=10).collect();
-        let b = LevelBasis::new(lo, hi, tau0, &levels, &[SpectralTerm::FilteredWhiteRate { filter: f }]);
+        let b = LevelBasis::new(
+            lo,
+            hi,
+            tau0,
+            &levels,
+            &[SpectralTerm::FilteredWhiteRate { filter: f }],
+        );
         for j in 0..10 {
             let rel = b.phi[j][0] / exact[j] - 1.0;
-            assert!(rel.abs() < 1e-6, "corner {corner} Hz, level {}: {} vs {} ({rel:e})", j + 1, b.phi[j][0], exact[j]);
+            assert!(
+                rel.abs() < 1e-6,
+                "corner {corner} Hz, level {}: {} vs {} ({rel:e})",
+                j + 1,
+                b.phi[j][0],
+                exact[j]
+            );
         }
     }
 }
@@ -60,7 +76,10 @@ fn allan_from_autocov(r: &dyn Fn(i64) -> f64, m: i64) -> f64 {
 #[test]
 fn filtered_allan_variance_matches_the_lag_domain_reference() {
     let tau0 = 1.0 / 500.0;
-    for f in [ReadoutFilter::moving_average(6).unwrap(), ReadoutFilter::first_order(40.0, tau0).unwrap()] {
+    for f in [
+        ReadoutFilter::moving_average(6).unwrap(),
+        ReadoutFilter::first_order(40.0, tau0).unwrap(),
+    ] {
         let r = |d: i64| -> f64 {
             let k = d.unsigned_abs() as f64;
             match f {
@@ -75,7 +94,10 @@ fn filtered_allan_variance_matches_the_lag_domain_reference() {
         for m in [1u64, 2, 3, 7, 16, 64, 300] {
             let want = allan_from_autocov(&r, m as i64);
             let got = t.allan_var(m, tau0);
-            assert!((got / want - 1.0).abs() < 1e-4, "{f:?} m={m}: {got} vs {want}");
+            assert!(
+                (got / want - 1.0).abs() < 1e-4,
+                "{f:?} m={m}: {got} vs {want}"
+            );
         }
         // far beyond the filter the ARW signature 1/tau returns
         let m = 100_000u64;
@@ -100,28 +122,52 @@ fn rates(m: &GyroModel, seed: u64, duration_s: f64) -> Vec<f64> {
 
 #[test]
 fn simulated_rate_word_is_filtered_and_quantised() {
-    let m = model(200.0, "[readout_filter]\nkind = \"moving_average\"\nlength = 5\n", "");
+    let m = model(
+        200.0,
+        "[readout_filter]\nkind = \"moving_average\"\nlength = 5\n",
+        "",
+    );
     let r = rates(&m, 4, 600.0);
     assert_eq!(r.len(), 120_000);
     // every value is a multiple of the LSB
-    assert!(r.iter().all(|v| ((v / 0.0005) - (v / 0.0005).round()).abs() < 1e-6));
+    assert!(
+        r.iter()
+            .all(|v| ((v / 0.0005) - (v / 0.0005).round()).abs() < 1e-6)
+    );
     // a moving average of 5 white samples: lag-k correlation (5 - k) / 5
     let mean = r.iter().sum::<f64>() / r.len() as f64;
-    let c = |k: usize| r.iter().zip(&r[k..]).map(|(a, b)| (a - mean) * (b - mean)).sum::<f64>() / (r.len() - k) as f64;
+    let c = |k: usize| {
+        r.iter()
+            .zip(&r[k..])
+            .map(|(a, b)| (a - mean) * (b - mean))
+            .sum::<f64>()
+            / (r.len() - k) as f64
+    };
     let c0 = c(0);
     for k in 1..=6 {
         let want = (5.0 - k as f64).max(0.0) / 5.0;
-        assert!((c(k) / c0 - want).abs() < 0.02, "lag {k}: {} vs {want}", c(k) / c0);
+        assert!(
+            (c(k) / c0 - want).abs() < 0.02,
+            "lag {k}: {} vs {want}",
+            c(k) / c0
+        );
     }
     // the filter keeps the DC gain: the mean is the input rate (10 deg/h)
-    assert!((mean * 3600.0 - 10.0).abs() < 1.0, "mean {} deg/h", mean * 3600.0);
+    assert!(
+        (mean * 3600.0 - 10.0).abs() < 1.0,
+        "mean {} deg/h",
+        mean * 3600.0
+    );
 }
 
 fn analyse(m: &GyroModel, seed: u64, duration_s: f64) -> Analysis {
     let fs = m.gyro.sample_rate_hz;
     let mut p = Pipeline::new(&PipelineConfig::rates(fs)).unwrap();
     let mut out = PipelineOutput::default();
-    let dph: Vec<f64> = rates(m, seed, duration_s).iter().map(|v| v * units::S_PER_H).collect();
+    let dph: Vec<f64> = rates(m, seed, duration_s)
+        .iter()
+        .map(|v| v * units::S_PER_H)
+        .collect();
     for c in dph.chunks(1 << 16) {
         out.clear();
         p.push_rates_dph(c, &mut out).unwrap();
@@ -141,33 +187,56 @@ fn covers(c: &Coefficient, truth: f64) -> bool {
 
 #[test]
 fn arw_behind_a_moving_average_is_the_unfiltered_white_coefficient() {
-    let m = model(200.0, "[readout_filter]\nkind = \"moving_average\"\nlength = 5\n", "");
-    let corner = ReadoutFilter::moving_average(5).unwrap().corner_hz(1.0 / 200.0);
+    let m = model(
+        200.0,
+        "[readout_filter]\nkind = \"moving_average\"\nlength = 5\n",
+        "",
+    );
+    let corner = ReadoutFilter::moving_average(5)
+        .unwrap()
+        .corner_hz(1.0 / 200.0);
     for seed in 1..=3 {
         let a = analyse(&m, seed, 1200.0);
         let n = &a.estimates.arw_dpsh;
         assert!(covers(n, 0.05), "seed {seed}: ARW {n:?}");
-        assert!((n.value.unwrap() / 0.05 - 1.0).abs() < 0.02, "seed {seed}: ARW {n:?}");
-        let f = a.readout_filter.unwrap_or_else(|| panic!("seed {seed}: no filter found"));
+        assert!(
+            (n.value.unwrap() / 0.05 - 1.0).abs() < 0.02,
+            "seed {seed}: ARW {n:?}"
+        );
+        let f = a
+            .readout_filter
+            .unwrap_or_else(|| panic!("seed {seed}: no filter found"));
         assert_eq!(f.kind, FilterKind::MovingAverage, "seed {seed}: {f:?}");
         assert_eq!(f.length, Some(5), "seed {seed}: {f:?}");
-        assert!(f.ci95[0] <= corner * (1.0 + 1e-9) && corner <= f.ci95[1] * (1.0 + 1e-9), "seed {seed}: {f:?}");
+        assert!(
+            f.ci95[0] <= corner * (1.0 + 1e-9) && corner <= f.ci95[1] * (1.0 + 1e-9),
+            "seed {seed}: {f:?}"
+        );
         assert!(a.fit.ok, "seed {seed}: fit {:?}", a.fit);
     }
 }
 
 #[test]
 fn arw_behind_a_first_order_filter_and_its_corner() {
-    let m = model(200.0, "[readout_filter]\nkind = \"first_order\"\ncorner_hz = 30.0\n", "");
+    let m = model(
+        200.0,
+        "[readout_filter]\nkind = \"first_order\"\ncorner_hz = 30.0\n",
+        "",
+    );
     for seed in 1..=3 {
         let a = analyse(&m, seed, 1200.0);
         let n = &a.estimates.arw_dpsh;
         assert!(covers(n, 0.05), "seed {seed}: ARW {n:?}");
-        let f = a.readout_filter.unwrap_or_else(|| panic!("seed {seed}: no filter found"));
+        let f = a
+            .readout_filter
+            .unwrap_or_else(|| panic!("seed {seed}: no filter found"));
         assert!(f.ci95[0] <= 30.0 && 30.0 <= f.ci95[1], "seed {seed}: {f:?}");
         assert!((f.corner_hz / 30.0 - 1.0).abs() < 0.1, "seed {seed}: {f:?}");
         let b = &a.estimates.bias_instability_dph;
-        assert!(covers(b, 0.5), "seed {seed}: B {b:?} (an unfiltered model reads the roll-off as bias instability)");
+        assert!(
+            covers(b, 0.5),
+            "seed {seed}: B {b:?} (an unfiltered model reads the roll-off as bias instability)"
+        );
     }
 }
 
@@ -176,8 +245,16 @@ fn no_filter_is_reported_on_unfiltered_rate_data() {
     let m = model(200.0, "", "");
     for seed in 1..=4 {
         let a = analyse(&m, seed, 1200.0);
-        assert!(a.readout_filter.is_none(), "seed {seed}: {:?}", a.readout_filter);
-        assert!(covers(&a.estimates.arw_dpsh, 0.05), "seed {seed}: {:?}", a.estimates.arw_dpsh);
+        assert!(
+            a.readout_filter.is_none(),
+            "seed {seed}: {:?}",
+            a.readout_filter
+        );
+        assert!(
+            covers(&a.estimates.arw_dpsh, 0.05),
+            "seed {seed}: {:?}",
+            a.estimates.arw_dpsh
+        );
     }
 }
 
@@ -218,24 +295,59 @@ fn a_model_that_does_not_fit_says_so_and_widens_its_intervals() {
     // times that of a run the model describes (one pole)
     let single = analyse_rates(200.0, &rates(&m, 1, 3600.0));
     assert!(single.fit.ok, "single pole: {:?}", single.fit);
-    let width = |c: &Coefficient| c.ci95.map(|[lo, hi]| (hi - lo) / c.value.unwrap()).unwrap_or(f64::INFINITY);
-    let (w_bad, w_ok) = (width(&a.estimates.arw_dpsh), width(&single.estimates.arw_dpsh));
-    assert!(w_bad > a.fit.chi2_per_dof.sqrt() * 0.8 * w_ok, "misfit width {w_bad} vs {w_ok}, fit {:?}", a.fit);
+    let width = |c: &Coefficient| {
+        c.ci95
+            .map(|[lo, hi]| (hi - lo) / c.value.unwrap())
+            .unwrap_or(f64::INFINITY)
+    };
+    let (w_bad, w_ok) = (
+        width(&a.estimates.arw_dpsh),
+        width(&single.estimates.arw_dpsh),
+    );
+    assert!(
+        w_bad > a.fit.chi2_per_dof.sqrt() * 0.8 * w_ok,
+        "misfit width {w_bad} vs {w_ok}, fit {:?}",
+        a.fit
+    );
 }
 
 #[test]
 fn rate_output_model_keys_are_checked() {
     let bad = |text: &str, key: &str| {
-        let e = GyroModel::from_toml_str(text, "m.toml").and_then(|m| m.validate().map(|_| m)).unwrap_err().to_string();
+        let e = GyroModel::from_toml_str(text, "m.toml")
+            .and_then(|m| m.validate().map(|_| m))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains(key), "{e} should name {key}");
     };
-    bad("[gyro]\nsample_rate_hz = 100.0\noutput = \"rate\"\npulse_weight_arcsec = 1.0\n", "gyro.pulse_weight_arcsec");
-    bad("[gyro]\nsample_rate_hz = 100.0\npulse_weight_arcsec = 1.0\nrate_lsb_dps = 0.05\n", "gyro.rate_lsb_dps");
-    bad("[gyro]\nsample_rate_hz = 100.0\noutput = \"rate\"\nrate_lsb_dps = -1.0\n", "gyro.rate_lsb_dps");
-    bad("[gyro]\nsample_rate_hz = 100.0\noutput = \"rate\"\n[readout_filter]\nkind = \"first_order\"\ncorner_hz = 60.0\n", "readout_filter.corner_hz");
-    bad("[gyro]\nsample_rate_hz = 100.0\noutput = \"rate\"\n[readout_filter]\nkind = \"moving_average\"\n", "readout_filter.length");
-    bad("[gyro]\nsample_rate_hz = 100.0\noutput = \"rate\"\n[readout_filter]\nkind = \"boxcar\"\nlength = 3\n", "m.toml:5");
-    bad("[gyro]\nsample_rate_hz = 100.0\noutput = \"rate\"\n[readout_filter]\nkind = \"moving_average\"\nlength = 3\ntaps = 2\n", "taps");
+    bad(
+        "[gyro]\nsample_rate_hz = 100.0\noutput = \"rate\"\npulse_weight_arcsec = 1.0\n",
+        "gyro.pulse_weight_arcsec",
+    );
+    bad(
+        "[gyro]\nsample_rate_hz = 100.0\npulse_weight_arcsec = 1.0\nrate_lsb_dps = 0.05\n",
+        "gyro.rate_lsb_dps",
+    );
+    bad(
+        "[gyro]\nsample_rate_hz = 100.0\noutput = \"rate\"\nrate_lsb_dps = -1.0\n",
+        "gyro.rate_lsb_dps",
+    );
+    bad(
+        "[gyro]\nsample_rate_hz = 100.0\noutput = \"rate\"\n[readout_filter]\nkind = \"first_order\"\ncorner_hz = 60.0\n",
+        "readout_filter.corner_hz",
+    );
+    bad(
+        "[gyro]\nsample_rate_hz = 100.0\noutput = \"rate\"\n[readout_filter]\nkind = \"moving_average\"\n",
+        "readout_filter.length",
+    );
+    bad(
+        "[gyro]\nsample_rate_hz = 100.0\noutput = \"rate\"\n[readout_filter]\nkind = \"boxcar\"\nlength = 3\n",
+        "m.toml:5",
+    );
+    bad(
+        "[gyro]\nsample_rate_hz = 100.0\noutput = \"rate\"\n[readout_filter]\nkind = \"moving_average\"\nlength = 3\ntaps = 2\n",
+        "taps",
+    );
     // a written model reads back the same
     let m = GyroModel::from_toml_str(
         "[gyro]\nsample_rate_hz = 100.0\noutput = \"rate\"\nrate_lsb_dps = 0.05\n[readout_filter]\nkind = \"first_order\"\ncorner_hz = 20.0\n",
@@ -261,12 +373,24 @@ fn rate_word_rounding_is_white_rate_noise_of_lsb_squared_over_12() {
     let var = r.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
     let white = (1.0f64 / 60.0).powi(2) / 0.01;
     let want = white + 0.2f64.powi(2) / 12.0;
-    assert!((var / want - 1.0).abs() < 0.01, "variance {var} vs {want} (without the LSB term {white})");
-    let lag1 = r.iter().zip(&r[1..]).map(|(a, b)| (a - mean) * (b - mean)).sum::<f64>() / (n - 1.0) / var;
+    assert!(
+        (var / want - 1.0).abs() < 0.01,
+        "variance {var} vs {want} (without the LSB term {white})"
+    );
+    let lag1 = r
+        .iter()
+        .zip(&r[1..])
+        .map(|(a, b)| (a - mean) * (b - mean))
+        .sum::<f64>()
+        / (n - 1.0)
+        / var;
     assert!(lag1.abs() < 0.01, "lag-1 correlation {lag1}");
     // the model's terms say the same: ARW plus the rate quantization term
     let tau0 = 0.01;
     let total: f64 = m.terms().iter().map(|t| t.avar(tau0)).sum();
     let want_dph2 = want * 3600f64.powi(2);
-    assert!((total / want_dph2 - 1.0).abs() < 1e-9, "model AVAR at tau0 {total} vs {want_dph2}");
+    assert!(
+        (total / want_dph2 - 1.0).abs() < 1e-9,
+        "model AVAR at tau0 {total} vs {want_dph2}"
+    );
 }

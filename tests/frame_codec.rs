@@ -123,15 +123,30 @@ async fn triad_framed_read_over_a_chunked_pipe_matches_the_sync_decoder() {
     use sagnac::source::frame::inject::inject_wire;
     use sagnac::source::frame::triad::encode_triad_increments;
     use sagnac::source::frame::{Triad, TriadEncoder};
-    let incs: Vec<[i64; 3]> = (0..2000).map(|k| [(k * 37 % 11) - 5, k % 3, -(k % 7)]).collect();
-    let frames =
-        encode_triad_increments(&mut TriadEncoder::new(65_000, [0xFFFF_F000, 7, u32::MAX]), &incs).unwrap();
-    let cfg = InjectorConfig { drop_prob: 0.02, flip_prob: 0.02, garbage_prob: 0.02, ..InjectorConfig::default() };
+    let incs: Vec<[i64; 3]> = (0..2000)
+        .map(|k| [(k * 37 % 11) - 5, k % 3, -(k % 7)])
+        .collect();
+    let frames = encode_triad_increments(
+        &mut TriadEncoder::new(65_000, [0xFFFF_F000, 7, u32::MAX]),
+        &incs,
+    )
+    .unwrap();
+    let cfg = InjectorConfig {
+        drop_prob: 0.02,
+        flip_prob: 0.02,
+        garbage_prob: 0.02,
+        ..InjectorConfig::default()
+    };
     let mut plan = FaultPlan::random_for::<Triad>(frames.len(), &cfg, 43);
     plan.tail = frames[5][..11].to_vec();
     let bytes = inject_wire::<Triad>(&frames, &plan).bytes;
-    let (expected, expected_stats) = FrameDecoder::<Triad>::decode_all_wire(&bytes, DecoderConfig::default());
-    assert!(expected_stats.crc_errors > 0 && expected_stats.gaps > 0 && expected_stats.trailing_bytes == 11);
+    let (expected, expected_stats) =
+        FrameDecoder::<Triad>::decode_all_wire(&bytes, DecoderConfig::default());
+    assert!(
+        expected_stats.crc_errors > 0
+            && expected_stats.gaps > 0
+            && expected_stats.trailing_bytes == 11
+    );
     let (mut tx, rx) = tokio::io::duplex(41);
     let writer = tokio::spawn(async move {
         for chunk in bytes.chunks(17) {

@@ -498,12 +498,24 @@ fn bulk_runs_decode_exactly_like_frame_by_frame() {
     let mut frames = Vec::new();
     let mut counter = 0xFFFF_F000u32;
     for k in 0..6000u32 {
-        let status = if (2000..2500).contains(&k) { 0b011 } else { 0b111 };
+        let status = if (2000..2500).contains(&k) {
+            0b011
+        } else {
+            0b111
+        };
         counter = counter.wrapping_add((k * 7919) % 41).wrapping_sub(20);
-        frames.push(encode_frame((65_000 + k) as u16, counter, (k % 300) as i16 - 150, status));
+        frames.push(encode_frame(
+            (65_000 + k) as u16,
+            counter,
+            (k % 300) as i16 - 150,
+            status,
+        ));
     }
     for seed in 0..6u64 {
-        let cfg = InjectorConfig { tail_max_len: 20, ..InjectorConfig::default() };
+        let cfg = InjectorConfig {
+            tail_max_len: 20,
+            ..InjectorConfig::default()
+        };
         let bytes = inject(&frames, &FaultPlan::random(frames.len(), &cfg, seed)).bytes;
         let (reference, ref_stats) = decode(&bytes);
         let ref_samples = samples(&reference);
@@ -522,11 +534,18 @@ fn bulk_runs_decode_exactly_like_frame_by_frame() {
                     incs.extend_from_slice(&run);
                     // the run's last sample is the reference's sample at that place
                     let last = ref_samples[incs.len() - 1];
-                    assert_eq!((end.seq, end.status, end.temp_c.to_bits()), (last.seq, last.status, last.temp_c.to_bits()));
+                    assert_eq!(
+                        (end.seq, end.status, end.temp_c.to_bits()),
+                        (last.seq, last.status, last.temp_c.to_bits())
+                    );
                     runs += 1;
                     continue;
                 }
-                let item = if eof { dec.decode_eof(&mut buf) } else { dec.decode(&mut buf) };
+                let item = if eof {
+                    dec.decode_eof(&mut buf)
+                } else {
+                    dec.decode(&mut buf)
+                };
                 match item {
                     Some(Decoded::Sample(s)) => {
                         assert_eq!(s, ref_samples[incs.len()]);

@@ -16,15 +16,18 @@ use proptest::prelude::*;
 use sagnac::source::frame::inject::{FaultPlan, InjectorConfig, inject_wire};
 use sagnac::source::frame::triad::encode_triad_increments;
 use sagnac::source::frame::{
-    DecodeEvent, Decoded, DecoderConfig, DecoderStats, FrameDecoder, TRIAD_FRAME_LEN, Triad, TriadEncoder,
-    WireDecoded, encode_frame, encode_triad_frame,
+    DecodeEvent, Decoded, DecoderConfig, DecoderStats, FrameDecoder, TRIAD_FRAME_LEN, Triad,
+    TriadEncoder, WireDecoded, encode_frame, encode_triad_frame,
 };
 
 type Item = WireDecoded<Triad>;
 
 fn config() -> ProptestConfig {
     ProptestConfig {
-        cases: std::env::var("PROPTEST_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(256),
+        cases: std::env::var("PROPTEST_CASES")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(256),
         failure_persistence: None,
         rng_algorithm: proptest::test_runner::RngAlgorithm::ChaCha,
         rng_seed: proptest::test_runner::RngSeed::Fixed(0x7A1_AD5),
@@ -34,13 +37,21 @@ fn config() -> ProptestConfig {
 
 const LEN: u64 = TRIAD_FRAME_LEN as u64;
 
-fn decode_chunked(bytes: &[u8], chunks: &[usize], cfg: DecoderConfig) -> Result<(Vec<Item>, DecoderStats), TestCaseError> {
+fn decode_chunked(
+    bytes: &[u8],
+    chunks: &[usize],
+    cfg: DecoderConfig,
+) -> Result<(Vec<Item>, DecoderStats), TestCaseError> {
     let mut dec = FrameDecoder::<Triad>::for_wire(cfg);
     let mut buf = BytesMut::new();
     let mut out = Vec::new();
     let (mut pos, mut k) = (0, 0);
     while pos < bytes.len() {
-        let n = chunks.get(k % chunks.len().max(1)).copied().unwrap_or(1).max(1);
+        let n = chunks
+            .get(k % chunks.len().max(1))
+            .copied()
+            .unwrap_or(1)
+            .max(1);
         let end = (pos + n).min(bytes.len());
         buf.extend_from_slice(&bytes[pos..end]);
         pos = end;
@@ -48,8 +59,14 @@ fn decode_chunked(bytes: &[u8], chunks: &[usize], cfg: DecoderConfig) -> Result<
         dec.decode_available(&mut buf, &mut out);
         let st = dec.stats();
         prop_assert_eq!(st.bytes_read, pos as u64);
-        prop_assert_eq!(st.bytes_read, LEN * st.frames_decoded + st.bytes_skipped + buf.len() as u64);
-        prop_assert!(buf.len() < TRIAD_FRAME_LEN, "at most a partial candidate stays buffered");
+        prop_assert_eq!(
+            st.bytes_read,
+            LEN * st.frames_decoded + st.bytes_skipped + buf.len() as u64
+        );
+        prop_assert!(
+            buf.len() < TRIAD_FRAME_LEN,
+            "at most a partial candidate stays buffered"
+        );
     }
     dec.finish(&mut buf, &mut out);
     prop_assert!(buf.is_empty());
@@ -67,7 +84,11 @@ fn check_event_accounting(items: &[Item], st: &DecoderStats) -> Result<(), TestC
                     n.resyncs += 1;
                     skipped += skipped_bytes;
                 }
-                DecodeEvent::EndOfStream { skipped_bytes, trailing_bytes, .. } => {
+                DecodeEvent::EndOfStream {
+                    skipped_bytes,
+                    trailing_bytes,
+                    ..
+                } => {
                     skipped += skipped_bytes;
                     n.trailing_bytes += trailing_bytes;
                 }
@@ -87,18 +108,53 @@ fn check_event_accounting(items: &[Item], st: &DecoderStats) -> Result<(), TestC
     }
     prop_assert_eq!(skipped, st.bytes_skipped);
     prop_assert_eq!(
-        (n.samples, n.resyncs, n.trailing_bytes, n.crc_errors, n.false_syncs),
-        (st.samples, st.resyncs, st.trailing_bytes, st.crc_errors, st.false_syncs)
+        (
+            n.samples,
+            n.resyncs,
+            n.trailing_bytes,
+            n.crc_errors,
+            n.false_syncs
+        ),
+        (
+            st.samples,
+            st.resyncs,
+            st.trailing_bytes,
+            st.crc_errors,
+            st.false_syncs
+        )
     );
     prop_assert_eq!(
-        (n.gaps, n.lost_samples, n.duplicates, n.out_of_sequence, n.discontinuities, n.status_changes),
-        (st.gaps, st.lost_samples, st.duplicates, st.out_of_sequence, st.discontinuities, st.status_changes)
+        (
+            n.gaps,
+            n.lost_samples,
+            n.duplicates,
+            n.out_of_sequence,
+            n.discontinuities,
+            n.status_changes
+        ),
+        (
+            st.gaps,
+            st.lost_samples,
+            st.duplicates,
+            st.out_of_sequence,
+            st.discontinuities,
+            st.status_changes
+        )
     );
     Ok(())
 }
 
 fn increments(items: &[Item]) -> Vec<[i64; 3]> {
-    items.iter().filter_map(|d| if let Decoded::Sample(s) = d { Some(s.increment) } else { None }).collect()
+    items
+        .iter()
+        .filter_map(|d| {
+            if let Decoded::Sample(s) = d {
+                Some(s.increment)
+            } else {
+                None
+            }
+        })
+        .collect()
 }
 
 /// One building block of an arbitrary triad stream.
@@ -264,8 +320,11 @@ proptest! {
 #[test]
 fn known_stream_exact_counts() {
     let incs: Vec<[i64; 3]> = (0..50).map(|k| [5 + k, -7, 1_000_000]).collect();
-    let frames =
-        encode_triad_increments(&mut TriadEncoder::new(65_530, [u32::MAX - 20, 3, u32::MAX - 2_500_000]), &incs).unwrap();
+    let frames = encode_triad_increments(
+        &mut TriadEncoder::new(65_530, [u32::MAX - 20, 3, u32::MAX - 2_500_000]),
+        &incs,
+    )
+    .unwrap();
     let mut plan = FaultPlan::none();
     plan.set_action(10, sagnac::source::frame::inject::FrameAction::Drop);
     plan.set_action(20, sagnac::source::frame::inject::FrameAction::FlipBit(100));
@@ -273,11 +332,23 @@ fn known_stream_exact_counts() {
     let inj = inject_wire::<Triad>(&frames, &plan);
     let (items, st) = FrameDecoder::<Triad>::decode_all_wire(&inj.bytes, DecoderConfig::default());
     assert_eq!(inj.ledger.expected.mismatches(&st), vec![]);
-    assert_eq!((st.gaps, st.lost_samples, st.crc_errors, st.false_syncs, st.resyncs), (2, 2, 1, 1, 2));
+    assert_eq!(
+        (
+            st.gaps,
+            st.lost_samples,
+            st.crc_errors,
+            st.false_syncs,
+            st.resyncs
+        ),
+        (2, 2, 1, 1, 2)
+    );
     assert_eq!(st.bytes_skipped, 24 + 6);
     let got = increments(&items);
     assert_eq!(got.len(), 48);
     for axis in 0..3 {
-        assert_eq!(got.iter().map(|i| i[axis]).sum::<i64>(), incs.iter().map(|i| i[axis]).sum::<i64>());
+        assert_eq!(
+            got.iter().map(|i| i[axis]).sum::<i64>(),
+            incs.iter().map(|i| i[axis]).sum::<i64>()
+        );
     }
 }

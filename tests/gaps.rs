@@ -47,7 +47,9 @@ fn lose_bursts(counts: &[i64], frac: f64, max_burst: u64, rng: &mut Rng) -> Fill
         total += l;
     }
     // measured runs between (and around) the bursts: random, at least one sample
-    let w: Vec<f64> = (0..=bursts.len()).map(|_| -rng.uniform().max(1e-12).ln()).collect();
+    let w: Vec<f64> = (0..=bursts.len())
+        .map(|_| -rng.uniform().max(1e-12).ln())
+        .collect();
     let free = (n - total - bursts.len() - 1) as f64;
     let ws: f64 = w.iter().sum();
     let mut lost_at = vec![false; n];
@@ -110,7 +112,12 @@ fn run_pipeline(f: &FilledSeries, cfg: &PipelineConfig, blocks: &[usize]) -> Pip
 /// holds no sample of a filled span of length g, except short spans
 /// (`g <= SHORT_GAP`) on levels with `2^j > GAP_SCALE g` (they see a short
 /// gap as a smooth interpolation and keep it).
-fn batch_levels(x: &[f64], spans: &[std::ops::Range<usize>], w: &Wavelet, levels: u32) -> Vec<LevelObs> {
+fn batch_levels(
+    x: &[f64],
+    spans: &[std::ops::Range<usize>],
+    w: &Wavelet,
+    levels: u32,
+) -> Vec<LevelObs> {
     let l = w.len() as i64;
     let mut a = x.to_vec();
     let mut out = Vec::new();
@@ -121,8 +128,13 @@ fn batch_levels(x: &[f64], spans: &[std::ops::Range<usize>], w: &Wavelet, levels
         }
         let mut prefix = vec![0u64; x.len() + 1];
         let mut bad = vec![false; x.len()];
-        for r in spans.iter().filter(|r| r.len() as u64 > SHORT_GAP || (1u64 << j) <= GAP_SCALE * r.len() as u64) {
-            bad[r.start..r.end.min(x.len())].iter_mut().for_each(|b| *b = true);
+        for r in spans
+            .iter()
+            .filter(|r| r.len() as u64 > SHORT_GAP || (1u64 << j) <= GAP_SCALE * r.len() as u64)
+        {
+            bad[r.start..r.end.min(x.len())]
+                .iter_mut()
+                .for_each(|b| *b = true);
         }
         for (i, &b) in bad.iter().enumerate() {
             prefix[i + 1] = prefix[i] + b as u64;
@@ -139,7 +151,11 @@ fn batch_levels(x: &[f64], spans: &[std::ops::Range<usize>], w: &Wavelet, levels
             }
         }
         if n > 0 {
-            out.push(LevelObs { level: j, n_coef: n as f64, mean_sq: s / n as f64 });
+            out.push(LevelObs {
+                level: j,
+                n_coef: n as f64,
+                mean_sq: s / n as f64,
+            });
         }
         a = ca[..n_j].to_vec();
     }
@@ -168,7 +184,13 @@ fn assert_levels_close(a: &[LevelObs], b: &[LevelObs], tol: f64, what: &str) {
     assert_eq!(a.len(), b.len(), "{what}: levels {a:?} vs {b:?}");
     for (x, y) in a.iter().zip(&b) {
         assert_eq!((x.level, x.n_coef), (y.level, y.n_coef), "{what}");
-        assert!((x.mean_sq / y.mean_sq - 1.0).abs() <= tol, "{what}: level {} {} vs {}", x.level, x.mean_sq, y.mean_sq);
+        assert!(
+            (x.mean_sq / y.mean_sq - 1.0).abs() <= tol,
+            "{what}: level {} {} vs {}",
+            x.level,
+            x.mean_sq,
+            y.mean_sq
+        );
     }
 }
 
@@ -194,7 +216,10 @@ fn pipeline_levels_equal_the_batch_gap_aware_reference() {
     assert!((lost - 0.25).abs() < 1e-6, "lost fraction {lost}");
     let cfg = PipelineConfig::counts(m.gyro.sample_rate_hz, m.gyro.pulse_weight_arcsec);
     let p = run_pipeline(&f, &cfg, &[65_536]);
-    assert_eq!(p.filled_samples(), filled.iter().filter(|&&b| b).count() as u64);
+    assert_eq!(
+        p.filled_samples(),
+        filled.iter().filter(|&&b| b).count() as u64
+    );
     let w = Wavelet::by_name("sym8").unwrap();
     let (d, tau0) = (m.gyro.pulse_weight_arcsec, 1.0 / m.gyro.sample_rate_hz);
     let k = d / tau0;
@@ -209,14 +234,24 @@ fn pipeline_levels_equal_the_batch_gap_aware_reference() {
     // it (the measured sample ending a gap) is
     let rate_spans: Vec<_> = f.filled.iter().map(|r| r.start..r.end + 1).collect();
     let rate_ref = batch_levels(&rate, &rate_spans, &w, 32);
-    let angle_ref = batch_levels(&angle, &f.filled, &w, p.angle_level_observations().len() as u32);
+    let angle_ref = batch_levels(
+        &angle,
+        &f.filled,
+        &w,
+        p.angle_level_observations().len() as u32,
+    );
     // tolerance: the streaming kernel and the plain convolution add their
     // products in different orders; deep detail coefficients are small next to
     // the signal they come from (a 12 deg/h rate of +-1210 arcsec/s pulses, a
     // ramping angle), so their rounding is large relative to them: 1e-9
     // relative (the coefficient counts are compared exactly)
     assert_levels_close(&p.rate_level_observations(), &rate_ref, 1e-9, "rate levels");
-    assert_levels_close(&p.angle_level_observations(), &angle_ref, 1e-9, "angle levels");
+    assert_levels_close(
+        &p.angle_level_observations(),
+        &angle_ref,
+        1e-9,
+        "angle levels",
+    );
     // the gaps cost coefficients: fine levels keep most
     let fine = &p.rate_level_observations()[0];
     assert!(fine.n_coef < 0.85 * (f.len() / 2) as f64 && fine.n_coef > 0.5 * (f.len() / 2) as f64);
@@ -229,7 +264,12 @@ fn allan_equals_the_batch_gap_aware_reference_and_ignores_chunking() {
     let filled = filled_mask(&f);
     let tau0 = 1.0 / m.gyro.sample_rate_hz;
     // a small cap and P, so that strided octaves are exercised too
-    let cfg = StreamConfig { tau0_s: tau0, full_overlap_cap: 1 << 8, strided_terms_per_tau: 1 << 4, ..StreamConfig::default() };
+    let cfg = StreamConfig {
+        tau0_s: tau0,
+        full_overlap_cap: 1 << 8,
+        strided_terms_per_tau: 1 << 4,
+        ..StreamConfig::default()
+    };
     let feed = |blocks: &mut dyn FnMut() -> usize| -> Vec<StreamPoint> {
         let mut a = OctaveAllan::counts(cfg.clone()).unwrap();
         let mut at = 0;
@@ -262,7 +302,13 @@ fn allan_equals_the_batch_gap_aware_reference_and_ignores_chunking() {
         let (avar, n) = batch_avar(&x, &bad, p.m as usize, p.stride as usize, tau0);
         assert_eq!(p.n, n, "m {}", p.m);
         // tolerance: f64 reference sum vs. exact integer sum
-        assert!((p.avar / avar - 1.0).abs() < 1e-12, "m {}: {} vs {}", p.m, p.avar, avar);
+        assert!(
+            (p.avar / avar - 1.0).abs() < 1e-12,
+            "m {}: {} vs {}",
+            p.m,
+            p.avar,
+            avar
+        );
     }
     assert!(one.iter().any(|p| p.stride > 1), "no strided octave tested");
     // f64 phase input, random splits: same bits too
@@ -290,7 +336,13 @@ fn allan_equals_the_batch_gap_aware_reference_and_ignores_chunking() {
         let (avar, n) = batch_avar(&x, &bad, p.m as usize, p.stride as usize, tau0);
         assert_eq!(p.n, n, "phase m {}", p.m);
         // tolerance: the engine subtracts the filled terms' sum from the total
-        assert!((p.avar / avar - 1.0).abs() < 1e-10, "phase m {}: {} vs {}", p.m, p.avar, avar);
+        assert!(
+            (p.avar / avar - 1.0).abs() < 1e-10,
+            "phase m {}: {} vs {}",
+            p.m,
+            p.avar,
+            avar
+        );
     }
 }
 
@@ -304,8 +356,18 @@ fn pipeline_results_ignore_chunking_with_gaps() {
     let splits: Vec<usize> = (0..500).map(|_| 1 + rng.below(9_000) as usize).collect();
     let b = run_pipeline(&f, &cfg, &splits);
     // tolerance: level sums are added per push (1e-12 relative)
-    assert_levels_close(&a.rate_level_observations(), &b.rate_level_observations(), 1e-12, "rate");
-    assert_levels_close(&a.angle_level_observations(), &b.angle_level_observations(), 1e-12, "angle");
+    assert_levels_close(
+        &a.rate_level_observations(),
+        &b.rate_level_observations(),
+        1e-12,
+        "rate",
+    );
+    assert_levels_close(
+        &a.angle_level_observations(),
+        &b.angle_level_observations(),
+        1e-12,
+        "angle",
+    );
     let (x, y) = (a.analysis(), b.analysis());
     // Allan sums: exact (counts) or at absolute block boundaries (clean, noise)
     assert_eq!(x.allan, y.allan);
@@ -371,7 +433,11 @@ fn estimates_cover_the_truth_with_burst_loss() {
 /// frames. Before gap-aware statistics: QN 0.644 [0.627, 0.661]", truth 0.610.
 #[test]
 fn issue_13_sixty_bursts_keep_qn_within_its_interval() {
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml")).unwrap();
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/config/paper_gyro.toml"
+    ))
+    .unwrap();
     let model = text.replace("quantization_arcsec = 0.35", "quantization_arcsec = 0.61");
     assert_ne!(model, text);
     let truth = 0.61;
@@ -382,7 +448,10 @@ fn issue_13_sixty_bursts_keep_qn_within_its_interval() {
     let mut len: Vec<f64> = (0..60).map(|_| 1000.0 + 2000.0 * rng.uniform()).collect();
     let s: f64 = len.iter().sum();
     len.iter_mut().for_each(|l| *l *= 120_000.0 / s);
-    let mut lens: Vec<usize> = len.iter().map(|&l| (l.round() as usize).min(4000)).collect();
+    let mut lens: Vec<usize> = len
+        .iter()
+        .map(|&l| (l.round() as usize).min(4000))
+        .collect();
     let short = 120_000 - lens.iter().sum::<usize>() as i64;
     lens[0] = (lens[0] as i64 + short) as usize;
     let good = (n - 120_000) / 61;
@@ -399,12 +468,22 @@ fn issue_13_sixty_bursts_keep_qn_within_its_interval() {
     assert_eq!(f.filled.len(), 60);
     let cfg = PipelineConfig::counts(m.gyro.sample_rate_hz, m.gyro.pulse_weight_arcsec);
     let e = run_pipeline(&f, &cfg, &[1 << 16]).analysis().estimates;
-    let full = run_pipeline(&decode(&counts, &vec![false; n]), &cfg, &[1 << 16]).analysis().estimates;
+    let full = run_pipeline(&decode(&counts, &vec![false; n]), &cfg, &[1 << 16])
+        .analysis()
+        .estimates;
     eprintln!(
         "QN with loss {:?} {:?}, without {:?} {:?}",
-        e.quantization_arcsec.value, e.quantization_arcsec.ci95, full.quantization_arcsec.value, full.quantization_arcsec.ci95
+        e.quantization_arcsec.value,
+        e.quantization_arcsec.ci95,
+        full.quantization_arcsec.value,
+        full.quantization_arcsec.ci95
     );
-    assert!(covers(&e.quantization_arcsec, truth), "QN {:?} {:?}", e.quantization_arcsec.value, e.quantization_arcsec.ci95);
+    assert!(
+        covers(&e.quantization_arcsec, truth),
+        "QN {:?} {:?}",
+        e.quantization_arcsec.value,
+        e.quantization_arcsec.ci95
+    );
 }
 
 #[test]
@@ -414,14 +493,27 @@ fn sparse_single_frame_losses_cost_only_the_fine_levels() {
     // sees its fill as a smooth interpolation and keeps its coefficients
     let (m, counts) = sim_counts(CAL_MODEL, 11, 60.0);
     let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
-    let lost: Vec<bool> = (0..counts.len()).map(|i| i > 0 && i + 1 < counts.len() && rng.below(100) == 0).collect();
+    let lost: Vec<bool> = (0..counts.len())
+        .map(|i| i > 0 && i + 1 < counts.len() && rng.below(100) == 0)
+        .collect();
     let f = decode(&counts, &lost);
     let cfg = PipelineConfig::counts(m.gyro.sample_rate_hz, m.gyro.pulse_weight_arcsec);
     let a = run_pipeline(&f, &cfg, &[65_536]).analysis();
-    let clean = run_pipeline(&decode(&counts, &vec![false; counts.len()]), &cfg, &[65_536]).analysis();
+    let clean = run_pipeline(
+        &decode(&counts, &vec![false; counts.len()]),
+        &cfg,
+        &[65_536],
+    )
+    .analysis();
     assert!(a.fit.ok, "fit {:?}", a.fit);
-    let (q, q0) = (a.estimates.quantization_arcsec.value.unwrap(), clean.estimates.quantization_arcsec.value.unwrap());
+    let (q, q0) = (
+        a.estimates.quantization_arcsec.value.unwrap(),
+        clean.estimates.quantization_arcsec.value.unwrap(),
+    );
     assert!((q / q0 - 1.0).abs() < 0.02, "Q {q} vs {q0} without loss");
-    let (n, n0) = (a.estimates.arw_dpsh.value.unwrap(), clean.estimates.arw_dpsh.value.unwrap());
+    let (n, n0) = (
+        a.estimates.arw_dpsh.value.unwrap(),
+        clean.estimates.arw_dpsh.value.unwrap(),
+    );
     assert!((n / n0 - 1.0).abs() < 0.3, "N {n} vs {n0} without loss");
 }

@@ -198,10 +198,12 @@ fn out_of_range_values_name_key_and_value() {
     let tg = "[[noise.random_telegraph]]\namplitude_dph = 0.05\nmean_dwell_s = ";
     let msg = err_of(&format!("{BASE}\n{tg}1e-300\n"));
     assert!(
-        msg.contains("noise.random_telegraph[0].mean_dwell_s = 1e-300") && msg.contains(">= 1e-5 s"),
+        msg.contains("noise.random_telegraph[0].mean_dwell_s = 1e-300")
+            && msg.contains(">= 1e-5 s"),
         "{msg}"
     );
-    GyroModel::from_toml_str(&format!("{BASE}\n{tg}1e-5\n"), "m.toml").expect("1/100 sample is allowed");
+    GyroModel::from_toml_str(&format!("{BASE}\n{tg}1e-5\n"), "m.toml")
+        .expect("1/100 sample is allowed");
     // a thermal sine without a period
     let msg = err_of(&BASE.replacen(
         "temp_c0 = 25.0",

@@ -24,9 +24,16 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use daemon_common::DaemonProc;
-use prom_common::{Prometheus, dashboard_exprs, have, label, recorded_names, repo, target_group, value_of, write_config};
+use prom_common::{
+    Prometheus, dashboard_exprs, have, label, recorded_names, repo, target_group, value_of,
+    write_config,
+};
 
-const RULE_FILES: [&str; 3] = ["sagnac-rules.yml", "sagnac-spec-rules.yml", "sagnac-lab-rules.yml"];
+const RULE_FILES: [&str; 3] = [
+    "sagnac-rules.yml",
+    "sagnac-spec-rules.yml",
+    "sagnac-lab-rules.yml",
+];
 
 /// The alerts of sagnac-rules.yml: none may fire on a healthy simulated bench.
 const HEALTH_ALERTS: [&str; 6] = [
@@ -63,10 +70,20 @@ fn substitute(expr: &str, vars: &[(&str, String)]) -> String {
 /// `label_values(SELECTOR, LABEL)` of a Grafana query variable, through the
 /// label-values API (as Grafana runs it).
 fn label_values(prom: &Prometheus, query: &str) -> Vec<String> {
-    let inner = query.strip_prefix("label_values(").and_then(|q| q.strip_suffix(')')).expect(query);
+    let inner = query
+        .strip_prefix("label_values(")
+        .and_then(|q| q.strip_suffix(')'))
+        .expect(query);
     let (selector, label) = inner.rsplit_once(',').expect(query);
-    let data = prom.api(&format!("label/{}/values", label.trim()), &[("match[]", selector.trim())]);
-    data.as_array().unwrap().iter().map(|v| v.as_str().unwrap().to_string()).collect()
+    let data = prom.api(
+        &format!("label/{}/values", label.trim()),
+        &[("match[]", selector.trim())],
+    );
+    data.as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap().to_string())
+        .collect()
 }
 
 #[test]
@@ -98,18 +115,36 @@ fn every_dashboard_query_and_rule_answers_on_a_real_prometheus() {
         &dir.path().join("sagnac.log"),
     );
     let targets = dir.path().join("targets.yml");
-    std::fs::write(&targets, target_group(addr, &[("bench", "bench-t"), ("unit_serial", "RLG-T1")])).unwrap();
-    let rules: Vec<PathBuf> = RULE_FILES.iter().map(|r| repo().join("config/prometheus").join(r)).collect();
+    std::fs::write(
+        &targets,
+        target_group(addr, &[("bench", "bench-t"), ("unit_serial", "RLG-T1")]),
+    )
+    .unwrap();
+    let rules: Vec<PathBuf> = RULE_FILES
+        .iter()
+        .map(|r| repo().join("config/prometheus").join(r))
+        .collect();
     let config = write_config(dir.path(), &targets, &rules);
     let mut prom = Prometheus::start(&config, dir.path());
 
     // The template variables, resolved in order as Grafana does.
-    let dash: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(repo().join("config/grafana/sagnac-dashboard.json")).unwrap()).unwrap();
-    let want = [("bench", "bench-t".to_string()), ("instance", addr.to_string()), ("gyro", "gyro".to_string())];
+    let dash: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(repo().join("config/grafana/sagnac-dashboard.json")).unwrap(),
+    )
+    .unwrap();
+    let want = [
+        ("bench", "bench-t".to_string()),
+        ("instance", addr.to_string()),
+        ("gyro", "gyro".to_string()),
+    ];
     let mut vars: Vec<(&str, String)> = Vec::new();
     for (name, value) in &want {
-        let var = dash["templating"]["list"].as_array().unwrap().iter().find(|v| v["name"] == *name).unwrap();
+        let var = dash["templating"]["list"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|v| v["name"] == *name)
+            .unwrap();
         let query = substitute(var["query"]["query"].as_str().unwrap(), &vars);
         let found = prom.wait(&format!("variable {name}"), Duration::from_secs(30), || {
             let vals = label_values(&prom, &query);
@@ -121,19 +156,37 @@ fn every_dashboard_query_and_rule_answers_on_a_real_prometheus() {
     vars.push(("datasource", String::new()));
 
     // Every dashboard query: data with a finite value (the estimates converge within seconds at 200x).
-    let exprs: Vec<String> = dashboard_exprs(&dash).iter().map(|e| substitute(e, &vars)).collect();
-    let (device, data): (Vec<&String>, Vec<&String>) = exprs.iter().partition(|e| e.contains("sagnac_device_connected"));
+    let exprs: Vec<String> = dashboard_exprs(&dash)
+        .iter()
+        .map(|e| substitute(e, &vars))
+        .collect();
+    let (device, data): (Vec<&String>, Vec<&String>) = exprs
+        .iter()
+        .partition(|e| e.contains("sagnac_device_connected"));
     assert_eq!(device.len(), 1, "{exprs:?}");
     let finite = |e: &str| prom.query(e, None).iter().any(|s| value_of(s).is_finite());
-    let missing = || data.iter().filter(|e| !finite(e)).map(|e| e.to_string()).collect::<Vec<_>>();
+    let missing = || {
+        data.iter()
+            .filter(|e| !finite(e))
+            .map(|e| e.to_string())
+            .collect::<Vec<_>>()
+    };
     let mut last = Vec::new();
     let ok = prom.wait_ok(Duration::from_secs(90), || {
         last = missing();
         last.is_empty()
     });
-    assert!(ok, "dashboard queries without data after 90 s: {last:#?}\nsagnac log:\n{}", daemon.log_text());
+    assert!(
+        ok,
+        "dashboard queries without data after 90 s: {last:#?}\nsagnac log:\n{}",
+        daemon.log_text()
+    );
     eprintln!("{} dashboard queries answered with data", data.len());
-    assert!(prom.query(device[0], None).is_empty(), "the simulated bench exports no device series: {}", device[0]);
+    assert!(
+        prom.query(device[0], None).is_empty(),
+        "the simulated bench exports no device series: {}",
+        device[0]
+    );
 
     // Every recording rule evaluates to finite data; the per-bench ones per bench.
     for r in &rules {
@@ -143,7 +196,10 @@ fn every_dashboard_query_and_rule_answers_on_a_real_prometheus() {
                 s.iter().any(|s| value_of(s).is_finite()).then_some(s)
             });
             if name.starts_with("bench:") {
-                assert!(got.iter().all(|s| label(s, "bench") == "bench-t"), "{name}: {got:?}");
+                assert!(
+                    got.iter().all(|s| label(s, "bench") == "bench-t"),
+                    "{name}: {got:?}"
+                );
             }
         }
     }
@@ -165,11 +221,19 @@ fn every_dashboard_query_and_rule_answers_on_a_real_prometheus() {
             .unwrap()
             .iter()
             .filter(|a| a["labels"]["alertname"] == name && a["state"] == "firing")
-            .map(|a| a["labels"]["coefficient"].as_str().unwrap_or("").to_string())
+            .map(|a| {
+                a["labels"]["coefficient"]
+                    .as_str()
+                    .unwrap_or("")
+                    .to_string()
+            })
             .collect()
     };
     for name in HEALTH_ALERTS {
-        assert!(firing(&alerts, name).is_empty(), "{name} fires on a healthy bench: {alerts}");
+        assert!(
+            firing(&alerts, name).is_empty(),
+            "{name} fires on a healthy bench: {alerts}"
+        );
     }
     let ok = prom.wait_ok(Duration::from_secs(10), || {
         let failing: BTreeSet<String> = prom
@@ -179,7 +243,11 @@ fn every_dashboard_query_and_rule_answers_on_a_real_prometheus() {
             .collect();
         failing == firing(&prom.api("alerts", &[]), "SagnacGyroFailsSpec")
     });
-    assert!(ok, "SagnacGyroFailsSpec does not follow sagnac_spec_verdict: {}", prom.api("alerts", &[]));
+    assert!(
+        ok,
+        "SagnacGyroFailsSpec does not follow sagnac_spec_verdict: {}",
+        prom.api("alerts", &[])
+    );
 
     daemon.sigterm();
     let status = daemon.wait(Duration::from_secs(20));

@@ -16,7 +16,11 @@ use prom_common::{dashboard_exprs, have, promtool, repo};
 use sagnac::daemon::telemetry::Telemetry;
 use sagnac::sink::metrics::GyroInfo;
 
-const RULE_FILES: [&str; 3] = ["sagnac-rules.yml", "sagnac-spec-rules.yml", "sagnac-lab-rules.yml"];
+const RULE_FILES: [&str; 3] = [
+    "sagnac-rules.yml",
+    "sagnac-spec-rules.yml",
+    "sagnac-lab-rules.yml",
+];
 
 #[test]
 fn promtool_checks_both_configs_and_every_rules_file() {
@@ -28,7 +32,10 @@ fn promtool_checks_both_configs_and_every_rules_file() {
         let (ok, out) = promtool(&dir, &["check", "config", config]);
         assert!(ok, "promtool check config {config}:\n{out}");
         // the config's rule files were found and checked with it
-        assert!(out.contains("SUCCESS") && out.contains("sagnac-rules.yml"), "{out}");
+        assert!(
+            out.contains("SUCCESS") && out.contains("sagnac-rules.yml"),
+            "{out}"
+        );
     }
     for rules in RULE_FILES {
         let (ok, out) = promtool(&dir, &["check", "rules", rules]);
@@ -36,14 +43,18 @@ fn promtool_checks_both_configs_and_every_rules_file() {
     }
     // lab.yml loads the lab-wide rules; both scrape through file_sd
     let lab = std::fs::read_to_string(dir.join("lab.yml")).unwrap();
-    assert!(lab.contains("sagnac-lab-rules.yml") && lab.contains("file_sd_configs"), "{lab}");
+    assert!(
+        lab.contains("sagnac-lab-rules.yml") && lab.contains("file_sd_configs"),
+        "{lab}"
+    );
     let prom = std::fs::read_to_string(dir.join("prometheus.yml")).unwrap();
     assert!(prom.contains("file_sd_configs"), "{prom}");
 }
 
 #[test]
 fn the_example_targets_carry_bench_and_unit_serial() {
-    let text = std::fs::read_to_string(repo().join("config/prometheus/targets/benches.yml")).unwrap();
+    let text =
+        std::fs::read_to_string(repo().join("config/prometheus/targets/benches.yml")).unwrap();
     let groups = text.matches("- targets:").count();
     assert!(groups >= 2, "{text}");
     assert_eq!(text.matches("bench:").count(), groups, "{text}");
@@ -62,9 +73,17 @@ fn promtool_unit_tests_of_every_alert_pass() {
     let tests = std::fs::read_to_string(repo().join(test)).unwrap();
     for rules in RULE_FILES {
         let text = std::fs::read_to_string(repo().join("config/prometheus").join(rules)).unwrap();
-        for alert in text.lines().filter_map(|l| l.trim().strip_prefix("- alert:")) {
-            let cases = tests.matches(&format!("alertname: {}\n", alert.trim())).count();
-            assert!(cases >= 2, "{rules}: alert {alert} has {cases} unit-test cases (want firing and not firing)");
+        for alert in text
+            .lines()
+            .filter_map(|l| l.trim().strip_prefix("- alert:"))
+        {
+            let cases = tests
+                .matches(&format!("alertname: {}\n", alert.trim()))
+                .count();
+            assert!(
+                cases >= 2,
+                "{rules}: alert {alert} has {cases} unit-test cases (want firing and not firing)"
+            );
         }
     }
 }
@@ -82,11 +101,18 @@ fn the_unit_tests_reject_broken_rules() {
     std::fs::create_dir_all(&conf).unwrap();
     std::fs::create_dir_all(&data).unwrap();
     for rules in RULE_FILES {
-        let mut text = std::fs::read_to_string(repo().join("config/prometheus").join(rules)).unwrap();
+        let mut text =
+            std::fs::read_to_string(repo().join("config/prometheus").join(rules)).unwrap();
         if rules == "sagnac-rules.yml" {
             for (from, to) in [
-                ("sagnac:estimate_latency_seconds:p95_5m > 1\n", "sagnac:estimate_latency_seconds:p95_5m > 5\n"),
-                ("increase(sagnac_samples_total[30s]) == 0", "increase(sagnac_samples_total[45s]) == 0"),
+                (
+                    "sagnac:estimate_latency_seconds:p95_5m > 1\n",
+                    "sagnac:estimate_latency_seconds:p95_5m > 5\n",
+                ),
+                (
+                    "increase(sagnac_samples_total[30s]) == 0",
+                    "increase(sagnac_samples_total[45s]) == 0",
+                ),
             ] {
                 assert!(text.contains(from), "{from}");
                 text = text.replace(from, to);
@@ -94,11 +120,22 @@ fn the_unit_tests_reject_broken_rules() {
         }
         std::fs::write(conf.join(rules), text).unwrap();
     }
-    std::fs::copy(repo().join("tests/data/sagnac-rules-test.yml"), data.join("t.yml")).unwrap();
+    std::fs::copy(
+        repo().join("tests/data/sagnac-rules-test.yml"),
+        data.join("t.yml"),
+    )
+    .unwrap();
     let (ok, out) = promtool(dir.path(), &["test", "rules", "tests/data/t.yml"]);
     assert!(!ok, "broken rules passed the unit tests:\n{out}");
-    assert!(out.contains("alertname: SagnacNoSamples") && out.contains("alertname: SagnacEstimateLatencyHigh"), "{out}");
-    assert!(!out.contains("alertname: SagnacRecorderDropping"), "only the broken alerts fail:\n{out}");
+    assert!(
+        out.contains("alertname: SagnacNoSamples")
+            && out.contains("alertname: SagnacEstimateLatencyHigh"),
+        "{out}"
+    );
+    assert!(
+        !out.contains("alertname: SagnacRecorderDropping"),
+        "only the broken alerts fail:\n{out}"
+    );
 }
 
 /// Every metric family a daemon can export (a serial gyro with a spec), as `Telemetry` registers them.
@@ -108,10 +145,20 @@ fn exported_families() -> BTreeSet<String> {
     t.gyro.set_spec("overall", 0.0, None, None);
     t.gyro.set_spec("arw_dpsh", 0.0, Some(1.0), None);
     let x = t.for_gyro(&GyroInfo::labelled("x"));
-    x.gyro.set_allan_curve(sagnac::sink::metrics::AllanChannel::Raw, &[1.0], &[1.0]).unwrap();
-    x.gyro.set_qn_arcsec(sagnac::sink::metrics::Bounds95 { estimate: Some(1.0), lower95: Some(1.0), upper95: Some(1.0) });
+    x.gyro
+        .set_allan_curve(sagnac::sink::metrics::AllanChannel::Raw, &[1.0], &[1.0])
+        .unwrap();
+    x.gyro.set_qn_arcsec(sagnac::sink::metrics::Bounds95 {
+        estimate: Some(1.0),
+        lower95: Some(1.0),
+        upper95: Some(1.0),
+    });
     for b in [&x.gyro, &t.gyro] {
-        let all = sagnac::sink::metrics::Bounds95 { estimate: Some(1.0), lower95: Some(0.5), upper95: Some(2.0) };
+        let all = sagnac::sink::metrics::Bounds95 {
+            estimate: Some(1.0),
+            lower95: Some(0.5),
+            upper95: Some(2.0),
+        };
         b.set_arw_dpsh(all);
         b.set_bias_instability_dph(all);
         b.set_rrw_dphsh(all);
@@ -132,9 +179,14 @@ fn metric_names(expr: &str) -> Vec<String> {
     while let Some(i) = rest.find("sagnac_") {
         // a recording rule name (`sagnac:...`) starts with `sagnac:`, not `sagnac_`
         let tail = &rest[i..];
-        let end = tail.find(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).unwrap_or(tail.len());
+        let end = tail
+            .find(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+            .unwrap_or(tail.len());
         let name = &tail[..end];
-        let name = ["_bucket", "_sum", "_count"].iter().find_map(|s| name.strip_suffix(s)).unwrap_or(name);
+        let name = ["_bucket", "_sum", "_count"]
+            .iter()
+            .find_map(|s| name.strip_suffix(s))
+            .unwrap_or(name);
         names.push(name.to_string());
         rest = &tail[end..];
     }
@@ -144,7 +196,8 @@ fn metric_names(expr: &str) -> Vec<String> {
 #[test]
 fn the_dashboard_reads_only_exported_metrics_and_defines_its_variables() {
     let path = repo().join("config/grafana/sagnac-dashboard.json");
-    let dash: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    let dash: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
     let vars: BTreeSet<String> = dash["templating"]["list"]
         .as_array()
         .unwrap()
@@ -160,12 +213,21 @@ fn the_dashboard_reads_only_exported_metrics_and_defines_its_variables() {
     let mut read = BTreeSet::new();
     for e in &exprs {
         for name in metric_names(e) {
-            assert!(families.contains(&name), "the dashboard reads {name}, which sagnac does not export: {e}");
+            assert!(
+                families.contains(&name),
+                "the dashboard reads {name}, which sagnac does not export: {e}"
+            );
             read.insert(name);
         }
         for var in e.split('$').skip(1) {
-            let name: String = var.chars().take_while(|c| c.is_ascii_alphanumeric() || *c == '_').collect();
-            assert!(vars.contains(&name) || name == "__rate_interval", "undefined variable ${name} in {e}");
+            let name: String = var
+                .chars()
+                .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+                .collect();
+            assert!(
+                vars.contains(&name) || name == "__rate_interval",
+                "undefined variable ${name} in {e}"
+            );
         }
     }
     // what the dashboard must show
@@ -185,27 +247,53 @@ fn the_dashboard_reads_only_exported_metrics_and_defines_its_variables() {
         assert!(read.contains(name), "the dashboard does not show {name}");
     }
     // every coefficient panel draws its interval band: estimate, lower95 and upper95
-    for metric in ["sagnac_qn_arcseconds", "sagnac_arw_degrees_per_root_hour", "sagnac_bias_instability_degrees_per_hour"] {
+    for metric in [
+        "sagnac_qn_arcseconds",
+        "sagnac_arw_degrees_per_root_hour",
+        "sagnac_bias_instability_degrees_per_hour",
+    ] {
         for bound in ["estimate", "lower95", "upper95"] {
             let q = format!("bound=\"{bound}\"");
-            assert!(exprs.iter().any(|e| e.contains(metric) && e.contains(&q)), "{metric} {bound}");
+            assert!(
+                exprs.iter().any(|e| e.contains(metric) && e.contains(&q)),
+                "{metric} {bound}"
+            );
         }
     }
     // panels use the datasource variable, which the provisioning's datasource fills
     let text = std::fs::read_to_string(&path).unwrap();
-    assert!(!text.contains("\"uid\": \"sagnac-prometheus\""), "panels should use ${{datasource}}");
-    let ds = std::fs::read_to_string(repo().join("config/grafana/provisioning/datasources/sagnac-prometheus.yml")).unwrap();
-    assert!(ds.contains("type: prometheus") && ds.contains("apiVersion: 1"), "{ds}");
-    let prov = std::fs::read_to_string(repo().join("config/grafana/provisioning/dashboards/sagnac.yml")).unwrap();
-    assert!(prov.contains("type: file") && prov.contains("path:"), "{prov}");
+    assert!(
+        !text.contains("\"uid\": \"sagnac-prometheus\""),
+        "panels should use ${{datasource}}"
+    );
+    let ds = std::fs::read_to_string(
+        repo().join("config/grafana/provisioning/datasources/sagnac-prometheus.yml"),
+    )
+    .unwrap();
+    assert!(
+        ds.contains("type: prometheus") && ds.contains("apiVersion: 1"),
+        "{ds}"
+    );
+    let prov =
+        std::fs::read_to_string(repo().join("config/grafana/provisioning/dashboards/sagnac.yml"))
+            .unwrap();
+    assert!(
+        prov.contains("type: file") && prov.contains("path:"),
+        "{prov}"
+    );
 }
 
 #[test]
 fn metric_names_are_found_in_exprs() {
     // the helper above must not pass vacuously
     assert_eq!(
-        metric_names("histogram_quantile(0.9, rate(sagnac_estimate_latency_seconds_bucket{a=\"b\"}[5m])) + sagnac:x + sagnac_lost_samples_total"),
-        vec!["sagnac_estimate_latency_seconds", "sagnac_lost_samples_total"]
+        metric_names(
+            "histogram_quantile(0.9, rate(sagnac_estimate_latency_seconds_bucket{a=\"b\"}[5m])) + sagnac:x + sagnac_lost_samples_total"
+        ),
+        vec![
+            "sagnac_estimate_latency_seconds",
+            "sagnac_lost_samples_total"
+        ]
     );
     assert!(Path::new(&repo().join("config/grafana/sagnac-dashboard.json")).is_file());
 }

@@ -8,11 +8,19 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn sagnac(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_sagnac")).args(args).output().unwrap()
+    Command::new(env!("CARGO_BIN_EXE_sagnac"))
+        .args(args)
+        .output()
+        .unwrap()
 }
 
 fn ok(o: &Output) {
-    assert!(o.status.success(), "{}\n{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    assert!(
+        o.status.success(),
+        "{}\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
 }
 
 /// The paper's gyro with a thermal model, as a frame capture (which carries
@@ -26,8 +34,17 @@ fn simulate(dir: &Path, seconds: &str) -> (PathBuf, PathBuf) {
     std::fs::write(&model, text).unwrap();
     let bin = dir.join("run.bin");
     let o = sagnac(&[
-        "simulate", "--model", model.to_str().unwrap(), "--duration-s", seconds, "--seed", "7",
-        "--format", "frames", "--out", bin.to_str().unwrap(),
+        "simulate",
+        "--model",
+        model.to_str().unwrap(),
+        "--duration-s",
+        seconds,
+        "--seed",
+        "7",
+        "--format",
+        "frames",
+        "--out",
+        bin.to_str().unwrap(),
     ]);
     ok(&o);
     (bin, model)
@@ -36,7 +53,12 @@ fn simulate(dir: &Path, seconds: &str) -> (PathBuf, PathBuf) {
 /// Width and height of a PNG file (its IHDR).
 fn png_size(p: &Path) -> (u32, u32) {
     let b = std::fs::read(p).unwrap();
-    assert_eq!(&b[..8], b"\x89PNG\r\n\x1a\n", "{} is not a PNG", p.display());
+    assert_eq!(
+        &b[..8],
+        b"\x89PNG\r\n\x1a\n",
+        "{} is not a PNG",
+        p.display()
+    );
     assert_eq!(&b[12..16], b"IHDR");
     let be = |i: usize| u32::from_be_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
     (be(16), be(20))
@@ -48,31 +70,87 @@ fn report_writes_a_self_contained_page_and_two_pngs() {
     let (bin, model) = simulate(dir.path(), "120");
     let out = dir.path().join("rep");
     let o = sagnac(&[
-        "report", "--format", "frames", "--input", bin.to_str().unwrap(), "--rate-hz", "1000", "--pulse-arcsec",
-        "1.21", "--out", out.to_str().unwrap(), "--model", model.to_str().unwrap(),
+        "report",
+        "--format",
+        "frames",
+        "--input",
+        bin.to_str().unwrap(),
+        "--rate-hz",
+        "1000",
+        "--pulse-arcsec",
+        "1.21",
+        "--out",
+        out.to_str().unwrap(),
+        "--model",
+        model.to_str().unwrap(),
     ]);
     ok(&o);
     let html = std::fs::read_to_string(out.join("index.html")).unwrap();
-    assert_eq!(png_size(&out.join("allan.png")), sagnac::sink::report::ALLAN_SIZE);
-    assert_eq!(png_size(&out.join("noise_integral.png")), sagnac::sink::report::NOISE_SIZE);
+    assert_eq!(
+        png_size(&out.join("allan.png")),
+        sagnac::sink::report::ALLAN_SIZE
+    );
+    assert_eq!(
+        png_size(&out.join("noise_integral.png")),
+        sagnac::sink::report::NOISE_SIZE
+    );
     // self-contained: no script, no stylesheet or font link, no outside source
     let lower = html.to_lowercase();
-    for bad in ["<script", "<link", "<img", "@import", "url(", "src=", "href="] {
+    for bad in [
+        "<script", "<link", "<img", "@import", "url(", "src=", "href=",
+    ] {
         assert!(!lower.contains(bad), "the page holds {bad}");
     }
     // the only URL is the SVG namespace (a name, not a request)
-    let urls: Vec<&str> = html.match_indices("http:").chain(html.match_indices("https:")).map(|(i, _)| &html[i..(i + 26).min(html.len())]).collect();
-    assert!(urls.iter().all(|u| u.starts_with("http://www.w3.org/2000/svg")), "{urls:?}");
-    assert!(html.contains("default-src 'none'"), "no Content-Security-Policy");
+    let urls: Vec<&str> = html
+        .match_indices("http:")
+        .chain(html.match_indices("https:"))
+        .map(|(i, _)| &html[i..(i + 26).min(html.len())])
+        .collect();
+    assert!(
+        urls.iter()
+            .all(|u| u.starts_with("http://www.w3.org/2000/svg")),
+        "{urls:?}"
+    );
+    assert!(
+        html.contains("default-src 'none'"),
+        "no Content-Security-Policy"
+    );
     // the parts the issue asks for
-    for id in ["recording", "coefficients", "allan", "noise", "rate", "diagnosis"] {
-        assert!(html.contains(&format!("<section id=\"{id}\">")), "no section {id}");
+    for id in [
+        "recording",
+        "coefficients",
+        "allan",
+        "noise",
+        "rate",
+        "diagnosis",
+    ] {
+        assert!(
+            html.contains(&format!("<section id=\"{id}\">")),
+            "no section {id}"
+        );
     }
-    assert_eq!(html.matches("<svg").count(), 4, "Allan, noise, rate and diagnosis figures");
+    assert_eq!(
+        html.matches("<svg").count(),
+        4,
+        "Allan, noise, rate and diagnosis figures"
+    );
     for text in [
-        "quantization noise", "angle random walk", "fit.ok = ", "Readout filter", "120000", "1000 Hz",
-        "1.21 arcsec", "CRC errors", "gaps", "temperature", "Verdict:", "Notes of the diagnosis",
-        "\u{221a}3\u{b7}Q/\u{3c4}", "N/\u{221a}\u{3c4}", "\u{b1}1 pulse",
+        "quantization noise",
+        "angle random walk",
+        "fit.ok = ",
+        "Readout filter",
+        "120000",
+        "1000 Hz",
+        "1.21 arcsec",
+        "CRC errors",
+        "gaps",
+        "temperature",
+        "Verdict:",
+        "Notes of the diagnosis",
+        "\u{221a}3\u{b7}Q/\u{3c4}",
+        "N/\u{221a}\u{3c4}",
+        "\u{b1}1 pulse",
     ] {
         assert!(html.contains(text), "the page lacks {text:?}");
     }
@@ -86,12 +164,48 @@ fn report_rejects_bad_input_flags() {
     let out = dir.path().join("o");
     let out_s = out.to_str().unwrap();
     let cases: [(&[&str], &str); 4] = [
-        (&["report", "--input", csv.to_str().unwrap(), "--out", out_s], "--rate-hz is required"),
-        (&["report", "--input", csv.to_str().unwrap(), "--rate-hz", "1000", "--out", out_s], "--pulse-arcsec is required"),
-        (&["report", "--input", csv.to_str().unwrap(), "--rate-hz", "-3", "--out", out_s], "--rate-hz must be"),
         (
-            &["report", "--input", csv.to_str().unwrap(), "--rate-hz", "1000", "--unit", "dph", "--out", out_s, "--model",
-              concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml")],
+            &["report", "--input", csv.to_str().unwrap(), "--out", out_s],
+            "--rate-hz is required",
+        ),
+        (
+            &[
+                "report",
+                "--input",
+                csv.to_str().unwrap(),
+                "--rate-hz",
+                "1000",
+                "--out",
+                out_s,
+            ],
+            "--pulse-arcsec is required",
+        ),
+        (
+            &[
+                "report",
+                "--input",
+                csv.to_str().unwrap(),
+                "--rate-hz",
+                "-3",
+                "--out",
+                out_s,
+            ],
+            "--rate-hz must be",
+        ),
+        (
+            &[
+                "report",
+                "--input",
+                csv.to_str().unwrap(),
+                "--rate-hz",
+                "1000",
+                "--unit",
+                "dph",
+                "--out",
+                out_s,
+                "--model",
+                concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml"),
+            ],
             "--model diagnoses pulse counts",
         ),
     ];
@@ -102,14 +216,28 @@ fn report_rejects_bad_input_flags() {
         assert!(err.contains(want), "{args:?}: {err}");
     }
     // --out naming a file
-    let o = sagnac(&["report", "--input", csv.to_str().unwrap(), "--rate-hz", "1", "--pulse-arcsec", "1", "--out", csv.to_str().unwrap()]);
+    let o = sagnac(&[
+        "report",
+        "--input",
+        csv.to_str().unwrap(),
+        "--rate-hz",
+        "1",
+        "--pulse-arcsec",
+        "1",
+        "--out",
+        csv.to_str().unwrap(),
+    ]);
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("not a directory"));
 }
 
 fn chromium() -> Option<PathBuf> {
     for name in ["chromium", "chromium-browser", "google-chrome"] {
-        let found = Command::new("sh").arg("-c").arg(format!("command -v {name}")).output().ok()?;
+        let found = Command::new("sh")
+            .arg("-c")
+            .arg(format!("command -v {name}"))
+            .output()
+            .ok()?;
         if found.status.success() {
             return Some(PathBuf::from(String::from_utf8_lossy(&found.stdout).trim()));
         }
@@ -123,23 +251,47 @@ fn chromium() -> Option<PathBuf> {
 fn load(chrome: &Path, page: &Path, shot: &Path, profile: &Path) -> (Vec<String>, Vec<String>) {
     let o = Command::new(chrome)
         .args([
-            "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking",
-            "--disable-component-update", "--disable-sync", "--disable-default-apps", "--disable-extensions",
-            "--window-size=1400,4200", "--enable-logging=stderr", "--v=1",
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            "--disable-default-apps",
+            "--disable-extensions",
+            "--window-size=1400,4200",
+            "--enable-logging=stderr",
+            "--v=1",
         ])
         .arg(format!("--user-data-dir={}", profile.display()))
         .arg(format!("--screenshot={}", shot.display()))
         .arg(format!("file://{}", page.display()))
         .output()
         .unwrap();
-    assert!(o.status.success(), "chromium failed: {}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        o.status.success(),
+        "chromium failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     let log = String::from_utf8_lossy(&o.stderr).into_owned();
     let page_url = format!("file://{}", page.display());
     // only what comes after the page starts loading
-    let start = log.find(&format!("FileURLLoader::Start: {page_url}")).expect("chromium never loaded the page");
+    let start = log
+        .find(&format!("FileURLLoader::Start: {page_url}"))
+        .expect("chromium never loaded the page");
     let after = &log[start..];
-    let browser_own = ["google.com/", "googleapis.com/", "gvt1.com/", "gstatic.com/"];
-    let console = after.lines().filter(|l| l.contains(":CONSOLE")).map(String::from).collect();
+    let browser_own = [
+        "google.com/",
+        "googleapis.com/",
+        "gvt1.com/",
+        "gstatic.com/",
+    ];
+    let console = after
+        .lines()
+        .filter(|l| l.contains(":CONSOLE"))
+        .map(String::from)
+        .collect();
     let requests = after
         .lines()
         .filter_map(|l| {
@@ -159,15 +311,28 @@ fn the_page_loads_in_chromium_without_errors_or_requests() {
         if std::env::var("CI").as_deref() == Ok("true") {
             panic!("chromium is missing on CI: scripts/install-peers installs it");
         }
-        eprintln!("NOTICE: chromium not found: skipping the browser test (apt-get install chromium)");
+        eprintln!(
+            "NOTICE: chromium not found: skipping the browser test (apt-get install chromium)"
+        );
         return;
     };
     let dir = tempfile::tempdir().unwrap();
     let (bin, model) = simulate(dir.path(), "120");
     let out = dir.path().join("rep");
     ok(&sagnac(&[
-        "report", "--format", "frames", "--input", bin.to_str().unwrap(), "--rate-hz", "1000", "--pulse-arcsec",
-        "1.21", "--out", out.to_str().unwrap(), "--model", model.to_str().unwrap(),
+        "report",
+        "--format",
+        "frames",
+        "--input",
+        bin.to_str().unwrap(),
+        "--rate-hz",
+        "1000",
+        "--pulse-arcsec",
+        "1.21",
+        "--out",
+        out.to_str().unwrap(),
+        "--model",
+        model.to_str().unwrap(),
     ]));
     let shots = Path::new(env!("CARGO_TARGET_TMPDIR")).join("report-screenshots");
     std::fs::create_dir_all(&shots).unwrap();
@@ -178,8 +343,14 @@ fn the_page_loads_in_chromium_without_errors_or_requests() {
     std::fs::write(&bad, "<html><body><img src=\"http://example.invalid/x.png\"><script>console.error('boom')</script></body></html>")
         .unwrap();
     let (console, requests) = load(&chrome, &bad, &shots.join("bad.png"), &profile);
-    assert!(console.iter().any(|l| l.contains("boom")), "console not seen: {console:?}");
-    assert!(requests.iter().any(|u| u.contains("example.invalid")), "request not seen: {requests:?}");
+    assert!(
+        console.iter().any(|l| l.contains("boom")),
+        "console not seen: {console:?}"
+    );
+    assert!(
+        requests.iter().any(|u| u.contains("example.invalid")),
+        "request not seen: {requests:?}"
+    );
 
     let page = out.join("index.html").canonicalize().unwrap();
     let shot = shots.join("index.png");
@@ -188,7 +359,10 @@ fn the_page_loads_in_chromium_without_errors_or_requests() {
     assert!(requests.is_empty(), "the page made requests: {requests:#?}");
     let (w, h) = png_size(&shot);
     assert_eq!((w, h), (1400, 4200));
-    assert!(std::fs::metadata(&shot).unwrap().len() > 50_000, "a near-blank screenshot");
+    assert!(
+        std::fs::metadata(&shot).unwrap().len() > 50_000,
+        "a near-blank screenshot"
+    );
     eprintln!("screenshot: {}", shot.display());
 }
 
@@ -198,8 +372,23 @@ fn report_with_a_spec_shows_the_same_verdict_as_analyze() {
     let (bin, _model) = simulate(dir.path(), "120");
     let spec = concat!(env!("CARGO_MANIFEST_DIR"), "/config/spec_example.toml");
     let out = dir.path().join("rep");
-    let flags = ["--format", "frames", "--rate-hz", "1000", "--pulse-arcsec", "1.21", "--spec", spec];
-    let mut args = vec!["report", "--input", bin.to_str().unwrap(), "--out", out.to_str().unwrap()];
+    let flags = [
+        "--format",
+        "frames",
+        "--rate-hz",
+        "1000",
+        "--pulse-arcsec",
+        "1.21",
+        "--spec",
+        spec,
+    ];
+    let mut args = vec![
+        "report",
+        "--input",
+        bin.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
     args.extend(flags);
     ok(&sagnac(&args));
     let mut args = vec!["analyze", "--input", bin.to_str().unwrap(), "--json", "-"];
@@ -209,12 +398,21 @@ fn report_with_a_spec_shows_the_same_verdict_as_analyze() {
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let html = std::fs::read_to_string(out.join("index.html")).unwrap();
     let overall = v["spec"]["verdict"].as_str().unwrap();
-    assert!(html.contains(&format!("<h2>Acceptance test: {overall}</h2>")), "overall verdict {overall} not shown");
+    assert!(
+        html.contains(&format!("<h2>Acceptance test: {overall}</h2>")),
+        "overall verdict {overall} not shown"
+    );
     for (name, c) in v["spec"]["coefficients"].as_object().unwrap() {
         let verdict = c["verdict"].as_str().unwrap();
         let row = format!("<tr><td><code>{name}</code></td>");
-        let at = html.find(&row).unwrap_or_else(|| panic!("no row for {name}"));
+        let at = html
+            .find(&row)
+            .unwrap_or_else(|| panic!("no row for {name}"));
         let end = at + html[at..].find("</tr>").unwrap();
-        assert!(html[at..end].contains(&format!("<td>{verdict}</td>")), "{name}: {}", &html[at..end]);
+        assert!(
+            html[at..end].contains(&format!("<td>{verdict}</td>")),
+            "{name}: {}",
+            &html[at..end]
+        );
     }
 }

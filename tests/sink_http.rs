@@ -66,13 +66,22 @@ async fn serves_metrics_and_404() {
         head.contains("content-type: text/plain; version=0.0.4"),
         "{head}"
     );
-    assert_eq!(value(&body, "sagnac_samples_total{gyro=\"gyro\"}"), Some(500.0));
     assert_eq!(
-        value(&body, "sagnac_frame_errors_total{gyro=\"gyro\",kind=\"crc\"}"),
+        value(&body, "sagnac_samples_total{gyro=\"gyro\"}"),
+        Some(500.0)
+    );
+    assert_eq!(
+        value(
+            &body,
+            "sagnac_frame_errors_total{gyro=\"gyro\",kind=\"crc\"}"
+        ),
         Some(2.0)
     );
     assert_eq!(
-        value(&body, "sagnac_qn_arcseconds{bound=\"lower95\",gyro=\"gyro\"}"),
+        value(
+            &body,
+            "sagnac_qn_arcseconds{bound=\"lower95\",gyro=\"gyro\"}"
+        ),
         Some(0.2)
     );
 
@@ -80,7 +89,10 @@ async fn serves_metrics_and_404() {
     gyro.add_samples(24);
     metrics.set_recording_bytes(4096);
     let (_, _, body) = request(addr, "GET", "/metrics?x=1").await;
-    assert_eq!(value(&body, "sagnac_samples_total{gyro=\"gyro\"}"), Some(524.0));
+    assert_eq!(
+        value(&body, "sagnac_samples_total{gyro=\"gyro\"}"),
+        Some(524.0)
+    );
     assert_eq!(value(&body, "sagnac_recording_bytes"), Some(4096.0));
 
     for (method, path) in [

@@ -157,7 +157,10 @@ fn recording_reads_back_exactly() {
     }
     let summary = rec.finish().unwrap();
     assert_eq!(summary.messages(), 600);
-    let raw = sent.iter().filter(|m| matches!(m, SinkMessage::Raw(_))).count() as u64;
+    let raw = sent
+        .iter()
+        .filter(|m| matches!(m, SinkMessage::Raw(_)))
+        .count() as u64;
     assert_eq!(summary.messages_per_topic["/gyro/raw"], raw);
     let file_len = std::fs::metadata(&summary.path).unwrap().len();
     assert_eq!(summary.bytes, file_len);
@@ -611,17 +614,30 @@ fn python_mcap_reader_agrees() {
 fn issue_13_python_reads_the_metadata_record() {
     let dir = tempfile::tempdir().unwrap();
     let model = dir.path().join("m.toml");
-    let text = "[gyro]\nsample_rate_hz = 400.0\npulse_weight_arcsec = 0.9\n[noise]\narw_dpsh = 0.002\n";
+    let text =
+        "[gyro]\nsample_rate_hz = 400.0\npulse_weight_arcsec = 0.9\n[noise]\narw_dpsh = 0.002\n";
     std::fs::write(&model, text).unwrap();
     let mcap = dir.path().join("sim.mcap");
     let sim = Command::new(env!("CARGO_BIN_EXE_sagnac"))
         .args(["simulate", "--model"])
         .arg(&model)
-        .args(["--duration-s", "3", "--seed", "1", "--format", "mcap", "--out"])
+        .args([
+            "--duration-s",
+            "3",
+            "--seed",
+            "1",
+            "--format",
+            "mcap",
+            "--out",
+        ])
         .arg(&mcap)
         .output()
         .unwrap();
-    assert!(sim.status.success(), "{}", String::from_utf8_lossy(&sim.stderr));
+    assert!(
+        sim.status.success(),
+        "{}",
+        String::from_utf8_lossy(&sim.stderr)
+    );
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/read-mcap.py");
     let out = Command::new("python3")
         .arg(&script)
@@ -629,7 +645,11 @@ fn issue_13_python_reads_the_metadata_record() {
         .arg(&mcap)
         .output()
         .unwrap_or_else(|e| panic!("python3 is required (scripts/install-peers): {e}"));
-    assert!(out.status.success(), "read-mcap.py: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "read-mcap.py: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let m = &j["metadata"]["sagnac"];
     assert_eq!(m["sample_rate_hz"], "400", "{j}");
@@ -639,7 +659,10 @@ fn issue_13_python_reads_the_metadata_record() {
     assert_eq!(m["sagnac_version"], env!("CARGO_PKG_VERSION"));
     assert_eq!(j["raw_samples"], 1200);
     let meta = sagnac::sink::reader::read_metadata(&mcap).unwrap().unwrap();
-    assert_eq!(meta.to_record().metadata, serde_json::from_value(m.clone()).unwrap());
+    assert_eq!(
+        meta.to_record().metadata,
+        serde_json::from_value(m.clone()).unwrap()
+    );
     // a full read returns the same record
     assert_eq!(read_recording(&mcap).unwrap().metadata, Some(meta));
 }

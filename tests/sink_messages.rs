@@ -137,7 +137,13 @@ fn every_message_validates_against_its_schema() {
 fn schema_properties_are_exactly_the_serialized_fields() {
     // additionalProperties:false + all-required on every object means the schema and
     // the struct agree both ways; check the flag is there for the fixed structs.
-    for topic in [Topic::Raw, Topic::Clean, Topic::Estimates, Topic::Allan, Topic::Summary] {
+    for topic in [
+        Topic::Raw,
+        Topic::Clean,
+        Topic::Estimates,
+        Topic::Allan,
+        Topic::Summary,
+    ] {
         let s = topic.json_schema();
         assert_eq!(s["additionalProperties"], json!(false), "{topic:?}");
         let props: Vec<&String> = s["properties"].as_object().unwrap().keys().collect();
@@ -239,7 +245,10 @@ fn validator_rejects_broken_messages() {
         assert!(check(&est, &bad, "$").is_err(), "{path} = {value} accepted");
     }
     let mut bad = e.clone();
-    bad["estimates"].as_object_mut().unwrap().remove("rate_ramp_dphh");
+    bad["estimates"]
+        .as_object_mut()
+        .unwrap()
+        .remove("rate_ramp_dphh");
     assert!(check(&est, &bad, "$").is_err(), "a coefficient missing");
     let mut bad = e.clone();
     bad["estimates"]["qn_arcsec"] = c.clone();
@@ -249,7 +258,11 @@ fn validator_rejects_broken_messages() {
     let s = json!({"timestamp": {"sec": 1, "nsec": 5}, "samples": 100, "lost_samples": 0,
                    "raw_rate_dph": 12.1, "clean_rate_dph": 12.3, "temp_c": null});
     check(&sum, &s, "$").unwrap();
-    for (key, value) in [("timestamp", json!(5)), ("timestamp", json!({"sec": 1})), ("raw_rate_dph", json!([1.0]))] {
+    for (key, value) in [
+        ("timestamp", json!(5)),
+        ("timestamp", json!({"sec": 1})),
+        ("raw_rate_dph", json!([1.0])),
+    ] {
         let mut bad = s.clone();
         bad[key] = value.clone();
         assert!(check(&sum, &bad, "$").is_err(), "{key} = {value} accepted");
@@ -416,6 +429,7 @@ fn event_json_shape() {
     let e = SinkMessage::Event(Event {
         t_ns: 5,
         kind: EventKind::CrcError { byte_offset: 7 },
+        gyro: None,
     });
     assert_eq!(
         String::from_utf8(e.to_json().unwrap()).unwrap(),
@@ -427,6 +441,7 @@ fn event_json_shape() {
             sink: "mcap".into(),
             dropped: 3,
         },
+        gyro: None,
     });
     assert_eq!(
         String::from_utf8(d.to_json().unwrap()).unwrap(),
@@ -594,20 +609,42 @@ fn estimates_use_analyzes_names_and_the_schema_states_units() {
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let m = sink_common::estimate(&mut rng, 0);
     let j = json_of(&SinkMessage::Estimates(m.clone()));
-    assert_eq!(j["estimates"], serde_json::to_value(m.estimates).unwrap(), "analyze's serialization");
+    assert_eq!(
+        j["estimates"],
+        serde_json::to_value(m.estimates).unwrap(),
+        "analyze's serialization"
+    );
     let schema = Topic::Estimates.json_schema();
     let props = &schema["properties"]["estimates"]["properties"];
     assert_eq!(props.as_object().unwrap().len(), 5);
     for (key, unit, _) in sagnac::units::COEFFICIENTS {
-        let d = props[key]["description"].as_str().unwrap_or_else(|| panic!("{key} in the schema"));
+        let d = props[key]["description"]
+            .as_str()
+            .unwrap_or_else(|| panic!("{key} in the schema"));
         assert!(d.contains(unit), "{key}: {d}");
         assert!(j["estimates"].get(key).is_some(), "{key} in the message");
         for field in ["ci95", "upper95"] {
-            assert!(props[key]["properties"][field]["description"].as_str().unwrap().contains(unit), "{key}.{field}");
+            assert!(
+                props[key]["properties"][field]["description"]
+                    .as_str()
+                    .unwrap()
+                    .contains(unit),
+                "{key}.{field}"
+            );
         }
     }
     let summary = Topic::Summary.json_schema();
-    for (field, unit) in [("raw_rate_dph", "deg/h"), ("clean_rate_dph", "deg/h"), ("temp_c", "deg C")] {
-        assert!(summary["properties"][field]["description"].as_str().unwrap().contains(unit), "{field}");
+    for (field, unit) in [
+        ("raw_rate_dph", "deg/h"),
+        ("clean_rate_dph", "deg/h"),
+        ("temp_c", "deg C"),
+    ] {
+        assert!(
+            summary["properties"][field]["description"]
+                .as_str()
+                .unwrap()
+                .contains(unit),
+            "{field}"
+        );
     }
 }

@@ -50,7 +50,11 @@ fn promtool(exposition: &str) -> (bool, String) {
 }
 
 fn unit() -> GyroInfo {
-    GyroInfo { label: "gyro".into(), serial_number: "RLG-0042".into(), model: "RLG-28 \"A\"".into() }
+    GyroInfo {
+        label: "gyro".into(),
+        serial_number: "RLG-0042".into(),
+        model: "RLG-28 \"A\"".into(),
+    }
 }
 
 fn filled() -> Metrics {
@@ -83,8 +87,16 @@ fn fill(metrics: &Metrics, info: &GyroInfo) {
         lower95: None,
         upper95: Some(0.01),
     });
-    m.set_rrw_dphsh(Bounds95 { estimate: None, lower95: None, upper95: Some(0.2) });
-    m.set_rate_ramp_dphh(Bounds95 { estimate: Some(-0.03), lower95: Some(-0.05), upper95: Some(-0.01) });
+    m.set_rrw_dphsh(Bounds95 {
+        estimate: None,
+        lower95: None,
+        upper95: Some(0.2),
+    });
+    m.set_rate_ramp_dphh(Bounds95 {
+        estimate: Some(-0.03),
+        lower95: Some(-0.05),
+        upper95: Some(-0.01),
+    });
     let taus: Vec<f64> = (0..8).map(|k| 0.001 * 2f64.powi(k)).collect();
     let devs: Vec<f64> = taus.iter().map(|t| 0.5 / t).collect();
     m.set_allan_curve(AllanChannel::Raw, &taus, &devs).unwrap();
@@ -134,12 +146,19 @@ const PER_GYRO: [&str; 16] = [
     "sagnac_spec_limit",
     "sagnac_spec_decision_eta_seconds",
 ];
-const DAEMON_WIDE: [&str; 3] = ["sagnac_bytes_read_total", "sagnac_recording_bytes", "sagnac_build_info"];
+const DAEMON_WIDE: [&str; 3] = [
+    "sagnac_bytes_read_total",
+    "sagnac_recording_bytes",
+    "sagnac_build_info",
+];
 
 /// The metric name of a sample key `name{labels}` (histogram suffixes stripped).
 fn family(key: &str) -> &str {
     let name = key.split('{').next().unwrap();
-    ["_bucket", "_sum", "_count"].iter().find_map(|s| name.strip_suffix(s)).unwrap_or(name)
+    ["_bucket", "_sum", "_count"]
+        .iter()
+        .find_map(|s| name.strip_suffix(s))
+        .unwrap_or(name)
 }
 
 #[test]
@@ -170,43 +189,93 @@ fn names_help_and_values() {
         );
     }
     let families = text.lines().filter(|l| l.starts_with("# TYPE ")).count();
-    assert_eq!(families, 16, "exactly the sixteen metrics (no spec without a spec):\n{text}");
-    let build = format!("sagnac_build_info{{version=\"{}\"}} 1\n", env!("CARGO_PKG_VERSION"));
+    assert_eq!(
+        families, 16,
+        "exactly the sixteen metrics (no spec without a spec):\n{text}"
+    );
+    let build = format!(
+        "sagnac_build_info{{version=\"{}\"}} 1\n",
+        env!("CARGO_PKG_VERSION")
+    );
     assert!(text.contains(&build), "{build} missing in\n{text}");
     // the model name's quotes are escaped as the exposition format wants
-    let info = "sagnac_gyro_info{gyro=\"gyro\",model=\"RLG-28 \\\"A\\\"\",serial_number=\"RLG-0042\"} 1\n";
+    let info =
+        "sagnac_gyro_info{gyro=\"gyro\",model=\"RLG-28 \\\"A\\\"\",serial_number=\"RLG-0042\"} 1\n";
     assert!(text.contains(info), "{info} missing in\n{text}");
 
     let s = samples(&text);
     let get = |k: &str| *s.get(k).unwrap_or_else(|| panic!("{k} missing in\n{text}"));
     assert_eq!(get("sagnac_samples_total{gyro=\"gyro\"}"), 1024.0);
     assert_eq!(get("sagnac_frames_decoded_total{gyro=\"gyro\"}"), 1020.0);
-    assert_eq!(get("sagnac_frame_errors_total{gyro=\"gyro\",kind=\"crc\"}"), 3.0);
-    assert_eq!(get("sagnac_frame_errors_total{gyro=\"gyro\",kind=\"false_sync\"}"), 1.0);
-    assert_eq!(get("sagnac_frame_errors_total{gyro=\"gyro\",kind=\"truncated\"}"), 0.0);
+    assert_eq!(
+        get("sagnac_frame_errors_total{gyro=\"gyro\",kind=\"crc\"}"),
+        3.0
+    );
+    assert_eq!(
+        get("sagnac_frame_errors_total{gyro=\"gyro\",kind=\"false_sync\"}"),
+        1.0
+    );
+    assert_eq!(
+        get("sagnac_frame_errors_total{gyro=\"gyro\",kind=\"truncated\"}"),
+        0.0
+    );
     assert_eq!(get("sagnac_lost_samples_total{gyro=\"gyro\"}"), 4.0);
     assert_eq!(get("sagnac_bytes_read_total"), 16_384.0);
-    assert_eq!(get("sagnac_qn_arcseconds{bound=\"estimate\",gyro=\"gyro\"}"), 0.35);
-    assert_eq!(get("sagnac_qn_arcseconds{bound=\"lower95\",gyro=\"gyro\"}"), 0.3);
-    assert_eq!(get("sagnac_qn_arcseconds{bound=\"upper95\",gyro=\"gyro\"}"), 0.41);
-    assert_eq!(get("sagnac_arw_degrees_per_root_hour{bound=\"upper95\",gyro=\"gyro\"}"), 0.0023);
-    // Unknown bounds are absent, not zero.
-    assert_eq!(get("sagnac_bias_instability_degrees_per_hour{bound=\"upper95\",gyro=\"gyro\"}"), 0.01);
-    assert!(!s.contains_key("sagnac_bias_instability_degrees_per_hour{bound=\"estimate\",gyro=\"gyro\"}"));
-    assert_eq!(get("sagnac_rrw_degrees_per_hour_per_root_hour{bound=\"upper95\",gyro=\"gyro\"}"), 0.2);
-    assert_eq!(get("sagnac_rate_ramp_degrees_per_hour_squared{bound=\"estimate\",gyro=\"gyro\"}"), -0.03);
-    assert_eq!(get("sagnac_rate_ramp_degrees_per_hour_squared{bound=\"lower95\",gyro=\"gyro\"}"), -0.05);
     assert_eq!(
-        get("sagnac_allan_deviation_degrees_per_hour{channel=\"raw\",gyro=\"gyro\",tau_seconds=\"0.128\"}"),
+        get("sagnac_qn_arcseconds{bound=\"estimate\",gyro=\"gyro\"}"),
+        0.35
+    );
+    assert_eq!(
+        get("sagnac_qn_arcseconds{bound=\"lower95\",gyro=\"gyro\"}"),
+        0.3
+    );
+    assert_eq!(
+        get("sagnac_qn_arcseconds{bound=\"upper95\",gyro=\"gyro\"}"),
+        0.41
+    );
+    assert_eq!(
+        get("sagnac_arw_degrees_per_root_hour{bound=\"upper95\",gyro=\"gyro\"}"),
+        0.0023
+    );
+    // Unknown bounds are absent, not zero.
+    assert_eq!(
+        get("sagnac_bias_instability_degrees_per_hour{bound=\"upper95\",gyro=\"gyro\"}"),
+        0.01
+    );
+    assert!(!s.contains_key(
+        "sagnac_bias_instability_degrees_per_hour{bound=\"estimate\",gyro=\"gyro\"}"
+    ));
+    assert_eq!(
+        get("sagnac_rrw_degrees_per_hour_per_root_hour{bound=\"upper95\",gyro=\"gyro\"}"),
+        0.2
+    );
+    assert_eq!(
+        get("sagnac_rate_ramp_degrees_per_hour_squared{bound=\"estimate\",gyro=\"gyro\"}"),
+        -0.03
+    );
+    assert_eq!(
+        get("sagnac_rate_ramp_degrees_per_hour_squared{bound=\"lower95\",gyro=\"gyro\"}"),
+        -0.05
+    );
+    assert_eq!(
+        get(
+            "sagnac_allan_deviation_degrees_per_hour{channel=\"raw\",gyro=\"gyro\",tau_seconds=\"0.128\"}"
+        ),
         0.5 / 0.128
     );
     assert_eq!(
-        get("sagnac_allan_deviation_degrees_per_hour{channel=\"clean\",gyro=\"gyro\",tau_seconds=\"0.008\"}"),
+        get(
+            "sagnac_allan_deviation_degrees_per_hour{channel=\"clean\",gyro=\"gyro\",tau_seconds=\"0.008\"}"
+        ),
         0.5 / 0.008
     );
     let allan = |ch: &str| {
         s.keys()
-            .filter(|k| k.starts_with(&format!("sagnac_allan_deviation_degrees_per_hour{{channel=\"{ch}\"")))
+            .filter(|k| {
+                k.starts_with(&format!(
+                    "sagnac_allan_deviation_degrees_per_hour{{channel=\"{ch}\""
+                ))
+            })
             .count()
     };
     assert_eq!((allan("raw"), allan("clean")), (8, 4));
@@ -220,12 +289,24 @@ fn every_per_gyro_series_has_its_gyro_label_and_daemon_wide_ones_none() {
     // Two gyros of one daemon (as a triad source will give), the spec series too.
     let metrics = Metrics::new().unwrap();
     fill(&metrics, &GyroInfo::labelled("x"));
-    fill(&metrics, &GyroInfo { label: "y".into(), serial_number: "SN-Y".into(), model: "FOG".into() });
-    let y = metrics.gyro(&GyroInfo { label: "y".into(), serial_number: "SN-Y".into(), model: "FOG".into() });
+    fill(
+        &metrics,
+        &GyroInfo {
+            label: "y".into(),
+            serial_number: "SN-Y".into(),
+            model: "FOG".into(),
+        },
+    );
+    let y = metrics.gyro(&GyroInfo {
+        label: "y".into(),
+        serial_number: "SN-Y".into(),
+        model: "FOG".into(),
+    });
     y.add_lost_samples(6);
     y.set_spec("overall", 1.0, None, None);
     y.set_spec("arw_dpsh", 1.0, Some(0.0035), Some(0.0));
-    y.set_allan_curve(AllanChannel::Raw, &[1.0], &[0.5]).unwrap();
+    y.set_allan_curve(AllanChannel::Raw, &[1.0], &[0.5])
+        .unwrap();
     let text = metrics.encode();
     let s = samples(&text);
     for key in s.keys() {
@@ -235,7 +316,10 @@ fn every_per_gyro_series_has_its_gyro_label_and_daemon_wide_ones_none() {
             assert!(labelled, "{key}: a per-gyro series without its gyro label");
         } else {
             assert!(DAEMON_WIDE.contains(&fam), "{key}: unknown family {fam}");
-            assert!(!key.contains("gyro="), "{key}: a daemon-wide series with a gyro label");
+            assert!(
+                !key.contains("gyro="),
+                "{key}: a daemon-wide series with a gyro label"
+            );
         }
     }
     // Counters add up per gyro; the daemon-wide byte counter adds up over both.
@@ -243,12 +327,25 @@ fn every_per_gyro_series_has_its_gyro_label_and_daemon_wide_ones_none() {
     assert_eq!(s["sagnac_lost_samples_total{gyro=\"y\"}"], 10.0);
     assert_eq!(s["sagnac_bytes_read_total"], 2.0 * 16_384.0);
     // y's Allan curve was replaced; x's stays whole.
-    let raw = |g: &str| s.keys().filter(|k| k.contains("channel=\"raw\"") && k.contains(&format!("gyro=\"{g}\""))).count();
+    let raw = |g: &str| {
+        s.keys()
+            .filter(|k| k.contains("channel=\"raw\"") && k.contains(&format!("gyro=\"{g}\"")))
+            .count()
+    };
     assert_eq!((raw("x"), raw("y")), (8, 1));
-    assert_eq!(s["sagnac_spec_limit{coefficient=\"arw_dpsh\",gyro=\"y\"}"], 0.0035);
+    assert_eq!(
+        s["sagnac_spec_limit{coefficient=\"arw_dpsh\",gyro=\"y\"}"],
+        0.0035
+    );
     assert!(!text.contains("sagnac_spec_verdict{coefficient=\"overall\",gyro=\"x\"}"));
-    assert_eq!(s["sagnac_gyro_info{gyro=\"x\",model=\"\",serial_number=\"\"}"], 1.0);
-    assert_eq!(s["sagnac_gyro_info{gyro=\"y\",model=\"FOG\",serial_number=\"SN-Y\"}"], 1.0);
+    assert_eq!(
+        s["sagnac_gyro_info{gyro=\"x\",model=\"\",serial_number=\"\"}"],
+        1.0
+    );
+    assert_eq!(
+        s["sagnac_gyro_info{gyro=\"y\",model=\"FOG\",serial_number=\"SN-Y\"}"],
+        1.0
+    );
     let (ok, out) = promtool(&text);
     assert!(ok, "promtool check metrics:\n{out}\n---\n{text}");
 }
@@ -257,7 +354,10 @@ fn every_per_gyro_series_has_its_gyro_label_and_daemon_wide_ones_none() {
 fn estimate_latency_is_a_histogram_and_device_series_only_on_request() {
     let t = Telemetry::standalone().unwrap();
     let text = t.metrics.encode();
-    assert!(!text.contains("sagnac_device_"), "no device series before a serial source asks:\n{text}");
+    assert!(
+        !text.contains("sagnac_device_"),
+        "no device series before a serial source asks:\n{text}"
+    );
     for v in [0.0004, 0.003, 0.003, 0.07, 0.9, 45.0] {
         t.estimate_latency.observe(v);
     }
@@ -267,15 +367,37 @@ fn estimate_latency_is_a_histogram_and_device_series_only_on_request() {
     x.estimate_latency.observe(0.2);
     x.estimator_updates.inc();
     let text = t.metrics.encode();
-    assert!(text.contains("# TYPE sagnac_estimate_latency_seconds histogram\n"), "{text}");
+    assert!(
+        text.contains("# TYPE sagnac_estimate_latency_seconds histogram\n"),
+        "{text}"
+    );
     let s = samples(&text);
     // Cumulative buckets at exactly the documented bounds, counted by hand.
-    let le = |b: &str| s[&format!("sagnac_estimate_latency_seconds_bucket{{gyro=\"gyro\",le=\"{b}\"}}")];
-    let buckets = s.keys().filter(|k| k.starts_with("sagnac_estimate_latency_seconds_bucket{gyro=\"gyro\"")).count();
+    let le =
+        |b: &str| s[&format!("sagnac_estimate_latency_seconds_bucket{{gyro=\"gyro\",le=\"{b}\"}}")];
+    let buckets = s
+        .keys()
+        .filter(|k| k.starts_with("sagnac_estimate_latency_seconds_bucket{gyro=\"gyro\""))
+        .count();
     assert_eq!(buckets, LATENCY_BUCKETS_S.len() + 1, "the bounds plus +Inf");
-    assert_eq!((le("0.001"), le("0.0025"), le("0.005"), le("0.05"), le("0.1")), (1.0, 1.0, 3.0, 3.0, 4.0));
-    assert_eq!((le("0.5"), le("1"), le("30"), le("+Inf")), (4.0, 5.0, 5.0, 6.0));
-    assert_eq!(s["sagnac_estimate_latency_seconds_count{gyro=\"gyro\"}"], 6.0);
+    assert_eq!(
+        (
+            le("0.001"),
+            le("0.0025"),
+            le("0.005"),
+            le("0.05"),
+            le("0.1")
+        ),
+        (1.0, 1.0, 3.0, 3.0, 4.0)
+    );
+    assert_eq!(
+        (le("0.5"), le("1"), le("30"), le("+Inf")),
+        (4.0, 5.0, 5.0, 6.0)
+    );
+    assert_eq!(
+        s["sagnac_estimate_latency_seconds_count{gyro=\"gyro\"}"],
+        6.0
+    );
     let sum = s["sagnac_estimate_latency_seconds_sum{gyro=\"gyro\"}"];
     assert!((sum - 45.9764).abs() < 1e-12, "{sum}");
     assert_eq!(s["sagnac_estimate_latency_seconds_count{gyro=\"x\"}"], 1.0);
@@ -287,7 +409,10 @@ fn estimate_latency_is_a_histogram_and_device_series_only_on_request() {
     assert!(!s.contains_key("sagnac_device_connected{gyro=\"x\"}"));
     assert!(s.contains_key("sagnac_pipeline_queue_bytes"));
     assert!(s.contains_key("sagnac_dropped_messages_total{sink=\"mcap\"}"));
-    assert_eq!(s["sagnac_sequence_anomalies_total{gyro=\"x\",kind=\"duplicate\"}"], 0.0);
+    assert_eq!(
+        s["sagnac_sequence_anomalies_total{gyro=\"x\",kind=\"duplicate\"}"],
+        0.0
+    );
     let (ok, out) = promtool(&text);
     assert!(ok, "promtool check metrics:\n{out}\n---\n{text}");
 }
@@ -317,12 +442,21 @@ fn updates_replace_old_series() {
         s.keys().filter(|k| k.contains("channel=\"clean\"")).count(),
         4
     );
-    assert_eq!(s["sagnac_qn_arcseconds{bound=\"estimate\",gyro=\"gyro\"}"], 0.4);
+    assert_eq!(
+        s["sagnac_qn_arcseconds{bound=\"estimate\",gyro=\"gyro\"}"],
+        0.4
+    );
     assert!(!s.contains_key("sagnac_qn_arcseconds{bound=\"lower95\",gyro=\"gyro\"}"));
     assert!(s["sagnac_temperature_celsius{gyro=\"gyro\"}"].is_nan());
     // Bad curves are refused and change nothing.
-    let err = m.set_allan_curve(AllanChannel::Raw, &[1.0], &[]).unwrap_err().to_string();
-    assert!(err.contains("gyro `gyro`") && err.contains("channel `raw`"), "{err}");
+    let err = m
+        .set_allan_curve(AllanChannel::Raw, &[1.0], &[])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("gyro `gyro`") && err.contains("channel `raw`"),
+        "{err}"
+    );
     assert!(
         m.set_allan_curve(AllanChannel::Raw, &[0.0], &[1.0])
             .is_err()

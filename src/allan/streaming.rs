@@ -474,7 +474,11 @@ impl<P: PhaseValue> Strided<P> {
             let f = flags.is_some_and(|f| f[k]);
             if self.count >= 2 * self.sp as u64 {
                 let ia = if w + 1 == len { 0 } else { w + 1 };
-                let ib = if w + self.sp + 1 >= len { w + self.sp + 1 - len } else { w + self.sp + 1 };
+                let ib = if w + self.sp + 1 >= len {
+                    w + self.sp + 1 - len
+                } else {
+                    w + self.sp + 1
+                };
                 if f || self.flags[ia] || self.flags[ib] {
                     self.bad += 1;
                 } else {
@@ -601,7 +605,12 @@ impl<P: PhaseValue> Accumulators<P> {
                     continue;
                 }
                 let (l, h, mu) = ((cu - base) as usize, (cv - base) as usize, m as usize);
-                P::sq_acc(&buf[l - 2 * mu..h - 2 * mu], &buf[l - mu..h - mu], &buf[l..h], &mut lanes);
+                P::sq_acc(
+                    &buf[l - 2 * mu..h - 2 * mu],
+                    &buf[l - mu..h - mu],
+                    &buf[l..h],
+                    &mut lanes,
+                );
                 n += cv - cu;
                 (cu, cv) = (u, v);
             }
@@ -685,13 +694,20 @@ impl<P: PhaseValue> Accumulators<P> {
         // level L (compacted in place); beyond, a level has at most one point.
         let p_oct = g.p.trailing_zeros();
         // filled spans that reach into this block (for the strided octaves' flags)
-        let touching = filled.iter().skip_while(|r| r.end <= b0).take_while(|r| r.start < end);
+        let touching = filled
+            .iter()
+            .skip_while(|r| r.end <= b0)
+            .take_while(|r| r.start < end);
         let touching: Vec<Range<u64>> = touching.cloned().collect();
         let mut flags: Vec<bool> = Vec::new();
         for level in 1..=g.max_oct {
             let step = 1u64 << level;
             let single;
-            let first = if step <= g.block { b0 } else { b0.next_multiple_of(step) };
+            let first = if step <= g.block {
+                b0
+            } else {
+                b0.next_multiple_of(step)
+            };
             let values: &[P] = if step <= g.block {
                 if level >= 2 {
                     let n = scratch.len().div_ceil(2);
@@ -859,14 +875,16 @@ impl OctaveAllan<f64> {
     /// consumed and an error naming its index is returned.
     pub fn push_block(&mut self, samples: &[f64]) -> Result<(), StreamError> {
         let mut rest = samples;
-        if self.kind == InputKind::Freq && self.samples == 0
-            && let Some(&y) = rest.first() {
-                if !y.is_finite() {
-                    return Err(StreamError::NonFinite { index: 0, value: y });
-                }
-                self.integ.y0 = y;
-                self.append_one(0.0);
+        if self.kind == InputKind::Freq
+            && self.samples == 0
+            && let Some(&y) = rest.first()
+        {
+            if !y.is_finite() {
+                return Err(StreamError::NonFinite { index: 0, value: y });
             }
+            self.integ.y0 = y;
+            self.append_one(0.0);
+        }
         while !rest.is_empty() {
             let take = self.room().min(rest.len());
             let (seg, tail) = rest.split_at(take);
@@ -974,8 +992,14 @@ impl<P: PhaseValue> OctaveAllan<P> {
         if end < self.acc.done + self.geo.block {
             return;
         }
-        self.acc
-            .process(&self.geo, &self.buf, self.buf_start, end, &mut self.scratch, &self.filled);
+        self.acc.process(
+            &self.geo,
+            &self.buf,
+            self.buf_start,
+            end,
+            &mut self.scratch,
+            &self.filled,
+        );
         let keep = self.geo.hist as usize;
         if self.buf.len() > keep {
             let drop = self.buf.len() - keep;
@@ -983,7 +1007,11 @@ impl<P: PhaseValue> OctaveAllan<P> {
             self.buf.truncate(keep);
             self.buf_start += drop as u64;
         }
-        let old = self.filled.iter().take_while(|r| r.end <= self.buf_start).count();
+        let old = self
+            .filled
+            .iter()
+            .take_while(|r| r.end <= self.buf_start)
+            .count();
         if old > 0 {
             self.filled.drain(..old);
         }

@@ -66,7 +66,8 @@ fn dev_unit(kind: DataKind) -> &'static str {
 /// `--csv`, when given.
 fn write_csv(args: &AllanArgs, kind: DataKind, r: &AllanResult) -> Result<()> {
     if let Some(path) = &args.csv {
-        crate::sink::export::allan_csv::write_curve(path, &r.points, dev_unit(kind)).context("writing the Allan CSV")?;
+        crate::sink::export::allan_csv::write_curve(path, &r.points, dev_unit(kind))
+            .context("writing the Allan CSV")?;
     }
     Ok(())
 }
@@ -180,7 +181,11 @@ pub fn run(args: AllanArgs) -> Result<()> {
     let samples = SampleReader::open(&args.input, args.format.into(), args.column.as_deref())
         .and_then(|r| r.require_integers(kind == DataKind::Counts).read_to_end())
         .with_context(|| format!("cannot read samples from {}", args.input.display()))?;
-    spinner.set_message(format!("computing {} of {} samples", args.stat_name(), samples.len()));
+    spinner.set_message(format!(
+        "computing {} of {} samples",
+        args.stat_name(),
+        samples.len()
+    ));
     let phase = Phase::from_vec(samples, kind, args.tau0)
         .with_context(|| format!("invalid samples in {}", args.input.display()))?;
     let stat = Stat::from(args.stat);
@@ -239,7 +244,9 @@ fn run_streaming(args: &AllanArgs, kind: DataKind) -> Result<()> {
             break;
         }
         match &mut acc {
-            Acc::F(a) => a.push_block(&buf).with_context(|| format!("invalid samples in {}", args.input.display()))?,
+            Acc::F(a) => a
+                .push_block(&buf)
+                .with_context(|| format!("invalid samples in {}", args.input.display()))?,
             Acc::C(a) => {
                 ints.clear();
                 ints.extend(buf.iter().map(|&v| v as i64));
@@ -257,13 +264,20 @@ fn run_streaming(args: &AllanArgs, kind: DataKind) -> Result<()> {
     // accept the same inputs and report the same taus
     let m_max = allan::batch::max_m(Stat::Oadev, n_phase);
     if m_max == 0 {
-        return Err(allan::AllanError::TooFewPoints { n_phase, need: allan::batch::min_points(Stat::Oadev) })
-            .with_context(|| format!("cannot compute oadev of {}", args.input.display()));
+        return Err(allan::AllanError::TooFewPoints {
+            n_phase,
+            need: allan::batch::min_points(Stat::Oadev),
+        })
+        .with_context(|| format!("cannot compute oadev of {}", args.input.display()));
     }
     let result = AllanResult {
         stat: Stat::Oadev,
         tau0_s: args.tau0,
-        points: points.iter().filter(|p| p.n > 0 && p.m <= m_max).map(allan::AllanPoint::from).collect(),
+        points: points
+            .iter()
+            .filter(|p| p.n > 0 && p.m <= m_max)
+            .map(allan::AllanPoint::from)
+            .collect(),
     };
     write_csv(args, kind, &result)?;
     match &args.json {
@@ -272,7 +286,8 @@ fn run_streaming(args: &AllanArgs, kind: DataKind) -> Result<()> {
             if out.as_os_str() == "-" {
                 super::write_stdout(&text)?;
             } else {
-                std::fs::write(out, text + "\n").with_context(|| format!("cannot write {}", out.display()))?;
+                std::fs::write(out, text + "\n")
+                    .with_context(|| format!("cannot write {}", out.display()))?;
             }
         }
         None => print_table(&result, args, n_phase as usize, args.confidence)?,

@@ -77,21 +77,37 @@ pub enum AnalyzeFormat {
 
 /// The value of `flag`, or the error naming it: `input` (a CSV file or a frame
 /// capture) carries no `what`.
-fn required(flag: &'static str, value: Option<f64>, input: &std::path::Path, what: &'static str) -> Result<f64> {
-    value.ok_or_else(|| OfflineError::FlagRequired { flag, path: input.to_path_buf(), what }.into())
+fn required(
+    flag: &'static str,
+    value: Option<f64>,
+    input: &std::path::Path,
+    what: &'static str,
+) -> Result<f64> {
+    value.ok_or_else(|| {
+        OfflineError::FlagRequired {
+            flag,
+            path: input.to_path_buf(),
+            what,
+        }
+        .into()
+    })
 }
 
 pub fn run(args: AnalyzeArgs) -> Result<()> {
     if let Some(r) = args.rate_hz
-        && !(r.is_finite() && r > 0.0) {
-            bail!("--rate-hz must be a positive number of Hz (got {r})");
-        }
+        && !(r.is_finite() && r > 0.0)
+    {
+        bail!("--rate-hz must be a positive number of Hz (got {r})");
+    }
     if let Some(d) = args.pulse_arcsec
-        && !(d.is_finite() && d > 0.0) {
-            bail!("--pulse-arcsec must be a positive number of arcsec (got {d})");
-        }
+        && !(d.is_finite() && d > 0.0)
+    {
+        bail!("--pulse-arcsec must be a positive number of arcsec (got {d})");
+    }
     if args.column.is_some() && args.format != AnalyzeFormat::Csv {
-        bail!("--column applies to CSV input only (frame captures and MCAP recordings hold pulse counts)");
+        bail!(
+            "--column applies to CSV input only (frame captures and MCAP recordings hold pulse counts)"
+        );
     }
     // the export paths are checked before the analysis
     for (flag, p) in [("--kalibr", &args.kalibr), ("--allan-csv", &args.allan_csv)] {
@@ -119,27 +135,59 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
             let cfg = match args.unit {
                 RateUnit::Counts => PipelineConfig::counts(
                     rate,
-                    required("--pulse-arcsec", args.pulse_arcsec, input, "pulse weight (--unit counts)")?,
+                    required(
+                        "--pulse-arcsec",
+                        args.pulse_arcsec,
+                        input,
+                        "pulse weight (--unit counts)",
+                    )?,
                 ),
                 _ => PipelineConfig::rates(rate),
             };
             let column = args.column.as_deref().unwrap_or("counts");
             let mut s = InputSettings::new(input, "csv", cfg.rate_hz, cfg.pulse_arcsec);
-            (s.column, s.unit, s.origin) = (Some(column.into()), Some(unit_key(args.unit)), Some(given.into()));
+            (s.column, s.unit, s.origin) = (
+                Some(column.into()),
+                Some(unit_key(args.unit)),
+                Some(given.into()),
+            );
             settings = s;
-            offline::run_file(input, InputFormat::Csv, Some(column), args.unit, &cfg, &mut progress)
-                .with_context(|| format!("analysing {}", input.display()))?
+            offline::run_file(
+                input,
+                InputFormat::Csv,
+                Some(column),
+                args.unit,
+                &cfg,
+                &mut progress,
+            )
+            .with_context(|| format!("analysing {}", input.display()))?
         }
         AnalyzeFormat::Frames => {
-            let rate = required("--rate-hz", args.rate_hz, input, "sample rate (a frame capture)")?;
-            let pulse = required("--pulse-arcsec", args.pulse_arcsec, input, "pulse weight (a frame capture)")?;
+            let rate = required(
+                "--rate-hz",
+                args.rate_hz,
+                input,
+                "sample rate (a frame capture)",
+            )?;
+            let pulse = required(
+                "--pulse-arcsec",
+                args.pulse_arcsec,
+                input,
+                "pulse weight (a frame capture)",
+            )?;
             let cfg = PipelineConfig::counts(rate, pulse);
             let mut s = InputSettings::new(input, "frames", rate, Some(pulse));
             s.origin = Some(given.into());
             settings = s;
             let (pipe, stats) = offline::run_capture(input, &cfg, &mut progress)
                 .with_context(|| format!("analysing frame capture {}", input.display()))?;
-            if stats.lost_samples + stats.bytes_skipped + stats.crc_errors + stats.duplicates + stats.out_of_sequence > 0 {
+            if stats.lost_samples
+                + stats.bytes_skipped
+                + stats.crc_errors
+                + stats.duplicates
+                + stats.out_of_sequence
+                > 0
+            {
                 eprintln!(
                     "note: {}: {} frames decoded; {} samples lost in {} gaps (filled, the angle kept); \
                      {} CRC errors, {} false syncs, {} bytes skipped; {} duplicate and {} out-of-sequence frames",
@@ -164,7 +212,9 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
             s.origin = Some(
                 match (args.rate_hz, args.pulse_arcsec) {
                     (None, None) => "from the recording",
-                    (Some(_), Some(_)) => "given on the command line (checked against the recording)",
+                    (Some(_), Some(_)) => {
+                        "given on the command line (checked against the recording)"
+                    }
                     _ => "from the recording and the command line",
                 }
                 .into(),
@@ -194,28 +244,44 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
         );
     }
     if !analysis.fit.ok {
-        eprintln!("warning: {}: {}", input.display(), misfit_message(&analysis));
+        eprintln!(
+            "warning: {}: {}",
+            input.display(),
+            misfit_message(&analysis)
+        );
     }
     if let Some(path) = &args.kalibr {
-        crate::sink::export::kalibr::write(path, &analysis.estimates, pipe.config().rate_hz, &input.display().to_string())
-            .context("writing the Kalibr file")?;
+        crate::sink::export::kalibr::write(
+            path,
+            &analysis.estimates,
+            pipe.config().rate_hz,
+            &input.display().to_string(),
+        )
+        .context("writing the Kalibr file")?;
     }
     if let Some(path) = &args.allan_csv {
-        crate::sink::export::allan_csv::write_channels(path, &analysis.allan).context("writing the Allan CSV")?;
+        crate::sink::export::allan_csv::write_channels(path, &analysis.allan)
+            .context("writing the Allan CSV")?;
     }
-    let verdict = spec.as_ref().map(|s| s.evaluate_fixed(&analysis.estimates, analysis.duration_s));
+    let verdict = spec
+        .as_ref()
+        .map(|s| s.evaluate_fixed(&analysis.estimates, analysis.duration_s));
     match &args.json {
         Some(path) => {
             let mut value = serde_json::to_value(&analysis).context("serialising the analysis")?;
             if let (Some(v), Some(obj)) = (&verdict, value.as_object_mut()) {
-                obj.insert("spec".into(), serde_json::to_value(v).context("serialising the verdict")?);
+                obj.insert(
+                    "spec".into(),
+                    serde_json::to_value(v).context("serialising the verdict")?,
+                );
             }
             Provenance::new(settings, analysis_units()).insert_into(&mut value);
             let text = serde_json::to_string_pretty(&value).context("serialising the analysis")?;
             if path.as_os_str() == "-" {
                 super::write_stdout(&text)?;
             } else {
-                std::fs::write(path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
+                std::fs::write(path, text + "\n")
+                    .with_context(|| format!("writing {}", path.display()))?;
             }
         }
         None => {
@@ -231,7 +297,8 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
 /// The `--unit` value as the flag spells it.
 pub(crate) fn unit_key(u: RateUnit) -> String {
     use clap::ValueEnum;
-    u.to_possible_value().map_or_else(|| format!("{u:?}"), |v| v.get_name().to_string())
+    u.to_possible_value()
+        .map_or_else(|| format!("{u:?}"), |v| v.get_name().to_string())
 }
 
 fn print_verdict(r: &SpecReport) -> Result<()> {
@@ -244,7 +311,11 @@ fn print_verdict(r: &SpecReport) -> Result<()> {
         r.confidence * 100.0,
         r.duration_s
     )?;
-    writeln!(o, "{:<22} {:>12} {:>10} {:>12} {:>12}  reason", "coefficient", "limit", "verdict", "estimate", "bound")?;
+    writeln!(
+        o,
+        "{:<22} {:>12} {:>10} {:>12} {:>12}  reason",
+        "coefficient", "limit", "verdict", "estimate", "bound"
+    )?;
     let f = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.6}"));
     for (name, c) in &r.coefficients {
         writeln!(
@@ -281,7 +352,11 @@ fn misfit_message(a: &Analysis) -> String {
 fn print_table(a: &Analysis) -> Result<()> {
     let mut o = std::io::stdout().lock();
     let e = &a.estimates;
-    writeln!(o, "{} samples, {:.1} s; fit chi2/dof {:.2}", a.samples, a.duration_s, a.fit.chi2_per_dof)?;
+    writeln!(
+        o,
+        "{} samples, {:.1} s; fit chi2/dof {:.2}",
+        a.samples, a.duration_s, a.fit.chi2_per_dof
+    )?;
     if !a.fit.ok {
         writeln!(o, "WARNING: {}", misfit_message(a))?;
     }
@@ -290,7 +365,8 @@ fn print_table(a: &Analysis) -> Result<()> {
             o,
             "readout filter: {}{}, corner {:.4} Hz [{:.4}, {:.4}], delay {:.4} s",
             f.kind.name(),
-            f.length.map_or(String::new(), |l| format!(" of {l} samples")),
+            f.length
+                .map_or(String::new(), |l| format!(" of {l} samples")),
             f.corner_hz,
             f.ci95[0],
             f.ci95[1],
@@ -309,11 +385,22 @@ fn print_table(a: &Analysis) -> Result<()> {
         writeln!(o, "{name:<32} {}", fmt_coef(c))?;
     }
     writeln!(o)?;
-    writeln!(o, "{:>12} {:>14} {:>14} {:>14}", "tau, s", "raw ADEV", "clean ADEV", "noise ADEV")?;
+    writeln!(
+        o,
+        "{:>12} {:>14} {:>14} {:>14}",
+        "tau, s", "raw ADEV", "clean ADEV", "noise ADEV"
+    )?;
     for p in &a.allan.raw {
         let find = |v: &[crate::allan::AllanPoint]| v.iter().find(|q| q.m == p.m).map(|q| q.dev);
         let f = |x: Option<f64>| x.map_or("-".to_string(), |v| format!("{v:.6e}"));
-        writeln!(o, "{:>12.4} {:>14} {:>14} {:>14}", p.tau_s, format!("{:.6e}", p.dev), f(find(&a.allan.clean)), f(find(&a.allan.noise)))?;
+        writeln!(
+            o,
+            "{:>12.4} {:>14} {:>14} {:>14}",
+            p.tau_s,
+            format!("{:.6e}", p.dev),
+            f(find(&a.allan.clean)),
+            f(find(&a.allan.noise))
+        )?;
     }
     writeln!(o, "(Allan deviations in deg/h)")?;
     Ok(())

@@ -23,17 +23,17 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, bail};
 use clap::{Args, ValueEnum};
 
+use crate::diagnose::{self, DiagnoseOptions, Recording};
 use crate::model::GyroModel;
 use crate::model::config::OutputKind;
 use crate::offline::RateUnit;
-use crate::units;
-use crate::diagnose::{self, DiagnoseOptions, Recording};
 use crate::sink::messages::SinkMessage;
-use crate::sink::provenance::{InputSettings, Provenance};
 use crate::sink::meta::GyroOutput;
+use crate::sink::provenance::{InputSettings, Provenance};
 use crate::source::capture::CaptureReader;
 use crate::source::frame::FilledSeries;
 use crate::source::input::{InputError, InputFormat, SampleReader};
+use crate::units;
 
 /// Recording format.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -90,10 +90,16 @@ pub struct DiagnoseArgs {
 /// Run `sagnac diagnose`.
 pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
     if args.json.is_none() && args.report.is_none() {
-        bail!("nothing to write: give --json OUT (the verdict, \"-\" for stdout), --report OUT.svg, or both");
+        bail!(
+            "nothing to write: give --json OUT (the verdict, \"-\" for stdout), --report OUT.svg, or both"
+        );
     }
     // the outputs are checked before a diagnosis that may take a minute
-    let outputs = [("--json", args.json.as_ref()), ("--report", args.report.as_ref()), ("--write-model", args.write_model.as_ref())];
+    let outputs = [
+        ("--json", args.json.as_ref()),
+        ("--report", args.report.as_ref()),
+        ("--write-model", args.write_model.as_ref()),
+    ];
     for (flag, path) in outputs {
         if let Some(p) = path {
             check_output_path(flag, p)?;
@@ -104,7 +110,11 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
     let spinner = super::progress::Spinner::start(format!("reading {}", args.recording.display()));
     let rec = match args.format {
         RecordingFormat::Csv if args.unit != RateUnit::Counts => read_rate_csv(&args, &model)?,
-        RecordingFormat::Csv => read_csv(&args.recording, args.column.as_deref().unwrap_or("counts"), &model)?,
+        RecordingFormat::Csv => read_csv(
+            &args.recording,
+            args.column.as_deref().unwrap_or("counts"),
+            &model,
+        )?,
         RecordingFormat::Frames => read_frames(&args.recording, &model)?,
         RecordingFormat::Mcap => read_mcap(&args.recording, &model)?,
     };
@@ -147,7 +157,8 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
         super::write_stdout(&json)?;
     } else {
         if let Some(path) = &args.json {
-            std::fs::write(path, json + "\n").with_context(|| format!("writing {}", path.display()))?;
+            std::fs::write(path, json + "\n")
+                .with_context(|| format!("writing {}", path.display()))?;
         }
         let r = &diag.report;
         let mut summary = format!(
@@ -199,10 +210,21 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
 
 /// What `--json` says about how the verdict was made.
 fn provenance(args: &DiagnoseArgs, model: &GyroModel, rec: &Recording) -> Provenance {
-    let own = |v: f64, m: f64| if v == m { "the model's [gyro]" } else { "the recording's metadata" };
+    let own = |v: f64, m: f64| {
+        if v == m {
+            "the model's [gyro]"
+        } else {
+            "the recording's metadata"
+        }
+    };
     let mut input;
     if rec.output == OutputKind::Rate {
-        input = InputSettings::new(&args.recording, format_name(args.format), rec.sample_rate_hz, None);
+        input = InputSettings::new(
+            &args.recording,
+            format_name(args.format),
+            rec.sample_rate_hz,
+            None,
+        );
         input.rate_lsb_dps = (model.gyro.rate_lsb_dps > 0.0).then_some(model.gyro.rate_lsb_dps);
         input.column = args.column.clone();
         input.unit = Some(super::analyze::unit_key(args.unit));
@@ -211,7 +233,12 @@ fn provenance(args: &DiagnoseArgs, model: &GyroModel, rec: &Recording) -> Proven
             rec.rate_quantum_dps()
         ));
     } else {
-        input = InputSettings::new(&args.recording, format_name(args.format), rec.sample_rate_hz, Some(rec.pulse_arcsec));
+        input = InputSettings::new(
+            &args.recording,
+            format_name(args.format),
+            rec.sample_rate_hz,
+            Some(rec.pulse_arcsec),
+        );
         input.origin = Some(format!(
             "sample rate from {}, pulse weight from {}",
             own(rec.sample_rate_hz, model.gyro.sample_rate_hz),
@@ -241,7 +268,11 @@ fn diagnose_units() -> Vec<(String, String)> {
             "each parameter in the unit its model-file key names (_dph deg/h, _dpsh deg/sqrt(h), _s s, _c deg C)".into(),
         ),
     ];
-    u.extend(crate::units::COEFFICIENTS.iter().map(|(k, unit, _)| (k.to_string(), unit.to_string())));
+    u.extend(
+        crate::units::COEFFICIENTS
+            .iter()
+            .map(|(k, unit, _)| (k.to_string(), unit.to_string())),
+    );
     u
 }
 
@@ -272,7 +303,9 @@ fn informative(t: Vec<f64>) -> Option<Vec<f64>> {
 fn check_input_kind(args: &DiagnoseArgs, model: &GyroModel) -> anyhow::Result<()> {
     let rate_input = args.unit != RateUnit::Counts;
     if args.column.is_some() && args.format != RecordingFormat::Csv {
-        bail!("--column applies to CSV recordings only (frame captures and MCAP recordings hold pulse counts)");
+        bail!(
+            "--column applies to CSV recordings only (frame captures and MCAP recordings hold pulse counts)"
+        );
     }
     match (model.gyro.output, rate_input) {
         (OutputKind::Rate, false) => bail!(
@@ -290,7 +323,10 @@ fn check_input_kind(args: &DiagnoseArgs, model: &GyroModel) -> anyhow::Result<()
         _ => {}
     }
     if rate_input && args.format != RecordingFormat::Csv {
-        bail!("--unit {} reads a CSV rate column: use --format csv", super::analyze::unit_key(args.unit));
+        bail!(
+            "--unit {} reads a CSV rate column: use --format csv",
+            super::analyze::unit_key(args.unit)
+        );
     }
     Ok(())
 }
@@ -309,8 +345,13 @@ fn read_rate_csv(args: &DiagnoseArgs, model: &GyroModel) -> anyhow::Result<Recor
         .map(|v| args.unit.to_dph(v, 0.0, tau0) / units::S_PER_H)
         .collect();
     let temp = read_temp(path, rates_dps.len())?;
-    Recording::from_rates(&rates_dps, temp.and_then(informative), model.gyro.sample_rate_hz, model.gyro.rate_lsb_dps)
-        .with_context(|| format!("{}: column {column}", path.display()))
+    Recording::from_rates(
+        &rates_dps,
+        temp.and_then(informative),
+        model.gyro.sample_rate_hz,
+        model.gyro.rate_lsb_dps,
+    )
+    .with_context(|| format!("{}: column {column}", path.display()))
 }
 
 /// The optional `temp_c` column, as long as the data.
@@ -326,7 +367,11 @@ fn read_temp(path: &Path, n: usize) -> anyhow::Result<Option<Vec<f64>>> {
     if let Some(t) = &temp
         && t.len() != n
     {
-        bail!("{}: temp_c has {} values, the data {n}", path.display(), t.len());
+        bail!(
+            "{}: temp_c has {} values, the data {n}",
+            path.display(),
+            t.len()
+        );
     }
     Ok(temp)
 }
@@ -339,7 +384,13 @@ fn read_csv(path: &Path, column: &str, model: &GyroModel) -> anyhow::Result<Reco
         .map(|v| v as i64)
         .collect();
     let temp = read_temp(path, counts.len())?;
-    Ok(recording(model, counts, temp.and_then(informative), None, None))
+    Ok(recording(
+        model,
+        counts,
+        temp.and_then(informative),
+        None,
+        None,
+    ))
 }
 
 fn read_frames(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
@@ -358,7 +409,13 @@ fn read_frames(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
         series.push_sample(s);
     }
     temps.truncate(series.len());
-    Ok(recording(model, series.counts, informative(temps), None, None))
+    Ok(recording(
+        model,
+        series.counts,
+        informative(temps),
+        None,
+        None,
+    ))
 }
 
 fn read_mcap(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
@@ -369,7 +426,10 @@ fn read_mcap(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
     if let Some(m) = &meta
         && m.output == GyroOutput::Rate
     {
-        bail!("{}: its metadata says output = rate (rate samples, not pulse counts): not supported by diagnose yet", path.display());
+        bail!(
+            "{}: its metadata says output = rate (rate samples, not pulse counts): not supported by diagnose yet",
+            path.display()
+        );
     }
     let mut series = FilledSeries::default();
     let mut temps: Vec<f64> = Vec::new();
@@ -431,7 +491,13 @@ fn read_mcap(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
     } else {
         None
     };
-    Ok(recording(model, series.counts, temp, rate, meta.and_then(|m| m.pulse_arcsec)))
+    Ok(recording(
+        model,
+        series.counts,
+        temp,
+        rate,
+        meta.and_then(|m| m.pulse_arcsec),
+    ))
 }
 
 /// An output path must be `-` (JSON only), or name a file (not a directory)

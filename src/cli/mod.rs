@@ -14,7 +14,11 @@ pub mod run;
 pub mod simulate;
 
 #[derive(Debug, Parser)]
-#[command(name = "sagnac", version, about = "Ring-laser-gyro bench testing: acquisition, wavelet QN removal, Allan variance, noise estimation")]
+#[command(
+    name = "sagnac",
+    version,
+    about = "Ring-laser-gyro bench testing: acquisition, wavelet QN removal, Allan variance, noise estimation"
+)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
@@ -85,7 +89,11 @@ pub(crate) fn output_dir(out: &std::path::Path) -> anyhow::Result<std::path::Pat
         _ => std::path::PathBuf::from("."),
     };
     if !dir.is_dir() {
-        anyhow::bail!("cannot write {}: {} is not an existing directory", out.display(), dir.display());
+        anyhow::bail!(
+            "cannot write {}: {} is not an existing directory",
+            out.display(),
+            dir.display()
+        );
     }
     Ok(dir)
 }

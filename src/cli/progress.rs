@@ -53,7 +53,13 @@ pub struct DelayedBar {
 impl DelayedBar {
     /// `label` (e.g. "analysing") in front of the counts of `what`.
     pub fn new(label: impl Into<String>, what: &'static str) -> Self {
-        DelayedBar { bar: ProgressBar::hidden(), started: Instant::now(), shown: false, label: label.into(), what }
+        DelayedBar {
+            bar: ProgressBar::hidden(),
+            started: Instant::now(),
+            shown: false,
+            label: label.into(),
+            what,
+        }
     }
 
     /// `done` of `total` (if known) so far.
@@ -113,7 +119,11 @@ impl Spinner {
                 }
             })
             .ok();
-        Spinner { bar, done: Some(tx), thread }
+        Spinner {
+            bar,
+            done: Some(tx),
+            thread,
+        }
     }
 
     /// A new phase.
@@ -152,7 +162,12 @@ pub struct LineCounter<'a, W> {
 
 impl<'a, W: Write> LineCounter<'a, W> {
     pub fn new(inner: W, bar: &'a mut DelayedBar, total: Option<u64>, skip: u64) -> Self {
-        LineCounter { inner, bar, total, skip }
+        LineCounter {
+            inner,
+            bar,
+            total,
+            skip,
+        }
     }
 }
 
@@ -192,7 +207,12 @@ impl StatusLine {
         }
         let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr());
         bar.set_style(style("{msg}"));
-        Some(StatusLine { bar, status: LiveStatus::new(), stop: None, thread: None })
+        Some(StatusLine {
+            bar,
+            status: LiveStatus::new(),
+            stop: None,
+            thread: None,
+        })
     }
 
     /// What the pipeline updates.

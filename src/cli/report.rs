@@ -11,13 +11,13 @@
 
 use std::path::{Path, PathBuf};
 
+use super::progress::{DelayedBar, Spinner};
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use super::progress::{DelayedBar, Spinner};
 
 use super::analyze::AnalyzeFormat;
-use crate::model::GyroModel;
 use crate::diagnose::{self, DiagnoseOptions, Recording};
+use crate::model::GyroModel;
 use crate::offline::{self, OfflineError, RateUnit, TapBlock};
 use crate::pipeline::{Pipeline, PipelineConfig};
 use crate::sink::report::{self, Collector, DiagnosisPart, Metadata};
@@ -57,13 +57,28 @@ pub struct ReportArgs {
     pub spec: Option<PathBuf>,
 }
 
-fn required(flag: &'static str, value: Option<f64>, input: &Path, what: &'static str) -> Result<f64> {
-    value.ok_or_else(|| OfflineError::FlagRequired { flag, path: input.to_path_buf(), what }.into())
+fn required(
+    flag: &'static str,
+    value: Option<f64>,
+    input: &Path,
+    what: &'static str,
+) -> Result<f64> {
+    value.ok_or_else(|| {
+        OfflineError::FlagRequired {
+            flag,
+            path: input.to_path_buf(),
+            what,
+        }
+        .into()
+    })
 }
 
 /// Run `sagnac report`.
 pub fn run(args: ReportArgs) -> Result<()> {
-    for (flag, v) in [("--rate-hz", args.rate_hz), ("--pulse-arcsec", args.pulse_arcsec)] {
+    for (flag, v) in [
+        ("--rate-hz", args.rate_hz),
+        ("--pulse-arcsec", args.pulse_arcsec),
+    ] {
         if let Some(x) = v
             && !(x.is_finite() && x > 0.0)
         {
@@ -71,14 +86,22 @@ pub fn run(args: ReportArgs) -> Result<()> {
         }
     }
     if args.column.is_some() && args.format != AnalyzeFormat::Csv {
-        bail!("--column applies to CSV input only (frame captures and MCAP recordings hold pulse counts)");
+        bail!(
+            "--column applies to CSV input only (frame captures and MCAP recordings hold pulse counts)"
+        );
     }
     if args.out.exists() && !args.out.is_dir() {
-        bail!("--out {}: exists and is not a directory", args.out.display());
+        bail!(
+            "--out {}: exists and is not a directory",
+            args.out.display()
+        );
     }
     // the model is read before a pass that may take minutes
     let model = match &args.model {
-        Some(p) => Some(GyroModel::load(p).with_context(|| format!("loading the gyro model {}", p.display()))?),
+        Some(p) => Some(
+            GyroModel::load(p)
+                .with_context(|| format!("loading the gyro model {}", p.display()))?,
+        ),
         None => None,
     };
     let spec = match &args.spec {
@@ -86,22 +109,34 @@ pub fn run(args: ReportArgs) -> Result<()> {
         None => None,
     };
     if model.is_some() && args.format == AnalyzeFormat::Csv && args.unit != RateUnit::Counts {
-        bail!("--model diagnoses pulse counts: it needs --unit counts (the input is a rate in {:?})", args.unit);
+        bail!(
+            "--model diagnoses pulse counts: it needs --unit counts (the input is a rate in {:?})",
+            args.unit
+        );
     }
-    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
 
     // a bar on stderr once the job is visibly long (hidden when stderr is not a terminal)
     let mut bar = DelayedBar::new("analysing", "samples");
     let mut progress = |done: u64, total: Option<u64>| bar.update(done, total);
     let input = &args.input;
-    let mut meta = Metadata { input: input.display().to_string(), ..Metadata::default() };
+    let mut meta = Metadata {
+        input: input.display().to_string(),
+        ..Metadata::default()
+    };
     let (pipe, collector) = match args.format {
         AnalyzeFormat::Csv => {
             let rate = required("--rate-hz", args.rate_hz, input, "sample rate")?;
             let cfg = match args.unit {
                 RateUnit::Counts => PipelineConfig::counts(
                     rate,
-                    required("--pulse-arcsec", args.pulse_arcsec, input, "pulse weight (--unit counts)")?,
+                    required(
+                        "--pulse-arcsec",
+                        args.pulse_arcsec,
+                        input,
+                        "pulse weight (--unit counts)",
+                    )?,
                 ),
                 _ => PipelineConfig::rates(rate),
             };
@@ -110,20 +145,39 @@ pub fn run(args: ReportArgs) -> Result<()> {
             meta.origin = "given on the command line".into();
             let mut col = collector_for(&cfg, model.is_some());
             let mut tap = |b: &TapBlock<'_>| col.tap(b);
-            let pipe = offline::run_file_tapped(input, InputFormat::Csv, Some(column), args.unit, &cfg, &mut progress, Some(&mut tap))
-                .with_context(|| format!("analysing {}", input.display()))?;
+            let pipe = offline::run_file_tapped(
+                input,
+                InputFormat::Csv,
+                Some(column),
+                args.unit,
+                &cfg,
+                &mut progress,
+                Some(&mut tap),
+            )
+            .with_context(|| format!("analysing {}", input.display()))?;
             (finish(pipe, &mut meta, &cfg), col)
         }
         AnalyzeFormat::Frames => {
-            let rate = required("--rate-hz", args.rate_hz, input, "sample rate (a frame capture)")?;
-            let pulse = required("--pulse-arcsec", args.pulse_arcsec, input, "pulse weight (a frame capture)")?;
+            let rate = required(
+                "--rate-hz",
+                args.rate_hz,
+                input,
+                "sample rate (a frame capture)",
+            )?;
+            let pulse = required(
+                "--pulse-arcsec",
+                args.pulse_arcsec,
+                input,
+                "pulse weight (a frame capture)",
+            )?;
             let cfg = PipelineConfig::counts(rate, pulse);
             meta.format = "raw frame capture".into();
             meta.origin = "given on the command line".into();
             let mut col = collector_for(&cfg, model.is_some());
             let mut tap = |b: &TapBlock<'_>| col.tap(b);
-            let (pipe, stats) = offline::run_capture_tapped(input, &cfg, &mut progress, Some(&mut tap))
-                .with_context(|| format!("analysing frame capture {}", input.display()))?;
+            let (pipe, stats) =
+                offline::run_capture_tapped(input, &cfg, &mut progress, Some(&mut tap))
+                    .with_context(|| format!("analysing frame capture {}", input.display()))?;
             meta.gaps = Some((stats.gaps, stats.lost_samples));
             meta.frame_stats = Some(stats);
             (finish(pipe, &mut meta, &cfg), col)
@@ -135,8 +189,9 @@ pub fn run(args: ReportArgs) -> Result<()> {
             meta.origin = "from the recording".into();
             let mut col = collector_for(&cfg, model.is_some());
             let mut tap = |b: &TapBlock<'_>| col.tap(b);
-            let (pipe, broken) = offline::run_recording_tapped(input, &cfg, &mut progress, Some(&mut tap))
-                .with_context(|| format!("analysing recording {}", input.display()))?;
+            let (pipe, broken) =
+                offline::run_recording_tapped(input, &cfg, &mut progress, Some(&mut tap))
+                    .with_context(|| format!("analysing recording {}", input.display()))?;
             if let Some(b) = broken {
                 let note = format!(
                     "unreadable from byte {} ({}); analysed the {} samples before it",
@@ -162,15 +217,23 @@ pub fn run(args: ReportArgs) -> Result<()> {
     }
 
     let diagnosis = match (&model, &args.model) {
-        (Some(m), Some(path)) => Some((run_diagnosis(m, &collector, &meta, input)?, path.display().to_string())),
+        (Some(m), Some(path)) => Some((
+            run_diagnosis(m, &collector, &meta, input)?,
+            path.display().to_string(),
+        )),
         _ => None,
     };
-    let verdict = spec.as_ref().map(|s| s.evaluate_fixed(&analysis.estimates, analysis.duration_s));
+    let verdict = spec
+        .as_ref()
+        .map(|s| s.evaluate_fixed(&analysis.estimates, analysis.duration_s));
     let r = report::Report {
         meta: &meta,
         analysis: &analysis,
         series: &collector,
-        diagnosis: diagnosis.as_ref().map(|(d, m)| DiagnosisPart { diagnosis: d, model: m }),
+        diagnosis: diagnosis.as_ref().map(|(d, m)| DiagnosisPart {
+            diagnosis: d,
+            model: m,
+        }),
         spec: verdict.as_ref(),
     };
     let written = report::write(&args.out, &r).context("writing the report")?;
@@ -205,17 +268,32 @@ fn finish(pipe: Pipeline, meta: &mut Metadata, cfg: &PipelineConfig) -> Pipeline
 
 /// Diagnose the collected counts against `model` (a spinner while the
 /// Monte-Carlo runs go).
-fn run_diagnosis(model: &GyroModel, c: &Collector, meta: &Metadata, input: &Path) -> Result<diagnose::Diagnosis> {
+fn run_diagnosis(
+    model: &GyroModel,
+    c: &Collector,
+    meta: &Metadata,
+    input: &Path,
+) -> Result<diagnose::Diagnosis> {
     let Some(counts) = c.all_counts() else {
-        bail!("{}: --model needs the pulse counts, and this input did not give them as integers", input.display());
+        bail!(
+            "{}: --model needs the pulse counts, and this input did not give them as integers",
+            input.display()
+        );
     };
     if let Some(&c0) = counts.first()
         && counts.iter().all(|&v| v == c0)
     {
-        bail!("{}: all {} increments are {c0}: no noise to compare with the model", input.display(), counts.len());
+        bail!(
+            "{}: all {} increments are {c0}: no noise to compare with the model",
+            input.display(),
+            counts.len()
+        );
     }
     // a constant temperature carries no information
-    let temp_c = c.all_temps().filter(|t| t.iter().any(|v| *v != t[0])).map(|t| t.to_vec());
+    let temp_c = c
+        .all_temps()
+        .filter(|t| t.iter().any(|v| *v != t[0]))
+        .map(|t| t.to_vec());
     let rec = Recording {
         counts: counts.to_vec(),
         temp_c,

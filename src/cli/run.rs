@@ -25,10 +25,10 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::{ArgGroup, Args};
 
+use super::progress::StatusLine;
 use crate::daemon::config::{Config, ConfigError, KeysPresent, LogFormat, SourceKind};
 use crate::daemon::run::{Daemon, DaemonError, Explicit};
 use crate::daemon::shutdown;
-use super::progress::StatusLine;
 
 /// Arguments of `sagnac run`.
 #[derive(Debug, Args)]
@@ -238,7 +238,8 @@ pub fn run(args: RunArgs) -> Result<()> {
         daemon = daemon.with_status(l.status());
         l.start();
     }
-    let result = runtime.block_on(async move { daemon.run(trigger).await.map_err(anyhow::Error::new) });
+    let result =
+        runtime.block_on(async move { daemon.run(trigger).await.map_err(anyhow::Error::new) });
     if let Some(l) = line {
         l.finish();
     }

@@ -28,6 +28,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, bail};
 use clap::{Args, ValueEnum};
 
+use super::progress::{DelayedBar, LineCounter};
 use crate::model::config::OutputKind;
 use crate::model::{GyroModel, Simulator, sim};
 use crate::sink::mcap::{Recorder, RecorderConfig};
@@ -35,7 +36,6 @@ use crate::sink::messages::{RawBatch, SinkMessage};
 use crate::sink::meta::RecordingMeta;
 use crate::source::bench::{SIM_START_COUNTER, SIM_START_SEQ};
 use crate::source::frame::{FrameEncoder, FrameWriter, STATUS_ALL_OK, TriadEncoder};
-use super::progress::{DelayedBar, LineCounter};
 
 /// Output format of `sagnac simulate`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -118,7 +118,8 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
             // the recording carries its rate, pulse weight and model (the file's text)
             let text = std::fs::read_to_string(model_path)
                 .with_context(|| format!("reading {}", model_path.display()))?;
-            let mut meta = RecordingMeta::counts(simulator.sample_rate_hz(), simulator.pulse_weight_arcsec());
+            let mut meta =
+                RecordingMeta::counts(simulator.sample_rate_hz(), simulator.pulse_weight_arcsec());
             meta.model = Some(text);
             let messages = write_mcap(&mut simulator, &meta, &args.out, &mut bar)
                 .with_context(|| format!("writing MCAP recording {}", args.out.display()))?;
@@ -130,7 +131,10 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     // the bar counts the CSV rows as they are written (after the header)
     let total = simulator.samples_total();
     let rows = if args.out.as_os_str() == "-" {
-        sim::write_csv(&mut simulator, LineCounter::new(std::io::stdout().lock(), &mut bar, total, 1))
+        sim::write_csv(
+            &mut simulator,
+            LineCounter::new(std::io::stdout().lock(), &mut bar, total, 1),
+        )
     } else {
         let file =
             File::create(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
@@ -164,11 +168,19 @@ fn run_triad(args: &SimulateArgs, to_stdout: bool) -> anyhow::Result<()> {
     };
     let mut sims = Vec::with_capacity(3);
     for (k, path) in args.model.iter().enumerate() {
-        let model = GyroModel::load(path).with_context(|| format!("loading the gyro model {}", path.display()))?;
-        let sim = Simulator::new(&model, args.seed.wrapping_add(k as u64), Some(args.duration_s))
-            .with_context(|| format!("setting up the simulator for {}", path.display()))?;
+        let model = GyroModel::load(path)
+            .with_context(|| format!("loading the gyro model {}", path.display()))?;
+        let sim = Simulator::new(
+            &model,
+            args.seed.wrapping_add(k as u64),
+            Some(args.duration_s),
+        )
+        .with_context(|| format!("setting up the simulator for {}", path.display()))?;
         if sim.output() == OutputKind::Rate {
-            bail!("{}: gyro.output = \"rate\": a triad frame carries pulse counters", path.display());
+            bail!(
+                "{}: gyro.output = \"rate\": a triad frame carries pulse counters",
+                path.display()
+            );
         }
         sims.push(sim);
     }
@@ -188,7 +200,8 @@ fn run_triad(args: &SimulateArgs, to_stdout: bool) -> anyhow::Result<()> {
     let frames = if to_stdout {
         write_triad_frames(&mut sims, std::io::stdout().lock(), &mut bar)
     } else {
-        let file = File::create(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+        let file =
+            File::create(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
         write_triad_frames(&mut sims, file, &mut bar)
     }
     .with_context(|| format!("writing triad frames to {}", args.out.display()))?;
@@ -223,7 +236,9 @@ fn write_triad_frames<W: std::io::Write>(
             n[k] = sims[k].next_block_with_temp(BLOCK, &mut counts[k], &mut temps[k]);
         }
         if n[0] != n[1] || n[0] != n[2] {
-            bail!("the three simulators produced {n:?} samples in one block (same rate and duration expected)");
+            bail!(
+                "the three simulators produced {n:?} samples in one block (same rate and duration expected)"
+            );
         }
         if n[0] == 0 {
             break;
@@ -242,7 +257,11 @@ fn write_triad_frames<W: std::io::Write>(
 }
 
 /// Write the frames of the whole run; returns the number of frames.
-fn write_frames<W: std::io::Write>(sim: &mut Simulator, out: W, bar: &mut DelayedBar) -> anyhow::Result<u64> {
+fn write_frames<W: std::io::Write>(
+    sim: &mut Simulator,
+    out: W,
+    bar: &mut DelayedBar,
+) -> anyhow::Result<u64> {
     let mut enc = FrameEncoder::new(SIM_START_SEQ, SIM_START_COUNTER);
     if let Some(t) = sim.temperature_at(0.0) {
         enc.set_temp_c(t);
@@ -276,7 +295,12 @@ fn write_frames<W: std::io::Write>(sim: &mut Simulator, out: W, bar: &mut Delaye
 const MCAP_BATCH: usize = 1000;
 
 /// Write the run as `/gyro/raw` messages to `out`; returns the number of messages.
-fn write_mcap(sim: &mut Simulator, meta: &RecordingMeta, out: &Path, bar: &mut DelayedBar) -> anyhow::Result<u64> {
+fn write_mcap(
+    sim: &mut Simulator,
+    meta: &RecordingMeta,
+    out: &Path,
+    bar: &mut DelayedBar,
+) -> anyhow::Result<u64> {
     // The recorder names its file by time in a directory: write next to `out`
     // under that name, then rename.
     // The directory must exist (the recorder would create it), and the rename
@@ -297,7 +321,10 @@ fn write_mcap(sim: &mut Simulator, meta: &RecordingMeta, out: &Path, bar: &mut D
     let recorder = Recorder::start_with_metadata(&config, std::time::UNIX_EPOCH, Some(meta))?;
     let dt_ns = (1e9 / sim.sample_rate_hz()).round() as u64;
     let period_ns = 1e9 / sim.sample_rate_hz();
-    let (mut counts, mut temps) = (Vec::with_capacity(MCAP_BATCH), Vec::with_capacity(MCAP_BATCH));
+    let (mut counts, mut temps) = (
+        Vec::with_capacity(MCAP_BATCH),
+        Vec::with_capacity(MCAP_BATCH),
+    );
     let mut seq = 0u64;
     let mut sent = Ok(());
     loop {

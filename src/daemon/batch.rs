@@ -180,7 +180,11 @@ impl Assembler {
 
     /// Add an event (device events, backpressure) at `t_ns`.
     pub fn push_event(&mut self, t_ns: u64, kind: EventKind) {
-        self.batch.events.push(Event { t_ns, kind });
+        self.batch.events.push(Event {
+            t_ns,
+            kind,
+            gyro: None,
+        });
     }
 
     /// Add one decoder item that arrived at `now_ns` (host clock).
@@ -229,7 +233,9 @@ impl Assembler {
 
     /// Sample periods left before the period limit (`usize::MAX` without one).
     pub fn room(&self) -> usize {
-        self.limit_periods.map_or(usize::MAX, |l| usize::try_from(l.saturating_sub(self.periods)).unwrap_or(usize::MAX))
+        self.limit_periods.map_or(usize::MAX, |l| {
+            usize::try_from(l.saturating_sub(self.periods)).unwrap_or(usize::MAX)
+        })
     }
 
     /// A run of contiguous samples from [`FrameDecoder::decode_run`](crate::source::frame::FrameDecoder::decode_run):
@@ -331,7 +337,7 @@ impl Assembler {
                 if trailing_bytes > 0 {
                     self.truncated += 1;
                     self.telemetry
-                            .gyro
+                        .gyro
                         .add_frame_errors(FrameErrorKind::Truncated, 1);
                     let from = at_offset.saturating_sub(trailing_bytes);
                     tracing::warn!(
@@ -355,7 +361,9 @@ impl Assembler {
     pub fn sync_stats(&mut self, stats: &DecoderStats) {
         let m = &self.telemetry.gyro;
         let old = self.stats;
-        self.telemetry.metrics.add_bytes_read(stats.bytes_read - old.bytes_read);
+        self.telemetry
+            .metrics
+            .add_bytes_read(stats.bytes_read - old.bytes_read);
         m.add_frames_decoded(stats.frames_decoded - old.frames_decoded);
         m.add_samples(stats.samples - old.samples);
         m.add_lost_samples(stats.lost_samples - old.lost_samples);
@@ -566,7 +574,10 @@ impl BatchSender {
                     "samples dropped by backpressure at the end of the stream: delivered as a gap carried by its last period"
                 );
                 if h.periods > 1 {
-                    b.gaps.push(Gap { index: 0, lost: h.periods - 1 });
+                    b.gaps.push(Gap {
+                        index: 0,
+                        lost: h.periods - 1,
+                    });
                 }
                 b.counts.push(h.pulses);
                 b.events.push(Event {
@@ -575,6 +586,7 @@ impl BatchSender {
                         sink: "pipeline".into(),
                         dropped: h.samples,
                     },
+                    gyro: None,
                 });
             }
             if !b.is_empty() {
@@ -611,6 +623,7 @@ fn fold_into(batch: &mut SourceBatch, held: Dropped) {
                 sink: "pipeline".into(),
                 dropped: held.samples,
             },
+            gyro: None,
         });
     }
     events.append(&mut batch.events);
@@ -695,8 +708,14 @@ mod tests {
             }
         );
         let text = t.metrics.encode();
-        assert!(text.contains("sagnac_lost_samples_total{gyro=\"gyro\"} 3\n"), "{text}");
-        assert!(text.contains("sagnac_samples_total{gyro=\"gyro\"} 197\n"), "{text}");
+        assert!(
+            text.contains("sagnac_lost_samples_total{gyro=\"gyro\"} 3\n"),
+            "{text}"
+        );
+        assert!(
+            text.contains("sagnac_samples_total{gyro=\"gyro\"} 197\n"),
+            "{text}"
+        );
     }
 
     #[test]
@@ -804,7 +823,13 @@ mod tests {
         s.send(batch(1100, vec![3; 100])).await.unwrap();
         let b = rx.recv().await.unwrap();
         assert_eq!(b.counts[0], 200 + 3);
-        assert_eq!(b.gaps, vec![Gap { index: 0, lost: 100 }]);
+        assert_eq!(
+            b.gaps,
+            vec![Gap {
+                index: 0,
+                lost: 100
+            }]
+        );
         assert_eq!(t.queue_bytes.get(), 0);
     }
 
@@ -831,7 +856,10 @@ mod tests {
         s.blocking_send(batch(0, vec![1; 10])).unwrap();
         s.blocking_send(batch(10, vec![1; 20])).unwrap();
         drop(s);
-        let (a, b) = (queue::charge(10, 0, 0) as i64, queue::charge(20, 0, 0) as i64);
+        let (a, b) = (
+            queue::charge(10, 0, 0) as i64,
+            queue::charge(20, 0, 0) as i64,
+        );
         let mut seen = Vec::new();
         rx.for_each_blocking(|_| seen.push(t.queue_bytes.get()));
         assert_eq!(seen, vec![a + b, b]);

@@ -13,11 +13,18 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
     #[error("cannot read config file {path}: {source}")]
-    Read { path: PathBuf, source: std::io::Error },
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     #[error("config file {path}: {message}")]
     Parse { path: PathBuf, message: String },
     #[error("config key `{key}`: {message} (got {value})")]
-    Invalid { key: &'static str, value: String, message: &'static str },
+    Invalid {
+        key: &'static str,
+        value: String,
+        message: &'static str,
+    },
 }
 
 /// Where samples come from.
@@ -113,7 +120,12 @@ pub struct GyroConfig {
 
 impl Default for GyroConfig {
     fn default() -> Self {
-        GyroConfig { rate_hz: 1000.0, pulse_arcsec: 1.21, serial_number: String::new(), model_name: String::new() }
+        GyroConfig {
+            rate_hz: 1000.0,
+            pulse_arcsec: 1.21,
+            serial_number: String::new(),
+            model_name: String::new(),
+        }
     }
 }
 
@@ -134,10 +146,18 @@ impl GyroConfig {
 /// A label value given in the config: printable, at most [`GYRO_NAME_MAX_CHARS`].
 fn label_value(key: &'static str, v: &str) -> Result<(), ConfigError> {
     if v.chars().count() > GYRO_NAME_MAX_CHARS {
-        return Err(invalid(key, format!("{} characters", v.chars().count()), "must be at most 128 characters"));
+        return Err(invalid(
+            key,
+            format!("{} characters", v.chars().count()),
+            "must be at most 128 characters",
+        ));
     }
     if v.chars().any(char::is_control) {
-        return Err(invalid(key, format!("{v:?}"), "must not contain control characters (newline, tab, ...)"));
+        return Err(invalid(
+            key,
+            format!("{v:?}"),
+            "must not contain control characters (newline, tab, ...)",
+        ));
     }
     Ok(())
 }
@@ -153,7 +173,10 @@ pub struct DspConfig {
 
 impl Default for DspConfig {
     fn default() -> Self {
-        DspConfig { wavelet: "sym8".into(), levels: 0 }
+        DspConfig {
+            wavelet: "sym8".into(),
+            levels: 0,
+        }
     }
 }
 
@@ -166,7 +189,9 @@ pub struct AllanConfig {
 
 impl Default for AllanConfig {
     fn default() -> Self {
-        AllanConfig { full_overlap_max_m: 1 << 16 }
+        AllanConfig {
+            full_overlap_max_m: 1 << 16,
+        }
     }
 }
 
@@ -193,7 +218,9 @@ pub struct MetricsConfig {
 
 impl Default for MetricsConfig {
     fn default() -> Self {
-        MetricsConfig { addr: "127.0.0.1:9898".into() }
+        MetricsConfig {
+            addr: "127.0.0.1:9898".into(),
+        }
     }
 }
 
@@ -210,7 +237,11 @@ pub struct RecordConfig {
 
 impl Default for RecordConfig {
     fn default() -> Self {
-        RecordConfig { dir: "recordings".into(), flush_interval_s: 2.0, batch_samples: 1000 }
+        RecordConfig {
+            dir: "recordings".into(),
+            flush_interval_s: 2.0,
+            batch_samples: 1000,
+        }
     }
 }
 
@@ -233,7 +264,10 @@ pub struct LogConfig {
 
 impl Default for LogConfig {
     fn default() -> Self {
-        LogConfig { format: LogFormat::Human, level: "info".into() }
+        LogConfig {
+            format: LogFormat::Human,
+            level: "info".into(),
+        }
     }
 }
 
@@ -251,7 +285,10 @@ pub struct RunConfig {
 
 impl Default for RunConfig {
     fn default() -> Self {
-        RunConfig { duration_s: 0.0, channel_capacity: 64 }
+        RunConfig {
+            duration_s: 0.0,
+            channel_capacity: 64,
+        }
     }
 }
 
@@ -309,18 +346,28 @@ impl KeysPresent {
 }
 
 fn invalid(key: &'static str, value: impl ToString, message: &'static str) -> ConfigError {
-    ConfigError::Invalid { key, value: value.to_string(), message }
+    ConfigError::Invalid {
+        key,
+        value: value.to_string(),
+        message,
+    }
 }
 
 fn positive(key: &'static str, v: f64) -> Result<(), ConfigError> {
-    if v.is_finite() && v > 0.0 { Ok(()) } else { Err(invalid(key, v, "must be a finite number > 0")) }
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(invalid(key, v, "must be a finite number > 0"))
+    }
 }
 
 impl Config {
     /// Parse TOML text; `path` names the file in messages.
     pub fn from_toml(text: &str, path: &Path) -> Result<Config, ConfigError> {
-        let cfg: Config =
-            toml::from_str(text).map_err(|e| ConfigError::Parse { path: path.to_path_buf(), message: e.to_string() })?;
+        let cfg: Config = toml::from_str(text).map_err(|e| ConfigError::Parse {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
         Ok(cfg)
     }
 
@@ -332,7 +379,10 @@ impl Config {
     /// Read and parse a file, and say which keys it sets ([`KeysPresent`]),
     /// whatever their values.
     pub fn load_with_keys(path: &Path) -> Result<(Config, KeysPresent), ConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read { path: path.to_path_buf(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
         let cfg = Config::from_toml(&text, path)?;
         Ok((cfg, KeysPresent::of_toml(&text)))
     }
@@ -346,7 +396,11 @@ impl Config {
         match self.source.kind {
             SourceKind::Serial => {
                 if self.source.serial_path.is_empty() {
-                    return Err(invalid("source.serial_path", "\"\"", "required when source.kind = \"serial\""));
+                    return Err(invalid(
+                        "source.serial_path",
+                        "\"\"",
+                        "required when source.kind = \"serial\"",
+                    ));
                 }
                 if self.source.baud == 0 {
                     return Err(invalid("source.baud", 0, "must be > 0"));
@@ -354,54 +408,101 @@ impl Config {
             }
             SourceKind::Replay => {
                 if self.source.replay_path.is_empty() {
-                    return Err(invalid("source.replay_path", "\"\"", "required when source.kind = \"replay\""));
+                    return Err(invalid(
+                        "source.replay_path",
+                        "\"\"",
+                        "required when source.kind = \"replay\"",
+                    ));
                 }
             }
             SourceKind::Simulate => {}
         }
-        positive("source.reconnect_initial_s", self.source.reconnect_initial_s)?;
+        positive(
+            "source.reconnect_initial_s",
+            self.source.reconnect_initial_s,
+        )?;
         positive("source.reconnect_max_s", self.source.reconnect_max_s)?;
         if self.source.reconnect_max_s < self.source.reconnect_initial_s {
-            return Err(invalid("source.reconnect_max_s", self.source.reconnect_max_s, "must be >= source.reconnect_initial_s"));
+            return Err(invalid(
+                "source.reconnect_max_s",
+                self.source.reconnect_max_s,
+                "must be >= source.reconnect_initial_s",
+            ));
         }
         let b = self.source.queue_budget_mib;
         if !(b.is_finite() && (QUEUE_BUDGET_MIB[0]..=QUEUE_BUDGET_MIB[1]).contains(&b)) {
-            return Err(invalid("source.queue_budget_mib", b, "must be from 0.0625 (64 KiB) to 4096 (4 GiB)"));
+            return Err(invalid(
+                "source.queue_budget_mib",
+                b,
+                "must be from 0.0625 (64 KiB) to 4096 (4 GiB)",
+            ));
         }
         if let Some(speed) = self.source.speed
             && !(speed.is_finite() && speed >= 0.0)
         {
-            return Err(invalid("source.speed", speed, "must be >= 0 (0 = as fast as possible)"));
+            return Err(invalid(
+                "source.speed",
+                speed,
+                "must be >= 0 (0 = as fast as possible)",
+            ));
         }
         if !["sym8", "haar", "db4", "sym4", "db8"].contains(&self.dsp.wavelet.as_str()) {
-            return Err(invalid("dsp.wavelet", &self.dsp.wavelet, "must be one of sym8, haar, db4, sym4, db8"));
+            return Err(invalid(
+                "dsp.wavelet",
+                &self.dsp.wavelet,
+                "must be one of sym8, haar, db4, sym4, db8",
+            ));
         }
         if self.dsp.levels > 30 {
-            return Err(invalid("dsp.levels", self.dsp.levels, "must be 0 (auto) to 30"));
+            return Err(invalid(
+                "dsp.levels",
+                self.dsp.levels,
+                "must be 0 (auto) to 30",
+            ));
         }
         let m = self.allan.full_overlap_max_m;
         if m < 2 || !m.is_power_of_two() || m > (1 << 24) {
-            return Err(invalid("allan.full_overlap_max_m", m, "must be a power of two from 2 to 2^24"));
+            return Err(invalid(
+                "allan.full_overlap_max_m",
+                m,
+                "must be a power of two from 2 to 2^24",
+            ));
         }
         positive("estimator.interval_s", self.estimator.interval_s)?;
         if !self.metrics.addr.is_empty() && self.metrics.addr.parse::<SocketAddr>().is_err() {
-            return Err(invalid("metrics.addr", &self.metrics.addr, "must be IP:PORT, e.g. 127.0.0.1:9898"));
+            return Err(invalid(
+                "metrics.addr",
+                &self.metrics.addr,
+                "must be IP:PORT, e.g. 127.0.0.1:9898",
+            ));
         }
         positive("record.flush_interval_s", self.record.flush_interval_s)?;
         if self.record.batch_samples == 0 {
             return Err(invalid("record.batch_samples", 0, "must be > 0"));
         }
         if !(self.run.duration_s.is_finite() && self.run.duration_s >= 0.0) {
-            return Err(invalid("run.duration_s", self.run.duration_s, "must be >= 0 (0 = until stopped)"));
+            return Err(invalid(
+                "run.duration_s",
+                self.run.duration_s,
+                "must be >= 0 (0 = until stopped)",
+            ));
         }
         if self.run.channel_capacity == 0 {
             return Err(invalid("run.channel_capacity", 0, "must be > 0"));
         }
         if self.spec.stop_when_decided && self.spec.path.is_empty() {
-            return Err(invalid("spec.stop_when_decided", true, "needs a spec file (spec.path, --spec)"));
+            return Err(invalid(
+                "spec.stop_when_decided",
+                true,
+                "needs a spec file (spec.path, --spec)",
+            ));
         }
         if self.log.level.trim().is_empty() {
-            return Err(invalid("log.level", "\"\"", "must be a tracing filter such as info"));
+            return Err(invalid(
+                "log.level",
+                "\"\"",
+                "must be a tracing filter such as info",
+            ));
         }
         Ok(())
     }
@@ -412,14 +513,19 @@ mod tests {
     use super::*;
 
     fn default_toml() -> String {
-        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/default.toml")).unwrap()
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/default.toml"))
+            .unwrap()
     }
 
     #[test]
     fn default_toml_parses_validates_and_equals_the_built_in_defaults() {
         let cfg = Config::from_toml(&default_toml(), Path::new("config/default.toml")).unwrap();
         cfg.validate().unwrap();
-        assert_eq!(cfg, Config::default(), "config/default.toml must document the built-in defaults");
+        assert_eq!(
+            cfg,
+            Config::default(),
+            "config/default.toml must document the built-in defaults"
+        );
     }
 
     #[test]
@@ -438,7 +544,9 @@ mod tests {
             ("[gyro]\nserial = \"A1\"", "serial"),
             ("[record]\nflush_s = 1", "flush_s"),
         ] {
-            let err = Config::from_toml(text, Path::new("x.toml")).unwrap_err().to_string();
+            let err = Config::from_toml(text, Path::new("x.toml"))
+                .unwrap_err()
+                .to_string();
             assert!(err.contains(key) && err.contains("x.toml"), "{err}");
         }
     }
@@ -451,21 +559,46 @@ mod tests {
             ("[source]\nkind = \"serial\"", "source.serial_path"),
             ("[source]\nkind = \"replay\"", "source.replay_path"),
             ("[dsp]\nwavelet = \"morlet\"", "dsp.wavelet"),
-            ("[allan]\nfull_overlap_max_m = 1000", "allan.full_overlap_max_m"),
+            (
+                "[allan]\nfull_overlap_max_m = 1000",
+                "allan.full_overlap_max_m",
+            ),
             ("[metrics]\naddr = \"localhost\"", "metrics.addr"),
             ("[source]\nspeed = -2.0", "source.speed"),
             ("[source]\nqueue_budget_mib = 0", "source.queue_budget_mib"),
-            ("[source]\nqueue_budget_mib = -1.0", "source.queue_budget_mib"),
-            ("[source]\nqueue_budget_mib = 0.01", "source.queue_budget_mib"),
-            ("[source]\nqueue_budget_mib = 1e9", "source.queue_budget_mib"),
-            ("[source]\nqueue_budget_mib = nan", "source.queue_budget_mib"),
+            (
+                "[source]\nqueue_budget_mib = -1.0",
+                "source.queue_budget_mib",
+            ),
+            (
+                "[source]\nqueue_budget_mib = 0.01",
+                "source.queue_budget_mib",
+            ),
+            (
+                "[source]\nqueue_budget_mib = 1e9",
+                "source.queue_budget_mib",
+            ),
+            (
+                "[source]\nqueue_budget_mib = nan",
+                "source.queue_budget_mib",
+            ),
             ("[run]\nchannel_capacity = 0", "run.channel_capacity"),
             ("[gyro]\nserial_number = \"SN\\n1\"", "gyro.serial_number"),
             ("[gyro]\nmodel_name = \"tab\\there\"", "gyro.model_name"),
         ];
-        let long = format!("[gyro]\nmodel_name = \"{}\"", "m".repeat(GYRO_NAME_MAX_CHARS + 1));
-        let err = Config::from_toml(&long, Path::new("x.toml")).unwrap().validate().unwrap_err().to_string();
-        assert!(err.contains("gyro.model_name") && err.contains("129 characters"), "{err}");
+        let long = format!(
+            "[gyro]\nmodel_name = \"{}\"",
+            "m".repeat(GYRO_NAME_MAX_CHARS + 1)
+        );
+        let err = Config::from_toml(&long, Path::new("x.toml"))
+            .unwrap()
+            .validate()
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("gyro.model_name") && err.contains("129 characters"),
+            "{err}"
+        );
         for (text, key) in cases {
             let cfg = Config::from_toml(text, Path::new("x.toml")).unwrap();
             let err = cfg.validate().unwrap_err().to_string();

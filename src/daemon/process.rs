@@ -267,7 +267,11 @@ impl Processor {
     /// Judge `spec` at each estimator update; with `stop`, trigger it once every
     /// coefficient is decided (`--stop-when-decided`).
     pub fn set_spec(&mut self, spec: Spec, stop: Option<ShutdownTrigger>) {
-        self.spec = Some(LiveSpec { monitor: SequentialSpec::new(spec), stop, stopped: false });
+        self.spec = Some(LiveSpec {
+            monitor: SequentialSpec::new(spec),
+            stop,
+            stopped: false,
+        });
     }
 
     /// End the run through `stop` once every coefficient of the spec (if any) is decided.
@@ -284,13 +288,12 @@ impl Processor {
 
     /// Run on the calling (blocking) thread until every sender of `input` is
     /// gone, then flush the wavelet bank and publish the final estimates.
-    pub fn run(
-        mut self,
-        input: BatchReceiver,
-        mut outputs: Outputs,
-    ) -> ProcessReport {
+    pub fn run(mut self, input: BatchReceiver, mut outputs: Outputs) -> ProcessReport {
         let first_update = self.interval_samples;
-        let summary = SummaryAcc::new(self.cfg.pipeline.rate_hz, self.cfg.pipeline.pulse_arcsec.unwrap_or(1.0));
+        let summary = SummaryAcc::new(
+            self.cfg.pipeline.rate_hz,
+            self.cfg.pipeline.pulse_arcsec.unwrap_or(1.0),
+        );
         let mut run = Run {
             p: &mut self,
             out: &mut outputs,
@@ -343,7 +346,11 @@ fn recordable(c: &Coefficient) -> Coefficient {
 /// Uniform sample `u` of the time segments `segments` (each anchored at its
 /// first sample), ns: `t0 + (u - u_start) * period_ns`.
 fn time_at(segments: &VecDeque<Segment>, period_ns: f64, u: u64) -> u64 {
-    let seg = segments.iter().rev().find(|s| s.u_start <= u).or(segments.front());
+    let seg = segments
+        .iter()
+        .rev()
+        .find(|s| s.u_start <= u)
+        .or(segments.front());
     match seg {
         Some(s) => {
             let d = u as f64 - s.u_start as f64;
@@ -420,6 +427,7 @@ impl Run<'_> {
                             sink: "mcap".into(),
                             dropped,
                         },
+                        gyro: None,
                     });
                     if rec.try_send(ev).is_err() {
                         self.unreported_drops += dropped;
@@ -494,7 +502,8 @@ impl Run<'_> {
 
     /// Take the pipeline's clean/noise output into the rate messages.
     fn take_output(&mut self) {
-        self.summary.push_clean(self.emitted, &self.pout.clean_dph, &mut self.summaries);
+        self.summary
+            .push_clean(self.emitted, &self.pout.clean_dph, &mut self.summaries);
         self.record_summaries();
         let n = self.pout.clean_dph.len();
         let bs = self.p.cfg.batch_samples;
@@ -614,7 +623,8 @@ impl Run<'_> {
                 break;
             };
             self.push_filled.clear();
-            self.pending.filled_in(start..start + n, &mut self.push_filled);
+            self.pending
+                .filled_in(start..start + n, &mut self.push_filled);
             let (segments, period_ns) = (&self.segments, self.p.period_ns);
             let place = |u: u64| {
                 let k = segments.partition_point(|s| s.u_start <= u);
@@ -777,12 +787,19 @@ impl Run<'_> {
         let m = &self.out.telemetry.gyro;
         m.set_spec("overall", report.verdict.metric(), None, None);
         for (name, c) in &report.coefficients {
-            let eta = if c.verdict == Verdict::Undecided { c.eta_s } else { Some(0.0) };
+            let eta = if c.verdict == Verdict::Undecided {
+                c.eta_s
+            } else {
+                Some(0.0)
+            };
             m.set_spec(name, c.verdict.metric(), Some(c.limit), eta);
         }
         if seen.changed {
-            let each: Vec<String> =
-                report.coefficients.iter().map(|(n, c)| format!("{n}={}", c.verdict.as_str())).collect();
+            let each: Vec<String> = report
+                .coefficients
+                .iter()
+                .map(|(n, c)| format!("{n}={}", c.verdict.as_str()))
+                .collect();
             tracing::info!(
                 verdict = report.verdict.as_str(),
                 coefficients = %each.join(" "),
@@ -831,6 +848,7 @@ impl Run<'_> {
                     sink: "mcap".into(),
                     dropped: self.unreported_drops,
                 },
+                gyro: None,
             }));
         }
         if let Some(rec) = &self.out.recorder {

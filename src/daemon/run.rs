@@ -33,8 +33,8 @@ use std::time::Duration;
 use crate::daemon::batch::{self, Delivery, SourceReport};
 use crate::daemon::config::{Config, ConfigError, SourceKind};
 use crate::daemon::http::{self, HttpError};
-use crate::daemon::queue::QueueBound;
 use crate::daemon::process::{Outputs, ProcessConfig, ProcessError, ProcessReport, Processor};
+use crate::daemon::queue::QueueBound;
 use crate::daemon::shutdown::{self, ShutdownTrigger};
 use crate::daemon::status::LiveStatus;
 use crate::daemon::telemetry::Telemetry;
@@ -102,7 +102,11 @@ pub enum DaemonError {
         "{input} does not carry the gyro's {missing}: give {how} (raw frames have no metadata; \
          an MCAP recording made by `sagnac run` and the simulated bench carry them)"
     )]
-    GyroUnspecified { input: String, missing: &'static str, how: &'static str },
+    GyroUnspecified {
+        input: String,
+        missing: &'static str,
+        how: &'static str,
+    },
     #[error("the {task} task failed: {message}")]
     Task { task: &'static str, message: String },
 }
@@ -158,9 +162,16 @@ fn require_explicit(explicit: Explicit, input: String) -> Result<(), DaemonError
             "--rate-hz and --pulse-arcsec (config keys `gyro.rate_hz`, `gyro.pulse_arcsec`)",
         ),
         (false, true) => ("sample rate", "--rate-hz (config key `gyro.rate_hz`)"),
-        (true, false) => ("pulse weight", "--pulse-arcsec (config key `gyro.pulse_arcsec`)"),
+        (true, false) => (
+            "pulse weight",
+            "--pulse-arcsec (config key `gyro.pulse_arcsec`)",
+        ),
     };
-    Err(DaemonError::GyroUnspecified { input, missing, how })
+    Err(DaemonError::GyroUnspecified {
+        input,
+        missing,
+        how,
+    })
 }
 
 fn mismatch(key: &'static str, value: f64, message: &'static str) -> DaemonError {
@@ -285,7 +296,10 @@ impl Daemon {
                 ))
             }
             SourceKind::Serial => {
-                require_explicit(explicit, format!("serial input {}", config.source.serial_path))?;
+                require_explicit(
+                    explicit,
+                    format!("serial input {}", config.source.serial_path),
+                )?;
                 tracing::info!(
                     device = config.source.serial_path,
                     baud = config.source.baud,
@@ -328,7 +342,11 @@ impl Daemon {
         .build()?;
         if !config.spec.path.is_empty() {
             let spec = crate::model::spec::Spec::load(std::path::Path::new(&config.spec.path))?;
-            tracing::info!(path = config.spec.path, confidence = spec.confidence, "acceptance test");
+            tracing::info!(
+                path = config.spec.path,
+                confidence = spec.confidence,
+                "acceptance test"
+            );
             // the stop trigger is attached in run()
             processor.set_spec(spec, None);
         }
@@ -339,7 +357,8 @@ impl Daemon {
             config.metrics.addr.parse().ok()
         };
         // What the recording says about itself (see crate::sink::meta).
-        let mut recording_meta = RecordingMeta::counts(config.gyro.rate_hz, config.gyro.pulse_arcsec);
+        let mut recording_meta =
+            RecordingMeta::counts(config.gyro.rate_hz, config.gyro.pulse_arcsec);
         recording_meta.config = toml::to_string(&config).ok();
         recording_meta.model = model_toml;
         Ok(Daemon {
@@ -420,10 +439,14 @@ impl Daemon {
                 ..RecorderConfig::default()
             };
             let r = tokio::task::spawn_blocking(move || {
-                Recorder::start_with_metadata(&rc, std::time::SystemTime::now(), Some(&recording_meta))
+                Recorder::start_with_metadata(
+                    &rc,
+                    std::time::SystemTime::now(),
+                    Some(&recording_meta),
+                )
             })
-                .await
-                .map_err(|e| join_err("recorder start", e))??;
+            .await
+            .map_err(|e| join_err("recorder start", e))??;
             tracing::info!(path = %r.path().display(), "recording");
             Some(r)
         };

@@ -61,13 +61,19 @@ pub struct LiveStatus {
 
 impl std::fmt::Debug for LiveStatus {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("LiveStatus").field("state", &self.state).finish_non_exhaustive()
+        f.debug_struct("LiveStatus")
+            .field("state", &self.state)
+            .finish_non_exhaustive()
     }
 }
 
 impl Default for LiveStatus {
     fn default() -> Self {
-        LiveStatus { started: Instant::now(), state: Mutex::default(), replay: OnceLock::new() }
+        LiveStatus {
+            started: Instant::now(),
+            state: Mutex::default(),
+            replay: OnceLock::new(),
+        }
     }
 }
 
@@ -96,13 +102,19 @@ impl LiveStatus {
     /// A replay of a file of `total_bytes`: its progress is the
     /// `sagnac_bytes_read_total` counter of `metrics`.
     pub fn set_replay(&self, total_bytes: u64, metrics: Arc<Metrics>) {
-        let _ = self.replay.set(ReplayProgress { total_bytes, metrics });
+        let _ = self.replay.set(ReplayProgress {
+            total_bytes,
+            metrics,
+        });
     }
 
     /// What to show now.
     pub fn snapshot(&self) -> StatusSnapshot {
         let s = self.lock();
-        let replay_bytes = self.replay.get().map(|r| (bytes_read(&r.metrics), r.total_bytes));
+        let replay_bytes = self
+            .replay
+            .get()
+            .map(|r| (bytes_read(&r.metrics), r.total_bytes));
         StatusSnapshot {
             elapsed_s: self.started.elapsed().as_secs_f64(),
             samples: s.samples,
@@ -119,7 +131,11 @@ fn bytes_read(m: &Metrics) -> u64 {
         .gather()
         .iter()
         .find(|f| f.name() == "sagnac_bytes_read_total")
-        .and_then(|f| f.get_metric().first().map(|c| c.get_counter().get_value() as u64))
+        .and_then(|f| {
+            f.get_metric()
+                .first()
+                .map(|c| c.get_counter().get_value() as u64)
+        })
         .unwrap_or(0)
 }
 
@@ -159,18 +175,27 @@ pub fn format_status(s: &StatusSnapshot) -> String {
     if let Some((done, total)) = s.replay_bytes
         && total > 0
     {
-        parts.push(format!("replay {:.0} %", 100.0 * (done.min(total) as f64) / total as f64));
+        parts.push(format!(
+            "replay {:.0} %",
+            100.0 * (done.min(total) as f64) / total as f64
+        ));
     }
     parts.push(format!("{:.1} s", s.elapsed_s));
     parts.push(format!("{} samples, {} lost", s.samples, s.lost));
     match &s.estimate {
         Some(e) => {
-            parts.push(format!("Q {} arcsec", format_coefficient(&e.quantization_arcsec)));
+            parts.push(format!(
+                "Q {} arcsec",
+                format_coefficient(&e.quantization_arcsec)
+            ));
             parts.push(format!("N {} deg/sqrt(h)", format_coefficient(&e.arw_dpsh)));
             parts.push(if e.fit.ok {
                 format!("fit ok (chi2/dof {:.2})", e.fit.chi2_per_dof)
             } else {
-                format!("MODEL MISFIT (chi2/dof {:.2}): run sagnac diagnose", e.fit.chi2_per_dof)
+                format!(
+                    "MODEL MISFIT (chi2/dof {:.2}): run sagnac diagnose",
+                    e.fit.chi2_per_dof
+                )
             });
         }
         None => parts.push("estimating...".into()),
@@ -183,7 +208,11 @@ mod tests {
     use super::*;
 
     fn coef(value: Option<f64>, ci95: Option<[f64; 2]>, upper95: Option<f64>) -> Coefficient {
-        Coefficient { value, ci95, upper95 }
+        Coefficient {
+            value,
+            ci95,
+            upper95,
+        }
     }
 
     #[test]
@@ -202,22 +231,41 @@ mod tests {
 
     #[test]
     fn coefficients_with_intervals_and_bounds() {
-        assert_eq!(format_coefficient(&coef(Some(0.35054), Some([0.34086, 0.35996]), None)), "0.351 [0.341, 0.360]");
+        assert_eq!(
+            format_coefficient(&coef(Some(0.35054), Some([0.34086, 0.35996]), None)),
+            "0.351 [0.341, 0.360]"
+        );
         // the interval takes the value's decimals
         assert_eq!(
             format_coefficient(&coef(Some(0.00099011), Some([0.00064116, 0.0012039]), None)),
             "0.000990 [0.000641, 0.001204]"
         );
-        assert_eq!(format_coefficient(&coef(None, None, Some(0.1688))), "< 0.169");
+        assert_eq!(
+            format_coefficient(&coef(None, None, Some(0.1688))),
+            "< 0.169"
+        );
         assert_eq!(format_coefficient(&coef(Some(2.0), None, None)), "2.00");
         assert_eq!(format_coefficient(&coef(None, None, None)), "-");
     }
 
     #[test]
     fn the_status_line() {
-        let fit = FitSummary { chi2_per_dof: 0.13, dof: 1.0, ok: true, observations: 2 };
-        let mut s = StatusSnapshot { elapsed_s: 12.34, samples: 12_300, lost: 3, ..StatusSnapshot::default() };
-        assert_eq!(format_status(&s), "12.3 s | 12300 samples, 3 lost | estimating...");
+        let fit = FitSummary {
+            chi2_per_dof: 0.13,
+            dof: 1.0,
+            ok: true,
+            observations: 2,
+        };
+        let mut s = StatusSnapshot {
+            elapsed_s: 12.34,
+            samples: 12_300,
+            lost: 3,
+            ..StatusSnapshot::default()
+        };
+        assert_eq!(
+            format_status(&s),
+            "12.3 s | 12300 samples, 3 lost | estimating..."
+        );
         s.estimate = Some(StatusEstimate {
             quantization_arcsec: coef(Some(0.35054), Some([0.34086, 0.35996]), None),
             arw_dpsh: coef(None, None, Some(0.0012)),
@@ -229,7 +277,11 @@ mod tests {
             "12.3 s | 12300 samples, 3 lost | Q 0.351 [0.341, 0.360] arcsec | N < 0.00120 deg/sqrt(h) | fit ok (chi2/dof 0.13)"
         );
         s.replay_bytes = Some((450, 1000));
-        s.estimate.as_mut().unwrap().fit = FitSummary { chi2_per_dof: 7.5, ok: false, ..fit };
+        s.estimate.as_mut().unwrap().fit = FitSummary {
+            chi2_per_dof: 7.5,
+            ok: false,
+            ..fit
+        };
         assert_eq!(
             format_status(&s),
             "replay 45 % | 12.3 s | 12300 samples, 3 lost | Q 0.351 [0.341, 0.360] arcsec | N < 0.00120 deg/sqrt(h) \

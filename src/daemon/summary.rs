@@ -78,11 +78,18 @@ impl SummaryAcc {
         let mut i = 0usize;
         while i < counts.len() {
             let u = u0 + i as u64;
-            let open = self.windows.back().is_some_and(|w| w.start + w.raw_n == u && u < w.end);
+            let open = self
+                .windows
+                .back()
+                .is_some_and(|w| w.start + w.raw_n == u && u < w.end);
             if !open {
                 let p = place(u);
-                let aligned = p.segment_start + ((u - p.segment_start) / self.window + 1) * self.window;
-                let end = p.next_segment.filter(|&n| n > u).map_or(aligned, |n| aligned.min(n));
+                let aligned =
+                    p.segment_start + ((u - p.segment_start) / self.window + 1) * self.window;
+                let end = p
+                    .next_segment
+                    .filter(|&n| n > u)
+                    .map_or(aligned, |n| aligned.min(n));
                 self.windows.push_back(Window {
                     start: u,
                     end,
@@ -101,7 +108,10 @@ impl SummaryAcc {
                 w.end = n;
             }
             let take = ((w.end - u) as usize).min(counts.len() - i);
-            w.pulses += counts[i..i + take].iter().map(|&c| i128::from(c)).sum::<i128>();
+            w.pulses += counts[i..i + take]
+                .iter()
+                .map(|&c| i128::from(c))
+                .sum::<i128>();
             w.lost += overlap(filled, i..i + take);
             w.raw_n += take as u64;
             if temp_c.is_some() {
@@ -166,7 +176,11 @@ impl SummaryAcc {
 fn overlap(filled: &[Range<usize>], range: Range<usize>) -> u64 {
     filled
         .iter()
-        .map(|r| r.end.min(range.end).saturating_sub(r.start.max(range.start)) as u64)
+        .map(|r| {
+            r.end
+                .min(range.end)
+                .saturating_sub(r.start.max(range.start)) as u64
+        })
         .sum()
 }
 
@@ -190,7 +204,13 @@ mod tests {
     }
 
     /// The windows written out directly over the whole arrays.
-    fn naive(counts: &[i64], filled: &[bool], clean: &[f64], temp: &[f64], starts: &[u64]) -> Vec<SummaryUpdate> {
+    fn naive(
+        counts: &[i64],
+        filled: &[bool],
+        clean: &[f64],
+        temp: &[f64],
+        starts: &[u64],
+    ) -> Vec<SummaryUpdate> {
         let n = counts.len() as u64;
         let mut cuts = Vec::new();
         for (k, &s) in starts.iter().enumerate() {
@@ -243,9 +263,15 @@ mod tests {
                 let take = rng.random_range(1..150usize).min(n - u);
                 for j in u..u + take {
                     // a segment is known only once its first sample has arrived
-                    let known: Vec<u64> = starts.iter().copied().filter(|&s| s as usize <= j + 1).collect();
+                    let known: Vec<u64> = starts
+                        .iter()
+                        .copied()
+                        .filter(|&s| s as usize <= j + 1)
+                        .collect();
                     let spans: Vec<Range<usize>> = if filled[j] { vec![0..1] } else { vec![] };
-                    acc.push_raw(j as u64, &counts[j..j + 1], &spans, Some(temp[j]), &|x| place_for(&known, x));
+                    acc.push_raw(j as u64, &counts[j..j + 1], &spans, Some(temp[j]), &|x| {
+                        place_for(&known, x)
+                    });
                 }
                 u += take;
                 let ready = u.saturating_sub(lag);
@@ -256,12 +282,27 @@ mod tests {
             }
             acc.push_clean(emitted as u64, &clean[emitted..], &mut got);
             acc.finish(n as u64, &mut got);
-            assert_eq!(got.len(), expected.len(), "case {case}: {n} samples, segments {starts:?}");
+            assert_eq!(
+                got.len(),
+                expected.len(),
+                "case {case}: {n} samples, segments {starts:?}"
+            );
             for (g, e) in got.iter().zip(&expected) {
-                assert_eq!((g.timestamp, g.samples, g.lost_samples, g.temp_c), (e.timestamp, e.samples, e.lost_samples, e.temp_c), "case {case}");
+                assert_eq!(
+                    (g.timestamp, g.samples, g.lost_samples, g.temp_c),
+                    (e.timestamp, e.samples, e.lost_samples, e.temp_c),
+                    "case {case}"
+                );
                 // sums in another order: equal to rounding
-                assert!((g.raw_rate_dph - e.raw_rate_dph).abs() <= 1e-9 * e.raw_rate_dph.abs().max(1.0), "case {case}");
-                assert!((g.clean_rate_dph - e.clean_rate_dph).abs() <= 1e-9 * e.clean_rate_dph.abs().max(1.0), "case {case}");
+                assert!(
+                    (g.raw_rate_dph - e.raw_rate_dph).abs() <= 1e-9 * e.raw_rate_dph.abs().max(1.0),
+                    "case {case}"
+                );
+                assert!(
+                    (g.clean_rate_dph - e.clean_rate_dph).abs()
+                        <= 1e-9 * e.clean_rate_dph.abs().max(1.0),
+                    "case {case}"
+                );
             }
         }
     }
@@ -282,8 +323,17 @@ mod tests {
             assert_eq!(out.len(), windows);
             assert_eq!(out.last().unwrap().samples, last);
             // one pulse of 1.21 arcsec per ms is 1210 deg/h
-            assert!(out.iter().all(|m| (m.raw_rate_dph - 1210.0).abs() < 1e-9 && m.clean_rate_dph == 2.5));
-            assert_eq!(out[1].timestamp, Timestamp { sec: 1, nsec: 100_000_000 });
+            assert!(
+                out.iter()
+                    .all(|m| (m.raw_rate_dph - 1210.0).abs() < 1e-9 && m.clean_rate_dph == 2.5)
+            );
+            assert_eq!(
+                out[1].timestamp,
+                Timestamp {
+                    sec: 1,
+                    nsec: 100_000_000
+                }
+            );
         }
     }
 }

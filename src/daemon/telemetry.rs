@@ -29,8 +29,9 @@ use crate::sink::metrics::{GyroInfo, GyroMetrics, Metrics, MetricsError, registe
 
 /// Upper bounds of the `sagnac_estimate_latency_seconds` buckets, s: an update
 /// normally takes milliseconds; seconds mean the pipeline is far behind.
-pub const LATENCY_BUCKETS_S: [f64; 14] =
-    [0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0];
+pub const LATENCY_BUCKETS_S: [f64; 14] = [
+    0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0,
+];
 
 /// `sequence_anomalies` label of a duplicate frame.
 pub const ANOMALY_DUPLICATE: &str = "duplicate";
@@ -38,7 +39,11 @@ pub const ANOMALY_DUPLICATE: &str = "duplicate";
 pub const ANOMALY_OUT_OF_SEQUENCE: &str = "out_of_sequence";
 /// `sequence_anomalies` label of a re-baseline on a new sequence.
 pub const ANOMALY_DISCONTINUITY: &str = "discontinuity";
-const ANOMALIES: [&str; 3] = [ANOMALY_DUPLICATE, ANOMALY_OUT_OF_SEQUENCE, ANOMALY_DISCONTINUITY];
+const ANOMALIES: [&str; 3] = [
+    ANOMALY_DUPLICATE,
+    ANOMALY_OUT_OF_SEQUENCE,
+    ANOMALY_DISCONTINUITY,
+];
 
 /// The daemon's metric families with a `gyro` label.
 #[derive(Debug, Clone)]
@@ -132,7 +137,10 @@ impl Telemetry {
             r,
             "sagnac_dropped_messages_total",
             IntCounterVec::new(
-                Opts::new("sagnac_dropped_messages_total", "Messages dropped because a sink queue was full, by sink."),
+                Opts::new(
+                    "sagnac_dropped_messages_total",
+                    "Messages dropped because a sink queue was full, by sink.",
+                ),
                 &["sink"],
             ),
         )?;
@@ -145,7 +153,14 @@ impl Telemetry {
             "sagnac_pipeline_queue_budget_bytes",
             "Budget of the pipeline queue of a live (serial) source, bytes: past it, samples are dropped; 0 for a source that waits for room (replay, simulated bench).",
         )?;
-        Ok(Telemetry::with_families(metrics, families, dropped_messages, queue_bytes, queue_budget_bytes, gyro))
+        Ok(Telemetry::with_families(
+            metrics,
+            families,
+            dropped_messages,
+            queue_bytes,
+            queue_budget_bytes,
+            gyro,
+        ))
     }
 
     fn with_families(
@@ -187,7 +202,10 @@ impl Telemetry {
 
     /// Count a sequence anomaly of `kind` (one of the `ANOMALY_*` labels).
     pub fn add_sequence_anomaly(&self, kind: &str) {
-        self.families.sequence_anomalies.with_label_values(&[self.gyro.label(), kind]).inc();
+        self.families
+            .sequence_anomalies
+            .with_label_values(&[self.gyro.label(), kind])
+            .inc();
     }
 
     /// The connection series of this gyro's serial device. Only serial sources

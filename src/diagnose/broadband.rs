@@ -22,9 +22,9 @@ use super::findings::{Edit, Finding, UnitConv, fmt_g, sqrt_ci};
 use super::line_search::SearchParams;
 use super::locate::Located;
 use super::lowfreq;
-use super::stats::StatSet;
 use super::readout;
 use super::reference::Reference;
+use super::stats::StatSet;
 use super::wvar_fit::{self, Basis, Fit, LevelData};
 use super::{AddedTerm, ParameterChange};
 use crate::model::filter::{ReadoutFilter, ReadoutFilterParams};
@@ -38,7 +38,12 @@ const MAX_STEPS: usize = 3;
 /// model's Monte-Carlo mean plus the lines found (`sines`: frequency Hz,
 /// amplitude arcsec/s), and each level's EDF. `None` when a level has no
 /// valid point.
-pub(crate) fn level_data(r: &Reference, loc: &Located, basis: &Basis, sines: &[(f64, f64)]) -> Option<LevelData> {
+pub(crate) fn level_data(
+    r: &Reference,
+    loc: &Located,
+    basis: &Basis,
+    sines: &[(f64, f64)],
+) -> Option<LevelData> {
     let wpts = loc.wavelet_points();
     if wpts.len() != r.layout.levels.len() {
         return None;
@@ -48,7 +53,10 @@ pub(crate) fn level_data(r: &Reference, loc: &Located, basis: &Basis, sines: &[(
         levels: r.layout.levels.clone(),
         y: r.obs.wvar.clone(),
         e0: loc.mc_mean.wvar.clone(),
-        nu: wpts.iter().map(|p| 2.0 / (p.sd_log * p.sd_log * (1.0 + 1.0 / runs))).collect(),
+        nu: wpts
+            .iter()
+            .map(|p| 2.0 / (p.sd_log * p.sd_log * (1.0 + 1.0 / runs)))
+            .collect(),
     };
     if basis.has_lf() {
         let all: Vec<&StatSet> = r.runs.iter().collect();
@@ -96,8 +104,16 @@ impl Current {
             n2: arw * arw,
             b2: nz.bias_instability_dph.unwrap_or(0.0).powi(2),
             k2: units::dphsh_to_arcsec_per_s_sqrt_s(nz.rrw_dphsh.unwrap_or(0.0)).powi(2),
-            gm: nz.gauss_markov.iter().map(|g| (g.sigma_dph * g.sigma_dph, g.tau_c_s)).collect(),
-            rtn: nz.random_telegraph.iter().map(|r| (r.amplitude_dph * r.amplitude_dph, r.mean_dwell_s)).collect(),
+            gm: nz
+                .gauss_markov
+                .iter()
+                .map(|g| (g.sigma_dph * g.sigma_dph, g.tau_c_s))
+                .collect(),
+            rtn: nz
+                .random_telegraph
+                .iter()
+                .map(|r| (r.amplitude_dph * r.amplitude_dph, r.mean_dwell_s))
+                .collect(),
             filter: model.readout_filter(),
             tau0_s: model.tau0_s(),
         }
@@ -110,13 +126,21 @@ impl Current {
             Edit::Arw(v) => self.n2 = units::dpsh_to_arcsec_per_sqrt_s(*v).powi(2),
             Edit::BiasInstability(v) => self.b2 = v * v,
             Edit::Rrw(v) => self.k2 = units::dphsh_to_arcsec_per_s_sqrt_s(*v).powi(2),
-            Edit::GaussMarkov { index: Some(i), sigma_dph, tau_c_s } => {
-                self.gm[*i] = (sigma_dph * sigma_dph, *tau_c_s)
-            }
-            Edit::GaussMarkov { index: None, sigma_dph, tau_c_s } => self.gm.push((sigma_dph * sigma_dph, *tau_c_s)),
-            Edit::Telegraph { index: Some(i), amplitude_dph, mean_dwell_s } => {
-                self.rtn[*i] = (amplitude_dph * amplitude_dph, *mean_dwell_s)
-            }
+            Edit::GaussMarkov {
+                index: Some(i),
+                sigma_dph,
+                tau_c_s,
+            } => self.gm[*i] = (sigma_dph * sigma_dph, *tau_c_s),
+            Edit::GaussMarkov {
+                index: None,
+                sigma_dph,
+                tau_c_s,
+            } => self.gm.push((sigma_dph * sigma_dph, *tau_c_s)),
+            Edit::Telegraph {
+                index: Some(i),
+                amplitude_dph,
+                mean_dwell_s,
+            } => self.rtn[*i] = (amplitude_dph * amplitude_dph, *mean_dwell_s),
             Edit::ReadoutFilter { params, arw_dpsh } => {
                 self.filter = params.filter(self.tau0_s).ok();
                 self.n2 = units::dpsh_to_arcsec_per_sqrt_s(*arw_dpsh).powi(2);
@@ -141,13 +165,20 @@ struct Ctx<'a> {
 }
 
 fn chi2_quantile(p: f64, dof: f64) -> f64 {
-    ChiSquared::new(dof).map(|c| c.inverse_cdf(p)).unwrap_or(f64::INFINITY)
+    ChiSquared::new(dof)
+        .map(|c| c.inverse_cdf(p))
+        .unwrap_or(f64::INFINITY)
 }
 
 /// The broadband stage: greedy selection of up to three catalog changes.
 /// Returns the findings, each flagged when it is a new Gauss-Markov term
 /// (to be tested against a random telegraph; only the first one is).
-pub(crate) fn fit(data0: &LevelData, basis: &Basis, r: &Reference, regions: &[Region]) -> Vec<(Finding, bool)> {
+pub(crate) fn fit(
+    data0: &LevelData,
+    basis: &Basis,
+    r: &Reference,
+    regions: &[Region],
+) -> Vec<(Finding, bool)> {
     let model = &r.model;
     let dur = r.duration_s();
     let mut cur = Current::of(model);
@@ -155,7 +186,14 @@ pub(crate) fn fit(data0: &LevelData, basis: &Basis, r: &Reference, regions: &[Re
     let mut out: Vec<(Finding, bool)> = Vec::new();
     let region_text = regions
         .iter()
-        .map(|g| format!("{}..{} s (z {:.1})", fmt_g(g.tau_min_s), fmt_g(g.tau_max_s), g.max_z))
+        .map(|g| {
+            format!(
+                "{}..{} s (z {:.1})",
+                fmt_g(g.tau_min_s),
+                fmt_g(g.tau_max_s),
+                g.max_z
+            )
+        })
         .collect::<Vec<_>>()
         .join(", ");
     let tc_grid = wvar_fit::log_grid(4.0 * r.tau0_s(), dur / 3.0, 4);
@@ -178,9 +216,15 @@ pub(crate) fn fit(data0: &LevelData, basis: &Basis, r: &Reference, regions: &[Re
             && let Some(ff) = readout::fit(&data, basis, cur.n2, cur.filter)
         {
             let mut m = model.clone();
-            m.readout_filter = cur.filter.map(|f| ReadoutFilterParams::from_filter(&f, model.tau0_s()));
+            m.readout_filter = cur
+                .filter
+                .map(|f| ReadoutFilterParams::from_filter(&f, model.tau0_s()));
             let finding = readout::finding(&ff, &m, cur.n2, &region_text);
-            cands.push(Candidate { fit: ff.fit, param_only: cur.filter.is_some(), finding });
+            cands.push(Candidate {
+                fit: ff.fit,
+                param_only: cur.filter.is_some(),
+                finding,
+            });
         }
         let new_gm_index = cands.len();
         let has_new_gm = new_gauss_markov(&ctx).map(|c| cands.push(c)).is_some();
@@ -227,7 +271,11 @@ fn choose(cands: &[Candidate]) -> Option<usize> {
             .min_by(|a, b| aic(a.1).total_cmp(&aic(b.1)))
     };
     match (best(true), best(false)) {
-        (Some(p), Some(nw)) => Some(if aic(p.1) <= aic(nw.1) + 2.0 { p.0 } else { nw.0 }),
+        (Some(p), Some(nw)) => Some(if aic(p.1) <= aic(nw.1) + 2.0 {
+            p.0
+        } else {
+            nw.0
+        }),
         (Some(p), None) => Some(p.0),
         (None, Some(nw)) => Some(nw.0),
         (None, None) => None,
@@ -249,7 +297,11 @@ fn parameter_candidates(c: &Ctx) -> Vec<Candidate> {
         let v = fit.theta.sqrt();
         cands.push(Candidate {
             finding: Finding {
-                edit: Edit::Telegraph { index: Some(i), amplitude_dph: v, mean_dwell_s: dwell },
+                edit: Edit::Telegraph {
+                    index: Some(i),
+                    amplitude_dph: v,
+                    mean_dwell_s: dwell,
+                },
                 changes: vec![ParameterChange {
                     term: format!("random_telegraph[{i}].amplitude_dph"),
                     model: a2.sqrt(),
@@ -258,7 +310,11 @@ fn parameter_candidates(c: &Ctx) -> Vec<Candidate> {
                 }],
                 added: None,
                 n_par: 1,
-                note: format!("random_telegraph[{i}].amplitude_dph: {} -> {} deg/h", fmt_g(a2.sqrt()), fmt_g(v)),
+                note: format!(
+                    "random_telegraph[{i}].amplitude_dph: {} -> {} deg/h",
+                    fmt_g(a2.sqrt()),
+                    fmt_g(v)
+                ),
             },
             fit,
             param_only: true,
@@ -337,19 +393,42 @@ fn flicker_or_rrw(c: &Ctx, flicker: bool) -> Candidate {
     let (key, unit, conv): (&str, &str, UnitConv) = if flicker {
         ("bias_instability_dph", "deg/h", units::arcsec_per_s_to_dph)
     } else {
-        ("rrw_dphsh", "deg/h/sqrt(h)", units::arcsec_per_s_sqrt_s_to_dphsh)
+        (
+            "rrw_dphsh",
+            "deg/h/sqrt(h)",
+            units::arcsec_per_s_sqrt_s_to_dphsh,
+        )
     };
     // B is stored in deg/h = arcsec/s already; K needs its conversion
-    let old = if flicker { theta0.sqrt() } else { conv(theta0.sqrt()) };
+    let old = if flicker {
+        theta0.sqrt()
+    } else {
+        conv(theta0.sqrt())
+    };
     let v = conv(fit.theta.sqrt());
     let (edit, term) = if flicker {
-        (Edit::BiasInstability(v), Term::BiasInstability { b_dph: v, f_lo_hz: c.f_lo_flicker, f_hi_hz: f64::INFINITY })
+        (
+            Edit::BiasInstability(v),
+            Term::BiasInstability {
+                b_dph: v,
+                f_lo_hz: c.f_lo_flicker,
+                f_hi_hz: f64::INFINITY,
+            },
+        )
     } else {
         (Edit::Rrw(v), Term::RateRandomWalk { k_dphsh: v })
     };
     let ci = sqrt_ci(fit.theta_ci, conv);
     let (changes, added) = if is_param {
-        (vec![ParameterChange { term: key.into(), model: old, fitted: v, ci95: ci }], None)
+        (
+            vec![ParameterChange {
+                term: key.into(),
+                model: old,
+                fitted: v,
+                ci95: ci,
+            }],
+            None,
+        )
     } else {
         let explanation = format!(
             "{} Fitted {} {unit} on the wavelet variances (mismatch at {}).",
@@ -392,11 +471,19 @@ fn gauss_markov_changes(c: &Ctx, i: usize, s2: f64, tc: f64) -> Vec<Candidate> {
     };
     let mut out = vec![Candidate {
         finding: Finding {
-            edit: Edit::GaussMarkov { index: Some(i), sigma_dph: v, tau_c_s: tc },
+            edit: Edit::GaussMarkov {
+                index: Some(i),
+                sigma_dph: v,
+                tau_c_s: tc,
+            },
             changes: vec![sigma_change(v, &fit)],
             added: None,
             n_par: 1,
-            note: format!("gauss_markov[{i}].sigma_dph: {} -> {} deg/h", fmt_g(s2.sqrt()), fmt_g(v)),
+            note: format!(
+                "gauss_markov[{i}].sigma_dph: {} -> {} deg/h",
+                fmt_g(s2.sqrt()),
+                fmt_g(v)
+            ),
         },
         fit,
         param_only: true,
@@ -414,7 +501,11 @@ fn gauss_markov_changes(c: &Ctx, i: usize, s2: f64, tc: f64) -> Vec<Candidate> {
         };
         out.push(Candidate {
             finding: Finding {
-                edit: Edit::GaussMarkov { index: Some(i), sigma_dph: v, tau_c_s: t },
+                edit: Edit::GaussMarkov {
+                    index: Some(i),
+                    sigma_dph: v,
+                    tau_c_s: t,
+                },
                 changes: vec![sigma_change(v, &fit), tc_change],
                 added: None,
                 n_par: 2,
@@ -439,7 +530,10 @@ fn new_gauss_markov(c: &Ctx) -> Option<Candidate> {
     let v = fit.theta.sqrt();
     let t = fit.shape.unwrap_or(1.0);
     let tci = fit.shape_ci.unwrap_or((t, t));
-    let term = Term::GaussMarkov { sigma_dph: v, tau_c_s: t };
+    let term = Term::GaussMarkov {
+        sigma_dph: v,
+        tau_c_s: t,
+    };
     let arw_equiv = units::arcsec_per_sqrt_s_to_dpsh((2.0 * v * v * t).sqrt());
     let expl = format!(
         "{} Fitted sigma = {} deg/h, Tc = {} s on the wavelet variances (mismatch at {}). \
@@ -455,15 +549,31 @@ fn new_gauss_markov(c: &Ctx) -> Option<Candidate> {
         fmt_g(1.0 / (2.0 * PI * t))
     );
     let params = BTreeMap::from([("sigma_dph".to_string(), v), ("tau_c_s".to_string(), t)]);
-    let ci =
-        BTreeMap::from([("sigma_dph".to_string(), sqrt_ci(fit.theta_ci, |x| x)), ("tau_c_s".to_string(), [tci.0, tci.1])]);
+    let ci = BTreeMap::from([
+        ("sigma_dph".to_string(), sqrt_ci(fit.theta_ci, |x| x)),
+        ("tau_c_s".to_string(), [tci.0, tci.1]),
+    ]);
     Some(Candidate {
         finding: Finding {
-            edit: Edit::GaussMarkov { index: None, sigma_dph: v, tau_c_s: t },
+            edit: Edit::GaussMarkov {
+                index: None,
+                sigma_dph: v,
+                tau_c_s: t,
+            },
             changes: vec![],
-            added: Some(AddedTerm { term: "gauss_markov".into(), params, kind: None, explanation: expl, ci95: ci }),
+            added: Some(AddedTerm {
+                term: "gauss_markov".into(),
+                params,
+                kind: None,
+                explanation: expl,
+                ci95: ci,
+            }),
             n_par: 2,
-            note: format!("new gauss_markov: sigma {} deg/h, tau_c {} s", fmt_g(v), fmt_g(t)),
+            note: format!(
+                "new gauss_markov: sigma {} deg/h, tau_c {} s",
+                fmt_g(v),
+                fmt_g(t)
+            ),
         },
         fit,
         param_only: false,
@@ -479,8 +589,14 @@ fn new_sinusoid(c: &Ctx) -> Option<Candidate> {
     let amp = fit.theta.sqrt();
     let p = fit.shape.unwrap_or(1.0);
     let pci = fit.shape_ci.unwrap_or((p, p));
-    let term = Term::Sinusoid { amplitude_dph: amp, period_s: p };
-    let params = BTreeMap::from([("amplitude_dph".to_string(), amp), ("period_s".to_string(), p)]);
+    let term = Term::Sinusoid {
+        amplitude_dph: amp,
+        period_s: p,
+    };
+    let params = BTreeMap::from([
+        ("amplitude_dph".to_string(), amp),
+        ("period_s".to_string(), p),
+    ]);
     let ci = BTreeMap::from([
         ("amplitude_dph".to_string(), sqrt_ci(fit.theta_ci, |x| x)),
         ("period_s".to_string(), [pci.0, pci.1]),
@@ -495,11 +611,25 @@ fn new_sinusoid(c: &Ctx) -> Option<Candidate> {
     );
     Some(Candidate {
         finding: Finding {
-            edit: Edit::Sinusoid { index: None, amplitude_dph: amp, period_s: p },
+            edit: Edit::Sinusoid {
+                index: None,
+                amplitude_dph: amp,
+                period_s: p,
+            },
             changes: vec![],
-            added: Some(AddedTerm { term: "sinusoid".into(), params, kind: None, explanation, ci95: ci }),
+            added: Some(AddedTerm {
+                term: "sinusoid".into(),
+                params,
+                kind: None,
+                explanation,
+                ci95: ci,
+            }),
             n_par: 2,
-            note: format!("new long-period sinusoid: amplitude {} deg/h, period {} s", fmt_g(amp), fmt_g(p)),
+            note: format!(
+                "new long-period sinusoid: amplitude {} deg/h, period {} s",
+                fmt_g(amp),
+                fmt_g(p)
+            ),
         },
         fit,
         param_only: false,

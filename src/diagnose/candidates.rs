@@ -41,9 +41,24 @@ use crate::units;
 
 /// The candidate tests of the diagnosis: `data0` (the recording's level data,
 /// [`super::broadband::level_data`]) against the reference's runs.
-pub fn test(data0: &LevelData, basis: &Basis, r: &Reference, loc: &Located, alpha: f64) -> Option<ModelComparison> {
+pub fn test(
+    data0: &LevelData,
+    basis: &Basis,
+    r: &Reference,
+    loc: &Located,
+    alpha: f64,
+) -> Option<ModelComparison> {
     let fw = floors(&r.layout, &r.model, &loc.mc_mean).0;
-    compare(data0, basis, &r.model, &r.layout, &r.runs, &fw, &loc.wavelet_points(), alpha)
+    compare(
+        data0,
+        basis,
+        &r.model,
+        &r.layout,
+        &r.runs,
+        &fw,
+        &loc.wavelet_points(),
+        alpha,
+    )
 }
 
 /// The model comparison of one recording.
@@ -88,11 +103,25 @@ pub fn candidates(data: &LevelData, basis: &Basis, model: &GyroModel, dur_s: f64
             out.push(Scored { name, fit });
         }
     };
-    let amp = |phi: &[f64], t0: f64, floor: f64| Some(wvar_fit::fit_amplitude(data, phi, t0, floor));
-    push("quantization_arcsec".into(), amp(&basis.white_angle(), q * q, d2_12));
-    push("arw_dpsh".into(), amp(&basis.white_rate_through(model.readout_filter()), arw * arw, 0.0));
+    let amp =
+        |phi: &[f64], t0: f64, floor: f64| Some(wvar_fit::fit_amplitude(data, phi, t0, floor));
+    push(
+        "quantization_arcsec".into(),
+        amp(&basis.white_angle(), q * q, d2_12),
+    );
+    push(
+        "arw_dpsh".into(),
+        amp(
+            &basis.white_rate_through(model.readout_filter()),
+            arw * arw,
+            0.0,
+        ),
+    );
     if super::readout::offered(model) {
-        push("readout_filter".into(), super::readout::fit(data, basis, arw * arw, model.readout_filter()).map(|f| f.fit));
+        push(
+            "readout_filter".into(),
+            super::readout::fit(data, basis, arw * arw, model.readout_filter()).map(|f| f.fit),
+        );
     }
     let flicker = basis.flicker(model.flicker_f_lo_hz());
     push("bias_instability_dph".into(), amp(&flicker, b2, 0.0));
@@ -111,9 +140,15 @@ pub fn candidates(data: &LevelData, basis: &Basis, model: &GyroModel, dur_s: f64
     for (i, r) in nz.random_telegraph.iter().enumerate() {
         let phi0 = basis.gauss_markov(0.5 * r.mean_dwell_s);
         let a2 = r.amplitude_dph * r.amplitude_dph;
-        push(format!("random_telegraph[{i}].amplitude_dph"), amp(&phi0, a2, 0.0));
+        push(
+            format!("random_telegraph[{i}].amplitude_dph"),
+            amp(&phi0, a2, 0.0),
+        );
     }
-    push("gauss_markov".into(), wvar_fit::fit_shape(data, &tc_grid, &gm, None));
+    push(
+        "gauss_markov".into(),
+        wvar_fit::fit_shape(data, &tc_grid, &gm, None),
+    );
     let p_grid = wvar_fit::log_grid(
         dur_s / super::line_search::SearchParams::default().min_cycles,
         dur_s / 2.0,
@@ -121,13 +156,21 @@ pub fn candidates(data: &LevelData, basis: &Basis, model: &GyroModel, dur_s: f64
     );
     if p_grid.len() > 1 {
         let sine = |p: f64| basis.sinusoid(1.0 / p);
-        push("sinusoid".into(), wvar_fit::fit_shape(data, &p_grid, &sine, None));
+        push(
+            "sinusoid".into(),
+            wvar_fit::fit_shape(data, &p_grid, &sine, None),
+        );
     }
     out
 }
 
 /// Every candidate's LR on `data`, largest first.
-pub fn ranked(data: &LevelData, basis: &Basis, model: &GyroModel, dur_s: f64) -> Vec<(f64, Scored)> {
+pub fn ranked(
+    data: &LevelData,
+    basis: &Basis,
+    model: &GyroModel,
+    dur_s: f64,
+) -> Vec<(f64, Scored)> {
     let l0 = data.loglik(&data.e0);
     if !l0.is_finite() {
         return Vec::new();
@@ -141,7 +184,12 @@ pub fn ranked(data: &LevelData, basis: &Basis, model: &GyroModel, dur_s: f64) ->
 }
 
 /// The largest LR over the candidates on `data`, with the best candidate.
-pub fn max_lr(data: &LevelData, basis: &Basis, model: &GyroModel, dur_s: f64) -> Option<(f64, Scored)> {
+pub fn max_lr(
+    data: &LevelData,
+    basis: &Basis,
+    model: &GyroModel,
+    dur_s: f64,
+) -> Option<(f64, Scored)> {
     ranked(data, basis, model, dur_s).into_iter().next()
 }
 
@@ -151,7 +199,11 @@ impl ModelComparison {
     pub fn near_best(&self, delta: f64) -> Vec<&(String, f64, Fit)> {
         let aic = |e: &(String, f64, Fit)| -e.1 + 2.0 * e.2.n_par as f64;
         let best = self.ranking.iter().map(aic).fold(f64::INFINITY, f64::min);
-        let mut v: Vec<_> = self.ranking.iter().filter(|e| aic(e) <= best + delta).collect();
+        let mut v: Vec<_> = self
+            .ranking
+            .iter()
+            .filter(|e| aic(e) <= best + delta)
+            .collect();
         v.sort_by(|a, b| aic(a).total_cmp(&aic(b)));
         v
     }
@@ -159,7 +211,13 @@ impl ModelComparison {
 
 /// The level data of run `k` judged against the other runs (leave-one-out):
 /// expectation their mean, EDF from their log spread (floored by `floor_sd`).
-pub fn leave_one_out(layout: &StatLayout, runs: &[StatSet], k: usize, floor_sd: &[f64], lf: bool) -> LevelData {
+pub fn leave_one_out(
+    layout: &StatLayout,
+    runs: &[StatSet],
+    k: usize,
+    floor_sd: &[f64],
+    lf: bool,
+) -> LevelData {
     let others: Vec<&StatSet> = runs
         .iter()
         .enumerate()

@@ -10,8 +10,10 @@ use std::collections::BTreeMap;
 
 use super::{AddedTerm, ParameterChange};
 use crate::model::GyroModel;
+use crate::model::config::{
+    GaussMarkovParams, RandomTelegraphParams, SinusoidParams, ThermalParams,
+};
 use crate::model::filter::ReadoutFilterParams;
-use crate::model::config::{GaussMarkovParams, RandomTelegraphParams, SinusoidParams, ThermalParams};
 
 /// A unit conversion (internal units to the model file's).
 pub(crate) type UnitConv = fn(f64) -> f64;
@@ -62,22 +64,43 @@ impl Edit {
             Edit::BiasInstability(v) => n.bias_instability_dph = Some(*v),
             Edit::Rrw(v) => n.rrw_dphsh = Some(*v),
             Edit::RateRamp(v) => n.rate_ramp_dphh = Some(*v),
-            Edit::GaussMarkov { index, sigma_dph, tau_c_s } => {
-                let p = GaussMarkovParams { sigma_dph: *sigma_dph, tau_c_s: *tau_c_s };
+            Edit::GaussMarkov {
+                index,
+                sigma_dph,
+                tau_c_s,
+            } => {
+                let p = GaussMarkovParams {
+                    sigma_dph: *sigma_dph,
+                    tau_c_s: *tau_c_s,
+                };
                 match index {
                     Some(i) => n.gauss_markov[*i] = p,
                     None => n.gauss_markov.push(p),
                 }
             }
-            Edit::Telegraph { index, amplitude_dph, mean_dwell_s } => {
-                let p = RandomTelegraphParams { amplitude_dph: *amplitude_dph, mean_dwell_s: *mean_dwell_s };
+            Edit::Telegraph {
+                index,
+                amplitude_dph,
+                mean_dwell_s,
+            } => {
+                let p = RandomTelegraphParams {
+                    amplitude_dph: *amplitude_dph,
+                    mean_dwell_s: *mean_dwell_s,
+                };
                 match index {
                     Some(i) => n.random_telegraph[*i] = p,
                     None => n.random_telegraph.push(p),
                 }
             }
-            Edit::Sinusoid { index, amplitude_dph, period_s } => {
-                let p = SinusoidParams { amplitude_dph: *amplitude_dph, period_s: *period_s };
+            Edit::Sinusoid {
+                index,
+                amplitude_dph,
+                period_s,
+            } => {
+                let p = SinusoidParams {
+                    amplitude_dph: *amplitude_dph,
+                    period_s: *period_s,
+                };
                 match index {
                     Some(i) => n.sinusoid[*i] = p,
                     None => n.sinusoid.push(p),
@@ -153,7 +176,12 @@ impl Finding {
         Finding {
             edit,
             changes: if had {
-                vec![ParameterChange { term: change.into(), model, fitted, ci95 }]
+                vec![ParameterChange {
+                    term: change.into(),
+                    model,
+                    fitted,
+                    ci95,
+                }]
             } else {
                 vec![]
             },
@@ -198,7 +226,10 @@ pub(crate) fn fmt_g(v: f64) -> String {
     if v == 0.0 {
         "0".into()
     } else if v.abs() >= 1e-3 && v.abs() < 1e5 {
-        format!("{:.4}", v).trim_end_matches('0').trim_end_matches('.').to_string()
+        format!("{:.4}", v)
+            .trim_end_matches('0')
+            .trim_end_matches('.')
+            .to_string()
     } else {
         format!("{v:.3e}")
     }

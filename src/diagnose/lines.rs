@@ -45,7 +45,10 @@ pub struct LineScan {
 
 /// The search parameters of the diagnosis (family-wise [`ALPHA_LINES`]).
 pub fn search_params() -> lines::SearchParams {
-    lines::SearchParams { alpha: ALPHA_LINES, ..lines::SearchParams::default() }
+    lines::SearchParams {
+        alpha: ALPHA_LINES,
+        ..lines::SearchParams::default()
+    }
 }
 
 /// The line phase of the diagnosis: scan the recording against the reference
@@ -60,7 +63,14 @@ pub(crate) fn find(r: &Reference, rec: &Recording) -> LineFindings {
 
 /// Scan the rate for lines against `model` (simulated at the recording's rate
 /// and pulse weight); `wander` is [`rate_wander`].
-fn scan_lines(model: &GyroModel, rate: &[f64], fs: f64, d: f64, wander: f64, params: &lines::SearchParams) -> LineScan {
+fn scan_lines(
+    model: &GyroModel,
+    rate: &[f64],
+    fs: f64,
+    d: f64,
+    wander: f64,
+    params: &lines::SearchParams,
+) -> LineScan {
     let mean_rate = rate.iter().sum::<f64>() / rate.len() as f64;
     let x = lines::detrend(rate);
     let df = fs / rate.len() as f64;
@@ -73,7 +83,12 @@ fn scan_lines(model: &GyroModel, rate: &[f64], fs: f64, d: f64, wander: f64, par
             Some((det, lines::fit_line(&x, fs, det.f_hz, s)))
         })
         .collect();
-    LineScan { spectrum, lines: found, masked, detrended_rate: x }
+    LineScan {
+        spectrum,
+        lines: found,
+        masked,
+        detrended_rate: x,
+    }
 }
 
 /// The line search of [`super::diagnose`] on its own: `rec` against `model`
@@ -88,7 +103,13 @@ pub fn line_scan(model: &GyroModel, rec: &Recording, params: &lines::SearchParam
     }
     let rate = stats::counts_to_rate(&rec.counts, d, fs);
     let layout = StatLayout::new(rate.len(), fs, d);
-    let lv = stats::dwt_level_mean_squares(&rate, &layout.lo, &layout.hi, layout.levels.len() as u32, stats::MIN_LEVEL_COEFS);
+    let lv = stats::dwt_level_mean_squares(
+        &rate,
+        &layout.lo,
+        &layout.hi,
+        layout.levels.len() as u32,
+        stats::MIN_LEVEL_COEFS,
+    );
     let wvar: Vec<f64> = lv.iter().map(|t| t.2).collect();
     let mean_rate = rate.iter().sum::<f64>() / rate.len() as f64;
     let wander = rate_wander(&layout.levels, &wvar, fs, mean_rate.abs() / d);

@@ -53,7 +53,10 @@ pub struct Located {
 impl Located {
     /// The recording's wavelet points.
     pub fn wavelet_points(&self) -> Vec<&Point> {
-        self.before.iter().filter(|p| p.family == Family::Wavelet).collect()
+        self.before
+            .iter()
+            .filter(|p| p.family == Family::Wavelet)
+            .collect()
     }
 }
 
@@ -81,7 +84,9 @@ pub fn locate(r: &Reference, alpha: f64) -> Located {
 
 /// The points that detect (all but the raw Allan variance).
 pub fn detect_points(pts: &[Point]) -> Vec<&Point> {
-    pts.iter().filter(|p| p.family != Family::RawAllan).collect()
+    pts.iter()
+        .filter(|p| p.family != Family::RawAllan)
+        .collect()
 }
 
 /// Low-pass cut-offs of the kurtosis test for the model's Gauss-Markov and
@@ -100,7 +105,9 @@ pub fn kurtosis_scales(model: &GyroModel) -> Vec<(f64, (f64, f64), KTerm)> {
         .enumerate()
         .filter(|(_, r)| r.amplitude_dph > 0.0)
         .map(|(i, r)| (0.5 * r.mean_dwell_s, KTerm::Telegraph(i)));
-    gm.chain(rtn).map(|(tc, t)| (1.0 / tc, (0.5 * tc, 4.0 * tc), t)).collect()
+    gm.chain(rtn)
+        .map(|(tc, t)| (1.0 / tc, (0.5 * tc, 4.0 * tc), t))
+        .collect()
 }
 
 /// The mean of every statistic over the runs.
@@ -108,7 +115,9 @@ pub fn mean_stats(runs: &[StatSet]) -> StatSet {
     let r = runs.len() as f64;
     let avg = |f: &dyn Fn(&StatSet) -> &Vec<f64>| -> Vec<f64> {
         let n = f(&runs[0]).len();
-        (0..n).map(|i| runs.iter().map(|s| f(s)[i]).sum::<f64>() / r).collect()
+        (0..n)
+            .map(|i| runs.iter().map(|s| f(s)[i]).sum::<f64>() / r)
+            .collect()
     };
     StatSet {
         wvar: avg(&|s| &s.wvar),
@@ -127,7 +136,11 @@ pub fn mean_stats(runs: &[StatSet]) -> StatSet {
 
 /// Analytic floors of the log standard deviations: (wavelet, MDEV, spectral
 /// bands, raw Allan).
-pub fn floors(layout: &StatLayout, model: &GyroModel, mc_mean: &StatSet) -> (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>) {
+pub fn floors(
+    layout: &StatLayout,
+    model: &GyroModel,
+    mc_mean: &StatSet,
+) -> (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>) {
     let tau0 = layout.tau0_s();
     let (terms, theta) = model_spectral_terms(model);
     let lb = LevelBasis::new(&layout.lo, &layout.hi, tau0, &layout.levels, &terms);
@@ -177,7 +190,11 @@ pub fn floors(layout: &StatLayout, model: &GyroModel, mc_mean: &StatSet) -> (Vec
         .iter()
         .map(|b| {
             let nb = b.bins.len() as f64;
-            let eff = if nb > 1.0 { nb / (1.0 + 2.0 * 4.0 / 9.0 + 2.0 / 18.0) } else { 1.0 };
+            let eff = if nb > 1.0 {
+                nb / (1.0 + 2.0 * 4.0 / 9.0 + 2.0 / 18.0)
+            } else {
+                1.0
+            };
             compare::sd_log_chi2(nu_bin * eff.max(1.0))
         })
         .collect();
@@ -204,17 +221,31 @@ pub fn all_points(
         .collect();
     // white quantization share of each wavelet level and spectral band
     let q2 = model.quantization_q_arcsec().powi(2);
-    let qn_w = LevelBasis::new(&layout.lo, &layout.hi, tau0, &layout.levels, &[SpectralTerm::WhiteAngle]);
+    let qn_w = LevelBasis::new(
+        &layout.lo,
+        &layout.hi,
+        tau0,
+        &layout.levels,
+        &[SpectralTerm::WhiteAngle],
+    );
     let r: Vec<&[f64]> = runs.iter().map(|s| s.wvar.as_slice()).collect();
     let mut wp = compare::points(Family::Wavelet, &obs.wvar, &r, &fw, &tw);
     for p in &mut wp {
         p.qn_dominated = q2 * qn_w.phi[p.index][0] > 0.5 * p.model_mean;
     }
     pts.extend(wp);
-    let tm: Vec<(f64, f64)> = layout.ms.iter().map(|&m| (m as f64 * tau0, m as f64 * tau0)).collect();
+    let tm: Vec<(f64, f64)> = layout
+        .ms
+        .iter()
+        .map(|&m| (m as f64 * tau0, m as f64 * tau0))
+        .collect();
     let r: Vec<&[f64]> = runs.iter().map(|s| s.mvar.as_slice()).collect();
     pts.extend(compare::points(Family::Mdev, &obs.mvar, &r, &fm, &tm));
-    let tp: Vec<(f64, f64)> = layout.bands.iter().map(|b| (0.5 / b.f_hi_hz, 0.5 / b.f_lo_hz)).collect();
+    let tp: Vec<(f64, f64)> = layout
+        .bands
+        .iter()
+        .map(|b| (0.5 / b.f_hi_hz, 0.5 / b.f_lo_hz))
+        .collect();
     let r: Vec<&[f64]> = runs.iter().map(|s| s.band_psd.as_slice()).collect();
     let mut sp = compare::points(Family::Spectrum, &obs.band_psd, &r, &fp, &tp);
     for p in &mut sp {
@@ -232,11 +263,23 @@ pub fn all_points(
     // there: its band is the Monte-Carlo spread alone (no conservative floor)
     let r: Vec<&[f64]> = runs.iter().map(|s| s.avar.as_slice()).collect();
     let no_floor = vec![0.0; obs.avar.len()];
-    pts.extend(compare::points(Family::RawAllan, &obs.avar, &r, &no_floor, &tm));
+    pts.extend(compare::points(
+        Family::RawAllan,
+        &obs.avar,
+        &r,
+        &no_floor,
+        &tm,
+    ));
     let k = kurt_taus.len();
     if k > 0 && obs.kurtosis.len() >= k {
         let r: Vec<&[f64]> = runs.iter().map(|s| &s.kurtosis[..k]).collect();
-        pts.extend(compare::linear_points(Family::Kurtosis, &obs.kurtosis[..k], &r, KURTOSIS_SD_FLOOR, kurt_taus));
+        pts.extend(compare::linear_points(
+            Family::Kurtosis,
+            &obs.kurtosis[..k],
+            &r,
+            KURTOSIS_SD_FLOOR,
+            kurt_taus,
+        ));
     }
     pts
 }

@@ -56,7 +56,11 @@ impl LfLayout {
     /// strictly below that band, in octaves `1, 2-3, 4-7, ...`.
     pub fn new(n: usize, fs_hz: f64, deepest: u32) -> LfLayout {
         let block_len = n / LF_BLOCKS;
-        let none = LfLayout { block_len: 0, tau_b_s: 0.0, bands: Vec::new() };
+        let none = LfLayout {
+            block_len: 0,
+            tau_b_s: 0.0,
+            bands: Vec::new(),
+        };
         if block_len < 2 || deepest == 0 {
             return none;
         }
@@ -69,7 +73,11 @@ impl LfLayout {
             bands.push((k, (2 * k - 1).min(k_max)));
             k *= 2;
         }
-        LfLayout { block_len, tau_b_s: block_len as f64 / fs_hz, bands }
+        LfLayout {
+            block_len,
+            tau_b_s: block_len as f64 / fs_hz,
+            bands,
+        }
     }
 
     /// Highest bin of the rows (0 when there are none).
@@ -83,7 +91,9 @@ impl LfLayout {
             return Vec::new();
         }
         let b = self.block_len;
-        let means: Vec<f64> = (0..LF_BLOCKS).map(|i| rate[i * b..(i + 1) * b].iter().sum::<f64>() / b as f64).collect();
+        let means: Vec<f64> = (0..LF_BLOCKS)
+            .map(|i| rate[i * b..(i + 1) * b].iter().sum::<f64>() / b as f64)
+            .collect();
         let x = detrend(&means);
         let w = hann();
         let sw2: f64 = w.iter().map(|v| v * v).sum();
@@ -96,7 +106,10 @@ impl LfLayout {
             }
             2.0 * self.tau_b_s * (re * re + im * im) / sw2
         };
-        self.bands.iter().map(|&(lo, hi)| (lo..=hi).map(bin).sum::<f64>() / (hi - lo + 1) as f64).collect()
+        self.bands
+            .iter()
+            .map(|&(lo, hi)| (lo..=hi).map(bin).sum::<f64>() / (hi - lo + 1) as f64)
+            .collect()
     }
 
     /// Analytic EDF of each band (`nb` Hann bins, adjacent ones correlated).
@@ -106,7 +119,8 @@ impl LfLayout {
             .map(|&(lo, hi)| {
                 let nb = (hi - lo + 1) as f64;
                 // |rho|^2 of Hann bins one and two apart: 4/9, 1/36
-                let var = nb + 2.0 * (nb - 1.0).max(0.0) * 4.0 / 9.0 + 2.0 * (nb - 2.0).max(0.0) / 36.0;
+                let var =
+                    nb + 2.0 * (nb - 1.0).max(0.0) * 4.0 / 9.0 + 2.0 * (nb - 2.0).max(0.0) / 36.0;
                 2.0 * nb * nb / var
             })
             .collect()
@@ -114,7 +128,10 @@ impl LfLayout {
 
     /// Floors of the log standard deviation of each band: `sqrt(psi'(EDF/2))`.
     pub fn floor_sd(&self) -> Vec<f64> {
-        self.edf().iter().map(|&e| trigamma(0.5 * e).sqrt()).collect()
+        self.edf()
+            .iter()
+            .map(|&e| trigamma(0.5 * e).sqrt())
+            .collect()
     }
 }
 
@@ -143,7 +160,9 @@ pub fn append_rows(data: &mut LevelData, layout: &LfLayout, y: &[f64], runs: &[&
 
 /// The periodic Hann taper over the blocks.
 fn hann() -> Vec<f64> {
-    (0..LF_BLOCKS).map(|n| 0.5 * (1.0 - (2.0 * PI * n as f64 / LF_BLOCKS as f64).cos())).collect()
+    (0..LF_BLOCKS)
+        .map(|n| 0.5 * (1.0 - (2.0 * PI * n as f64 / LF_BLOCKS as f64).cos()))
+        .collect()
 }
 
 /// `psi'(x)`, x > 0: recurrence up to 10, then the asymptotic series.
@@ -154,7 +173,8 @@ fn trigamma(mut x: f64) -> f64 {
         x += 1.0;
     }
     let x2 = x * x;
-    acc + 1.0 / x + 1.0 / (2.0 * x2) + 1.0 / (6.0 * x2 * x) - 1.0 / (30.0 * x2 * x2 * x) + 1.0 / (42.0 * x2 * x2 * x2 * x)
+    acc + 1.0 / x + 1.0 / (2.0 * x2) + 1.0 / (6.0 * x2 * x) - 1.0 / (30.0 * x2 * x2 * x)
+        + 1.0 / (42.0 * x2 * x2 * x2 * x)
 }
 
 /// The bins' weights and power responses on a frequency grid: the exact
@@ -180,8 +200,18 @@ impl LfWindows {
         let k_max = layout.k_max();
         let weights: Vec<Vec<(f64, f64)>> = (1..=k_max).map(|k| bin_weights(&w, k)).collect();
         let grid = frequency_grid(k_max);
-        let g = weights.iter().map(|c| grid.iter().map(|&(nu, _)| power_response(c, nu)).collect()).collect();
-        LfWindows { layout: layout.clone(), tau0_s, weights, grid, g, sw2 }
+        let g = weights
+            .iter()
+            .map(|c| grid.iter().map(|&(nu, _)| power_response(c, nu)).collect())
+            .collect();
+        LfWindows {
+            layout: layout.clone(),
+            tau0_s,
+            weights,
+            grid,
+            g,
+            sw2,
+        }
     }
 
     /// Rows (one per band) of the expected periodogram per unit theta of `term`.
@@ -196,10 +226,20 @@ impl LfWindows {
             }
         };
         // G_k vanishes like nu^4 at 0 (the line is removed): the red spectra's pole adds nothing
-        let spectrum: Vec<f64> = self.grid.iter().map(|&(nu, _)| if nu > 0.0 { s1(nu) } else { 0.0 }).collect();
+        let spectrum: Vec<f64> = self
+            .grid
+            .iter()
+            .map(|&(nu, _)| if nu > 0.0 { s1(nu) } else { 0.0 })
+            .collect();
         self.bands(|k| {
             let gk = &self.g[k - 1];
-            let int: f64 = self.grid.iter().zip(gk).zip(&spectrum).map(|((&(_, dw), &g), &s)| dw * g * s).sum();
+            let int: f64 = self
+                .grid
+                .iter()
+                .zip(gk)
+                .zip(&spectrum)
+                .map(|((&(_, dw), &g), &s)| dw * g * s)
+                .sum();
             2.0 * int / self.sw2
         })
     }
@@ -209,7 +249,11 @@ impl LfWindows {
         let tb = self.layout.tau_b_s;
         let nu0 = f_hz * tb;
         let x = PI * nu0;
-        let g2 = if x.abs() < 1e-12 { 1.0 } else { (x.sin() / x).powi(2) };
+        let g2 = if x.abs() < 1e-12 {
+            1.0
+        } else {
+            (x.sin() / x).powi(2)
+        };
         self.bands(|k| tb * g2 * power_response(&self.weights[k - 1], nu0) / self.sw2)
     }
 
@@ -281,7 +325,9 @@ fn power_response(c: &[(f64, f64)], nu: f64) -> f64 {
 fn frequency_grid(k_max: usize) -> Vec<(f64, f64)> {
     let n = LF_BLOCKS as f64;
     let fine_top = ((k_max + 24) as f64 / n).min(0.5);
-    let mut nus: Vec<f64> = (0..=((fine_top * n * 16.0) as usize)).map(|i| i as f64 / (16.0 * n)).collect();
+    let mut nus: Vec<f64> = (0..=((fine_top * n * 16.0) as usize))
+        .map(|i| i as f64 / (16.0 * n))
+        .collect();
     let last = *nus.last().unwrap_or(&0.0);
     if last < 0.5 {
         let steps = 200;
@@ -309,7 +355,9 @@ mod tests {
         move || {
             // Box-Muller over a 64-bit LCG
             let mut u = || {
-                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
                 ((s >> 11) as f64 + 0.5) / (1u64 << 53) as f64
             };
             let (a, b) = (u(), u());
@@ -365,7 +413,10 @@ mod tests {
             let nb = (l.bands[i].1 - l.bands[i].0 + 1) as f64;
             // the Monte-Carlo mean's own standard error: about 1/sqrt(runs nb)
             let tol = 4.0 / (runs as f64 * nb).sqrt();
-            assert!((a / e - 1.0).abs() < tol, "band {i}: mc {a} vs {e} (tol {tol})");
+            assert!(
+                (a / e - 1.0).abs() < tol,
+                "band {i}: mc {a} vs {e} (tol {tol})"
+            );
         }
     }
 
@@ -376,7 +427,10 @@ mod tests {
         let t = (LF_BLOCKS * 8) as f64 / 10.0;
         let rows = win.sinusoid(2.0 / t);
         // bin 2 is in band 1 (2-3): the periodogram of A cos is A^2 T / 2 there, spread over 2 bins
-        let (i, best) = rows.iter().enumerate().fold((0, 0.0), |a, (i, &v)| if v > a.1 { (i, v) } else { a });
+        let (i, best) = rows
+            .iter()
+            .enumerate()
+            .fold((0, 0.0), |a, (i, &v)| if v > a.1 { (i, v) } else { a });
         assert_eq!(i, 1);
         assert!(best > 0.1 * t / 2.0, "{rows:?}");
     }

@@ -77,7 +77,9 @@ use crate::model::{GyroModel, ModelError};
 
 pub use self::lines::{LineScan, line_scan};
 pub use self::reference::{model_psd, model_spectral_terms};
-pub use self::report::{AddedTerm, DiagnosisReport, FitQuality, MismatchRegion, ParameterChange, Verdict};
+pub use self::report::{
+    AddedTerm, DiagnosisReport, FitQuality, MismatchRegion, ParameterChange, Verdict,
+};
 
 /// A recording to diagnose: integer increments (and optionally a temperature
 /// per sample) with the readout's sample rate and the angle of one increment.
@@ -119,14 +121,25 @@ impl Recording {
         rate_lsb_dps: f64,
     ) -> Result<Recording, DiagnoseError> {
         if let Some(i) = rates_dps.iter().position(|v| !v.is_finite()) {
-            return Err(DiagnoseError::RateNonFinite { index: i, value: rates_dps[i] });
+            return Err(DiagnoseError::RateNonFinite {
+                index: i,
+                value: rates_dps[i],
+            });
         }
-        let on_grid = |q: f64| rates_dps.iter().all(|v| ((v / q) - (v / q).round()).abs() < 1e-3);
+        let on_grid = |q: f64| {
+            rates_dps
+                .iter()
+                .all(|v| ((v / q) - (v / q).round()).abs() < 1e-3)
+        };
         let quantum_dps = if rate_lsb_dps > 0.0 && on_grid(rate_lsb_dps) {
             rate_lsb_dps
         } else {
             let n = rates_dps.len().max(2);
-            let diff2 = rates_dps.windows(2).map(|w| (w[1] - w[0]).powi(2)).sum::<f64>() / (n - 1) as f64;
+            let diff2 = rates_dps
+                .windows(2)
+                .map(|w| (w[1] - w[0]).powi(2))
+                .sum::<f64>()
+                / (n - 1) as f64;
             let spread = diff2.sqrt().max(rate_lsb_dps);
             if !(spread > 0.0) {
                 return Err(DiagnoseError::RateConstant { n: rates_dps.len() });
@@ -135,10 +148,16 @@ impl Recording {
         };
         let peak = rates_dps.iter().fold(0.0f64, |a, v| a.max(v.abs())) / quantum_dps;
         if peak > MAX_RATE_WORD {
-            return Err(DiagnoseError::RateRange { peak_dps: peak * quantum_dps, quantum_dps });
+            return Err(DiagnoseError::RateRange {
+                peak_dps: peak * quantum_dps,
+                quantum_dps,
+            });
         }
         Ok(Recording {
-            counts: rates_dps.iter().map(|v| (v / quantum_dps).round() as i64).collect(),
+            counts: rates_dps
+                .iter()
+                .map(|v| (v / quantum_dps).round() as i64)
+                .collect(),
             temp_c,
             sample_rate_hz,
             pulse_arcsec: quantum_dps * crate::units::ARCSEC_PER_DEG / sample_rate_hz,
@@ -170,7 +189,13 @@ pub struct DiagnoseOptions {
 
 impl Default for DiagnoseOptions {
     fn default() -> Self {
-        DiagnoseOptions { runs: 16, runs_after: 8, seed: 0x5A6_AC00, threads: 0, alpha: 0.01 }
+        DiagnoseOptions {
+            runs: 16,
+            runs_after: 8,
+            seed: 0x5A6_AC00,
+            threads: 0,
+            alpha: 0.01,
+        }
     }
 }
 
@@ -196,7 +221,9 @@ pub enum DiagnoseError {
     TempNonFinite { index: usize, value: f64 },
     #[error("rate sample {index} is not finite ({value})")]
     RateNonFinite { index: usize, value: f64 },
-    #[error("all {n} rate samples are equal: no noise to compare with the model (a dead gyro or a stuck output?)")]
+    #[error(
+        "all {n} rate samples are equal: no noise to compare with the model (a dead gyro or a stuck output?)"
+    )]
     RateConstant { n: usize },
     #[error("rates up to {peak_dps} deg/s are too large to count in quanta of {quantum_dps} deg/s")]
     RateRange { peak_dps: f64, quantum_dps: f64 },
@@ -205,7 +232,10 @@ pub enum DiagnoseError {
          rate recording (CSV --column NAME --unit dps|dph|rad_s) and a counts model a recording of pulse counts",
         if *recording == OutputKind::Rate { "rate samples" } else { "pulse counts" }
     )]
-    OutputMismatch { model: &'static str, recording: OutputKind },
+    OutputMismatch {
+        model: &'static str,
+        recording: OutputKind,
+    },
     #[error("options: {0}")]
     Options(String),
     #[error(transparent)]
@@ -258,7 +288,11 @@ pub struct Diagnosis {
 }
 
 /// Run the diagnosis of `rec` against `model`.
-pub fn diagnose(model: &GyroModel, rec: &Recording, opts: &DiagnoseOptions) -> Result<Diagnosis, DiagnoseError> {
+pub fn diagnose(
+    model: &GyroModel,
+    rec: &Recording,
+    opts: &DiagnoseOptions,
+) -> Result<Diagnosis, DiagnoseError> {
     check_recording(rec, opts)?;
     model.validate()?;
     check_output(model, rec)?;
@@ -266,21 +300,31 @@ pub fn diagnose(model: &GyroModel, rec: &Recording, opts: &DiagnoseOptions) -> R
     let reference = Reference::simulate(model, rec, opts)?;
     let r = &reference;
     let located = locate::locate(r, opts.alpha);
-    let mut notes: Vec<String> = report::rate_note(r.layout.fs_hz, model.gyro.sample_rate_hz).into_iter().collect();
+    let mut notes: Vec<String> = report::rate_note(r.layout.fs_hz, model.gyro.sample_rate_hz)
+        .into_iter()
+        .collect();
     // 3: lines
     let lines = lines::find(r, rec);
     let mut findings: Vec<Finding> = lines.findings;
     // 4: the broadband residual: candidate tests, distribution, broadband fit
-    let basis = Basis::new(&r.layout.lo, &r.layout.hi, r.tau0_s(), &r.layout.levels).with_lf(&r.layout.lf);
+    let basis =
+        Basis::new(&r.layout.lo, &r.layout.hi, r.tau0_s(), &r.layout.levels).with_lf(&r.layout.lf);
     let data0 = broadband::level_data(r, &located, &basis, &lines.sines);
-    let comparison = data0.as_ref().and_then(|d0| candidates::test(d0, &basis, r, &located, opts.alpha));
+    let comparison = data0
+        .as_ref()
+        .and_then(|d0| candidates::test(d0, &basis, r, &located, opts.alpha));
     let lr_detected = comparison.as_ref().is_some_and(|c| c.detected);
     let regions = match &comparison {
         Some(c) if located.regions.is_empty() && c.detected => c.regions.clone(),
         _ => located.regions.clone(),
     };
     if let Some(c) = comparison.as_ref().filter(|c| c.detected) {
-        notes.push(report::comparison_note(c, opts.alpha, located.max_abs_z, located.z_crit));
+        notes.push(report::comparison_note(
+            c,
+            opts.alpha,
+            located.max_abs_z,
+            located.z_crit,
+        ));
     }
     findings.extend(telegraph::model_terms(r, &located, &basis, data0.as_ref()));
     let mut telegraph_pending = None;
@@ -297,11 +341,22 @@ pub fn diagnose(model: &GyroModel, rec: &Recording, opts: &DiagnoseOptions) -> R
     // 5: slopes
     let slopes = slopes::test(r, rec, &findings);
     findings.extend(slopes.findings.iter().cloned());
-    let mismatch =
-        !regions.is_empty() || lr_detected || !lines.hits.is_empty() || slopes.significant() || !findings.is_empty();
+    let mismatch = !regions.is_empty()
+        || lr_detected
+        || !lines.hits.is_empty()
+        || slopes.significant()
+        || !findings.is_empty();
     // 6: the updated model, simulated again and refined
-    let refined =
-        refine::refine(r, rec, model, &mut findings, telegraph_pending, located.chi2_before, opts, &mut notes)?;
+    let refined = refine::refine(
+        r,
+        rec,
+        model,
+        &mut findings,
+        telegraph_pending,
+        located.chi2_before,
+        opts,
+        &mut notes,
+    )?;
     // 7: report
     notes.extend(report::closing_notes(
         &findings,
@@ -311,7 +366,13 @@ pub fn diagnose(model: &GyroModel, rec: &Recording, opts: &DiagnoseOptions) -> R
         located.z_crit,
     ));
     Ok(Diagnosis {
-        report: report::document(mismatch, &regions, &findings, located.chi2_before, refined.chi2_after),
+        report: report::document(
+            mismatch,
+            &regions,
+            &findings,
+            located.chi2_before,
+            refined.chi2_after,
+        ),
         updated_model: refined.updated,
         before: located.before,
         after: refined.after,
@@ -331,7 +392,10 @@ pub fn diagnose(model: &GyroModel, rec: &Recording, opts: &DiagnoseOptions) -> R
 /// The model and the recording must be of the same kind of sensor.
 pub(crate) fn check_output(model: &GyroModel, rec: &Recording) -> Result<(), DiagnoseError> {
     if model.gyro.output != rec.output {
-        return Err(DiagnoseError::OutputMismatch { model: model.gyro.output.name(), recording: rec.output });
+        return Err(DiagnoseError::OutputMismatch {
+            model: model.gyro.output.name(),
+            recording: rec.output,
+        });
     }
     Ok(())
 }
@@ -340,7 +404,10 @@ pub(crate) fn check_output(model: &GyroModel, rec: &Recording) -> Result<(), Dia
 fn check_recording(rec: &Recording, opts: &DiagnoseOptions) -> Result<(), DiagnoseError> {
     let n = rec.counts.len();
     if n < MIN_SAMPLES {
-        return Err(DiagnoseError::TooShort { n, need: MIN_SAMPLES });
+        return Err(DiagnoseError::TooShort {
+            n,
+            need: MIN_SAMPLES,
+        });
     }
     if !(rec.sample_rate_hz.is_finite() && rec.sample_rate_hz > 0.0) {
         return Err(DiagnoseError::BadRate(rec.sample_rate_hz));
@@ -353,7 +420,10 @@ fn check_recording(rec: &Recording, opts: &DiagnoseOptions) -> Result<(), Diagno
             return Err(DiagnoseError::TempLength { got: t.len(), n });
         }
         if let Some(i) = t.iter().position(|v| !v.is_finite()) {
-            return Err(DiagnoseError::TempNonFinite { index: i, value: t[i] });
+            return Err(DiagnoseError::TempNonFinite {
+                index: i,
+                value: t[i],
+            });
         }
     }
     if opts.runs < 4 || opts.runs_after < 2 {
@@ -363,7 +433,10 @@ fn check_recording(rec: &Recording, opts: &DiagnoseOptions) -> Result<(), Diagno
         )));
     }
     if !(opts.alpha > 0.0 && opts.alpha < 0.5) {
-        return Err(DiagnoseError::Options(format!("alpha = {}: must be in (0, 0.5)", opts.alpha)));
+        return Err(DiagnoseError::Options(format!(
+            "alpha = {}: must be in (0, 0.5)",
+            opts.alpha
+        )));
     }
     Ok(())
 }

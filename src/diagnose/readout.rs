@@ -57,7 +57,13 @@ pub struct FilterFit {
 fn profile(data: &LevelData, basis: &Basis, n2: f64, phi0: &[f64], f: ReadoutFilter) -> Fit {
     let phi = basis.filtered_white_rate(Some(f));
     let shifted = LevelData {
-        e0: data.e0.iter().zip(phi0).zip(&phi).map(|((e, p0), p)| e - n2 * p0 + n2 * p).collect(),
+        e0: data
+            .e0
+            .iter()
+            .zip(phi0)
+            .zip(&phi)
+            .map(|((e, p0), p)| e - n2 * p0 + n2 * p)
+            .collect(),
         ..data.clone()
     };
     let mut fit = fit_amplitude(&shifted, &phi, n2, 0.0);
@@ -74,7 +80,12 @@ fn first_order(cycles: f64) -> Option<ReadoutFilter> {
 
 /// Fit a readout filter about the model's white level `n2` (arcsec^2/s)
 /// and filter `current`. `None` when the model has no white rate to filter.
-pub fn fit(data: &LevelData, basis: &Basis, n2: f64, current: Option<ReadoutFilter>) -> Option<FilterFit> {
+pub fn fit(
+    data: &LevelData,
+    basis: &Basis,
+    n2: f64,
+    current: Option<ReadoutFilter>,
+) -> Option<FilterFit> {
     if !(n2 > 0.0) || data.loglik(&data.e0).is_infinite() {
         return None;
     }
@@ -87,7 +98,9 @@ pub fn fit(data: &LevelData, basis: &Basis, n2: f64, current: Option<ReadoutFilt
         cands.push((f.corner_cycles(), f, eval(f)));
     }
     let n_fo = ((FO_HI / FO_LO).log2() * FO_PER_OCTAVE as f64).ceil() as usize;
-    let fo_grid: Vec<f64> = (0..=n_fo).map(|i| FO_LO * (FO_HI / FO_LO).powf(i as f64 / n_fo as f64)).collect();
+    let fo_grid: Vec<f64> = (0..=n_fo)
+        .map(|i| FO_LO * (FO_HI / FO_LO).powf(i as f64 / n_fo as f64))
+        .collect();
     let n_ma = cands.len();
     for &c in &fo_grid {
         if let Some(f) = first_order(c) {
@@ -101,12 +114,18 @@ pub fn fit(data: &LevelData, basis: &Basis, n2: f64, current: Option<ReadoutFilt
         .enumerate()
         .max_by(|a, b| a.1.2.loglik.total_cmp(&b.1.2.loglik))
         .map_or(0, |(i, _)| i);
-    let (a, b) = (fo_grid[ib.saturating_sub(1)].ln(), fo_grid[(ib + 1).min(fo_grid.len() - 1)].ln());
+    let (a, b) = (
+        fo_grid[ib.saturating_sub(1)].ln(),
+        fo_grid[(ib + 1).min(fo_grid.len() - 1)].ln(),
+    );
     let lc = golden_max(&fo_l, a, b, 30);
     if let Some(f) = first_order(lc.exp()) {
         cands.push((lc.exp(), f, eval(f)));
     }
-    let best = cands.iter().max_by(|x, y| x.2.loglik.total_cmp(&y.2.loglik))?.clone();
+    let best = cands
+        .iter()
+        .max_by(|x, y| x.2.loglik.total_cmp(&y.2.loglik))?
+        .clone();
     if !best.2.loglik.is_finite() {
         return None;
     }
@@ -148,7 +167,12 @@ pub fn fit(data: &LevelData, basis: &Basis, n2: f64, current: Option<ReadoutFilt
         }
         ReadoutFilter::FirstOrder { .. } => None,
     };
-    Some(FilterFit { filter: best.1, fit: best.2, corner_ci_cycles: (lo, hi), length_ci })
+    Some(FilterFit {
+        filter: best.1,
+        fit: best.2,
+        corner_ci_cycles: (lo, hi),
+        length_ci,
+    })
 }
 
 /// Whether the candidate is tried: on a rate-output gyro, and on any model
@@ -184,10 +208,13 @@ pub(crate) fn finding(ff: &FilterFit, model: &GyroModel, n2_model: f64, regions:
                 fmt_g(f64::from(length) * tau0 * 1e3)
             )
         }
-        (ReadoutFilter::FirstOrder { .. }, _) => "a first-order (one-pole) low-pass, as an anti-alias RC stage".into(),
+        (ReadoutFilter::FirstOrder { .. }, _) => {
+            "a first-order (one-pole) low-pass, as an anti-alias RC stage".into()
+        }
     };
     let had = model.readout_filter();
-    let at_edge = matches!(f, ReadoutFilter::FirstOrder { .. }) && ff.corner_ci_cycles.1 >= 0.98 * FO_HI;
+    let at_edge =
+        matches!(f, ReadoutFilter::FirstOrder { .. }) && ff.corner_ci_cycles.1 >= 0.98 * FO_HI;
     let edge = if at_edge {
         format!(
             " The corner is at the top of the search ({} cycles per sample): the finest level falls less \
@@ -205,7 +232,11 @@ pub(crate) fn finding(ff: &FilterFit, model: &GyroModel, n2_model: f64, regions:
          wavelet levels (tau below about {} s) lie below the white plateau an unfiltered readout gives \
          (mismatch at {regions}). Below the corner the white level is unchanged: ARW {} deg/sqrt(h) \
          (the model: {}). A rate word's LSB rounding comes after the filter and stays white.{edge}",
-        if had.is_some() { "describes wrongly" } else { "lacks" },
+        if had.is_some() {
+            "describes wrongly"
+        } else {
+            "lacks"
+        },
         fmt_g(fc),
         fmt_g(ci[0]),
         fmt_g(ci[1]),
@@ -230,7 +261,10 @@ pub(crate) fn finding(ff: &FilterFit, model: &GyroModel, n2_model: f64, regions:
         });
     }
     Finding {
-        edit: Edit::ReadoutFilter { params: ReadoutFilterParams::from_filter(&f, tau0), arw_dpsh: arw },
+        edit: Edit::ReadoutFilter {
+            params: ReadoutFilterParams::from_filter(&f, tau0),
+            arw_dpsh: arw,
+        },
         changes,
         added: Some(AddedTerm {
             term: "readout_filter".into(),

@@ -46,7 +46,11 @@ pub struct Reference {
 
 impl Reference {
     /// Reduce `rec` and `opts.runs` runs of `model` (checked by the caller).
-    pub fn simulate(model: &GyroModel, rec: &Recording, opts: &DiagnoseOptions) -> Result<Self, DiagnoseError> {
+    pub fn simulate(
+        model: &GyroModel,
+        rec: &Recording,
+        opts: &DiagnoseOptions,
+    ) -> Result<Self, DiagnoseError> {
         let threads = if opts.threads == 0 {
             std::thread::available_parallelism().map_or(1, |n| n.get())
         } else {
@@ -63,7 +67,9 @@ impl Reference {
         let ref_model = reference_model(model, rec, obs.mean_rate);
         mask_counter_lines(&mut layout, &ref_model, &obs);
         obs.band_psd = stats::band_means(&layout, &obs.psd);
-        let seeds: Vec<u64> = (0..opts.runs as u64).map(|r| opts.seed.wrapping_add(r)).collect();
+        let seeds: Vec<u64> = (0..opts.runs as u64)
+            .map(|r| opts.seed.wrapping_add(r))
+            .collect();
         let job = mc::McJob {
             model: &ref_model,
             layout: &layout,
@@ -74,11 +80,25 @@ impl Reference {
             sine_probes: &[],
         };
         let runs = mc::run(&job, &seeds)?;
-        Ok(Reference { layout, obs, model: ref_model, runs, cutoffs_hz, kurt_taus, kterms, threads })
+        Ok(Reference {
+            layout,
+            obs,
+            model: ref_model,
+            runs,
+            cutoffs_hz,
+            kurt_taus,
+            kterms,
+            threads,
+        })
     }
 
     /// A Monte-Carlo job over the reference's layout, for `model`.
-    pub fn job<'a>(&'a self, model: &'a GyroModel, temp_c: Option<&'a [f64]>, cutoffs_hz: &'a [f64]) -> mc::McJob<'a> {
+    pub fn job<'a>(
+        &'a self,
+        model: &'a GyroModel,
+        temp_c: Option<&'a [f64]>,
+        cutoffs_hz: &'a [f64],
+    ) -> mc::McJob<'a> {
         mc::McJob {
             model,
             layout: &self.layout,
@@ -103,18 +123,33 @@ impl Reference {
     /// Slow rate wander of the recording ([`rate_wander`]).
     pub fn wander(&self) -> f64 {
         let d = self.layout.pulse_arcsec;
-        rate_wander(&self.layout.levels, &self.obs.wvar, self.layout.fs_hz, self.obs.mean_rate.abs() / d)
+        rate_wander(
+            &self.layout.levels,
+            &self.obs.wvar,
+            self.layout.fs_hz,
+            self.obs.mean_rate.abs() / d,
+        )
     }
 }
 
 /// The points (wavelet, MDEV, spectral bands, raw Allan, kurtosis) of `rec`
 /// against `opts.runs` Monte-Carlo runs of `model` at the recording's rate,
 /// pulse weight and mean input.
-pub fn points_against(model: &GyroModel, rec: &Recording, opts: &DiagnoseOptions) -> Result<Vec<Point>, DiagnoseError> {
+pub fn points_against(
+    model: &GyroModel,
+    rec: &Recording,
+    opts: &DiagnoseOptions,
+) -> Result<Vec<Point>, DiagnoseError> {
     check_recording(rec, opts)?;
     model.validate()?;
     let r = Reference::simulate(model, rec, opts)?;
-    Ok(all_points(&r.layout, &r.model, &r.obs, &r.runs, &r.kurt_taus))
+    Ok(all_points(
+        &r.layout,
+        &r.model,
+        &r.obs,
+        &r.runs,
+        &r.kurt_taus,
+    ))
 }
 
 /// The model as simulated for the comparison: the recording's sample rate and
@@ -130,7 +165,9 @@ pub(crate) fn reference_model(model: &GyroModel, rec: &Recording, mean_rate: f64
     // deterministic parts of the model with a non-zero mean over the record
     let ramp = units::dphh_to_arcsec_per_s2(m.noise.rate_ramp_dphh.unwrap_or(0.0)) * dur / 2.0;
     let thermal = m.thermal.as_ref().map_or(0.0, |t| {
-        units::dph_to_arcsec_per_s(t.bias_sensitivity_dph_per_c) * t.ramp_c_per_h / units::S_PER_H * dur / 2.0
+        units::dph_to_arcsec_per_s(t.bias_sensitivity_dph_per_c) * t.ramp_c_per_h / units::S_PER_H
+            * dur
+            / 2.0
     });
     m.gyro.input_rate_dph = units::arcsec_per_s_to_dph(mean_rate - ramp - thermal);
     m
@@ -158,7 +195,9 @@ pub fn model_spectral_terms(model: &GyroModel) -> (Vec<SpectralTerm>, Vec<f64>) 
         theta.push(lsb);
     }
     if let Some(b) = n.bias_instability_dph.filter(|b| *b > 0.0) {
-        terms.push(SpectralTerm::Flicker { f_lo_hz: model.flicker_f_lo_hz() });
+        terms.push(SpectralTerm::Flicker {
+            f_lo_hz: model.flicker_f_lo_hz(),
+        });
         theta.push(b * b);
     }
     if let Some(k) = n.rrw_dphsh.filter(|k| *k > 0.0) {
@@ -171,7 +210,9 @@ pub fn model_spectral_terms(model: &GyroModel) -> (Vec<SpectralTerm>, Vec<f64>) 
         theta.push(g.sigma_dph * g.sigma_dph);
     }
     for r in &n.random_telegraph {
-        terms.push(SpectralTerm::GaussMarkov { tau_c_s: 0.5 * r.mean_dwell_s });
+        terms.push(SpectralTerm::GaussMarkov {
+            tau_c_s: 0.5 * r.mean_dwell_s,
+        });
         theta.push(r.amplitude_dph * r.amplitude_dph);
     }
     (terms, theta)
@@ -192,7 +233,13 @@ pub fn rate_lsb_theta(model: &GyroModel) -> f64 {
 pub fn model_psd(model: &GyroModel) -> impl Fn(f64) -> f64 {
     let (terms, theta) = model_spectral_terms(model);
     let tau0 = 1.0 / model.gyro.sample_rate_hz;
-    move |f: f64| terms.iter().zip(&theta).map(|(t, th)| th * t.psd_cs(f * tau0, tau0) * tau0).sum()
+    move |f: f64| {
+        terms
+            .iter()
+            .zip(&theta)
+            .map(|(t, th)| th * t.psd_cs(f * tau0, tau0) * tau0)
+            .sum()
+    }
 }
 
 /// The counter's own lines, `(f_true Hz, half-width Hz)` of each core to mask
@@ -210,7 +257,14 @@ pub fn model_psd(model: &GyroModel) -> impl Fn(f64) -> f64 {
 /// three bins, plus the wander shift): there the spectrum depends on the exact
 /// mean rate and wander of the record, which the Monte-Carlo runs reproduce
 /// only in distribution. The tails are left in: they follow from the model's ARW.
-pub(crate) fn counter_lines(model: &GyroModel, mean_rate: f64, wander: f64, fs: f64, d: f64, df: f64) -> Vec<(f64, f64)> {
+pub(crate) fn counter_lines(
+    model: &GyroModel,
+    mean_rate: f64,
+    wander: f64,
+    fs: f64,
+    d: f64,
+    df: f64,
+) -> Vec<(f64, f64)> {
     let tau0 = 1.0 / fs;
     let f1 = mean_rate.abs() / d;
     let mut out = Vec::new();
@@ -234,7 +288,9 @@ pub(crate) fn counter_lines(model: &GyroModel, mean_rate: f64, wander: f64, fs: 
         if fa > fs / 2.0 {
             fa = fs - fa;
         }
-        let bg = (2.0 * arw * arw + 8.0 * sd_dither * sd_dither * (PI * fa * tau0).sin().powi(2) / tau0).max(1e-300);
+        let bg = (2.0 * arw * arw
+            + 8.0 * sd_dither * sd_dither * (PI * fa * tau0).sin().powi(2) / tau0)
+            .max(1e-300);
         let gamma = (2.0 * PI * kf * arw / d).powi(2) / (4.0 * PI);
         let width = gamma.max(kf * wander / d).max(df);
         let peak = p / (PI * width);
@@ -248,7 +304,10 @@ pub(crate) fn counter_lines(model: &GyroModel, mean_rate: f64, wander: f64, fs: 
         // the core only: the Lorentzian tails follow from the model's ARW and
         // are reproduced by the runs; the core depends on the record's exact
         // mean rate and wander
-        let reach = (p * width / (PI * 0.2 * bg) - width * width).max(0.0).sqrt().min(3.0 * width);
+        let reach = (p * width / (PI * 0.2 * bg) - width * width)
+            .max(0.0)
+            .sqrt()
+            .min(3.0 * width);
         out.push((f_true, reach + 3.0 * df + 4.0 * kf * wander / d));
     }
     out

@@ -14,7 +14,9 @@
 //! original, and not acceptably, is reported but not handed out.
 
 use super::compare::{self, Family, Point};
-use super::findings::{Edit, Finding, UnitConv, fitted_parameters, fmt_g, sqrt_ci, tidy, with_findings};
+use super::findings::{
+    Edit, Finding, UnitConv, fitted_parameters, fmt_g, sqrt_ci, tidy, with_findings,
+};
 use super::locate::{all_points, detect_points, mean_stats};
 use super::lowfreq;
 use super::reference::Reference;
@@ -65,13 +67,20 @@ pub(crate) fn refine(
     notes: &mut Vec<String>,
 ) -> Result<Refined, DiagnoseError> {
     if findings.is_empty() {
-        return Ok(Refined { updated: None, after: Vec::new(), chi2_after: chi2_before, telegraph_test: None });
+        return Ok(Refined {
+            updated: None,
+            after: Vec::new(),
+            chi2_after: chi2_before,
+            telegraph_test: None,
+        });
     }
     let temp = rec.temp_c.as_deref();
-    let seeds_after: Vec<u64> =
-        (0..opts.runs_after as u64).map(|k| opts.seed.wrapping_add(1_000_003).wrapping_add(k)).collect();
+    let seeds_after: Vec<u64> = (0..opts.runs_after as u64)
+        .map(|k| opts.seed.wrapping_add(1_000_003).wrapping_add(k))
+        .collect();
     let mut cutoffs = r.cutoffs_hz.clone();
-    let alt = telegraph_pending.and_then(|fi| telegraph_alternative(&r.model, findings, fi).map(|a| (fi, a)));
+    let alt = telegraph_pending
+        .and_then(|fi| telegraph_alternative(&r.model, findings, fi).map(|a| (fi, a)));
     if let Some((_, (_, fc))) = &alt {
         cutoffs.push(*fc);
     }
@@ -79,7 +88,16 @@ pub(crate) fn refine(
     let mut runs = mc::run(&r.job(&model, temp, &cutoffs), &seeds_after)?;
     let mut telegraph_test = None;
     if let Some((fi, (alt_model, _))) = &alt {
-        let out = telegraph::test_new_gauss_markov(r, rec, findings, *fi, alt_model, &cutoffs, &runs, &seeds_after)?;
+        let out = telegraph::test_new_gauss_markov(
+            r,
+            rec,
+            findings,
+            *fi,
+            alt_model,
+            &cutoffs,
+            &runs,
+            &seeds_after,
+        )?;
         telegraph_test = Some(out.test);
         if let Some((m, rr)) = out.replaced {
             model = m;
@@ -88,14 +106,35 @@ pub(crate) fn refine(
     }
     let after = all_points(&r.layout, &model, &r.obs, &runs, &r.kurt_taus);
     let chi2 = compare::chi2_per_dof(&detect_points(&after), fitted_parameters(findings));
-    let mut cur = Current { model, runs, after, chi2 };
-    let basis = Basis::new(&r.layout.lo, &r.layout.hi, r.tau0_s(), &r.layout.levels).with_lf(&r.layout.lf);
+    let mut cur = Current {
+        model,
+        runs,
+        after,
+        chi2,
+    };
+    let basis =
+        Basis::new(&r.layout.lo, &r.layout.hi, r.tau0_s(), &r.layout.levels).with_lf(&r.layout.lf);
     for round in 0..REFINE_ROUNDS {
-        if !refine_round(r, &basis, &mut cur, findings, round, &seeds_after, &cutoffs, temp, notes)? {
+        if !refine_round(
+            r,
+            &basis,
+            &mut cur,
+            findings,
+            round,
+            &seeds_after,
+            &cutoffs,
+            temp,
+            notes,
+        )? {
             break;
         }
     }
-    let Current { model: mut m_new, after, chi2: chi2_after, .. } = cur;
+    let Current {
+        model: mut m_new,
+        after,
+        chi2: chi2_after,
+        ..
+    } = cur;
     // restore the user's readout in the written model (at the rate it was fitted at)
     m_new.gyro = user_model.gyro.clone();
     m_new.gyro.sample_rate_hz = r.layout.fs_hz;
@@ -112,7 +151,12 @@ pub(crate) fn refine(
     } else {
         Some(m_new)
     };
-    Ok(Refined { updated, after, chi2_after, telegraph_test })
+    Ok(Refined {
+        updated,
+        after,
+        chi2_after,
+        telegraph_test,
+    })
 }
 
 /// One refinement round; false when the parameters stopped moving or the
@@ -145,7 +189,10 @@ fn refine_round(
     for k in &refit {
         k.edit().apply(&mut m_try);
     }
-    let seeds_refine: Vec<u64> = seeds_after.iter().map(|s| s.wrapping_add(7_919 * (round as u64 + 1))).collect();
+    let seeds_refine: Vec<u64> = seeds_after
+        .iter()
+        .map(|s| s.wrapping_add(7_919 * (round as u64 + 1)))
+        .collect();
     let runs_try = mc::run(&r.job(&m_try, temp, cutoffs), &seeds_refine)?;
     let after_try = all_points(&r.layout, &m_try, &r.obs, &runs_try, &r.kurt_taus);
     let chi2_try = compare::chi2_per_dof(&detect_points(&after_try), fitted_parameters(findings));
@@ -161,7 +208,12 @@ fn refine_round(
     for k in &refit {
         k.store(findings);
     }
-    *cur = Current { model: m_try, runs: runs_try, after: after_try, chi2: chi2_try };
+    *cur = Current {
+        model: m_try,
+        runs: runs_try,
+        after: after_try,
+        chi2: chi2_try,
+    };
     Ok(true)
 }
 
@@ -215,7 +267,11 @@ impl Refit {
     /// Put the refitted value into the last finding that set this parameter
     /// (its edit, its reported change or added term, and its note).
     fn store(&self, findings: &mut [Finding]) {
-        let Some(f) = findings.iter_mut().rev().find(|f| knob_of(&f.edit) == Some(self.knob)) else {
+        let Some(f) = findings
+            .iter_mut()
+            .rev()
+            .find(|f| knob_of(&f.edit) == Some(self.knob))
+        else {
             return;
         };
         let before = edit_value(&f.edit);
@@ -282,7 +338,10 @@ fn refine_broadband(
     knobs: &[Knob],
 ) -> Option<Vec<Refit>> {
     let layout = &r.layout;
-    let wpts: Vec<&Point> = after.iter().filter(|p| p.family == Family::Wavelet).collect();
+    let wpts: Vec<&Point> = after
+        .iter()
+        .filter(|p| p.family == Family::Wavelet)
+        .collect();
     if knobs.is_empty() || runs.is_empty() || wpts.len() != layout.levels.len() {
         return None;
     }
@@ -291,15 +350,20 @@ fn refine_broadband(
         levels: layout.levels.clone(),
         y: r.obs.wvar.clone(),
         e0: mean_stats(runs).wvar,
-        nu: wpts.iter().map(|p| 2.0 / (p.sd_log * p.sd_log * (1.0 + 1.0 / nr))).collect(),
+        nu: wpts
+            .iter()
+            .map(|p| 2.0 / (p.sd_log * p.sd_log * (1.0 + 1.0 / nr)))
+            .collect(),
     };
     if basis.has_lf() {
         let all: Vec<&StatSet> = runs.iter().collect();
         lowfreq::append_rows(&mut data, &layout.lf, &r.obs.lf_psd, &all);
     }
     // (knob, basis shape, current theta, floor, theta -> model units)
-    let mut state: Vec<(Knob, Vec<f64>, f64, f64, UnitConv)> =
-        knobs.iter().map(|&kn| knob_state(kn, basis, model)).collect();
+    let mut state: Vec<(Knob, Vec<f64>, f64, f64, UnitConv)> = knobs
+        .iter()
+        .map(|&kn| knob_state(kn, basis, model))
+        .collect();
     let mut cis = vec![(0.0, 0.0); state.len()];
     for _sweep in 0..3 {
         for (i, (_, phi, theta, floor, _)) in state.iter_mut().enumerate() {
@@ -318,7 +382,11 @@ fn refine_broadband(
         state
             .iter()
             .zip(&cis)
-            .map(|((kn, _, theta, _, conv), ci)| Refit { knob: *kn, value: conv(theta.sqrt()), ci95: sqrt_ci(*ci, conv) })
+            .map(|((kn, _, theta, _, conv), ci)| Refit {
+                knob: *kn,
+                value: conv(theta.sqrt()),
+                ci95: sqrt_ci(*ci, conv),
+            })
             .collect(),
     )
 }
@@ -330,12 +398,24 @@ fn knob_state(kn: Knob, basis: &Basis, model: &GyroModel) -> (Knob, Vec<f64>, f6
     match kn {
         Knob::Quantization => {
             let q = model.quantization_q_arcsec();
-            (kn, basis.white_angle(), q * q, model.gyro.pulse_weight_arcsec.powi(2) / 12.0, (|x| x) as UnitConv)
+            (
+                kn,
+                basis.white_angle(),
+                q * q,
+                model.gyro.pulse_weight_arcsec.powi(2) / 12.0,
+                (|x| x) as UnitConv,
+            )
         }
         Knob::Arw => {
             let arw = units::dpsh_to_arcsec_per_sqrt_s(nz.arw_dpsh.unwrap_or(0.0));
             let phi = basis.white_rate_through(model.readout_filter());
-            (kn, phi, arw * arw, 0.0, units::arcsec_per_sqrt_s_to_dpsh as UnitConv)
+            (
+                kn,
+                phi,
+                arw * arw,
+                0.0,
+                units::arcsec_per_sqrt_s_to_dpsh as UnitConv,
+            )
         }
         Knob::BiasInstability => (
             kn,
@@ -346,7 +426,13 @@ fn knob_state(kn: Knob, basis: &Basis, model: &GyroModel) -> (Knob, Vec<f64>, f6
         ),
         Knob::Rrw => {
             let k = units::dphsh_to_arcsec_per_s_sqrt_s(nz.rrw_dphsh.unwrap_or(0.0));
-            (kn, basis.rrw(), k * k, 0.0, units::arcsec_per_s_sqrt_s_to_dphsh as UnitConv)
+            (
+                kn,
+                basis.rrw(),
+                k * k,
+                0.0,
+                units::arcsec_per_s_sqrt_s_to_dphsh as UnitConv,
+            )
         }
     }
 }

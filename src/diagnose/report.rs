@@ -69,12 +69,20 @@ struct AddedTermJson {
 
 impl From<AddedTerm> for AddedTermJson {
     fn from(a: AddedTerm) -> Self {
-        let mut params: BTreeMap<String, serde_json::Value> =
-            a.params.into_iter().map(|(k, v)| (k, serde_json::Value::from(v))).collect();
+        let mut params: BTreeMap<String, serde_json::Value> = a
+            .params
+            .into_iter()
+            .map(|(k, v)| (k, serde_json::Value::from(v)))
+            .collect();
         if let Some(kind) = a.kind {
             params.insert("kind".into(), serde_json::Value::String(kind));
         }
-        AddedTermJson { term: a.term, params, explanation: a.explanation, ci95: a.ci95 }
+        AddedTermJson {
+            term: a.term,
+            params,
+            explanation: a.explanation,
+            ci95: a.ci95,
+        }
     }
 }
 
@@ -87,12 +95,20 @@ impl TryFrom<AddedTermJson> for AddedTerm {
             match (k.as_str(), v) {
                 ("kind", serde_json::Value::String(s)) => kind = Some(s),
                 (_, v) => {
-                    let x = v.as_f64().ok_or_else(|| format!("added term {}: params.{k} is not a number", j.term))?;
+                    let x = v.as_f64().ok_or_else(|| {
+                        format!("added term {}: params.{k} is not a number", j.term)
+                    })?;
                     params.insert(k, x);
                 }
             }
         }
-        Ok(AddedTerm { term: j.term, params, kind, explanation: j.explanation, ci95: j.ci95 })
+        Ok(AddedTerm {
+            term: j.term,
+            params,
+            kind,
+            explanation: j.explanation,
+            ci95: j.ci95,
+        })
     }
 }
 
@@ -122,15 +138,27 @@ pub(crate) fn document(
     chi2_after: f64,
 ) -> DiagnosisReport {
     DiagnosisReport {
-        verdict: if mismatch { Verdict::Mismatch } else { Verdict::Consistent },
+        verdict: if mismatch {
+            Verdict::Mismatch
+        } else {
+            Verdict::Consistent
+        },
         mismatch_regions: regions
             .iter()
-            .map(|g| MismatchRegion { tau_min_s: g.tau_min_s, tau_max_s: g.tau_max_s, max_z: g.max_z })
+            .map(|g| MismatchRegion {
+                tau_min_s: g.tau_min_s,
+                tau_max_s: g.tau_max_s,
+                max_z: g.max_z,
+            })
             .collect(),
         parameter_changes: merged_changes(findings),
         added_terms: findings.iter().filter_map(|f| f.added.clone()).collect(),
-        fit_before: FitQuality { chi2_per_dof: chi2_before },
-        fit_after: FitQuality { chi2_per_dof: chi2_after },
+        fit_before: FitQuality {
+            chi2_per_dof: chi2_before,
+        },
+        fit_after: FitQuality {
+            chi2_per_dof: chi2_after,
+        },
     }
 }
 
@@ -147,7 +175,12 @@ pub(crate) fn rate_note(fs: f64, model_fs: f64) -> Option<String> {
 }
 
 /// The note of a detection by model comparison.
-pub(crate) fn comparison_note(c: &ModelComparison, alpha: f64, max_abs_z: f64, z_crit: f64) -> String {
+pub(crate) fn comparison_note(
+    c: &ModelComparison,
+    alpha: f64,
+    max_abs_z: f64,
+    z_crit: f64,
+) -> String {
     format!(
         "Model comparison: the best catalog change ({}) improves the wavelet-variance likelihood by LR = {:.1}, \
          above the {:.0} % threshold {:.1} calibrated on the model's own runs (leave-one-out bootstrap, \
@@ -184,11 +217,17 @@ pub(crate) fn closing_notes(
         }
     }
     if findings.is_empty() && mismatch {
-        notes.push("The recording departs from the model but no catalog term explains it significantly.".into());
+        notes.push(
+            "The recording departs from the model but no catalog term explains it significantly."
+                .into(),
+        );
     }
     if !mismatch {
         let lr = comparison.map_or(String::new(), |c| {
-            format!("best catalog change {} at LR {:.1} (threshold {:.1}), ", c.best, c.max_lr, c.lr_crit)
+            format!(
+                "best catalog change {} at LR {:.1} (threshold {:.1}), ",
+                c.best, c.max_lr, c.lr_crit
+            )
         });
         notes.push(format!(
             "The recording is consistent with the model: max |z| = {max_abs_z:.2} (threshold {z_crit:.2}), {lr}no lines, \

@@ -61,7 +61,9 @@ pub(crate) fn test(r: &Reference, rec: &Recording, found: &[Finding]) -> Slopes 
     let n = r.layout.n_samples as u64;
     let tau0 = r.tau0_s();
     let runs = r.runs.len() as f64;
-    let z_slope = Normal::new(0.0, 1.0).expect("standard normal").inverse_cdf(1.0 - ALPHA_SLOPE / 2.0);
+    let z_slope = Normal::new(0.0, 1.0)
+        .expect("standard normal")
+        .inverse_cdf(1.0 - ALPHA_SLOPE / 2.0);
     let slope_sd_an = slope_sd_for(&r.model, n, tau0);
     let slopes: Vec<f64> = r.runs.iter().map(|s| s.slope).collect();
     let (slope_mean, slope_sd) = mean_sd(&slopes);
@@ -70,10 +72,15 @@ pub(crate) fn test(r: &Reference, rec: &Recording, found: &[Finding]) -> Slopes 
     // with the changes found so far, and at least the spread under the
     // spectrum the recording's own estimator fits
     let noise_model = with_findings(&r.model, found);
-    let slope_sd_rec = recording_slope_sd(rec, r.layout.fs_hz, r.layout.pulse_arcsec).unwrap_or(0.0);
+    let slope_sd_rec =
+        recording_slope_sd(rec, r.layout.fs_hz, r.layout.pulse_arcsec).unwrap_or(0.0);
     let spread_scale = {
         let sd_now = slope_sd_for(&noise_model, n, tau0).max(slope_sd_rec);
-        if slope_sd_an > 0.0 && sd_now > slope_sd_an { sd_now / slope_sd_an } else { 1.0 }
+        if slope_sd_an > 0.0 && sd_now > slope_sd_an {
+            sd_now / slope_sd_an
+        } else {
+            1.0
+        }
     };
     let ramp_z = (r.obs.slope - slope_mean) / slope_sd0 / spread_scale;
     let slope_sd = slope_sd0 * spread_scale;
@@ -102,7 +109,12 @@ pub(crate) fn test(r: &Reference, rec: &Recording, found: &[Finding]) -> Slopes 
     if ramp_resid_z.abs() > z_slope {
         findings.push(ramp_finding(&r.model, extra, slope_sd, ramp_resid_z));
     }
-    Slopes { findings, ramp_z, thermal_z: thermal.map(|t| t.z), z_slope }
+    Slopes {
+        findings,
+        ramp_z,
+        thermal_z: thermal.map(|t| t.z),
+        z_slope,
+    }
 }
 
 fn thermal_stat(r: &Reference, t: &[f64]) -> ThermalStat {
@@ -110,7 +122,12 @@ fn thermal_stat(r: &Reference, t: &[f64]) -> ThermalStat {
     let tau0 = r.tau0_s();
     let ts: Vec<f64> = r.runs.iter().filter_map(|s| s.temp_slope).collect();
     let (_, s) = mean_sd(&ts);
-    let s0 = units::dph_to_arcsec_per_s(r.model.thermal.as_ref().map_or(0.0, |t| t.bias_sensitivity_dph_per_c));
+    let s0 = units::dph_to_arcsec_per_s(
+        r.model
+            .thermal
+            .as_ref()
+            .map_or(0.0, |t| t.bias_sensitivity_dph_per_c),
+    );
     let sd = s * (1.0 + 1.0 / runs).sqrt();
     let obs_s = r.obs.temp_slope.unwrap_or(0.0);
     // slope of the temperature against time (collinearity with a ramp)
@@ -121,7 +138,14 @@ fn thermal_stat(r: &Reference, t: &[f64]) -> ThermalStat {
         let (_, sx) = mean_sd(&time);
         if st > 0.0 { t_vs_time * sx / st } else { 0.0 }
     };
-    ThermalStat { z: (obs_s - s0) / sd.max(1e-300), obs_s, sd, s0, t_vs_time, corr }
+    ThermalStat {
+        z: (obs_s - s0) / sd.max(1e-300),
+        obs_s,
+        sd,
+        s0,
+        t_vs_time,
+        corr,
+    }
 }
 
 fn thermal_finding(model: &GyroModel, ts: &ThermalStat, t: &[f64], tau0: f64) -> Finding {
@@ -130,7 +154,11 @@ fn thermal_finding(model: &GyroModel, ts: &ThermalStat, t: &[f64], tau0: f64) ->
     let th = fit_temperature_profile(t, tau0, s_dph);
     let sine = match th.sine_period_s {
         Some(p) if th.sine_amplitude_c > 0.0 => {
-            format!(" + {} C sin(2 pi t / {} s)", fmt_g(th.sine_amplitude_c), fmt_g(p))
+            format!(
+                " + {} C sin(2 pi t / {} s)",
+                fmt_g(th.sine_amplitude_c),
+                fmt_g(p)
+            )
         }
         _ => String::new(),
     };
@@ -155,7 +183,11 @@ fn thermal_finding(model: &GyroModel, ts: &ThermalStat, t: &[f64], tau0: f64) ->
     Finding::scalar(
         Edit::Thermal(th),
         model.thermal.is_some(),
-        ("thermal.bias_sensitivity_dph_per_c", "thermal", "bias_sensitivity_dph_per_c"),
+        (
+            "thermal.bias_sensitivity_dph_per_c",
+            "thermal",
+            "bias_sensitivity_dph_per_c",
+        ),
         units::arcsec_per_s_to_dph(ts.s0),
         s_dph,
         ci,

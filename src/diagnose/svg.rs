@@ -51,21 +51,47 @@ pub fn render(diag: &Diagnosis, title: &str) -> Result<String, SvgError> {
     let head_h = 40 + LINE_H * lines.len() as u32 + 10;
     let mut out = String::new();
     {
-        let root = SVGBackend::with_string(&mut out, (WIDTH, head_h + PANELS_H)).into_drawing_area();
+        let root =
+            SVGBackend::with_string(&mut out, (WIDTH, head_h + PANELS_H)).into_drawing_area();
         root.fill(&WHITE).map_err(err)?;
         let (head, body) = root.split_vertically(head_h);
-        head.draw(&Text::new(title.to_string(), (20, 12), ("sans-serif", 22).into_font())).map_err(err)?;
+        head.draw(&Text::new(
+            title.to_string(),
+            (20, 12),
+            ("sans-serif", 22).into_font(),
+        ))
+        .map_err(err)?;
         for (i, (text, bold)) in lines.iter().enumerate() {
             let size = if *bold { 16 } else { 14 };
             let y = 40 + LINE_H as i32 * i as i32;
-            head.draw(&Text::new(text.clone(), (20, y), ("sans-serif", size).into_font())).map_err(err)?;
+            head.draw(&Text::new(
+                text.clone(),
+                (20, y),
+                ("sans-serif", size).into_font(),
+            ))
+            .map_err(err)?;
         }
         let panels = body.split_evenly((2, 2));
         let specs = [
-            (Family::Wavelet, "sym8 wavelet deviation per level", "scale tau, s", "deg/h"),
+            (
+                Family::Wavelet,
+                "sym8 wavelet deviation per level",
+                "scale tau, s",
+                "deg/h",
+            ),
             (Family::Mdev, "modified Allan deviation", "tau, s", "deg/h"),
-            (Family::Spectrum, "rate PSD, quarter-octave bands", "frequency, Hz", "(deg/h)^2/Hz"),
-            (Family::RawAllan, "raw Allan deviation (reported only)", "tau, s", "deg/h"),
+            (
+                Family::Spectrum,
+                "rate PSD, quarter-octave bands",
+                "frequency, Hz",
+                "(deg/h)^2/Hz",
+            ),
+            (
+                Family::RawAllan,
+                "raw Allan deviation (reported only)",
+                "tau, s",
+                "deg/h",
+            ),
         ];
         for (area, (fam, name, xl, yl)) in panels.iter().zip(specs) {
             panel(area, diag, fam, name, (xl, yl))?;
@@ -81,7 +107,10 @@ fn header_lines(diag: &Diagnosis) -> Vec<(String, bool)> {
     let r = &diag.report;
     let mut v = vec![(verdict_sentence(diag), true)];
     let fit = if r.parameter_changes.is_empty() && r.added_terms.is_empty() {
-        format!("Fit to the model's Monte-Carlo runs: chi2/dof {:.2}.", r.fit_before.chi2_per_dof)
+        format!(
+            "Fit to the model's Monte-Carlo runs: chi2/dof {:.2}.",
+            r.fit_before.chi2_per_dof
+        )
     } else {
         format!(
             "Fit to the Monte-Carlo runs: chi2/dof {:.2} with the model, {:.2} with the updated model.",
@@ -119,7 +148,12 @@ fn verdict_sentence(diag: &Diagnosis) -> String {
                 .iter()
                 .map(|g| {
                     if g.tau_max_s > g.tau_min_s * 1.0001 {
-                        format!("{}-{} s (z {:.1})", fmt_g(g.tau_min_s), fmt_g(g.tau_max_s), g.max_z)
+                        format!(
+                            "{}-{} s (z {:.1})",
+                            fmt_g(g.tau_min_s),
+                            fmt_g(g.tau_max_s),
+                            g.max_z
+                        )
                     } else {
                         format!("{} s (z {:.1})", fmt_g(g.tau_min_s), g.max_z)
                     }
@@ -150,7 +184,13 @@ fn finding_lines(r: &DiagnosisReport) -> Vec<String> {
         v.push(format!("Added: {}: {}", a.term, params.join(", ")));
     }
     for c in &r.parameter_changes {
-        v.push(format!("Changed: {}: {} -> {} {}", c.term, fmt_g(c.model), fmt_g(c.fitted), ci(c.ci95)));
+        v.push(format!(
+            "Changed: {}: {} -> {} {}",
+            c.term,
+            fmt_g(c.model),
+            fmt_g(c.fitted),
+            ci(c.ci95)
+        ));
     }
     v
 }
@@ -164,8 +204,15 @@ fn markers(r: &DiagnosisReport) -> Vec<(f64, String)> {
         let p = |k: &str| a.params.get(k).copied().filter(|x| *x > 0.0);
         let m = match a.term.as_str() {
             "sinusoid" => p("period_s").map(|t| (1.0 / t, format!("sinusoid {} s", fmt_g(t)))),
-            "gauss_markov" => p("tau_c_s").map(|t| (1.0 / (2.0 * std::f64::consts::PI * t), "GM corner".to_string())),
-            "random_telegraph" => p("mean_dwell_s").map(|t| (1.0 / (std::f64::consts::PI * t), "RTN corner".into())),
+            "gauss_markov" => p("tau_c_s").map(|t| {
+                (
+                    1.0 / (2.0 * std::f64::consts::PI * t),
+                    "GM corner".to_string(),
+                )
+            }),
+            "random_telegraph" => {
+                p("mean_dwell_s").map(|t| (1.0 / (std::f64::consts::PI * t), "RTN corner".into()))
+            }
             "readout_filter" => p("corner_hz").map(|f| (f, "filter -3 dB".into())),
             _ => None,
         };
@@ -202,9 +249,17 @@ fn panel(
     }
     let (top, chart_area) = area.split_vertically(50);
     let (w, _) = top.dim_in_pixel();
-    top.draw(&Text::new(name.to_string(), (w as i32 / 2 - 6 * name.len() as i32 / 2, 8), ("sans-serif", 16).into_font()))
-        .map_err(err)?;
-    legend(&top, !after.is_empty(), !diag.report.mismatch_regions.is_empty())?;
+    top.draw(&Text::new(
+        name.to_string(),
+        (w as i32 / 2 - 6 * name.len() as i32 / 2, 8),
+        ("sans-serif", 16).into_font(),
+    ))
+    .map_err(err)?;
+    legend(
+        &top,
+        !after.is_empty(),
+        !diag.report.mismatch_regions.is_empty(),
+    )?;
     let mut xs = Vec::new();
     let mut ys = Vec::new();
     for p in before.iter().chain(after.iter()) {
@@ -244,21 +299,38 @@ fn panel(
         let (a, b) = (a.max(x0), b.min(x1));
         if b > a {
             chart
-                .draw_series(std::iter::once(Rectangle::new([(a, y0), (b, y1)], SHADE.mix(0.15).filled())))
+                .draw_series(std::iter::once(Rectangle::new(
+                    [(a, y0), (b, y1)],
+                    SHADE.mix(0.15).filled(),
+                )))
                 .map_err(err)?;
             let label = format!("z {:.1}", g.max_z);
             chart
-                .draw_series(std::iter::once(Text::new(label, (a, y1 / 1.15), ("sans-serif", 12).into_font().color(&SHADE))))
+                .draw_series(std::iter::once(Text::new(
+                    label,
+                    (a, y1 / 1.15),
+                    ("sans-serif", 12).into_font().color(&SHADE),
+                )))
                 .map_err(err)?;
         }
     }
     if fam == Family::Spectrum {
-        for (f, label) in markers(&diag.report).into_iter().filter(|(f, _)| *f > x0 && *f < x1) {
+        for (f, label) in markers(&diag.report)
+            .into_iter()
+            .filter(|(f, _)| *f > x0 && *f < x1)
+        {
             chart
-                .draw_series(std::iter::once(PathElement::new(vec![(f, y0), (f, y1)], MARK.stroke_width(1))))
+                .draw_series(std::iter::once(PathElement::new(
+                    vec![(f, y0), (f, y1)],
+                    MARK.stroke_width(1),
+                )))
                 .map_err(err)?;
             chart
-                .draw_series(std::iter::once(Text::new(label, (f * 1.05, y0 * 1.6), ("sans-serif", 12).into_font().color(&MARK))))
+                .draw_series(std::iter::once(Text::new(
+                    label,
+                    (f * 1.05, y0 * 1.6),
+                    ("sans-serif", 12).into_font().color(&MARK),
+                )))
                 .map_err(err)?;
         }
     }
@@ -268,38 +340,76 @@ fn panel(
         }
         let mut poly: Vec<(f64, f64)> = pts.iter().map(|p| xy(p, p.band95().1)).collect();
         poly.extend(pts.iter().rev().map(|p| xy(p, p.band95().0)));
-        chart.draw_series(std::iter::once(Polygon::new(poly, color.mix(0.25).filled()))).map_err(err)?;
         chart
-            .draw_series(LineSeries::new(pts.iter().map(|p| xy(p, p.model_mean)), color.stroke_width(2)))
+            .draw_series(std::iter::once(Polygon::new(
+                poly,
+                color.mix(0.25).filled(),
+            )))
+            .map_err(err)?;
+        chart
+            .draw_series(LineSeries::new(
+                pts.iter().map(|p| xy(p, p.model_mean)),
+                color.stroke_width(2),
+            ))
             .map_err(err)?;
     }
-    chart.draw_series(LineSeries::new(before.iter().map(|p| xy(p, p.obs)), BLACK.stroke_width(1))).map_err(err)?;
-    chart.draw_series(before.iter().map(|p| Circle::new(xy(p, p.obs), 3, BLACK.filled()))).map_err(err)?;
+    chart
+        .draw_series(LineSeries::new(
+            before.iter().map(|p| xy(p, p.obs)),
+            BLACK.stroke_width(1),
+        ))
+        .map_err(err)?;
+    chart
+        .draw_series(
+            before
+                .iter()
+                .map(|p| Circle::new(xy(p, p.obs), 3, BLACK.filled())),
+        )
+        .map_err(err)?;
     Ok(())
 }
 
 /// The legend strip above a panel's plotting area: recording, model band,
 /// updated model band (when there is one), mismatch shading (when there is any).
-fn legend(area: &DrawingArea<SVGBackend, Shift>, updated: bool, shaded: bool) -> Result<(), SvgError> {
+fn legend(
+    area: &DrawingArea<SVGBackend, Shift>,
+    updated: bool,
+    shaded: bool,
+) -> Result<(), SvgError> {
     let font = ("sans-serif", 12).into_font();
     let y = 36;
     let mut x = 80;
-    let mut entry = |sym: &dyn Fn(i32) -> Result<(), SvgError>, text: &str| -> Result<(), SvgError> {
-        sym(x)?;
-        area.draw(&Text::new(text.to_string(), (x + 24, y - 6), font.clone())).map_err(err)?;
-        x += 24 + 6 * text.len() as i32 + 20;
-        Ok(())
-    };
+    let mut entry =
+        |sym: &dyn Fn(i32) -> Result<(), SvgError>, text: &str| -> Result<(), SvgError> {
+            sym(x)?;
+            area.draw(&Text::new(text.to_string(), (x + 24, y - 6), font.clone()))
+                .map_err(err)?;
+            x += 24 + 6 * text.len() as i32 + 20;
+            Ok(())
+        };
     let line_band = |c: RGBColor| {
         move |x: i32| -> Result<(), SvgError> {
-            area.draw(&Rectangle::new([(x, y - 6), (x + 18, y + 6)], c.mix(0.25).filled())).map_err(err)?;
-            area.draw(&PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2))).map_err(err)
+            area.draw(&Rectangle::new(
+                [(x, y - 6), (x + 18, y + 6)],
+                c.mix(0.25).filled(),
+            ))
+            .map_err(err)?;
+            area.draw(&PathElement::new(
+                vec![(x, y), (x + 18, y)],
+                c.stroke_width(2),
+            ))
+            .map_err(err)
         }
     };
     entry(
         &|x| {
-            area.draw(&PathElement::new(vec![(x, y), (x + 18, y)], BLACK.stroke_width(1))).map_err(err)?;
-            area.draw(&Circle::new((x + 9, y), 4, BLACK.filled())).map_err(err)
+            area.draw(&PathElement::new(
+                vec![(x, y), (x + 18, y)],
+                BLACK.stroke_width(1),
+            ))
+            .map_err(err)?;
+            area.draw(&Circle::new((x + 9, y), 4, BLACK.filled()))
+                .map_err(err)
         },
         "recording",
     )?;
@@ -308,14 +418,31 @@ fn legend(area: &DrawingArea<SVGBackend, Shift>, updated: bool, shaded: bool) ->
         entry(&line_band(NEW), "updated model")?;
     }
     if shaded {
-        entry(&|x| area.draw(&Rectangle::new([(x, y - 6), (x + 18, y + 6)], SHADE.mix(0.15).filled())).map_err(err), "mismatch")?;
+        entry(
+            &|x| {
+                area.draw(&Rectangle::new(
+                    [(x, y - 6), (x + 18, y + 6)],
+                    SHADE.mix(0.15).filled(),
+                ))
+                .map_err(err)
+            },
+            "mismatch",
+        )?;
     }
     Ok(())
 }
 
 fn range(v: &[f64]) -> (f64, f64) {
-    let lo = v.iter().cloned().filter(|x| *x > 0.0 && x.is_finite()).fold(f64::INFINITY, f64::min);
-    let hi = v.iter().cloned().filter(|x| *x > 0.0 && x.is_finite()).fold(0.0, f64::max);
+    let lo = v
+        .iter()
+        .cloned()
+        .filter(|x| *x > 0.0 && x.is_finite())
+        .fold(f64::INFINITY, f64::min);
+    let hi = v
+        .iter()
+        .cloned()
+        .filter(|x| *x > 0.0 && x.is_finite())
+        .fold(0.0, f64::max);
     if !(lo.is_finite() && hi > 0.0) {
         return (1e-3, 1.0);
     }

@@ -27,11 +27,22 @@ use crate::model::{GyroModel, Term};
 
 /// Findings from the kurtosis points of the model's Gauss-Markov and telegraph
 /// terms that pass the detection threshold.
-pub(crate) fn model_terms(r: &Reference, loc: &Located, basis: &Basis, data0: Option<&LevelData>) -> Vec<Finding> {
+pub(crate) fn model_terms(
+    r: &Reference,
+    loc: &Located,
+    basis: &Basis,
+    data0: Option<&LevelData>,
+) -> Vec<Finding> {
     let mut out = Vec::new();
-    for p in loc.before.iter().filter(|p| p.family == Family::Kurtosis && p.z.abs() > loc.z_crit) {
+    for p in loc
+        .before
+        .iter()
+        .filter(|p| p.family == Family::Kurtosis && p.z.abs() > loc.z_crit)
+    {
         match r.kterms[p.index] {
-            KTerm::GaussMarkov(i) if p.z < 0.0 => out.push(gauss_markov_to_telegraph(r, i, p, basis, data0)),
+            KTerm::GaussMarkov(i) if p.z < 0.0 => {
+                out.push(gauss_markov_to_telegraph(r, i, p, basis, data0))
+            }
             KTerm::Telegraph(i) if p.z > 0.0 => out.push(telegraph_to_gauss_markov(&r.model, i, p)),
             _ => {}
         }
@@ -42,12 +53,20 @@ pub(crate) fn model_terms(r: &Reference, loc: &Located, basis: &Basis, data0: Op
 /// The model's gauss_markov[i] is two-level: a telegraph fitted on the
 /// wavelet variances (as the Gauss-Markov term with the same second-order
 /// statistics, in place of the model's) replaces it.
-fn gauss_markov_to_telegraph(r: &Reference, i: usize, p: &Point, basis: &Basis, data0: Option<&LevelData>) -> Finding {
+fn gauss_markov_to_telegraph(
+    r: &Reference,
+    i: usize,
+    p: &Point,
+    basis: &Basis,
+    data0: Option<&LevelData>,
+) -> Finding {
     let g = &r.model.noise.gauss_markov[i];
     let s2 = g.sigma_dph * g.sigma_dph;
     let phi0 = basis.gauss_markov(g.tau_c_s);
     let tc_grid = wvar_fit::log_grid(4.0 * r.tau0_s(), r.duration_s() / 3.0, 4);
-    let fit = data0.and_then(|d| wvar_fit::fit_shape(d, &tc_grid, &|t| basis.gauss_markov(t), Some((s2, &phi0))));
+    let fit = data0.and_then(|d| {
+        wvar_fit::fit_shape(d, &tc_grid, &|t| basis.gauss_markov(t), Some((s2, &phi0)))
+    });
     let (amp, dwell, ci) = match &fit {
         Some(f) if f.theta > 0.0 => {
             let tc = f.shape.unwrap_or(g.tau_c_s);
@@ -59,7 +78,10 @@ fn gauss_markov_to_telegraph(r: &Reference, i: usize, p: &Point, basis: &Basis, 
         }
         _ => (g.sigma_dph, 2.0 * g.tau_c_s, BTreeMap::new()),
     };
-    let t = Term::RandomTelegraph { amplitude_dph: amp, mean_dwell_s: dwell };
+    let t = Term::RandomTelegraph {
+        amplitude_dph: amp,
+        mean_dwell_s: dwell,
+    };
     let fitted = if ci.is_empty() {
         "The wavelet variances could not be refitted: amplitude and dwell are the Gauss-Markov \
          term's (amplitude = sigma, mean dwell = 2 Tc)."
@@ -93,7 +115,10 @@ fn gauss_markov_to_telegraph(r: &Reference, i: usize, p: &Point, basis: &Basis, 
         p.sd_log,
         p.z
     );
-    let params = BTreeMap::from([("amplitude_dph".to_string(), amp), ("mean_dwell_s".to_string(), dwell)]);
+    let params = BTreeMap::from([
+        ("amplitude_dph".to_string(), amp),
+        ("mean_dwell_s".to_string(), dwell),
+    ]);
     let n_par = if ci.is_empty() { 0 } else { 2 };
     Finding {
         edit: Edit::GaussMarkovToTelegraph(i, amp, dwell),
@@ -103,7 +128,13 @@ fn gauss_markov_to_telegraph(r: &Reference, i: usize, p: &Point, basis: &Basis, 
             fitted: 0.0,
             ci95: [0.0, 0.0],
         }],
-        added: Some(AddedTerm { term: "random_telegraph".into(), params, kind: None, explanation: expl.clone(), ci95: ci }),
+        added: Some(AddedTerm {
+            term: "random_telegraph".into(),
+            params,
+            kind: None,
+            explanation: expl.clone(),
+            ci95: ci,
+        }),
         n_par,
         note: expl,
     }
@@ -112,7 +143,10 @@ fn gauss_markov_to_telegraph(r: &Reference, i: usize, p: &Point, basis: &Basis, 
 /// The model's random_telegraph[i] is not two-level: its Gauss-Markov twin replaces it.
 fn telegraph_to_gauss_markov(model: &GyroModel, i: usize, p: &Point) -> Finding {
     let r = &model.noise.random_telegraph[i];
-    let t = Term::GaussMarkov { sigma_dph: r.amplitude_dph, tau_c_s: 0.5 * r.mean_dwell_s };
+    let t = Term::GaussMarkov {
+        sigma_dph: r.amplitude_dph,
+        tau_c_s: 0.5 * r.mean_dwell_s,
+    };
     let expl = format!(
         "{} The model's random_telegraph[{i}] (amplitude {} deg/h, dwell {} s) has the right spectrum, \
          but the low-passed rate is not two-level: excess kurtosis {:.2} against {:.2} +- {:.2} for \
@@ -126,8 +160,10 @@ fn telegraph_to_gauss_markov(model: &GyroModel, i: usize, p: &Point) -> Finding 
         p.sd_log,
         p.z
     );
-    let params =
-        BTreeMap::from([("sigma_dph".to_string(), r.amplitude_dph), ("tau_c_s".to_string(), 0.5 * r.mean_dwell_s)]);
+    let params = BTreeMap::from([
+        ("sigma_dph".to_string(), r.amplitude_dph),
+        ("tau_c_s".to_string(), 0.5 * r.mean_dwell_s),
+    ]);
     Finding {
         edit: Edit::TelegraphToGaussMarkov(i),
         changes: vec![ParameterChange {
@@ -151,14 +187,28 @@ fn telegraph_to_gauss_markov(model: &GyroModel, i: usize, p: &Point) -> Finding 
 /// The model with the new Gauss-Markov term `findings[fi]` simulated as a
 /// telegraph with the same spectrum instead (`None` when that finding is not
 /// a new Gauss-Markov term).
-pub(crate) fn telegraph_alternative(base: &GyroModel, findings: &[Finding], fi: usize) -> Option<(GyroModel, f64)> {
-    let Edit::GaussMarkov { index: None, sigma_dph, tau_c_s } = findings[fi].edit else {
+pub(crate) fn telegraph_alternative(
+    base: &GyroModel,
+    findings: &[Finding],
+    fi: usize,
+) -> Option<(GyroModel, f64)> {
+    let Edit::GaussMarkov {
+        index: None,
+        sigma_dph,
+        tau_c_s,
+    } = findings[fi].edit
+    else {
         return None;
     };
     let mut alt = base.clone();
     for (k, f) in findings.iter().enumerate() {
         if k == fi {
-            Edit::Telegraph { index: None, amplitude_dph: sigma_dph, mean_dwell_s: 2.0 * tau_c_s }.apply(&mut alt);
+            Edit::Telegraph {
+                index: None,
+                amplitude_dph: sigma_dph,
+                mean_dwell_s: 2.0 * tau_c_s,
+            }
+            .apply(&mut alt);
         } else {
             f.edit.apply(&mut alt);
         }
@@ -191,22 +241,39 @@ pub(crate) fn test_new_gauss_markov(
 ) -> Result<TelegraphOutcome, DiagnoseError> {
     let temp = rec.temp_c.as_deref();
     // the alternative's kurtosis first (cheap); its full statistics only if chosen
-    let job_alt = mc::McJob { full: false, ..r.job(alt, temp, cutoffs) };
+    let job_alt = mc::McJob {
+        full: false,
+        ..r.job(alt, temp, cutoffs)
+    };
     let runs_alt = mc::run(&job_alt, seeds)?;
     let kc = cutoffs.len() - 1;
     let fc = cutoffs[kc];
     let (fs, d) = (r.layout.fs_hz, r.layout.pulse_arcsec);
-    let obs_k = stats::lowpass_kurtosis(&stats::counts_to_rate(&rec.counts, d, fs), r.tau0_s(), fc, &r.layout.lo);
+    let obs_k = stats::lowpass_kurtosis(
+        &stats::counts_to_rate(&rec.counts, d, fs),
+        r.tau0_s(),
+        fc,
+        &r.layout.lo,
+    );
     let gk: Vec<f64> = runs_after.iter().map(|s| s.kurtosis[kc]).collect();
     let rk: Vec<f64> = runs_alt.iter().map(|s| s.kurtosis[kc]).collect();
     let (choose, g, rt) = telegraph_decision(obs_k, &gk, &rk);
-    let test = TelegraphTest { cutoff_hz: fc, observed: obs_k, gauss_markov: g, telegraph: rt, telegraph_chosen: choose };
+    let test = TelegraphTest {
+        cutoff_hz: fc,
+        observed: obs_k,
+        gauss_markov: g,
+        telegraph: rt,
+        telegraph_chosen: choose,
+    };
     if choose {
         if let Some(f) = as_telegraph(&findings[fi], &test) {
             findings[fi] = f;
             let rebuilt = with_findings(&r.model, findings);
             let runs = mc::run(&r.job(&rebuilt, temp, cutoffs), seeds)?;
-            return Ok(TelegraphOutcome { test, replaced: Some((rebuilt, runs)) });
+            return Ok(TelegraphOutcome {
+                test,
+                replaced: Some((rebuilt, runs)),
+            });
         }
     } else if let Some(a) = findings[fi].added.as_mut() {
         a.explanation.push_str(&format!(
@@ -225,18 +292,31 @@ pub(crate) fn test_new_gauss_markov(
             }
         ));
     }
-    Ok(TelegraphOutcome { test, replaced: None })
+    Ok(TelegraphOutcome {
+        test,
+        replaced: None,
+    })
 }
 
 /// The new Gauss-Markov finding `old` restated as a random telegraph.
 fn as_telegraph(old: &Finding, t: &TelegraphTest) -> Option<Finding> {
-    let Edit::GaussMarkov { sigma_dph, tau_c_s, .. } = old.edit else {
+    let Edit::GaussMarkov {
+        sigma_dph, tau_c_s, ..
+    } = old.edit
+    else {
         return None;
     };
     let a = old.added.as_ref().expect("a new term");
-    let sci = a.ci95.get("sigma_dph").copied().unwrap_or([sigma_dph, sigma_dph]);
+    let sci = a
+        .ci95
+        .get("sigma_dph")
+        .copied()
+        .unwrap_or([sigma_dph, sigma_dph]);
     let tci = a.ci95.get("tau_c_s").copied().unwrap_or([tau_c_s, tau_c_s]);
-    let term = Term::RandomTelegraph { amplitude_dph: sigma_dph, mean_dwell_s: 2.0 * tau_c_s };
+    let term = Term::RandomTelegraph {
+        amplitude_dph: sigma_dph,
+        mean_dwell_s: 2.0 * tau_c_s,
+    };
     let (g, rt) = (t.gauss_markov, t.telegraph);
     let expl = format!(
         "{} The second-order statistics located it like a Gauss-Markov bias (sigma {} deg/h, \
@@ -253,16 +333,28 @@ fn as_telegraph(old: &Finding, t: &TelegraphTest) -> Option<Finding> {
         rt.0,
         rt.1
     );
-    let params =
-        BTreeMap::from([("amplitude_dph".to_string(), sigma_dph), ("mean_dwell_s".to_string(), 2.0 * tau_c_s)]);
+    let params = BTreeMap::from([
+        ("amplitude_dph".to_string(), sigma_dph),
+        ("mean_dwell_s".to_string(), 2.0 * tau_c_s),
+    ]);
     let ci = BTreeMap::from([
         ("amplitude_dph".to_string(), sci),
         ("mean_dwell_s".to_string(), [2.0 * tci[0], 2.0 * tci[1]]),
     ]);
     Some(Finding {
-        edit: Edit::Telegraph { index: None, amplitude_dph: sigma_dph, mean_dwell_s: 2.0 * tau_c_s },
+        edit: Edit::Telegraph {
+            index: None,
+            amplitude_dph: sigma_dph,
+            mean_dwell_s: 2.0 * tau_c_s,
+        },
         changes: vec![],
-        added: Some(AddedTerm { term: "random_telegraph".into(), params, kind: None, explanation: expl.clone(), ci95: ci }),
+        added: Some(AddedTerm {
+            term: "random_telegraph".into(),
+            params,
+            kind: None,
+            explanation: expl.clone(),
+            ci95: ci,
+        }),
         n_par: 2,
         note: expl,
     })
@@ -272,7 +364,11 @@ fn as_telegraph(old: &Finding, t: &TelegraphTest) -> Option<Finding> {
 pub(crate) fn mean_sd(v: &[f64]) -> (f64, f64) {
     let n = v.len() as f64;
     let m = v.iter().sum::<f64>() / n;
-    let s = if v.len() > 1 { (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt() } else { 0.0 };
+    let s = if v.len() > 1 {
+        (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
+    } else {
+        0.0
+    };
     (m, s)
 }
 

@@ -159,7 +159,12 @@ impl Basis {
         let levels = self
             .nodes
             .iter()
-            .map(|nodes| nodes.iter().map(|&(nu, w, h2)| w * h2 * t.psd_cs(nu, self.tau0_s)).sum())
+            .map(|nodes| {
+                nodes
+                    .iter()
+                    .map(|&(nu, w, h2)| w * h2 * t.psd_cs(nu, self.tau0_s))
+                    .sum()
+            })
             .collect();
         self.with_rows(levels, t)
     }
@@ -173,7 +178,10 @@ impl Basis {
             &self.levels,
             &[SpectralTerm::Flicker { f_lo_hz }],
         );
-        self.with_rows(lb.phi.iter().map(|r| r[0]).collect(), SpectralTerm::Flicker { f_lo_hz })
+        self.with_rows(
+            lb.phi.iter().map(|r| r[0]).collect(),
+            SpectralTerm::Flicker { f_lo_hz },
+        )
     }
 
     /// Gauss-Markov with correlation time `tc_s`, per unit sigma^2.

@@ -186,12 +186,13 @@ impl StreamingAnalysis {
             let mut input: &[f64] = if j == 0 { x } else { &prev[j - 1] };
             let st = &mut self.st[j];
             if let Some(first) = st.pending
-                && let Some((&x1, tail)) = input.split_first() {
-                    st.e.push(first);
-                    st.o.push(x1);
-                    st.pending = None;
-                    input = tail;
-                }
+                && let Some((&x1, tail)) = input.split_first()
+            {
+                st.e.push(first);
+                st.o.push(x1);
+                st.pending = None;
+                input = tail;
+            }
             let np = input.len() / 2;
             if input.len() % 2 == 1 {
                 st.pending = Some(input[input.len() - 1]);

@@ -51,7 +51,10 @@ pub struct MaskCascade {
 impl MaskCascade {
     /// A cascade of `levels` levels of a filter of length `filter_len`.
     pub fn new(filter_len: usize, levels: usize) -> Self {
-        MaskCascade { len: filter_len as u64, levels: vec![VecDeque::new(); levels] }
+        MaskCascade {
+            len: filter_len as u64,
+            levels: vec![VecDeque::new(); levels],
+        }
     }
 
     /// Input samples `span` (absolute indices) are filled. Spans must come in
@@ -179,17 +182,30 @@ mod tests {
         // each span's support mask level by level; a span of g samples counts
         // at level j+1 only while 2^(j+1) <= GAP_SCALE g
         let spans = spans_of(&filled);
-        let mut prev: Vec<Vec<bool>> = spans.iter().map(|s| (0..n).map(|i| s.contains(&i)).collect()).collect();
+        let mut prev: Vec<Vec<bool>> = spans
+            .iter()
+            .map(|s| (0..n).map(|i| s.contains(&i)).collect())
+            .collect();
         for j in 0..5 {
             let m = n >> (j + 1);
             let step = |p: &Vec<bool>| -> Vec<bool> {
-                (0..m).map(|i| (0..l).any(|k| (2 * i + 1).checked_sub(k).is_some_and(|q| q < p.len() && p[q]))).collect()
+                (0..m)
+                    .map(|i| {
+                        (0..l).any(|k| {
+                            (2 * i + 1)
+                                .checked_sub(k)
+                                .is_some_and(|q| q < p.len() && p[q])
+                        })
+                    })
+                    .collect()
             };
             let next: Vec<Vec<bool>> = prev.iter().map(step).collect();
             let cur: Vec<bool> = (0..m)
                 .map(|i| {
                     spans.iter().zip(&next).any(|(s, v)| {
-                        (s.len() as u64 > SHORT_GAP || (1u64 << (j + 1)) <= GAP_SCALE * s.len() as u64) && v[i]
+                        (s.len() as u64 > SHORT_GAP
+                            || (1u64 << (j + 1)) <= GAP_SCALE * s.len() as u64)
+                            && v[i]
                     })
                 })
                 .collect();
@@ -202,7 +218,9 @@ mod tests {
             }
             c.bad_spans(j, h as u64, m as u64, &mut bad);
             for r in bad {
-                got[h + r.start..h + r.end].iter_mut().for_each(|x| *x = true);
+                got[h + r.start..h + r.end]
+                    .iter_mut()
+                    .for_each(|x| *x = true);
             }
             assert_eq!(got, cur, "level {}", j + 1);
             prev = next;

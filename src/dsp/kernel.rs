@@ -35,7 +35,10 @@ pub(crate) struct Taps {
 impl Taps {
     pub fn new(dec_lo: &[f64], dec_hi: &[f64], rec_lo: &[f64], rec_hi: &[f64]) -> Taps {
         let l = dec_lo.len();
-        assert!(l.is_multiple_of(2) && l <= 16, "filter length {l} not supported");
+        assert!(
+            l.is_multiple_of(2) && l <= 16,
+            "filter length {l} not supported"
+        );
         let p = l / 2;
         let h = p - 1;
         let mut t = Taps {

@@ -58,7 +58,9 @@ pub fn graphical(points: &[AdevPoint]) -> BaselineEstimates {
     BaselineEstimates {
         quantization_arcsec: read(-1.0, 3f64.sqrt()),
         arw_dpsh: read(-0.5, 1.0).map(units::arcsec_per_sqrt_s_to_dpsh),
-        bias_instability_dph: read(0.0, 1.0).map(|v| units::arcsec_per_s_to_dph(v / (2.0 * 2f64.ln() / std::f64::consts::PI).sqrt())),
+        bias_instability_dph: read(0.0, 1.0).map(|v| {
+            units::arcsec_per_s_to_dph(v / (2.0 * 2f64.ln() / std::f64::consts::PI).sqrt())
+        }),
         rrw_dphsh: read(0.5, 3.0).map(units::arcsec_per_s_sqrt_s_to_dphsh),
     }
 }
@@ -66,10 +68,23 @@ pub fn graphical(points: &[AdevPoint]) -> BaselineEstimates {
 /// Weighted least squares of the IEEE 952 sum on the raw Allan variance.
 pub fn wls_raw(points: &[AdevPoint]) -> BaselineEstimates {
     let plateau = 2.0 * 2f64.ln() / std::f64::consts::PI;
-    let phi: Vec<Vec<f64>> =
-        points.iter().map(|p| vec![3.0 / (p.tau_s * p.tau_s), 1.0 / p.tau_s, plateau, p.tau_s / 3.0]).collect();
+    let phi: Vec<Vec<f64>> = points
+        .iter()
+        .map(|p| {
+            vec![
+                3.0 / (p.tau_s * p.tau_s),
+                1.0 / p.tau_s,
+                plateau,
+                p.tau_s / 3.0,
+            ]
+        })
+        .collect();
     let y: Vec<f64> = points.iter().map(|p| p.adev * p.adev).collect();
-    let w: Vec<f64> = points.iter().zip(&y).map(|(p, v)| p.edf / (2.0 * v * v)).collect();
+    let w: Vec<f64> = points
+        .iter()
+        .zip(&y)
+        .map(|(p, v)| p.edf / (2.0 * v * v))
+        .collect();
     // no points (a record too short for any Allan point): no coefficients
     let th = weighted_nnls(&phi, &y, &w);
     let some = |i: usize| th.get(i).copied().filter(|&v| v > 0.0).map(f64::sqrt);
@@ -100,8 +115,13 @@ mod tests {
         (0..25)
             .map(|i| {
                 let tau = 1e-3 * 2f64.powi(i);
-                let avar = 3.0 * q * q / (tau * tau) + n * n / tau + plateau * b * b + k * k * tau / 3.0;
-                AdevPoint { tau_s: tau, adev: avar.sqrt(), edf: 100.0 }
+                let avar =
+                    3.0 * q * q / (tau * tau) + n * n / tau + plateau * b * b + k * k * tau / 3.0;
+                AdevPoint {
+                    tau_s: tau,
+                    adev: avar.sqrt(),
+                    edf: 100.0,
+                }
             })
             .collect()
     }

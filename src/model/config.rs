@@ -271,7 +271,9 @@ impl GyroModel {
 
     /// The readout filter, when the model has one (validated by [`GyroModel::validate`]).
     pub fn readout_filter(&self) -> Option<ReadoutFilter> {
-        self.readout_filter.as_ref().and_then(|f| f.filter(self.tau0_s()).ok())
+        self.readout_filter
+            .as_ref()
+            .and_then(|f| f.filter(self.tau0_s()).ok())
     }
 
     /// Low edge of the flicker band, Hz.
@@ -316,11 +318,21 @@ impl GyroModel {
             if (lo..=hi).contains(&v) {
                 Ok(())
             } else {
-                Err(ModelError::invalid(key, show(v), format!("must be in [{lo:e}, {hi:e}] {unit}")))
+                Err(ModelError::invalid(
+                    key,
+                    show(v),
+                    format!("must be in [{lo:e}, {hi:e}] {unit}"),
+                ))
             }
         }
         let g = &self.gyro;
-        within("gyro.sample_rate_hz", g.sample_rate_hz, 1e-6, MAX_SAMPLE_RATE_HZ, "Hz")?;
+        within(
+            "gyro.sample_rate_hz",
+            g.sample_rate_hz,
+            1e-6,
+            MAX_SAMPLE_RATE_HZ,
+            "Hz",
+        )?;
         match g.output {
             OutputKind::Counts => {
                 within(
@@ -346,7 +358,13 @@ impl GyroModel {
                         "only for output = \"counts\" (a rate word's quantum is gyro.rate_lsb_dps)",
                     ));
                 }
-                within("gyro.rate_lsb_dps", g.rate_lsb_dps, 0.0, MAX_RATE_DPH / 3600.0, "deg/s")?;
+                within(
+                    "gyro.rate_lsb_dps",
+                    g.rate_lsb_dps,
+                    0.0,
+                    MAX_RATE_DPH / 3600.0,
+                    "deg/s",
+                )?;
             }
         }
         if let Some(f) = &self.readout_filter {
@@ -464,7 +482,10 @@ impl GyroModel {
             out.push(Term::AngleRandomWalk { n_dpsh: v });
         }
         if self.gyro.output == OutputKind::Rate && self.gyro.rate_lsb_dps > 0.0 {
-            out.push(Term::RateQuantization { lsb_dps: self.gyro.rate_lsb_dps, tau0_s: self.tau0_s() });
+            out.push(Term::RateQuantization {
+                lsb_dps: self.gyro.rate_lsb_dps,
+                tau0_s: self.tau0_s(),
+            });
         }
         if let Some(v) = n.bias_instability_dph.filter(|v| *v > 0.0) {
             out.push(Term::BiasInstability {

@@ -68,7 +68,9 @@ impl ReadoutFilter {
         }
         let c = (2.0 * PI * corner_hz * tau0_s).cos();
         let b = 2.0 - c;
-        Ok(ReadoutFilter::FirstOrder { pole: b - (b * b - 1.0).sqrt() })
+        Ok(ReadoutFilter::FirstOrder {
+            pole: b - (b * b - 1.0).sqrt(),
+        })
     }
 
     /// A moving average of `length` samples (2 ..= [`MAX_MA_LENGTH`]).
@@ -183,15 +185,28 @@ impl ReadoutFilter {
 /// Running state of a [`ReadoutFilter`] over a sample stream.
 #[derive(Debug, Clone)]
 pub enum FilterState {
-    MovingAverage { ring: Vec<f64>, pos: usize, sum: f64, since_resum: usize },
-    FirstOrder { pole: f64, y: f64 },
+    MovingAverage {
+        ring: Vec<f64>,
+        pos: usize,
+        sum: f64,
+        since_resum: usize,
+    },
+    FirstOrder {
+        pole: f64,
+        y: f64,
+    },
 }
 
 impl FilterState {
     /// Filter `x` in place.
     pub fn apply(&mut self, x: &mut [f64]) {
         match self {
-            FilterState::MovingAverage { ring, pos, sum, since_resum } => {
+            FilterState::MovingAverage {
+                ring,
+                pos,
+                sum,
+                since_resum,
+            } => {
                 let l = ring.len();
                 let inv = 1.0 / l as f64;
                 for v in x.iter_mut() {
@@ -244,7 +259,11 @@ impl ReadoutFilterParams {
                     ));
                 }
                 let l = self.length.ok_or_else(|| {
-                    ModelError::invalid("readout_filter.length", "(missing)", "required for kind = \"moving_average\"")
+                    ModelError::invalid(
+                        "readout_filter.length",
+                        "(missing)",
+                        "required for kind = \"moving_average\"",
+                    )
                 })?;
                 ReadoutFilter::moving_average(l)
             }
@@ -257,7 +276,11 @@ impl ReadoutFilterParams {
                     ));
                 }
                 let c = self.corner_hz.ok_or_else(|| {
-                    ModelError::invalid("readout_filter.corner_hz", "(missing)", "required for kind = \"first_order\"")
+                    ModelError::invalid(
+                        "readout_filter.corner_hz",
+                        "(missing)",
+                        "required for kind = \"first_order\"",
+                    )
                 })?;
                 ReadoutFilter::first_order(c, tau0_s)
             }
@@ -267,9 +290,11 @@ impl ReadoutFilterParams {
     /// The model-file table of a filter (corner written for a first-order one).
     pub fn from_filter(f: &ReadoutFilter, tau0_s: f64) -> Self {
         match *f {
-            ReadoutFilter::MovingAverage { length } => {
-                ReadoutFilterParams { kind: FilterKind::MovingAverage, length: Some(length), corner_hz: None }
-            }
+            ReadoutFilter::MovingAverage { length } => ReadoutFilterParams {
+                kind: FilterKind::MovingAverage,
+                length: Some(length),
+                corner_hz: None,
+            },
             ReadoutFilter::FirstOrder { .. } => ReadoutFilterParams {
                 kind: FilterKind::FirstOrder,
                 length: None,
@@ -315,20 +340,30 @@ mod tests {
     #[test]
     fn streaming_state_matches_direct_filter_on_any_split() {
         let x: Vec<f64> = (0..500).map(|k| ((k * 7919) % 101) as f64 - 50.0).collect();
-        for filt in [ReadoutFilter::moving_average(7).unwrap(), ReadoutFilter::first_order(3.0, 0.01).unwrap()] {
+        for filt in [
+            ReadoutFilter::moving_average(7).unwrap(),
+            ReadoutFilter::first_order(3.0, 0.01).unwrap(),
+        ] {
             let mut whole = x.clone();
             filt.state(0.0).apply(&mut whole);
             // direct reference
             let direct: Vec<f64> = match filt {
                 ReadoutFilter::MovingAverage { length } => (0..x.len())
-                    .map(|k| (0..length as usize).map(|i| if k >= i { x[k - i] } else { 0.0 }).sum::<f64>() / length as f64)
+                    .map(|k| {
+                        (0..length as usize)
+                            .map(|i| if k >= i { x[k - i] } else { 0.0 })
+                            .sum::<f64>()
+                            / length as f64
+                    })
                     .collect(),
                 ReadoutFilter::FirstOrder { pole } => {
                     let mut y = 0.0;
-                    x.iter().map(|v| {
-                        y = pole * y + (1.0 - pole) * v;
-                        y
-                    }).collect()
+                    x.iter()
+                        .map(|v| {
+                            y = pole * y + (1.0 - pole) * v;
+                            y
+                        })
+                        .collect()
                 }
             };
             for (a, b) in whole.iter().zip(&direct) {
@@ -345,13 +380,25 @@ mod tests {
 
     #[test]
     fn params_errors_name_the_key() {
-        let p = ReadoutFilterParams { kind: FilterKind::FirstOrder, length: None, corner_hz: Some(150.0) };
+        let p = ReadoutFilterParams {
+            kind: FilterKind::FirstOrder,
+            length: None,
+            corner_hz: Some(150.0),
+        };
         let e = p.filter(1.0 / 200.0).unwrap_err().to_string();
         assert!(e.contains("readout_filter.corner_hz"), "{e}");
-        let p = ReadoutFilterParams { kind: FilterKind::MovingAverage, length: None, corner_hz: None };
+        let p = ReadoutFilterParams {
+            kind: FilterKind::MovingAverage,
+            length: None,
+            corner_hz: None,
+        };
         let e = p.filter(1.0 / 200.0).unwrap_err().to_string();
         assert!(e.contains("readout_filter.length"), "{e}");
-        let p = ReadoutFilterParams { kind: FilterKind::MovingAverage, length: Some(1), corner_hz: None };
+        let p = ReadoutFilterParams {
+            kind: FilterKind::MovingAverage,
+            length: Some(1),
+            corner_hz: None,
+        };
         assert!(p.filter(1.0 / 200.0).is_err());
     }
 }

@@ -87,7 +87,13 @@ pub struct FitOptions {
 
 impl Default for FitOptions {
     fn default() -> Self {
-        FitOptions { keep_lr: 2.705_543_454_095_404, ci_lr: 3.841_458_820_694_124, upper_lr: 2.705_543_454_095_404, always_keep: 0, signed_in_profile: 0 }
+        FitOptions {
+            keep_lr: 2.705_543_454_095_404,
+            ci_lr: 3.841_458_820_694_124,
+            upper_lr: 2.705_543_454_095_404,
+            always_keep: 0,
+            signed_in_profile: 0,
+        }
     }
 }
 
@@ -123,7 +129,9 @@ impl Problem<'_> {
         let n = self.y.len();
         let mut theta = base.to_vec();
         // initial weights from the observations themselves
-        let mut w: Vec<f64> = (0..n).map(|j| self.half_edf[j] / (self.y[j] * self.y[j]).max(1e-300)).collect();
+        let mut w: Vec<f64> = (0..n)
+            .map(|j| self.half_edf[j] / (self.y[j] * self.y[j]).max(1e-300))
+            .collect();
         if let Some(s) = start {
             theta.copy_from_slice(s);
             for (i, f) in free.iter().enumerate() {
@@ -177,7 +185,10 @@ impl Problem<'_> {
         let free_idx: Vec<usize> = (0..self.k).filter(|&i| free[i]).collect();
         let resid: Vec<f64> = (0..n)
             .map(|j| {
-                let fixed: f64 = (0..self.k).filter(|&i| !free[i]).map(|i| self.phi[j][i] * base[i]).sum();
+                let fixed: f64 = (0..self.k)
+                    .filter(|&i| !free[i])
+                    .map(|i| self.phi[j][i] * base[i])
+                    .sum();
                 self.y[j] - fixed
             })
             .collect();
@@ -211,7 +222,11 @@ impl Problem<'_> {
                 }
             }
             let Some(sol) = solve(a, rhs) else { continue };
-            if sub.iter().zip(&sol).any(|(&b, &v)| !v.is_finite() || (v < 0.0 && !signed(b))) {
+            if sub
+                .iter()
+                .zip(&sol)
+                .any(|(&b, &v)| !v.is_finite() || (v < 0.0 && !signed(b)))
+            {
                 continue;
             }
             let mut th = base.to_vec();
@@ -239,7 +254,13 @@ impl Problem<'_> {
 /// `sum_j w_j (y_j - sum_k theta_k phi_jk)^2` over `theta >= 0`.
 pub fn weighted_nnls(phi: &[Vec<f64>], y: &[f64], w: &[f64]) -> Vec<f64> {
     let k = phi.first().map_or(0, |r| r.len());
-    let prob = Problem { phi, y: y.to_vec(), half_edf: vec![1.0; y.len()], k, signed: 0 };
+    let prob = Problem {
+        phi,
+        y: y.to_vec(),
+        half_edf: vec![1.0; y.len()],
+        k,
+        signed: 0,
+    };
     prob.wnnls(&vec![true; k], &vec![0.0; k], w)
 }
 
@@ -271,15 +292,30 @@ fn solve(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Option<Vec<f64>> {
 
 /// Fit `basis` to `obs` (same level order as `basis.levels`).
 pub fn fit_levels(basis: &LevelBasis, obs: &[LevelObs], opts: &FitOptions) -> LevelFit {
-    assert_eq!(obs.len(), basis.levels.len(), "observations must match the basis levels");
+    assert_eq!(
+        obs.len(),
+        basis.levels.len(),
+        "observations must match the basis levels"
+    );
     let y: Vec<f64> = obs.iter().map(|o| o.mean_sq).collect();
     let n0: Vec<f64> = obs.iter().map(|o| o.n_coef).collect();
-    fit_rows(&basis.phi, &y, &n0, &|j, theta| basis.edf(j, theta, obs[j].n_coef), opts)
+    fit_rows(
+        &basis.phi,
+        &y,
+        &n0,
+        &|j, theta| basis.edf(j, theta, obs[j].n_coef),
+        opts,
+    )
 }
 
 /// Maximum-likelihood strengths only (no selection, no intervals): the quick
 /// fit used while choosing which observations to trust.
-pub fn ml_theta(phi: &[Vec<f64>], y: &[f64], edf0: &[f64], edf: &dyn Fn(usize, &[f64]) -> f64) -> Vec<f64> {
+pub fn ml_theta(
+    phi: &[Vec<f64>],
+    y: &[f64],
+    edf0: &[f64],
+    edf: &dyn Fn(usize, &[f64]) -> f64,
+) -> Vec<f64> {
     ml_with_edf(phi, y, edf0, edf, 2).1
 }
 
@@ -288,14 +324,25 @@ pub fn ml_theta(phi: &[Vec<f64>], y: &[f64], edf0: &[f64], edf: &dyn Fn(usize, &
 /// such as a readout filter's corner, are compared on one likelihood).
 pub fn ml_loglik_fixed_edf(phi: &[Vec<f64>], y: &[f64], edf: &[f64]) -> (Vec<f64>, f64) {
     let k = phi.first().map_or(0, |r| r.len());
-    let prob = Problem { phi, y: y.to_vec(), half_edf: edf.iter().map(|e| e / 2.0).collect(), k, signed: 0 };
+    let prob = Problem {
+        phi,
+        y: y.to_vec(),
+        half_edf: edf.iter().map(|e| e / 2.0).collect(),
+        k,
+        signed: 0,
+    };
     let theta = prob.maximise(&vec![true; k], &vec![0.0; k], None);
     let l = prob.loglik(&theta);
     (theta, l)
 }
 
 /// The EDFs the ML fit converges to (see [`ml_theta`]).
-pub fn ml_edf(phi: &[Vec<f64>], y: &[f64], edf0: &[f64], edf: &dyn Fn(usize, &[f64]) -> f64) -> Vec<f64> {
+pub fn ml_edf(
+    phi: &[Vec<f64>],
+    y: &[f64],
+    edf0: &[f64],
+    edf: &dyn Fn(usize, &[f64]) -> f64,
+) -> Vec<f64> {
     let (prob, _) = ml_with_edf(phi, y, edf0, edf, 2);
     prob.half_edf.iter().map(|h| 2.0 * h).collect()
 }
@@ -311,7 +358,13 @@ fn ml_with_edf<'a>(
 ) -> (Problem<'a>, Vec<f64>) {
     let k = phi.first().map_or(0, |r| r.len());
     let n = y.len();
-    let mut prob = Problem { phi, y: y.to_vec(), half_edf: edf0.iter().map(|e| e / 2.0).collect(), k, signed: 0 };
+    let mut prob = Problem {
+        phi,
+        y: y.to_vec(),
+        half_edf: edf0.iter().map(|e| e / 2.0).collect(),
+        k,
+        signed: 0,
+    };
     let all = vec![true; k];
     let zero = vec![0.0; k];
     let mut theta = prob.maximise(&all, &zero, None);
@@ -371,7 +424,9 @@ pub fn fit_rows(
     let l_max = prob.loglik(&theta);
     let terms = profile_terms(&prob, &theta, &active, &lr, opts);
     let fitted: Vec<f64> = (0..n).map(|j| prob.mu(j, &theta)).collect();
-    let chi2: f64 = (0..n).map(|j| prob.half_edf[j] * (prob.y[j] / fitted[j] - 1.0).powi(2)).sum();
+    let chi2: f64 = (0..n)
+        .map(|j| prob.half_edf[j] * (prob.y[j] / fitted[j] - 1.0).powi(2))
+        .sum();
     let n_par = active.iter().filter(|a| **a).count();
     let dof = (n as f64 - n_par as f64).max(1.0);
     LevelFit {
@@ -390,18 +445,34 @@ pub fn fit_rows(
 /// when the data are consistent with the constraint (the signed optimum within
 /// `ci_lr` of the constrained one): a model that needs a negative nuisance does
 /// not fit, and its signed profile says nothing about the constrained fit.
-fn profile_terms(prob: &Problem, theta: &[f64], active: &[bool], lr: &[f64], opts: &FitOptions) -> Vec<TermFit> {
+fn profile_terms(
+    prob: &Problem,
+    theta: &[f64],
+    active: &[bool],
+    lr: &[f64],
+    opts: &FitOptions,
+) -> Vec<TermFit> {
     let l_max = prob.loglik(theta);
     let mut terms = profile_with(prob, theta, active, lr, opts, l_max);
     if opts.signed_in_profile == 0 {
         return terms;
     }
-    let signed = Problem { signed: opts.signed_in_profile, y: prob.y.clone(), half_edf: prob.half_edf.clone(), ..*prob };
-    let l_ref = signed.loglik(&signed.maximise(active, &vec![0.0; prob.k], Some(theta))).max(l_max);
+    let signed = Problem {
+        signed: opts.signed_in_profile,
+        y: prob.y.clone(),
+        half_edf: prob.half_edf.clone(),
+        ..*prob
+    };
+    let l_ref = signed
+        .loglik(&signed.maximise(active, &vec![0.0; prob.k], Some(theta)))
+        .max(l_max);
     if 2.0 * (l_ref - l_max) > opts.ci_lr {
         return terms;
     }
-    for (t, w) in terms.iter_mut().zip(profile_with(&signed, theta, active, lr, opts, l_ref)) {
+    for (t, w) in terms
+        .iter_mut()
+        .zip(profile_with(&signed, theta, active, lr, opts, l_ref))
+    {
         if let (Some((lo, hi)), Some((wl, wh))) = (t.ci95.as_mut(), w.ci95) {
             *lo = lo.min(wl);
             *hi = hi.max(wh);
@@ -415,7 +486,14 @@ fn profile_terms(prob: &Problem, theta: &[f64], active: &[bool], lr: &[f64], opt
 
 /// The profile intervals and bounds of [`profile_terms`] for one problem,
 /// deviances measured from `l_ref`.
-fn profile_with(prob: &Problem, theta: &[f64], active: &[bool], lr: &[f64], opts: &FitOptions, l_ref: f64) -> Vec<TermFit> {
+fn profile_with(
+    prob: &Problem,
+    theta: &[f64],
+    active: &[bool],
+    lr: &[f64],
+    opts: &FitOptions,
+    l_ref: f64,
+) -> Vec<TermFit> {
     let k = prob.k;
     let zero = vec![0.0; k];
     let mut terms = Vec::with_capacity(k);
@@ -437,10 +515,22 @@ fn profile_with(prob: &Problem, theta: &[f64], active: &[bool], lr: &[f64], opts
             } else {
                 bisect(&profile, 0.0, theta[i], opts.ci_lr, true)
             };
-            terms.push(TermFit { theta: theta[i], included: true, ci95: Some((lo, hi)), upper95: None, lr: lr[i] });
+            terms.push(TermFit {
+                theta: theta[i],
+                included: true,
+                ci95: Some((lo, hi)),
+                upper95: None,
+                lr: lr[i],
+            });
         } else {
             let up = find_crossing(&profile, 0.0, se, opts.upper_lr);
-            terms.push(TermFit { theta: 0.0, included: false, ci95: None, upper95: Some(up), lr: lr[i] });
+            terms.push(TermFit {
+                theta: 0.0,
+                included: false,
+                ci95: None,
+                upper95: Some(up),
+                lr: lr[i],
+            });
         }
     }
     terms
@@ -452,7 +542,11 @@ fn fisher_se(prob: &Problem, theta: &[f64], i: usize) -> f64 {
         let m = prob.mu(j, theta).max(1e-300);
         info += prob.half_edf[j] * prob.phi[j][i] * prob.phi[j][i] / (m * m);
     }
-    if info > 0.0 { 1.0 / info.sqrt() } else { theta[i].abs().max(1e-300) }
+    if info > 0.0 {
+        1.0 / info.sqrt()
+    } else {
+        theta[i].abs().max(1e-300)
+    }
 }
 
 /// Smallest t > start where f(t) reaches `level` (f increasing there).
@@ -496,30 +590,61 @@ mod tests {
     use rand_distr::{ChiSquared, Distribution};
 
     const SYM8_LO: [f64; 16] = [
-        -0.0033824159510061256, -0.0005421323317911481, 0.03169508781149298, 0.007607487324917605,
-        -0.1432942383508097, -0.061273359067658524, 0.4813596512583722, 0.7771857517005235,
-        0.3644418948353314, -0.05194583810770904, -0.027219029917056003, 0.049137179673607506,
-        0.003808752013890615, -0.01495225833704823, -0.0003029205147213668, 0.0018899503327594609,
+        -0.0033824159510061256,
+        -0.0005421323317911481,
+        0.03169508781149298,
+        0.007607487324917605,
+        -0.1432942383508097,
+        -0.061273359067658524,
+        0.4813596512583722,
+        0.7771857517005235,
+        0.3644418948353314,
+        -0.05194583810770904,
+        -0.027219029917056003,
+        0.049137179673607506,
+        0.003808752013890615,
+        -0.01495225833704823,
+        -0.0003029205147213668,
+        0.0018899503327594609,
     ];
     const SYM8_HI: [f64; 16] = [
-        -0.0018899503327594609, -0.0003029205147213668, 0.01495225833704823, 0.003808752013890615,
-        -0.049137179673607506, -0.027219029917056003, 0.05194583810770904, 0.3644418948353314,
-        -0.7771857517005235, 0.4813596512583722, 0.061273359067658524, -0.1432942383508097,
-        -0.007607487324917605, 0.03169508781149298, 0.0005421323317911481, -0.0033824159510061256,
+        -0.0018899503327594609,
+        -0.0003029205147213668,
+        0.01495225833704823,
+        0.003808752013890615,
+        -0.049137179673607506,
+        -0.027219029917056003,
+        0.05194583810770904,
+        0.3644418948353314,
+        -0.7771857517005235,
+        0.4813596512583722,
+        0.061273359067658524,
+        -0.1432942383508097,
+        -0.007607487324917605,
+        0.03169508781149298,
+        0.0005421323317911481,
+        -0.0033824159510061256,
     ];
 
     fn paper_basis(n_samples: f64) -> (LevelBasis, Vec<f64>) {
         let tau0 = 1e-3;
         // levels with at least 8 coefficients free of start-up transients
-        let levels: Vec<u32> = (1..=30u32).filter(|&j| n_samples / 2f64.powi(j as i32) - 15.0 >= 8.0).collect();
+        let levels: Vec<u32> = (1..=30u32)
+            .filter(|&j| n_samples / 2f64.powi(j as i32) - 15.0 >= 8.0)
+            .collect();
         let terms = [
             SpectralTerm::WhiteAngle,
             SpectralTerm::WhiteRate,
-            SpectralTerm::Flicker { f_lo_hz: 1.0 / (n_samples * tau0) },
+            SpectralTerm::Flicker {
+                f_lo_hz: 1.0 / (n_samples * tau0),
+            },
             SpectralTerm::RateRandomWalk,
         ];
         let b = LevelBasis::new(&SYM8_LO, &SYM8_HI, tau0, &levels, &terms);
-        let counts: Vec<f64> = levels.iter().map(|&j| (n_samples / 2f64.powi(j as i32)).floor() - 15.0).collect();
+        let counts: Vec<f64> = levels
+            .iter()
+            .map(|&j| (n_samples / 2f64.powi(j as i32)).floor() - 15.0)
+            .collect();
         (b, counts)
     }
 
@@ -530,7 +655,12 @@ mod tests {
         let n_samples = 3.6e6;
         let (basis, counts) = paper_basis(n_samples);
         // paper's gyro in arcsec/s units: Q = 0.35", N = 0.0015 deg/sqrt(h), B = 0.0025 deg/h, no RRW
-        let truth = [0.35f64.powi(2), (0.0015f64 * 60.0).powi(2), 0.0025f64.powi(2), 0.0];
+        let truth = [
+            0.35f64.powi(2),
+            (0.0015f64 * 60.0).powi(2),
+            0.0025f64.powi(2),
+            0.0,
+        ];
         let mut rng = ChaCha8Rng::seed_from_u64(7);
         let mut cover = [0usize; 3];
         let mut rrw_false = 0;
@@ -538,11 +668,15 @@ mod tests {
         let runs = 200;
         for _ in 0..runs {
             let obs: Vec<LevelObs> = (0..basis.levels.len())
-                                .map(|j| {
+                .map(|j| {
                     let mu = basis.mean(j, &truth);
                     let nu = basis.edf(j, &truth, counts[j]);
                     let x: f64 = ChiSquared::new(nu).unwrap().sample(&mut rng);
-                    LevelObs { level: basis.levels[j], n_coef: counts[j], mean_sq: mu * x / nu }
+                    LevelObs {
+                        level: basis.levels[j],
+                        n_coef: counts[j],
+                        mean_sq: mu * x / nu,
+                    }
                 })
                 .collect();
             let fit = fit_levels(&basis, &obs, &FitOptions::default());
@@ -570,7 +704,10 @@ mod tests {
             assert!(c > 0.90 && c <= 0.99, "term {t}: coverage {c}");
         }
         // an absent term is reported at most ~5 % of the time (binomial slack)
-        assert!((rrw_false as f64 / runs as f64) < 0.10, "RRW false detections {rrw_false}/{runs}");
+        assert!(
+            (rrw_false as f64 / runs as f64) < 0.10,
+            "RRW false detections {rrw_false}/{runs}"
+        );
     }
 
     /// A nuisance that only the first rows see, its truth at its zero boundary:
@@ -583,8 +720,15 @@ mod tests {
         let phi: Vec<Vec<f64>> = shape.iter().map(|&s| vec![1.0, s]).collect();
         let edf = vec![2.0e4; shape.len()];
         let fit = |dip: f64, signed: u64| {
-            let y: Vec<f64> = shape.iter().map(|&s| if s > 0.0 { 1.0 - dip * s / 8.0 } else { 1.0 }).collect();
-            let opts = FitOptions { always_keep: 0b11, signed_in_profile: signed, ..FitOptions::default() };
+            let y: Vec<f64> = shape
+                .iter()
+                .map(|&s| if s > 0.0 { 1.0 - dip * s / 8.0 } else { 1.0 })
+                .collect();
+            let opts = FitOptions {
+                always_keep: 0b11,
+                signed_in_profile: signed,
+                ..FitOptions::default()
+            };
             let f = fit_rows(&phi, &y, &edf, &|j, _| edf[j], &opts);
             let (lo, hi) = f.terms[0].ci95.unwrap();
             (f.terms[1].theta, lo, hi)
@@ -593,16 +737,25 @@ mod tests {
         let (nuis, lo0, hi0) = fit(0.005, 0);
         let (_, lo1, hi1) = fit(0.005, 0b10);
         assert_eq!(nuis, 0.0);
-        assert!(lo1 <= lo0 && hi1 >= hi0, "[{lo1}, {hi1}] must contain [{lo0}, {hi0}]");
-        assert!(hi1 - lo1 > 1.1 * (hi0 - lo0), "signed [{lo1}, {hi1}] vs constrained [{lo0}, {hi0}]");
+        assert!(
+            lo1 <= lo0 && hi1 >= hi0,
+            "[{lo1}, {hi1}] must contain [{lo0}, {hi0}]"
+        );
+        assert!(
+            hi1 - lo1 > 1.1 * (hi0 - lo0),
+            "signed [{lo1}, {hi1}] vs constrained [{lo0}, {hi0}]"
+        );
         // six rows alone (the nuisance-free ones) give the flat term's width
         // sqrt(2/(6 x 2e4)) x 1.96 x 2 in relative terms: the signed interval is no wider
         let six = 2.0 * 1.959964 * (2.0 / (6.0 * 2.0e4f64)).sqrt();
-        assert!(hi1 - lo1 <= six * 1.05, "signed width {} vs six rows {six}", hi1 - lo1);
+        assert!(
+            hi1 - lo1 <= six * 1.05,
+            "signed width {} vs six rows {six}",
+            hi1 - lo1
+        );
         // a dip of 50 %: the rows want a strongly negative nuisance; unchanged
         let (_, lo2, hi2) = fit(0.5, 0);
         let (_, lo3, hi3) = fit(0.5, 0b10);
         assert_eq!((lo2, hi2), (lo3, hi3));
     }
-
 }

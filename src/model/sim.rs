@@ -495,7 +495,12 @@ impl Simulator {
     /// of a rate-output model to `rates_dps`, and the temperatures to `temp_c`
     /// when the model has a thermal section. Returns how many were appended;
     /// 0 for a counts-output model (use [`Simulator::next_block`]).
-    pub fn next_block_rates(&mut self, n: usize, rates_dps: &mut Vec<f64>, temp_c: &mut Vec<f64>) -> usize {
+    pub fn next_block_rates(
+        &mut self,
+        n: usize,
+        rates_dps: &mut Vec<f64>,
+        temp_c: &mut Vec<f64>,
+    ) -> usize {
         if self.output != OutputKind::Rate {
             return 0;
         }
@@ -509,10 +514,15 @@ impl Simulator {
                 let e = self.buf_e[i];
                 let r = (self.buf_dtheta[i] + e - self.e_prev) * to_dps;
                 self.e_prev = e;
-                rates_dps.push(if lsb > 0.0 { (r / lsb).round() * lsb } else { r });
+                rates_dps.push(if lsb > 0.0 {
+                    (r / lsb).round() * lsb
+                } else {
+                    r
+                });
             }
             if let Some(th) = self.thermal.as_ref() {
-                temp_c.extend((0..m).map(|i| th.temp_at((self.k + i as u64 + 1) as f64 * self.tau0)));
+                temp_c
+                    .extend((0..m).map(|i| th.temp_at((self.k + i as u64 + 1) as f64 * self.tau0)));
             }
             self.k += m as u64;
             done += m;
@@ -713,12 +723,24 @@ pub fn write_csv<W: Write>(sim: &mut Simulator, out: W) -> Result<u64, ModelErro
     let mut out = std::io::BufWriter::with_capacity(1 << 20, out);
     if sim.output() == OutputKind::Rate {
         // rates in deg/s as the shortest decimal that reads back exactly
-        write_rows(sim, &mut out, "rate_dps", |sim, n, v, t| sim.next_block_rates(n, v, t), |buf, v: f64| {
-            // writing into a Vec cannot fail
-            let _ = write!(buf, "{v}");
-        })
+        write_rows(
+            sim,
+            &mut out,
+            "rate_dps",
+            |sim, n, v, t| sim.next_block_rates(n, v, t),
+            |buf, v: f64| {
+                // writing into a Vec cannot fail
+                let _ = write!(buf, "{v}");
+            },
+        )
     } else {
-        write_rows(sim, &mut out, "counts", |sim, n, v, t| sim.next_block_with_temp(n, v, t), |buf, v: i64| push_i64(buf, v))
+        write_rows(
+            sim,
+            &mut out,
+            "counts",
+            |sim, n, v, t| sim.next_block_with_temp(n, v, t),
+            |buf, v: i64| push_i64(buf, v),
+        )
     }
 }
 
@@ -733,8 +755,13 @@ fn write_rows<W: Write, T: Copy>(
 ) -> Result<u64, ModelError> {
     const BLOCK: usize = 65_536;
     let thermal = sim.has_temperature();
-    let header = if thermal { format!("{column},temp_c\n") } else { format!("{column}\n") };
-    out.write_all(header.as_bytes()).map_err(ModelError::Write)?;
+    let header = if thermal {
+        format!("{column},temp_c\n")
+    } else {
+        format!("{column}\n")
+    };
+    out.write_all(header.as_bytes())
+        .map_err(ModelError::Write)?;
     let (mut vals, mut temps) = (Vec::with_capacity(BLOCK), Vec::with_capacity(BLOCK));
     let mut buf = Vec::with_capacity(BLOCK * 20);
     let mut rows = 0u64;

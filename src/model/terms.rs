@@ -737,7 +737,11 @@ impl Term {
             Term::RateQuantization { lsb_dps, tau0_s } => {
                 // white over the band: one-sided 2 var tau0
                 let l = lsb_dps * units::ARCSEC_PER_DEG;
-                if f < 0.0 || f > 0.5 / tau0_s { 0.0 } else { l * l / 6.0 * tau0_s }
+                if f < 0.0 || f > 0.5 / tau0_s {
+                    0.0
+                } else {
+                    l * l / 6.0 * tau0_s
+                }
             }
         }
     }

@@ -123,11 +123,14 @@ impl SpectralTerm {
                 Some(vec![2.0 / (tau0_s * tau0_s), -1.0 / (tau0_s * tau0_s)])
             }
             SpectralTerm::WhiteRate => Some(vec![1.0 / tau0_s]),
-            SpectralTerm::FilteredWhiteRate { filter } => {
-                filter.finite_autocorr().map(|r| r.iter().map(|v| v / tau0_s).collect())
-            }
+            SpectralTerm::FilteredWhiteRate { filter } => filter
+                .finite_autocorr()
+                .map(|r| r.iter().map(|v| v / tau0_s).collect()),
             SpectralTerm::WhiteRateComplement { filter } => filter.finite_autocorr().map(|r| {
-                r.iter().enumerate().map(|(k, v)| (f64::from(u8::from(k == 0)) - v) / tau0_s).collect()
+                r.iter()
+                    .enumerate()
+                    .map(|(k, v)| (f64::from(u8::from(k == 0)) - v) / tau0_s)
+                    .collect()
             }),
             _ => None,
         }
@@ -164,7 +167,9 @@ impl SpectralTerm {
                 let mut total = 0.0;
                 // resolved part: panels of width 1/(4m) in nu
                 let mut panels = ((split - nu_lo).max(0.0) * 4.0 * mf).ceil() as usize;
-                if let SpectralTerm::FilteredWhiteRate { filter } | SpectralTerm::WhiteRateComplement { filter } = self {
+                if let SpectralTerm::FilteredWhiteRate { filter }
+                | SpectralTerm::WhiteRateComplement { filter } = self
+                {
                     // resolve the filter's own structure (a moving average's lobes)
                     let lobes = match filter {
                         ReadoutFilter::MovingAverage { length } => *length as usize,
@@ -214,7 +219,11 @@ impl SpectralTerm {
             SpectralTerm::Flicker { .. } => -1,
             SpectralTerm::RateRandomWalk => -2,
             SpectralTerm::GaussMarkov { tau_c_s } => {
-                if tau_s < tau_c_s { -2 } else { 0 }
+                if tau_s < tau_c_s {
+                    -2
+                } else {
+                    0
+                }
             }
         }
     }
@@ -306,7 +315,12 @@ pub(crate) const GL8: [(f64, f64); 8] = [
 /// Quadrature nodes `(nu, weight, |H_j(nu)|^2)` covering the frequencies that
 /// matter for level `j`: dyadic segments from 2^{-j-14} up to min(1/2, 2^{-j+4}),
 /// each split into 32 panels of an 8-point Gauss-Legendre rule.
-pub fn level_nodes(lo: &[f64], hi: &[f64], level: u32, extra_breaks: &[f64]) -> Vec<(f64, f64, f64)> {
+pub fn level_nodes(
+    lo: &[f64],
+    hi: &[f64],
+    level: u32,
+    extra_breaks: &[f64],
+) -> Vec<(f64, f64, f64)> {
     let top = (2f64.powi(-(level as i32) + 4)).min(0.5);
     let bottom = 2f64.powi(-(level as i32) - 14);
     let mut breaks = vec![bottom];
@@ -380,7 +394,9 @@ fn memo_level_nodes(lo: &[f64], hi: &[f64], level: u32, extra_breaks: &[f64]) ->
             .filter(|&&e| e > bottom && e < top && e.log2().fract() != 0.0)
             .map(|e| e.to_bits()),
     );
-    memoised(&NODE_CACHE, key, || Arc::new(level_nodes(lo, hi, level, extra_breaks)))
+    memoised(&NODE_CACHE, key, || {
+        Arc::new(level_nodes(lo, hi, level, extra_breaks))
+    })
 }
 
 static LEVEL_CACHE: Memo<LevelQuadrature> = OnceLock::new();
@@ -398,7 +414,14 @@ fn filter_level_key(lo: &[f64], hi: &[f64], level: u32, more: usize) -> Vec<u64>
 }
 
 /// Everything one level's quadrature depends on, as exact bit patterns.
-fn level_key(lo: &[f64], hi: &[f64], tau0_s: f64, level: u32, terms: &[SpectralTerm], domain: Domain) -> Vec<u64> {
+fn level_key(
+    lo: &[f64],
+    hi: &[f64],
+    tau0_s: f64,
+    level: u32,
+    terms: &[SpectralTerm],
+    domain: Domain,
+) -> Vec<u64> {
     let mut k = filter_level_key(lo, hi, level, 2 + 2 * terms.len());
     k.push(tau0_s.to_bits());
     k.push(domain as u64);
@@ -433,7 +456,14 @@ struct LevelQuadrature {
 }
 
 impl LevelQuadrature {
-    fn compute(lo: &[f64], hi: &[f64], tau0_s: f64, j: u32, terms: &[SpectralTerm], domain: Domain) -> Self {
+    fn compute(
+        lo: &[f64],
+        hi: &[f64],
+        tau0_s: f64,
+        j: u32,
+        terms: &[SpectralTerm],
+        domain: Domain,
+    ) -> Self {
         let breaks: Vec<f64> = terms
             .iter()
             .filter_map(|t| match t {
@@ -461,7 +491,11 @@ impl LevelQuadrature {
             w_int2 += w * h2 * h2;
         }
         let scale = 2f64.powi(-(j as i32) - 1);
-        LevelQuadrature { band: row, gram: g, white_ratio: w_int * w_int / (scale * w_int2) }
+        LevelQuadrature {
+            band: row,
+            gram: g,
+            white_ratio: w_int * w_int / (scale * w_int2),
+        }
     }
 }
 
@@ -484,7 +518,13 @@ pub struct LevelBasis {
 impl LevelBasis {
     /// Build the basis for `levels` (1-based DWT levels) of a record sampled at
     /// `tau0_s`, with filters `lo`/`hi` (orthonormal analysis pair).
-    pub fn new(lo: &[f64], hi: &[f64], tau0_s: f64, levels: &[u32], terms: &[SpectralTerm]) -> Self {
+    pub fn new(
+        lo: &[f64],
+        hi: &[f64],
+        tau0_s: f64,
+        levels: &[u32],
+        terms: &[SpectralTerm],
+    ) -> Self {
         Self::new_in(lo, hi, tau0_s, levels, terms, Domain::Rate)
     }
 
@@ -508,16 +548,21 @@ impl LevelBasis {
         // exact variances for finite-support terms
         let finite: Vec<Option<Vec<f64>>> = terms
             .iter()
-            .map(|t| t.finite_autocov(tau0_s, domain).map(|r0| finite_level_vars(lo, hi, &r0, max_level)))
+            .map(|t| {
+                t.finite_autocov(tau0_s, domain)
+                    .map(|r0| finite_level_vars(lo, hi, &r0, max_level))
+            })
             .collect();
         let mut phi = Vec::with_capacity(levels.len());
         let mut gram = Vec::with_capacity(levels.len());
         let mut white_ratio = Vec::with_capacity(levels.len());
         let mut band = Vec::with_capacity(levels.len());
         for &j in levels {
-            let q = memoised(&LEVEL_CACHE, level_key(lo, hi, tau0_s, j, terms, domain), || {
-                LevelQuadrature::compute(lo, hi, tau0_s, j, terms, domain)
-            });
+            let q = memoised(
+                &LEVEL_CACHE,
+                level_key(lo, hi, tau0_s, j, terms, domain),
+                || LevelQuadrature::compute(lo, hi, tau0_s, j, terms, domain),
+            );
             let mut row = q.band.clone();
             for (i, f) in finite.iter().enumerate() {
                 if let Some(v) = f {
@@ -529,7 +574,14 @@ impl LevelBasis {
             phi.push(row);
             gram.push(q.gram);
         }
-        LevelBasis { terms: terms.to_vec(), levels: levels.to_vec(), phi, gram, band, white_ratio }
+        LevelBasis {
+            terms: terms.to_vec(),
+            levels: levels.to_vec(),
+            phi,
+            gram,
+            band,
+            white_ratio,
+        }
     }
 
     /// Expected variance of level index `j` for parameters `theta`.
@@ -564,7 +616,11 @@ mod tests {
 
     #[test]
     fn memoised_basis_is_the_computed_one_and_keys_tell_terms_apart() {
-        let terms = [SpectralTerm::WhiteRate, SpectralTerm::Flicker { f_lo_hz: 1e-2 }, SpectralTerm::RateRandomWalk];
+        let terms = [
+            SpectralTerm::WhiteRate,
+            SpectralTerm::Flicker { f_lo_hz: 1e-2 },
+            SpectralTerm::RateRandomWalk,
+        ];
         let levels = [3, 7, 12];
         let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         for _ in 0..2 {
@@ -577,7 +633,8 @@ mod tests {
                 for (a, f) in nodes.iter().zip(&fresh_nodes) {
                     assert_eq!(bits(&[a.0, a.1, a.2]), bits(&[f.0, f.1, f.2]));
                 }
-                let q = LevelQuadrature::compute(&SYM8_LO, &SYM8_HI, 1e-3, j, &terms, Domain::Angle);
+                let q =
+                    LevelQuadrature::compute(&SYM8_LO, &SYM8_HI, 1e-3, j, &terms, Domain::Angle);
                 assert_eq!(bits(&b.phi[i]), bits(&q.band), "level {j}");
                 assert_eq!(bits(&b.band[i]), bits(&q.band), "level {j}");
                 for (g, h) in b.gram[i].iter().zip(&q.gram) {
@@ -588,27 +645,64 @@ mod tests {
         }
         let fresh = LevelBasis::new_in(&SYM8_LO, &SYM8_HI, 1e-3, &levels, &terms, Domain::Angle);
         // a different flicker corner, domain or period is a different basis
-        let other = [SpectralTerm::WhiteRate, SpectralTerm::Flicker { f_lo_hz: 2e-2 }, SpectralTerm::RateRandomWalk];
+        let other = [
+            SpectralTerm::WhiteRate,
+            SpectralTerm::Flicker { f_lo_hz: 2e-2 },
+            SpectralTerm::RateRandomWalk,
+        ];
         let k = |t: &[SpectralTerm], d, tau0| level_key(&SYM8_LO, &SYM8_HI, tau0, 7, t, d);
-        assert_ne!(k(&terms, Domain::Angle, 1e-3), k(&other, Domain::Angle, 1e-3));
-        assert_ne!(k(&terms, Domain::Angle, 1e-3), k(&terms, Domain::Rate, 1e-3));
-        assert_ne!(k(&terms, Domain::Angle, 1e-3), k(&terms, Domain::Angle, 2e-3));
+        assert_ne!(
+            k(&terms, Domain::Angle, 1e-3),
+            k(&other, Domain::Angle, 1e-3)
+        );
+        assert_ne!(
+            k(&terms, Domain::Angle, 1e-3),
+            k(&terms, Domain::Rate, 1e-3)
+        );
+        assert_ne!(
+            k(&terms, Domain::Angle, 1e-3),
+            k(&terms, Domain::Angle, 2e-3)
+        );
         let b = LevelBasis::new_in(&SYM8_LO, &SYM8_HI, 1e-3, &levels, &other, Domain::Angle);
         assert_ne!(b.phi[2][1], fresh.phi[2][1]);
     }
 
     // PyWavelets sym8 dec_lo / dec_hi (pywt 1.9, printed with repr()).
     pub(crate) const SYM8_LO: [f64; 16] = [
-        -0.0033824159510061256, -0.0005421323317911481, 0.03169508781149298, 0.007607487324917605,
-        -0.1432942383508097, -0.061273359067658524, 0.4813596512583722, 0.7771857517005235,
-        0.3644418948353314, -0.05194583810770904, -0.027219029917056003, 0.049137179673607506,
-        0.003808752013890615, -0.01495225833704823, -0.0003029205147213668, 0.0018899503327594609,
+        -0.0033824159510061256,
+        -0.0005421323317911481,
+        0.03169508781149298,
+        0.007607487324917605,
+        -0.1432942383508097,
+        -0.061273359067658524,
+        0.4813596512583722,
+        0.7771857517005235,
+        0.3644418948353314,
+        -0.05194583810770904,
+        -0.027219029917056003,
+        0.049137179673607506,
+        0.003808752013890615,
+        -0.01495225833704823,
+        -0.0003029205147213668,
+        0.0018899503327594609,
     ];
     pub(crate) const SYM8_HI: [f64; 16] = [
-        -0.0018899503327594609, -0.0003029205147213668, 0.01495225833704823, 0.003808752013890615,
-        -0.049137179673607506, -0.027219029917056003, 0.05194583810770904, 0.3644418948353314,
-        -0.7771857517005235, 0.4813596512583722, 0.061273359067658524, -0.1432942383508097,
-        -0.007607487324917605, 0.03169508781149298, 0.0005421323317911481, -0.0033824159510061256,
+        -0.0018899503327594609,
+        -0.0003029205147213668,
+        0.01495225833704823,
+        0.003808752013890615,
+        -0.049137179673607506,
+        -0.027219029917056003,
+        0.05194583810770904,
+        0.3644418948353314,
+        -0.7771857517005235,
+        0.4813596512583722,
+        0.061273359067658524,
+        -0.1432942383508097,
+        -0.007607487324917605,
+        0.03169508781149298,
+        0.0005421323317911481,
+        -0.0033824159510061256,
     ];
 
     #[test]
@@ -624,18 +718,28 @@ mod tests {
     fn white_angle_level_variance_matches_frequency_integral() {
         // exact lag-domain propagation vs quadrature of 8 sin^2(pi nu) |H_j|^2
         let tau0 = 1e-3;
-        let v = finite_level_vars(&SYM8_LO, &SYM8_HI, &[2.0 / (tau0 * tau0), -1.0 / (tau0 * tau0)], 8);
+        let v = finite_level_vars(
+            &SYM8_LO,
+            &SYM8_HI,
+            &[2.0 / (tau0 * tau0), -1.0 / (tau0 * tau0)],
+            8,
+        );
         for j in 1..=8u32 {
             // full-band quadrature on a fine uniform grid (QN rises with f, so all of [0, 1/2] matters)
             let n = 200_000;
             let mut s = 0.0;
             for i in 0..n {
                 let nu = (i as f64 + 0.5) / n as f64 * 0.5;
-                s += SpectralTerm::WhiteAngle.psd_cs(nu, tau0) * level_power_response(&SYM8_LO, &SYM8_HI, j, nu);
+                s += SpectralTerm::WhiteAngle.psd_cs(nu, tau0)
+                    * level_power_response(&SYM8_LO, &SYM8_HI, j, nu);
             }
             s *= 0.5 / n as f64;
             let rel = (s - v[j as usize - 1]).abs() / v[j as usize - 1];
-            assert!(rel < 1e-6, "level {j}: quad {s} exact {} rel {rel}", v[j as usize - 1]);
+            assert!(
+                rel < 1e-6,
+                "level {j}: quad {s} exact {} rel {rel}",
+                v[j as usize - 1]
+            );
         }
     }
 
@@ -645,11 +749,22 @@ mod tests {
         // [2^{-j-1}, 2^{-j}] with orthonormal gain 2^j gives 2^j ln(2)/pi.
         let tau0 = 1e-3;
         let levels: Vec<u32> = (3..=14).collect();
-        let b = LevelBasis::new(&SYM8_LO, &SYM8_HI, tau0, &levels, &[SpectralTerm::Flicker { f_lo_hz: 1e-9 }]);
+        let b = LevelBasis::new(
+            &SYM8_LO,
+            &SYM8_HI,
+            tau0,
+            &levels,
+            &[SpectralTerm::Flicker { f_lo_hz: 1e-9 }],
+        );
         for (j, row) in b.phi.iter().enumerate() {
             let ideal = 2f64.powi(levels[j] as i32) * 2f64.ln() / PI;
             let rel = (row[0] - ideal).abs() / ideal;
-            assert!(rel < 0.02, "level {}: {} vs {ideal} (rel {rel})", levels[j], row[0]);
+            assert!(
+                rel < 0.02,
+                "level {}: {} vs {ideal} (rel {rel})",
+                levels[j],
+                row[0]
+            );
         }
     }
 
@@ -661,7 +776,10 @@ mod tests {
         for m in [100u64, 10_000, 1_000_000] {
             let v = fl.allan_var(m, tau0);
             let plateau = 2.0 * 2f64.ln() / PI;
-            assert!((v - plateau).abs() / plateau < 0.01, "flicker m={m}: {v} vs {plateau}");
+            assert!(
+                (v - plateau).abs() / plateau < 0.01,
+                "flicker m={m}: {v} vs {plateau}"
+            );
         }
         // rate random walk K^2 tau / 3 (discrete correction O(1/m))
         for m in [1000u64, 100_000] {
@@ -674,7 +792,10 @@ mod tests {
         for m in [1u64, 7, 1000] {
             let v = white_via_gm.allan_var(m, tau0);
             // GM with a vanishing correlation time is white with variance 1 per sample: AVAR = 1/m
-            assert!(((v - 1.0 / m as f64).abs() * (m as f64)) < 2e-3, "white m={m}: {v}");
+            assert!(
+                ((v - 1.0 / m as f64).abs() * (m as f64)) < 2e-3,
+                "white m={m}: {v}"
+            );
         }
         // Gauss-Markov closed form: sigma^2 (Tc/tau)^2 (2 tau/Tc - 3 + 4 e^{-tau/Tc} - e^{-2 tau/Tc}) ... for tau >> tau0
         let tc = 5.0;
@@ -691,14 +812,30 @@ mod tests {
     fn angle_domain_white_angle_is_flat_and_arw_grows_like_a_random_walk() {
         let tau0 = 1e-3;
         let levels: Vec<u32> = (1..=10).collect();
-        let b = LevelBasis::new_in(&SYM8_LO, &SYM8_HI, tau0, &levels, &[SpectralTerm::WhiteAngle, SpectralTerm::WhiteRate], Domain::Angle);
+        let b = LevelBasis::new_in(
+            &SYM8_LO,
+            &SYM8_HI,
+            tau0,
+            &levels,
+            &[SpectralTerm::WhiteAngle, SpectralTerm::WhiteRate],
+            Domain::Angle,
+        );
         for j in 0..levels.len() {
-            assert!((b.phi[j][0] - 1.0).abs() < 1e-12, "white angle level {}: {}", levels[j], b.phi[j][0]);
+            assert!(
+                (b.phi[j][0] - 1.0).abs() < 1e-12,
+                "white angle level {}: {}",
+                levels[j],
+                b.phi[j][0]
+            );
             if j >= 3 {
                 // a random walk (PSD ~ 1/nu^2) through an orthonormal octave band of gain 2^j:
                 // variance ~ 4^j, once the band is far from Nyquist
                 let r = b.phi[j][1] / b.phi[j - 1][1];
-                assert!((r - 4.0).abs() < 0.1, "ARW angle ratio at level {}: {r}", levels[j]);
+                assert!(
+                    (r - 4.0).abs() < 0.1,
+                    "ARW angle ratio at level {}: {r}",
+                    levels[j]
+                );
             }
         }
     }
@@ -706,7 +843,13 @@ mod tests {
     #[test]
     fn white_edf_equals_coefficient_count() {
         let levels: Vec<u32> = (1..=12).collect();
-        let b = LevelBasis::new(&SYM8_LO, &SYM8_HI, 1e-3, &levels, &[SpectralTerm::WhiteRate]);
+        let b = LevelBasis::new(
+            &SYM8_LO,
+            &SYM8_HI,
+            1e-3,
+            &levels,
+            &[SpectralTerm::WhiteRate],
+        );
         for j in 0..levels.len() {
             let e = b.edf(j, &[1.0], 1000.0);
             assert!((e - 1000.0).abs() < 1e-6, "level {}: {e}", levels[j]);

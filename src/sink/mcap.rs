@@ -170,7 +170,7 @@ pub struct RecordingSummary {
     /// The file.
     pub path: PathBuf,
     /// Messages written, per topic name.
-    pub messages_per_topic: BTreeMap<&'static str, u64>,
+    pub messages_per_topic: BTreeMap<String, u64>,
     /// File size, bytes.
     pub bytes: u64,
     /// Chunks closed by the flush policy, by `Recorder::flush` or by `finish`
@@ -254,7 +254,9 @@ impl Seek for CountingFile {
 }
 
 enum Command {
-    Message(SinkMessage),
+    /// A message of gyro `.0` (its index in the recording's gyro list; `None`
+    /// with one gyro, or for a daemon-wide event).
+    Message(Option<u16>, SinkMessage),
     Flush(SyncSender<Result<u64, RecordError>>),
     Finish,
 }
@@ -263,6 +265,10 @@ enum Command {
 #[derive(Clone)]
 pub struct RecordSender {
     tx: SyncSender<Command>,
+    /// The gyro whose messages this handle queues (a recording of several gyros).
+    gyro: Option<u16>,
+    /// The recording's gyro labels (empty or one: today's topics).
+    gyros: Arc<Vec<String>>,
     path: Arc<PathBuf>,
     capacity: usize,
     bytes: Arc<AtomicU64>,
@@ -273,16 +279,38 @@ impl RecordSender {
     /// Queue a message, blocking while the queue is full (offline tools, tests).
     pub fn send(&self, msg: SinkMessage) -> Result<(), RecordError> {
         self.check(&msg)?;
-        self.tx
-            .send(Command::Message(msg))
-            .map_err(|_| self.stopped())
+        self.tx.send(self.command(msg)).map_err(|_| self.stopped())
+    }
+
+    /// A handle that queues the messages of gyro `label` of a recording of
+    /// several gyros (its `/gyro/<label>/...` channels; its events name it).
+    /// With one gyro (or a label the recording does not have) the handle
+    /// writes today's channels.
+    pub fn for_gyro(&self, label: &str) -> RecordSender {
+        let mut s = self.clone();
+        s.gyro = if self.gyros.len() > 1 {
+            self.gyros
+                .iter()
+                .position(|g| g == label)
+                .and_then(|i| u16::try_from(i).ok())
+        } else {
+            None
+        };
+        s
+    }
+
+    fn command(&self, mut msg: SinkMessage) -> Command {
+        if let (Some(i), SinkMessage::Event(e)) = (self.gyro, &mut msg) {
+            e.gyro = Some(self.gyros[usize::from(i)].clone());
+        }
+        Command::Message(self.gyro, msg)
     }
 
     /// Queue a message without blocking (the daemon). A full queue drops the message,
     /// counts it in [`RecordSender::dropped`] and returns [`RecordError::QueueFull`].
     pub fn try_send(&self, msg: SinkMessage) -> Result<(), RecordError> {
         self.check(&msg)?;
-        match self.tx.try_send(Command::Message(msg)) {
+        match self.tx.try_send(self.command(msg)) {
             Ok(()) => Ok(()),
             Err(TrySendError::Full(_)) => {
                 self.dropped.fetch_add(1, Ordering::Relaxed);
@@ -344,6 +372,21 @@ impl Recorder {
         start: SystemTime,
         metadata: Option<&RecordingMeta>,
     ) -> Result<Recorder, RecordError> {
+        Recorder::start_gyros(config, start, metadata, &[])
+    }
+
+    /// Start a recording of several gyros: `gyros` are their labels and
+    /// metadata records (`sagnac/<label>`, after the common `metadata`), and
+    /// each gets its own channels `/gyro/<label>/raw`, `/clean`, `/noise`,
+    /// `/estimates`, `/allan`, `/verdict`, `/summary`; events share
+    /// `/gyro/events` and name their gyro. With fewer than two gyros this is
+    /// [`Recorder::start_with_metadata`]: today's channels.
+    pub fn start_gyros(
+        config: &RecorderConfig,
+        start: SystemTime,
+        metadata: Option<&RecordingMeta>,
+        gyros: &[(String, RecordingMeta)],
+    ) -> Result<Recorder, RecordError> {
         config.validate()?;
         let dir = &config.record_dir;
         std::fs::create_dir_all(dir).map_err(|source| RecordError::CreateDir {
@@ -379,7 +422,16 @@ impl Recorder {
                 .write_metadata(&meta.to_record())
                 .map_err(|e| mcap_err("writing the metadata record", e))?;
         }
+        let multi = gyros.len() > 1;
+        if multi {
+            for (label, meta) in gyros {
+                writer
+                    .write_metadata(&meta.to_record_for(label))
+                    .map_err(|e| mcap_err("writing a gyro's metadata record", e))?;
+            }
+        }
         let mut channels = BTreeMap::new();
+        let mut names = BTreeMap::new();
         for topic in Topic::ALL {
             let schema = serde_json::to_vec_pretty(&topic.json_schema()).map_err(|source| {
                 RecordError::Serialize {
@@ -391,10 +443,19 @@ impl Recorder {
             let schema_id = writer
                 .add_schema(topic.schema_name(), SCHEMA_ENCODING, &schema)
                 .map_err(|e| mcap_err("adding a schema", e))?;
-            let id = writer
-                .add_channel(schema_id, topic.name(), MESSAGE_ENCODING, &BTreeMap::new())
-                .map_err(|e| mcap_err("adding a channel", e))?;
-            channels.insert(topic, id);
+            let owners: Vec<Option<u16>> = if multi && topic != Topic::Events {
+                (0..gyros.len()).map(|i| u16::try_from(i).ok()).collect()
+            } else {
+                vec![None]
+            };
+            for g in owners {
+                let name = topic.name_for(g.map(|i| gyros[usize::from(i)].0.as_str()));
+                let id = writer
+                    .add_channel(schema_id, &name, MESSAGE_ENCODING, &BTreeMap::new())
+                    .map_err(|e| mcap_err("adding a channel", e))?;
+                channels.insert((g, topic), id);
+                names.insert((g, topic), name);
+            }
         }
         // Close the first chunk (schemas and channels) at once: from now on the
         // file is readable, and recovery always finds the channel records.
@@ -405,12 +466,13 @@ impl Recorder {
         let path = Arc::new(path);
         let mut worker = Worker {
             writer,
+            counts: names.values().map(|n| (n.clone(), 0)).collect(),
             channels,
+            names,
             path: Arc::clone(&path),
             bytes: Arc::clone(&bytes),
             flush_interval: config.flush_interval(),
             sequences: BTreeMap::new(),
-            counts: Topic::ALL.iter().map(|t| (t.name(), 0)).collect(),
             flushes: 1,
             payload: Vec::new(),
         };
@@ -430,6 +492,12 @@ impl Recorder {
         Ok(Recorder {
             sender: RecordSender {
                 tx,
+                gyro: None,
+                gyros: Arc::new(if multi {
+                    gyros.iter().map(|(l, _)| l.clone()).collect()
+                } else {
+                    Vec::new()
+                }),
                 path,
                 capacity: config.queue_capacity,
                 bytes,
@@ -526,12 +594,15 @@ fn create_unique(dir: &Path, name: &str) -> Result<(PathBuf, File), RecordError>
 
 struct Worker {
     writer: ::mcap::Writer<BufWriter<CountingFile>>,
-    channels: BTreeMap<Topic, u16>,
+    /// (gyro index, topic) -> channel id.
+    channels: BTreeMap<(Option<u16>, Topic), u16>,
+    /// (gyro index, topic) -> channel name.
+    names: BTreeMap<(Option<u16>, Topic), String>,
     path: Arc<PathBuf>,
     bytes: Arc<AtomicU64>,
     flush_interval: Duration,
-    sequences: BTreeMap<Topic, u32>,
-    counts: BTreeMap<&'static str, u64>,
+    sequences: BTreeMap<(Option<u16>, Topic), u32>,
+    counts: BTreeMap<String, u64>,
     flushes: u64,
     /// Reused JSON buffer of the message being written.
     payload: Vec<u8>,
@@ -558,8 +629,8 @@ impl Worker {
                 }
             };
             match command {
-                Some(Command::Message(msg)) => {
-                    self.write(&msg)?;
+                Some(Command::Message(gyro, msg)) => {
+                    self.write(gyro, &msg)?;
                     let since = *pending_since.get_or_insert_with(Instant::now);
                     if since.elapsed() >= self.flush_interval {
                         self.flush()?;
@@ -597,8 +668,13 @@ impl Worker {
         }
     }
 
-    fn write(&mut self, msg: &SinkMessage) -> Result<(), RecordError> {
+    fn write(&mut self, gyro: Option<u16>, msg: &SinkMessage) -> Result<(), RecordError> {
         let topic = msg.topic();
+        let key = if topic == Topic::Events {
+            (None, topic)
+        } else {
+            (gyro, topic)
+        };
         let mut data = std::mem::take(&mut self.payload);
         msg.write_json(&mut data)
             .map_err(|source| RecordError::Serialize {
@@ -606,8 +682,8 @@ impl Worker {
                 topic: topic.name(),
                 source,
             })?;
-        let channel_id = self.channels[&topic];
-        let sequence = self.sequences.entry(topic).or_insert(0);
+        let channel_id = self.channels[&key];
+        let sequence = self.sequences.entry(key).or_insert(0);
         let header = ::mcap::records::MessageHeader {
             channel_id,
             sequence: *sequence,
@@ -618,7 +694,9 @@ impl Worker {
         let written = self.writer.write_to_known_channel(&header, &data);
         self.payload = data; // the buffer is reused by the next message
         written.map_err(|e| self.mcap_err("writing a message", e))?;
-        *self.counts.entry(topic.name()).or_insert(0) += 1;
+        if let Some(c) = self.names.get(&key).and_then(|n| self.counts.get_mut(n)) {
+            *c += 1;
+        }
         Ok(())
     }
 

@@ -244,7 +244,10 @@ pub struct Timestamp {
 impl Timestamp {
     /// `t_ns` nanoseconds since the epoch.
     pub fn from_ns(t_ns: u64) -> Self {
-        Timestamp { sec: t_ns / 1_000_000_000, nsec: (t_ns % 1_000_000_000) as u32 }
+        Timestamp {
+            sec: t_ns / 1_000_000_000,
+            nsec: (t_ns % 1_000_000_000) as u32,
+        }
     }
     /// Nanoseconds since the epoch.
     pub fn ns(self) -> u64 {
@@ -318,13 +321,29 @@ pub struct AllanUpdate {
 
 /// `/gyro/events`: something noteworthy happened at `t_ns`.
 ///
-/// JSON: `{"t_ns": .., "kind": "<snake_case kind>", <fields of the kind>}`.
+/// JSON: `{"t_ns": .., "kind": "<snake_case kind>", <fields of the kind>}`, and
+/// `"gyro": "<label>"` in a recording of several gyros (whose events share
+/// `/gyro/events`).
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Event {
     /// Time of the event, ns.
     pub t_ns: u64,
     #[serde(flatten)]
     pub kind: EventKind,
+    /// The gyro it concerns, in a recording of several gyros.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gyro: Option<String>,
+}
+
+impl Event {
+    /// An event of no particular gyro (or of the only one).
+    pub fn new(t_ns: u64, kind: EventKind) -> Self {
+        Event {
+            t_ns,
+            kind,
+            gyro: None,
+        }
+    }
 }
 
 /// The kinds of [`Event`].
@@ -380,7 +399,8 @@ impl VerdictUpdate {
             .iter()
             .map(|(k, c)| {
                 let mut c = c.clone();
-                (c.estimate, c.bound, c.lower, c.upper) = (fin(c.estimate), fin(c.bound), fin(c.lower), fin(c.upper));
+                (c.estimate, c.bound, c.lower, c.upper) =
+                    (fin(c.estimate), fin(c.bound), fin(c.lower), fin(c.upper));
                 (c.decided_at_s, c.eta_s) = (fin(c.decided_at_s), fin(c.eta_s));
                 (k.clone(), c)
             })
@@ -442,6 +462,31 @@ impl Topic {
         Topic::ALL.into_iter().find(|t| t.name() == name)
     }
 
+    /// The channel name of this topic for gyro `gyro` of a recording of
+    /// several gyros (`/gyro/<label>/raw`, ...; events stay on the shared
+    /// `/gyro/events` and name their gyro), or today's name with one gyro (`None`).
+    pub fn name_for(self, gyro: Option<&str>) -> String {
+        match gyro {
+            Some(label) if self != Topic::Events => {
+                format!("/gyro/{label}/{}", &self.name()["/gyro/".len()..])
+            }
+            _ => self.name().to_string(),
+        }
+    }
+
+    /// The topic and gyro label of a channel name: `/gyro/raw` is `(Raw,
+    /// None)`, `/gyro/x/raw` is `(Raw, Some("x"))`; `None` for a foreign channel.
+    pub fn parse_channel(name: &str) -> Option<(Topic, Option<String>)> {
+        if let Some(t) = Topic::from_name(name) {
+            return Some((t, None));
+        }
+        let rest = name.strip_prefix("/gyro/")?;
+        let (label, tail) = rest.split_once('/')?;
+        let topic = Topic::from_name(&format!("/gyro/{tail}"))?;
+        (topic != Topic::Events && valid_gyro_label(label))
+            .then(|| (topic, Some(label.to_string())))
+    }
+
     /// The MCAP schema name.
     pub fn schema_name(self) -> &'static str {
         match self {
@@ -468,6 +513,15 @@ impl Topic {
             Topic::Summary => summary_update_schema(),
         }
     }
+}
+
+/// Whether `label` can name a gyro: 1-32 ASCII letters, digits, `_` or `-`
+/// (it becomes an MCAP topic segment and a Prometheus label value).
+pub fn valid_gyro_label(label: &str) -> bool {
+    (1..=32).contains(&label.len())
+        && label
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-')
 }
 
 /// A message on one of the channels.
@@ -1092,6 +1146,7 @@ fn event_schema() -> Value {
             let mut props = json!({
                 "t_ns": uint("time of the event, ns since the Unix epoch"),
                 "kind": {"const": kind},
+                "gyro": {"type": "string", "description": "the gyro it concerns, in a recording of several gyros"},
             });
             if let (Some(p), Some(f)) = (props.as_object_mut(), fields.as_object()) {
                 p.extend(f.clone());
@@ -1106,6 +1161,7 @@ fn event_schema() -> Value {
         "properties": {
             "t_ns": uint("time of the event, ns since the Unix epoch"),
             "kind": {"type": "string", "enum": names},
+            "gyro": {"type": "string", "description": "the gyro it concerns, in a recording of several gyros"},
         },
         "required": ["t_ns", "kind"],
         "oneOf": branches,

@@ -77,7 +77,11 @@ pub enum MetaError {
     #[error("metadata key `{key}` is missing")]
     Missing { key: &'static str },
     #[error("metadata key `{key}` = {value:?}: {reason}")]
-    Bad { key: &'static str, value: String, reason: &'static str },
+    Bad {
+        key: &'static str,
+        value: String,
+        reason: &'static str,
+    },
 }
 
 impl RecordingMeta {
@@ -98,7 +102,10 @@ impl RecordingMeta {
     /// The MCAP Metadata record.
     pub fn to_record(&self) -> ::mcap::records::Metadata {
         let mut m = BTreeMap::new();
-        m.insert("sample_rate_hz".to_string(), self.sample_rate_hz.to_string());
+        m.insert(
+            "sample_rate_hz".to_string(),
+            self.sample_rate_hz.to_string(),
+        );
         m.insert("output".to_string(), self.output.name().to_string());
         let optional = [
             ("pulse_arcsec", self.pulse_arcsec.map(|v| v.to_string())),
@@ -112,31 +119,56 @@ impl RecordingMeta {
             }
         }
         m.insert("sagnac_version".to_string(), self.sagnac_version.clone());
-        ::mcap::records::Metadata { name: METADATA_NAME.to_string(), metadata: m }
+        ::mcap::records::Metadata {
+            name: METADATA_NAME.to_string(),
+            metadata: m,
+        }
+    }
+
+    /// The Metadata record of gyro `label` of a recording of several gyros
+    /// (named `sagnac/<label>`, see [`gyro_metadata_name`]).
+    pub fn to_record_for(&self, label: &str) -> ::mcap::records::Metadata {
+        let mut r = self.to_record();
+        r.name = gyro_metadata_name(label);
+        r
     }
 
     /// Parse the key-value map of a `sagnac` Metadata record.
     pub fn from_map(m: &BTreeMap<String, String>) -> Result<Self, MetaError> {
         let number = |key: &'static str| -> Result<Option<f64>, MetaError> {
-            let Some(text) = m.get(key) else { return Ok(None) };
+            let Some(text) = m.get(key) else {
+                return Ok(None);
+            };
             match text.trim().parse::<f64>() {
                 Ok(v) if v.is_finite() && v > 0.0 => Ok(Some(v)),
-                _ => Err(MetaError::Bad { key, value: text.clone(), reason: "not a positive number" }),
+                _ => Err(MetaError::Bad {
+                    key,
+                    value: text.clone(),
+                    reason: "not a positive number",
+                }),
             }
         };
-        let sample_rate_hz = number("sample_rate_hz")?.ok_or(MetaError::Missing { key: "sample_rate_hz" })?;
+        let sample_rate_hz = number("sample_rate_hz")?.ok_or(MetaError::Missing {
+            key: "sample_rate_hz",
+        })?;
         let output = match m.get("output").map(String::as_str) {
             Some("counts") => GyroOutput::Counts,
             Some("rate") => GyroOutput::Rate,
             Some(other) => {
-                return Err(MetaError::Bad { key: "output", value: other.to_string(), reason: "must be counts or rate" });
+                return Err(MetaError::Bad {
+                    key: "output",
+                    value: other.to_string(),
+                    reason: "must be counts or rate",
+                });
             }
             None => return Err(MetaError::Missing { key: "output" }),
         };
         let pulse_arcsec = number("pulse_arcsec")?;
         let rate_lsb_dps = number("rate_lsb_dps")?;
         if output == GyroOutput::Counts && pulse_arcsec.is_none() {
-            return Err(MetaError::Missing { key: "pulse_arcsec" });
+            return Err(MetaError::Missing {
+                key: "pulse_arcsec",
+            });
         }
         Ok(RecordingMeta {
             sample_rate_hz,
@@ -148,6 +180,11 @@ impl RecordingMeta {
             sagnac_version: m.get("sagnac_version").cloned().unwrap_or_default(),
         })
     }
+}
+
+/// Name of the Metadata record of gyro `label` in a recording of several gyros.
+pub fn gyro_metadata_name(label: &str) -> String {
+    format!("{METADATA_NAME}/{label}")
 }
 
 /// A command-line value that contradicts what a recording says about itself.
@@ -185,9 +222,13 @@ pub fn check_flag(
     rel_tol: f64,
 ) -> Result<Option<f64>, Contradiction> {
     match (given, recorded) {
-        (Some(g), Some(r)) if (g - r).abs() > rel_tol * r.abs() => {
-            Err(Contradiction { flag, given: g, path: path.to_path_buf(), recorded: r, origin })
-        }
+        (Some(g), Some(r)) if (g - r).abs() > rel_tol * r.abs() => Err(Contradiction {
+            flag,
+            given: g,
+            path: path.to_path_buf(),
+            recorded: r,
+            origin,
+        }),
         (Some(g), _) => Ok(Some(g)),
         (None, r) => Ok(r),
     }
@@ -203,33 +244,61 @@ mod tests {
         meta.model = Some("[gyro]\nsample_rate_hz = 333.3333333333333\n".into());
         let rec = meta.to_record();
         assert_eq!(rec.name, METADATA_NAME);
-        assert_eq!(RecordingMeta::from_map(&rec.metadata).unwrap(), meta, "bit for bit");
+        assert_eq!(
+            RecordingMeta::from_map(&rec.metadata).unwrap(),
+            meta,
+            "bit for bit"
+        );
         let mut m = rec.metadata.clone();
         m.remove("pulse_arcsec");
-        assert_eq!(RecordingMeta::from_map(&m), Err(MetaError::Missing { key: "pulse_arcsec" }));
+        assert_eq!(
+            RecordingMeta::from_map(&m),
+            Err(MetaError::Missing {
+                key: "pulse_arcsec"
+            })
+        );
         m.insert("output".into(), "rate".into());
-        assert_eq!(RecordingMeta::from_map(&m).unwrap().output, GyroOutput::Rate);
+        assert_eq!(
+            RecordingMeta::from_map(&m).unwrap().output,
+            GyroOutput::Rate
+        );
         m.insert("sample_rate_hz".into(), "-3".into());
         let e = RecordingMeta::from_map(&m).unwrap_err().to_string();
         assert!(e.contains("sample_rate_hz") && e.contains("-3"), "{e}");
         m.insert("sample_rate_hz".into(), "100".into());
         m.insert("output".into(), "volts".into());
-        assert!(RecordingMeta::from_map(&m).unwrap_err().to_string().contains("volts"));
+        assert!(
+            RecordingMeta::from_map(&m)
+                .unwrap_err()
+                .to_string()
+                .contains("volts")
+        );
     }
 
     #[test]
     fn flags_meet_recorded_values() {
         let p = Path::new("r.mcap");
-        let check = |given, recorded| check_flag("--rate-hz", given, recorded, p, "in x", AGREE_REL);
+        let check =
+            |given, recorded| check_flag("--rate-hz", given, recorded, p, "in x", AGREE_REL);
         assert_eq!(check(None, Some(100.0)), Ok(Some(100.0)));
         assert_eq!(check(Some(50.0), None), Ok(Some(50.0)));
         assert_eq!(check(Some(100.0), Some(100.0)), Ok(Some(100.0)));
-        assert_eq!(check(Some(100.0), Some(100.0 + 1e-8)), Ok(Some(100.0)), "within 1e-9");
+        assert_eq!(
+            check(Some(100.0), Some(100.0 + 1e-8)),
+            Ok(Some(100.0)),
+            "within 1e-9"
+        );
         assert_eq!(check(None, None), Ok(None));
         let e = check(Some(50.0), Some(100.0)).unwrap_err().to_string();
-        assert!(e.contains("--rate-hz 50 contradicts r.mcap") && e.contains("says 100 in x"), "{e}");
+        assert!(
+            e.contains("--rate-hz 50 contradicts r.mcap") && e.contains("says 100 in x"),
+            "{e}"
+        );
         // a rate from a period of 333333 ns: 3000 Hz agrees within 1 ns
         let r = 1e9 / 333_333.0;
-        assert_eq!(check_flag("--rate-hz", Some(3000.0), Some(r), p, "x", 1.0 / 333_333.0), Ok(Some(3000.0)));
+        assert_eq!(
+            check_flag("--rate-hz", Some(3000.0), Some(r), p, "x", 1.0 / 333_333.0),
+            Ok(Some(3000.0))
+        );
     }
 }

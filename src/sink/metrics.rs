@@ -190,7 +190,11 @@ pub fn register<C: prometheus::core::Collector + Clone + 'static>(
 impl GyroFamilies {
     fn new(registry: &Registry) -> Result<GyroFamilies, MetricsError> {
         let counter = |name: &'static str, help: &str| {
-            register(registry, name, IntCounterVec::new(Opts::new(name, help), &["gyro"]))
+            register(
+                registry,
+                name,
+                IntCounterVec::new(Opts::new(name, help), &["gyro"]),
+            )
         };
         let gauge = |name: &'static str, help: &str, labels: &[&str]| {
             let mut all = vec!["gyro"];
@@ -200,7 +204,10 @@ impl GyroFamilies {
         let bounds = |name: &'static str, help: &str| gauge(name, help, &["bound"]);
         Ok(GyroFamilies {
             samples: counter("sagnac_samples_total", "Gyro samples decoded.")?,
-            frames_decoded: counter("sagnac_frames_decoded_total", "Frames decoded with a valid CRC.")?,
+            frames_decoded: counter(
+                "sagnac_frames_decoded_total",
+                "Frames decoded with a valid CRC.",
+            )?,
             frame_errors: register(
                 registry,
                 "sagnac_frame_errors_total",
@@ -303,19 +310,33 @@ impl Metrics {
         let bytes_read = register(
             &registry,
             "sagnac_bytes_read_total",
-            IntCounter::new("sagnac_bytes_read_total", "Bytes read from the devices or input files."),
+            IntCounter::new(
+                "sagnac_bytes_read_total",
+                "Bytes read from the devices or input files.",
+            ),
         )?;
         let recording_bytes = register(
             &registry,
             "sagnac_recording_bytes",
-            IntGauge::new("sagnac_recording_bytes", "Size of the current MCAP recording written so far, bytes."),
+            IntGauge::new(
+                "sagnac_recording_bytes",
+                "Size of the current MCAP recording written so far, bytes.",
+            ),
         )?;
         let build = register(
             &registry,
             "sagnac_build_info",
-            GaugeVec::new(Opts::new("sagnac_build_info", "Always 1; the version label says which sagnac runs."), &["version"]),
+            GaugeVec::new(
+                Opts::new(
+                    "sagnac_build_info",
+                    "Always 1; the version label says which sagnac runs.",
+                ),
+                &["version"],
+            ),
         )?;
-        build.with_label_values(&[env!("CARGO_PKG_VERSION")]).set(1.0);
+        build
+            .with_label_values(&[env!("CARGO_PKG_VERSION")])
+            .set(1.0);
         Ok(Metrics {
             gyros: GyroFamilies::new(&registry)?,
             registry,
@@ -337,16 +358,22 @@ impl Metrics {
             label: Arc::from(g),
             samples: f.samples.with_label_values(&[g]),
             frames_decoded: f.frames_decoded.with_label_values(&[g]),
-            frame_errors: FrameErrorKind::ALL.map(|k| f.frame_errors.with_label_values(&[g, k.as_str()])),
+            frame_errors: FrameErrorKind::ALL
+                .map(|k| f.frame_errors.with_label_values(&[g, k.as_str()])),
             lost_samples: f.lost_samples.with_label_values(&[g]),
             temperature: f.temperature.with_label_values(&[g]),
             lag: f.lag.with_label_values(&[g]),
             families: f.clone(),
             allan_taus: Arc::clone(&self.allan_taus),
         };
-        let mut known = self.known.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        let mut known = self
+            .known
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
         if known.insert(g.to_string()) {
-            f.info.with_label_values(&[g, &info.serial_number, &info.model]).set(1.0);
+            f.info
+                .with_label_values(&[g, &info.serial_number, &info.model])
+                .set(1.0);
             gm.temperature.set(f64::NAN);
             gm.lag.set(f64::NAN);
         }
@@ -401,7 +428,9 @@ pub struct GyroMetrics {
 
 impl std::fmt::Debug for GyroMetrics {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("GyroMetrics").field("gyro", &self.label).finish_non_exhaustive()
+        f.debug_struct("GyroMetrics")
+            .field("gyro", &self.label)
+            .finish_non_exhaustive()
     }
 }
 
@@ -423,7 +452,10 @@ impl GyroMetrics {
 
     /// Count frame errors of one kind.
     pub fn add_frame_errors(&self, kind: FrameErrorKind, n: u64) {
-        let i = FrameErrorKind::ALL.iter().position(|&k| k == kind).unwrap_or(0);
+        let i = FrameErrorKind::ALL
+            .iter()
+            .position(|&k| k == kind)
+            .unwrap_or(0);
         self.frame_errors[i].inc_by(n);
     }
 
@@ -458,7 +490,11 @@ impl GyroMetrics {
     }
 
     fn set_bounds(&self, gauge: &GaugeVec, b: Bounds95) {
-        for (bound, value) in [("estimate", b.estimate), ("lower95", b.lower95), ("upper95", b.upper95)] {
+        for (bound, value) in [
+            ("estimate", b.estimate),
+            ("lower95", b.lower95),
+            ("upper95", b.upper95),
+        ] {
             match value {
                 Some(v) => gauge.with_label_values(&[&self.label, bound]).set(v),
                 None => {
@@ -480,10 +516,20 @@ impl GyroMetrics {
         let name = channel.as_str();
         let gyro = self.label.to_string();
         if tau_s.len() != adev_dph.len() {
-            return Err(MetricsError::CurveLength { gyro, channel: name, taus: tau_s.len(), devs: adev_dph.len() });
+            return Err(MetricsError::CurveLength {
+                gyro,
+                channel: name,
+                taus: tau_s.len(),
+                devs: adev_dph.len(),
+            });
         }
         if let Some(index) = tau_s.iter().position(|t| !(t.is_finite() && *t > 0.0)) {
-            return Err(MetricsError::BadTau { gyro, channel: name, index, tau_s: tau_s[index] });
+            return Err(MetricsError::BadTau {
+                gyro,
+                channel: name,
+                index,
+                tau_s: tau_s[index],
+            });
         }
         let labels: Vec<String> = tau_s.iter().map(|&t| tau_label(t)).collect();
         let mut taus = self
@@ -514,7 +560,13 @@ impl GyroMetrics {
     /// Set one coefficient's acceptance-test series: verdict (1 pass, 0 undecided,
     /// -1 fail), its limit (`None` for `overall`) and the predicted time to a
     /// decision, s (`None`: exported as NaN).
-    pub fn set_spec(&self, coefficient: &str, verdict: f64, limit: Option<f64>, eta_s: Option<f64>) {
+    pub fn set_spec(
+        &self,
+        coefficient: &str,
+        verdict: f64,
+        limit: Option<f64>,
+        eta_s: Option<f64>,
+    ) {
         let f = &self.families;
         let labels = [&*self.label, coefficient];
         f.spec_verdict.with_label_values(&labels).set(verdict);
@@ -522,7 +574,9 @@ impl GyroMetrics {
             f.spec_limit.with_label_values(&labels).set(l);
         }
         if coefficient != "overall" {
-            f.spec_eta.with_label_values(&labels).set(eta_s.unwrap_or(f64::NAN));
+            f.spec_eta
+                .with_label_values(&labels)
+                .set(eta_s.unwrap_or(f64::NAN));
         }
     }
 }

@@ -15,9 +15,9 @@
 
 pub mod export;
 pub mod mcap;
-pub mod meta;
 pub mod messages;
+pub mod meta;
 pub mod metrics;
 pub mod provenance;
-pub mod report;
 pub mod reader;
+pub mod report;

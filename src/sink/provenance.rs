@@ -80,7 +80,11 @@ pub struct Provenance {
 impl Provenance {
     /// This sagnac's version, `input`, and `units`.
     pub fn new(input: InputSettings, units: Vec<(String, String)>) -> Self {
-        Provenance { sagnac_version: env!("CARGO_PKG_VERSION").to_string(), input, units: units.into_iter().collect() }
+        Provenance {
+            sagnac_version: env!("CARGO_PKG_VERSION").to_string(),
+            input,
+            units: units.into_iter().collect(),
+        }
     }
 
     /// Add `sagnac_version`, `input` and `units` to the JSON object `v` (left
@@ -107,12 +111,18 @@ pub fn analysis_units() -> Vec<(String, String)> {
         ("allan.*.tau_s", "s"),
         ("allan.*.dev, ci_lo, ci_hi", "deg/h"),
         ("allan.*.m", "samples (averaging factor)"),
-        ("allan.*.n, edf", "1 (terms averaged, equivalent degrees of freedom)"),
+        (
+            "allan.*.n, edf",
+            "1 (terms averaged, equivalent degrees of freedom)",
+        ),
         ("fit.chi2_per_dof", "1 (chi-square per degree of freedom)"),
         ("readout_filter.corner_hz, ci95", "Hz"),
         ("readout_filter.delay_s", "s"),
         ("readout_filter.length", "samples"),
-        ("spec.coefficients.*", "the unit the coefficient's name carries"),
+        (
+            "spec.coefficients.*",
+            "the unit the coefficient's name carries",
+        ),
         ("spec.duration_s", "s"),
     ] {
         u.push((k.to_string(), unit.to_string()));

@@ -104,6 +104,9 @@ pub struct RecordedMessage {
     /// Per-channel sequence number.
     pub sequence: u32,
     pub message: SinkMessage,
+    /// The gyro whose channel it is on (`/gyro/<label>/...` of a recording of
+    /// several gyros); `None` on today's channels and the shared `/gyro/events`.
+    pub gyro: Option<String>,
 }
 
 /// A complete recording.
@@ -251,6 +254,19 @@ pub fn scan_recording(
 /// a file without one before its data, such as a recording made before the
 /// record existed, gives `None`). Cheap: it reads a few hundred bytes.
 pub fn read_metadata(path: &Path) -> Result<Option<RecordingMeta>, ReadError> {
+    read_metadata_of(path, None)
+}
+
+/// [`read_metadata`] of gyro `gyro` of a recording of several gyros (its
+/// `sagnac/<label>` record); `None` reads the common `sagnac` record.
+pub fn read_metadata_of(
+    path: &Path,
+    gyro: Option<&str>,
+) -> Result<Option<RecordingMeta>, ReadError> {
+    let wanted = gyro.map_or_else(
+        || METADATA_NAME.to_string(),
+        crate::sink::meta::gyro_metadata_name,
+    );
     let (file, len) = open(path)?;
     let mut input = BufReader::new(file);
     let io_err = |offset, source| ReadError::Io {
@@ -305,7 +321,7 @@ pub fn read_metadata(path: &Path) -> Result<Option<RecordingMeta>, ReadError> {
                         let record = ::mcap::parse_record(opcode, data)
                             .map_err(|e| scanner.mcap_error(start, e))?;
                         if let Record::Metadata(m) = record
-                            && m.name == METADATA_NAME
+                            && m.name == wanted
                         {
                             return parse_metadata(&m, start, path).map(Some);
                         }
@@ -342,7 +358,7 @@ const RECORD_PREFIX: u64 = 9;
 struct Scanner<'a> {
     path: &'a Path,
     /// Declared channels: id -> our topic, or None for a foreign one.
-    channels: HashMap<u16, Option<Topic>>,
+    channels: HashMap<u16, Option<(Topic, Option<String>)>>,
     report: ScanReport,
 }
 
@@ -435,7 +451,9 @@ fn scan(
                 match record {
                     Record::Footer(_) => footer_seen = true,
                     Record::Statistics(ref s) => stats_count = Some((start, s.message_count)),
-                    Record::Metadata(ref m) if m.name == METADATA_NAME && scanner.report.metadata.is_none() => {
+                    Record::Metadata(ref m)
+                        if m.name == METADATA_NAME && scanner.report.metadata.is_none() =>
+                    {
                         match parse_metadata(m, start, path) {
                             Ok(meta) => scanner.report.metadata = Some(meta),
                             Err(e) => return scanner.stop(strict, start, e),
@@ -602,8 +620,8 @@ impl Scanner<'_> {
     ) -> Result<Option<Option<RecordedMessage>>, ReadError> {
         match record {
             Record::Channel(c) => {
-                let topic = Topic::from_name(&c.topic);
-                if let Some(t) = topic
+                let topic = Topic::parse_channel(&c.topic);
+                if let Some((t, _)) = &topic
                     && c.message_encoding != MESSAGE_ENCODING
                 {
                     return Err(ReadError::Encoding {
@@ -617,14 +635,16 @@ impl Scanner<'_> {
                 Ok(None)
             }
             Record::Message { header, data } => {
-                let topic = *self.channels.get(&header.channel_id).ok_or_else(|| {
-                    ReadError::UnknownChannel {
+                let topic = self
+                    .channels
+                    .get(&header.channel_id)
+                    .cloned()
+                    .ok_or_else(|| ReadError::UnknownChannel {
                         path: self.path.to_path_buf(),
                         offset,
                         channel_id: header.channel_id,
-                    }
-                })?;
-                let Some(topic) = topic else {
+                    })?;
+                let Some((topic, gyro)) = topic else {
                     return Ok(Some(None));
                 };
                 let message =
@@ -640,6 +660,7 @@ impl Scanner<'_> {
                     publish_time_ns: header.publish_time,
                     sequence: header.sequence,
                     message,
+                    gyro,
                 })))
             }
             _ => Ok(None),

@@ -310,9 +310,15 @@ mod tests {
         assert_eq!(report.samples, 20_000);
         // 20 001 frames of 16 bytes went through the decoder
         let text = telemetry.metrics.encode();
-        assert!(text.contains("sagnac_frames_decoded_total{gyro=\"gyro\"} 20001\n"), "{text}");
+        assert!(
+            text.contains("sagnac_frames_decoded_total{gyro=\"gyro\"} 20001\n"),
+            "{text}"
+        );
         assert!(text.contains("sagnac_bytes_read_total 320016\n"), "{text}");
-        assert!(!text.contains("sagnac_device_connected"), "the simulated bench has no device:\n{text}");
+        assert!(
+            !text.contains("sagnac_device_connected"),
+            "the simulated bench has no device:\n{text}"
+        );
     }
 
     #[test]

@@ -114,6 +114,7 @@
 //! * [`codec`]: the `tokio_util::codec::Decoder` adapter (the only part that
 //!   touches the tokio ecosystem).
 
+pub mod axes;
 pub mod codec;
 mod decoder;
 mod encoder;
@@ -121,13 +122,14 @@ mod fill;
 pub mod inject;
 pub mod triad;
 
+pub use axes::Axes;
 pub use decoder::{
     DecodeEvent, Decoded, DecoderConfig, DecoderStats, FrameDecoder, RunEnd, Sample, WireDecoded,
     increment_between,
 };
-pub use triad::{TRIAD_FRAME_LEN, TRIAD_SYNC, Triad, TriadEncoder, encode_triad_frame};
 pub use encoder::{FrameEncoder, FrameWriter, encode_increments};
 pub use fill::{FilledSeries, GapFiller, UniformSample, fill_gap, spread_increment};
+pub use triad::{TRIAD_FRAME_LEN, TRIAD_SYNC, Triad, TriadEncoder, encode_triad_frame};
 
 use crc::{CRC_16_IBM_3740, Crc};
 

@@ -503,34 +503,33 @@ fn read_lines(
             break;
         }
         let at = Location::Line(st.line);
-        let v =
-            match &st.csv {
-                None => parse_value(&st.buf, path, at, ints)?,
-                Some((idx, delim, name, width)) => {
-                    // one pass: the wanted field, and the row's width
-                    let (mut field, mut fields) = (&st.buf[..0], 0);
-                    for (i, f) in st.buf.split(|b| b == delim).enumerate() {
-                        if i == *idx {
-                            field = f;
-                        }
-                        fields += 1;
+        let v = match &st.csv {
+            None => parse_value(&st.buf, path, at, ints)?,
+            Some((idx, delim, name, width)) => {
+                // one pass: the wanted field, and the row's width
+                let (mut field, mut fields) = (&st.buf[..0], 0);
+                for (i, f) in st.buf.split(|b| b == delim).enumerate() {
+                    if i == *idx {
+                        field = f;
                     }
-                    if fields != *width {
-                        return Err(InputError::RaggedRow {
-                            path: path.to_path_buf(),
-                            line: st.line,
-                            fields,
-                            expected: *width,
-                            column: name.clone(),
-                            index: idx + 1,
-                        });
-                    }
-                    let f = field.trim_ascii();
-                    let f = f.strip_prefix(b"\"").unwrap_or(f);
-                    let f = f.strip_suffix(b"\"").unwrap_or(f);
-                    parse_value(f.trim_ascii(), path, at, ints)?
+                    fields += 1;
                 }
-            };
+                if fields != *width {
+                    return Err(InputError::RaggedRow {
+                        path: path.to_path_buf(),
+                        line: st.line,
+                        fields,
+                        expected: *width,
+                        column: name.clone(),
+                        index: idx + 1,
+                    });
+                }
+                let f = field.trim_ascii();
+                let f = f.strip_prefix(b"\"").unwrap_or(f);
+                let f = f.strip_suffix(b"\"").unwrap_or(f);
+                parse_value(f.trim_ascii(), path, at, ints)?
+            }
+        };
         out.push(v);
     }
     Ok(())
@@ -626,7 +625,13 @@ mod tests {
     #[test]
     fn ragged_csv_rows_are_errors_naming_the_line() {
         for (name, text, line, fields, header) in [
-            ("short.csv", &b"counts,temp_c\n1,20\n2\n3,20\n"[..], "line 3", 1, 2),
+            (
+                "short.csv",
+                &b"counts,temp_c\n1,20\n2\n3,20\n"[..],
+                "line 3",
+                1,
+                2,
+            ),
             ("long.csv", &b"counts\n1\n2,5\n"[..], "line 3", 2, 1),
             // the wanted column present, but a field missing after it
             ("tail.csv", &b"a,counts,b\n1,2,3\n4,5\n"[..], "line 3", 2, 3),
@@ -638,7 +643,9 @@ mod tests {
             assert!(
                 e.contains(name)
                     && e.contains(line)
-                    && e.contains(&format!("row has {fields} field(s), the header has {header}")),
+                    && e.contains(&format!(
+                        "row has {fields} field(s), the header has {header}"
+                    )),
                 "{e}"
             );
         }
@@ -715,7 +722,10 @@ mod tests {
         assert!(e.contains("line 3"), "{e}");
         // a spreadsheet's UTF-8 byte-order mark before the first name
         let (_d, p) = tmp("bom.csv", b"\xEF\xBB\xBFcounts,t\n5,0\n-2,1\n");
-        assert_eq!(read_all(&p, InputFormat::Csv, Some("counts")).unwrap(), vec![5.0, -2.0]);
+        assert_eq!(
+            read_all(&p, InputFormat::Csv, Some("counts")).unwrap(),
+            vec![5.0, -2.0]
+        );
     }
 
     #[test]
@@ -750,9 +760,13 @@ mod tests {
     #[test]
     fn block_size_does_not_change_the_samples() {
         // the same samples whatever the block size, for every format and gzip
-        let vals: Vec<f64> = (0..2500).map(|i| ((i * 7919) % 1000) as f64 / 8.0 - 60.0).collect();
+        let vals: Vec<f64> = (0..2500)
+            .map(|i| ((i * 7919) % 1000) as f64 / 8.0 - 60.0)
+            .collect();
         let text: String = vals.iter().map(|v| format!("{v}\n")).collect();
-        let csv: String = std::iter::once("k,v\n".to_string()).chain(vals.iter().map(|v| format!("1,{v}\n"))).collect();
+        let csv: String = std::iter::once("k,v\n".to_string())
+            .chain(vals.iter().map(|v| format!("1,{v}\n")))
+            .collect();
         let bin: Vec<u8> = vals.iter().flat_map(|v| v.to_le_bytes()).collect();
         let gz = |b: &[u8]| {
             let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
@@ -778,7 +792,11 @@ mod tests {
                 }
                 assert_eq!(got, vals, "{name} block {block}");
                 assert_eq!(r.samples_read(), vals.len() as u64);
-                assert_eq!(r.next_block(&mut buf, block).unwrap(), 0, "stays at the end");
+                assert_eq!(
+                    r.next_block(&mut buf, block).unwrap(),
+                    0,
+                    "stays at the end"
+                );
             }
         }
     }

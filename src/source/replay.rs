@@ -445,6 +445,7 @@ impl ReplaySource {
                     b.events.push(Event {
                         t_ns,
                         kind: EventKind::Gap { seq, lost: g.lost },
+                        gyro: None,
                     });
                     seq += g.lost;
                     gi += 1;
@@ -547,7 +548,9 @@ impl RawReader {
     /// Where (bytes read when it happened) and why reading stopped early (a cut
     /// or damaged file), if it did.
     pub fn broken(&self) -> Option<(u64, &str)> {
-        self.broken.as_ref().map(|(offset, reason)| (*offset, reason.as_str()))
+        self.broken
+            .as_ref()
+            .map(|(offset, reason)| (*offset, reason.as_str()))
     }
 
     /// The next `/gyro/raw` message, `None` at the end (or at a break).

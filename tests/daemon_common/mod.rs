@@ -135,17 +135,36 @@ pub fn read_mcap_py_with(path: &Path, flags: &[&str]) -> serde_json::Value {
 /// rounding of `/gyro/clean`; the temperature within the raw batches' range.
 /// Returns the number of messages.
 pub fn check_summary(py: &serde_json::Value) -> usize {
-    let rec = py["summary_recorded"].as_array().expect("read-mcap.py --summary");
+    let rec = py["summary_recorded"]
+        .as_array()
+        .expect("read-mcap.py --summary");
     let exp = py["summary_expected"].as_array().unwrap();
-    assert_eq!(rec.len(), exp.len(), "summary windows: recorded vs recomputed");
+    assert_eq!(
+        rec.len(),
+        exp.len(),
+        "summary windows: recorded vs recomputed"
+    );
     let f = |v: &serde_json::Value| v.as_f64().unwrap();
     for (i, (r, e)) in rec.iter().zip(exp).enumerate() {
-        assert_eq!((&r[0], &r[1], &r[2]), (&e[0], &e[1], &e[2]), "window {i}: time, samples, lost");
-        assert!((f(&r[3]) - f(&e[3])).abs() <= 0.5e-3 + 1e-9 * f(&e[3]).abs(), "window {i}: raw {r:?} vs {e:?}");
-        assert!((f(&r[4]) - f(&e[4])).abs() <= 1e-3 + 1e-9 * f(&e[4]).abs(), "window {i}: clean {r:?} vs {e:?}");
+        assert_eq!(
+            (&r[0], &r[1], &r[2]),
+            (&e[0], &e[1], &e[2]),
+            "window {i}: time, samples, lost"
+        );
+        assert!(
+            (f(&r[3]) - f(&e[3])).abs() <= 0.5e-3 + 1e-9 * f(&e[3]).abs(),
+            "window {i}: raw {r:?} vs {e:?}"
+        );
+        assert!(
+            (f(&r[4]) - f(&e[4])).abs() <= 1e-3 + 1e-9 * f(&e[4]).abs(),
+            "window {i}: clean {r:?} vs {e:?}"
+        );
         match (&r[5], &e[5]) {
             (serde_json::Value::Null, serde_json::Value::Null) => {}
-            (t, range) => assert!(f(&range[0]) <= f(t) && f(t) <= f(&range[1]), "window {i}: temp {t} outside {range}"),
+            (t, range) => assert!(
+                f(&range[0]) <= f(t) && f(t) <= f(&range[1]),
+                "window {i}: temp {t} outside {range}"
+            ),
         }
     }
     rec.len()
@@ -304,14 +323,22 @@ pub fn final_and_raw(rec: &Path) -> (EstimateUpdate, Vec<RawBatch>) {
 /// pushed in other block sizes (its sums are not bit-invariant to the split).
 /// Returns the largest relative difference.
 pub fn close(a: &Coefficient, b: &Coefficient, what: &str) -> f64 {
-    let (ca, cb) = (a.ci95.unwrap_or([f64::NAN; 2]), b.ci95.unwrap_or([f64::NAN; 2]));
+    let (ca, cb) = (
+        a.ci95.unwrap_or([f64::NAN; 2]),
+        b.ci95.unwrap_or([f64::NAN; 2]),
+    );
     assert_eq!(
         (a.value.is_some(), a.ci95.is_some(), a.upper95.is_some()),
         (b.value.is_some(), b.ci95.is_some(), b.upper95.is_some()),
         "{what}: {a:?} vs {b:?}"
     );
     let mut worst: f64 = 0.0;
-    for (x, y) in [(a.value, b.value), (Some(ca[0]), Some(cb[0])), (Some(ca[1]), Some(cb[1])), (a.upper95, b.upper95)] {
+    for (x, y) in [
+        (a.value, b.value),
+        (Some(ca[0]), Some(cb[0])),
+        (Some(ca[1]), Some(cb[1])),
+        (a.upper95, b.upper95),
+    ] {
         if let (Some(x), Some(y)) = (x, y)
             && !(x.is_nan() && y.is_nan())
         {
@@ -340,7 +367,11 @@ pub fn close_estimates(recorded: &EstimateUpdate, analyze: &serde_json::Value, w
 pub fn analyze_json(format: &str, input: &Path, out: &Path) -> serde_json::Value {
     // a frame capture carries no rate or pulse weight (the paper gyro's); an
     // MCAP recording's metadata record does
-    let flags: &[&str] = if format == "mcap" { &[] } else { &["--rate-hz", "1000", "--pulse-arcsec", "1.21"] };
+    let flags: &[&str] = if format == "mcap" {
+        &[]
+    } else {
+        &["--rate-hz", "1000", "--pulse-arcsec", "1.21"]
+    };
     let r = Command::new(env!("CARGO_BIN_EXE_sagnac"))
         .args(["analyze", "--format", format, "--input"])
         .arg(input)
@@ -349,6 +380,10 @@ pub fn analyze_json(format: &str, input: &Path, out: &Path) -> serde_json::Value
         .arg(out)
         .output()
         .unwrap();
-    assert!(r.status.success(), "analyze: {}", String::from_utf8_lossy(&r.stderr));
+    assert!(
+        r.status.success(),
+        "analyze: {}",
+        String::from_utf8_lossy(&r.stderr)
+    );
     serde_json::from_str(&std::fs::read_to_string(out).unwrap()).unwrap()
 }

@@ -27,17 +27,29 @@ pub fn have(tool: &str) -> bool {
         .is_ok_and(|s| s.success());
     if !found {
         if std::env::var("CI").as_deref() == Ok("true") {
-            panic!("{tool} not found (CI=true: absence is a failure; apt-get install prometheus, or scripts/install-peers)");
+            panic!(
+                "{tool} not found (CI=true: absence is a failure; apt-get install prometheus, or scripts/install-peers)"
+            );
         }
-        eprintln!("NOTICE: {tool} not found; skipping this test (apt-get install prometheus, or scripts/install-peers)");
+        eprintln!(
+            "NOTICE: {tool} not found; skipping this test (apt-get install prometheus, or scripts/install-peers)"
+        );
     }
     found
 }
 
 /// Run `promtool ARGS` in `dir`: (success, stdout + stderr).
 pub fn promtool(dir: &Path, args: &[&str]) -> (bool, String) {
-    let out = Command::new("promtool").args(args).current_dir(dir).output().expect("promtool runs");
-    let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    let out = Command::new("promtool")
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("promtool runs");
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
     (out.status.success(), text)
 }
 
@@ -58,7 +70,10 @@ impl Prometheus {
         let err = std::fs::File::create(&log).unwrap();
         let child = Command::new("prometheus")
             .arg(format!("--config.file={}", config.display()))
-            .arg(format!("--storage.tsdb.path={}", dir.join("data").display()))
+            .arg(format!(
+                "--storage.tsdb.path={}",
+                dir.join("data").display()
+            ))
             .arg(format!("--web.listen-address={addr}"))
             .stdin(Stdio::null())
             .stdout(Stdio::null())
@@ -69,9 +84,16 @@ impl Prometheus {
         let start = Instant::now();
         while http_get(addr, "/-/ready").is_none_or(|(status, _)| status != 200) {
             if let Ok(Some(status)) = p.child.try_wait() {
-                panic!("prometheus exited ({status}) before ready:\n{}", p.log_text());
+                panic!(
+                    "prometheus exited ({status}) before ready:\n{}",
+                    p.log_text()
+                );
             }
-            assert!(start.elapsed() < Duration::from_secs(30), "prometheus not ready in 30 s:\n{}", p.log_text());
+            assert!(
+                start.elapsed() < Duration::from_secs(30),
+                "prometheus not ready in 30 s:\n{}",
+                p.log_text()
+            );
             std::thread::sleep(Duration::from_millis(100));
         }
         p
@@ -83,11 +105,19 @@ impl Prometheus {
 
     /// `GET /api/v1/PATH?QUERY`: the `data` of a successful answer (panics otherwise).
     pub fn api(&self, path: &str, params: &[(&str, &str)]) -> Value {
-        let query: Vec<String> = params.iter().map(|(k, v)| format!("{k}={}", url_encode(v))).collect();
+        let query: Vec<String> = params
+            .iter()
+            .map(|(k, v)| format!("{k}={}", url_encode(v)))
+            .collect();
         let target = format!("/api/v1/{path}?{}", query.join("&"));
-        let (status, body) = http_get(self.addr, &target).unwrap_or_else(|| panic!("no answer to {target}"));
-        let v: Value = serde_json::from_str(&body).unwrap_or_else(|e| panic!("{target}: {e}: {body}"));
-        assert!(status == 200 && v["status"] == "success", "{target}: HTTP {status}: {body}");
+        let (status, body) =
+            http_get(self.addr, &target).unwrap_or_else(|| panic!("no answer to {target}"));
+        let v: Value =
+            serde_json::from_str(&body).unwrap_or_else(|e| panic!("{target}: {e}: {body}"));
+        assert!(
+            status == 200 && v["status"] == "success",
+            "{target}: HTTP {status}: {body}"
+        );
         v["data"].clone()
     }
 
@@ -111,7 +141,11 @@ impl Prometheus {
             if let Some(v) = f() {
                 return v;
             }
-            assert!(start.elapsed() < timeout, "timed out after {timeout:?} waiting for {what}; prometheus log:\n{}", self.log_text());
+            assert!(
+                start.elapsed() < timeout,
+                "timed out after {timeout:?} waiting for {what}; prometheus log:\n{}",
+                self.log_text()
+            );
             std::thread::sleep(Duration::from_millis(250));
         }
     }
@@ -133,7 +167,9 @@ impl Prometheus {
     /// SIGTERM to our own child by its PID, then wait (SIGKILL after 10 s).
     pub fn stop(&mut self) {
         if let Ok(None) = self.child.try_wait() {
-            let _ = Command::new("kill").args(["-TERM", &self.child.id().to_string()]).status();
+            let _ = Command::new("kill")
+                .args(["-TERM", &self.child.id().to_string()])
+                .status();
             let start = Instant::now();
             while let Ok(None) = self.child.try_wait() {
                 if start.elapsed() > Duration::from_secs(10) {
@@ -191,7 +227,9 @@ pub fn url_encode(s: &str) -> String {
     let mut out = String::with_capacity(s.len() * 3);
     for b in s.bytes() {
         match b {
-            b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'_' | b'.' | b'~' => out.push(b as char),
+            b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'_' | b'.' | b'~' => {
+                out.push(b as char)
+            }
             _ => out.push_str(&format!("%{b:02X}")),
         }
     }
@@ -203,14 +241,21 @@ pub fn recorded_names(rules: &Path) -> Vec<String> {
     std::fs::read_to_string(rules)
         .unwrap()
         .lines()
-        .filter_map(|l| l.trim().strip_prefix("- record:").map(|n| n.trim().to_string()))
+        .filter_map(|l| {
+            l.trim()
+                .strip_prefix("- record:")
+                .map(|n| n.trim().to_string())
+        })
         .collect()
 }
 
 /// A Prometheus config scraping `targets_file` (file_sd) every second and
 /// evaluating `rule_files` every second.
 pub fn write_config(dir: &Path, targets_file: &Path, rule_files: &[PathBuf]) -> PathBuf {
-    let rules: Vec<String> = rule_files.iter().map(|p| format!("  - {}\n", p.display())).collect();
+    let rules: Vec<String> = rule_files
+        .iter()
+        .map(|p| format!("  - {}\n", p.display()))
+        .collect();
     let text = format!(
         "global:\n  scrape_interval: 1s\n  scrape_timeout: 1s\n  evaluation_interval: 1s\n\
          rule_files:\n{}\
@@ -225,7 +270,10 @@ pub fn write_config(dir: &Path, targets_file: &Path, rule_files: &[PathBuf]) -> 
 
 /// One file_sd target group: `addr` with its labels.
 pub fn target_group(addr: SocketAddr, labels: &[(&str, &str)]) -> String {
-    let labels: Vec<String> = labels.iter().map(|(k, v)| format!("    {k}: \"{v}\"\n")).collect();
+    let labels: Vec<String> = labels
+        .iter()
+        .map(|(k, v)| format!("    {k}: \"{v}\"\n"))
+        .collect();
     format!("- targets: [\"{addr}\"]\n  labels:\n{}", labels.concat())
 }
 
@@ -234,7 +282,12 @@ pub fn dashboard_exprs(dash: &serde_json::Value) -> Vec<String> {
     fn walk(panels: &serde_json::Value, out: &mut Vec<String>) {
         for p in panels.as_array().into_iter().flatten() {
             for t in p["targets"].as_array().into_iter().flatten() {
-                out.push(t["expr"].as_str().expect("every target has an expr").to_string());
+                out.push(
+                    t["expr"]
+                        .as_str()
+                        .expect("every target has an expr")
+                        .to_string(),
+                );
             }
             walk(&p["panels"], out);
         }

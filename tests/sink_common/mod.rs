@@ -5,12 +5,12 @@ use std::collections::BTreeMap;
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use sagnac::model::estimate::{Coefficient, NoiseEstimates};
+use sagnac::model::spec::{CoefficientVerdict, Verdict};
 use sagnac::sink::messages::{
     AllanCurve, AllanUpdate, EstimateUpdate, Event, EventKind, Gap, RateBatch, RawBatch,
     SinkMessage, SummaryUpdate, Timestamp, VerdictUpdate,
 };
-use sagnac::model::estimate::{Coefficient, NoiseEstimates};
-use sagnac::model::spec::{CoefficientVerdict, Verdict};
 
 /// 2026-11-21T20:03:01Z, ns since the epoch.
 pub const T0_NS: u64 = 1_795_291_381_000_000_000;
@@ -65,9 +65,17 @@ pub fn estimate(rng: &mut ChaCha8Rng, i: u64) -> EstimateUpdate {
     let mut coef = || {
         let v = awkward_f64(rng).abs();
         if rng.random_bool(0.7) {
-            Coefficient { value: Some(v), ci95: Some([v * 0.9, v * 1.1]), upper95: None }
+            Coefficient {
+                value: Some(v),
+                ci95: Some([v * 0.9, v * 1.1]),
+                upper95: None,
+            }
         } else {
-            Coefficient { value: None, ci95: None, upper95: Some(v) }
+            Coefficient {
+                value: None,
+                ci95: None,
+                upper95: Some(v),
+            }
         }
     };
     EstimateUpdate {
@@ -92,7 +100,9 @@ pub fn summary(rng: &mut ChaCha8Rng, i: u64) -> SummaryUpdate {
         lost_samples: lost,
         raw_rate_dph: awkward_f64(rng),
         clean_rate_dph: awkward_f64(rng),
-        temp_c: rng.random_bool(0.7).then(|| 25.0 + awkward_f64(rng).fract()),
+        temp_c: rng
+            .random_bool(0.7)
+            .then(|| 25.0 + awkward_f64(rng).fract()),
     }
 }
 
@@ -152,6 +162,7 @@ pub fn event(rng: &mut ChaCha8Rng, i: u64) -> Event {
     Event {
         t_ns: T0_NS + i * 10_000_000,
         kind,
+        gyro: None,
     }
 }
 
@@ -163,7 +174,10 @@ pub fn verdict(rng: &mut ChaCha8Rng, i: u64) -> VerdictUpdate {
         _ => Verdict::Undecided,
     };
     let mut coefficients = BTreeMap::new();
-    for (j, name) in ["arw_dpsh", "bias_instability_dph", "quantization_arcsec"].into_iter().enumerate() {
+    for (j, name) in ["arw_dpsh", "bias_instability_dph", "quantization_arcsec"]
+        .into_iter()
+        .enumerate()
+    {
         let verdict = v(i + j as u64);
         let bound_only = rng.random_bool(0.3);
         coefficients.insert(
@@ -175,9 +189,11 @@ pub fn verdict(rng: &mut ChaCha8Rng, i: u64) -> VerdictUpdate {
                 bound: rng.random_bool(0.9).then(|| awkward_f64(rng)),
                 lower: (!bound_only).then(|| awkward_f64(rng)),
                 upper: rng.random_bool(0.9).then(|| awkward_f64(rng)),
-                reason: (verdict == Verdict::Undecided).then(|| "more data needed: \"quoted\" \u{e9}".to_string()),
+                reason: (verdict == Verdict::Undecided)
+                    .then(|| "more data needed: \"quoted\" \u{e9}".to_string()),
                 decided_at_s: (verdict != Verdict::Undecided).then(|| rng.random_range(60.0..1e5)),
-                eta_s: (verdict == Verdict::Undecided && rng.random_bool(0.5)).then(|| rng.random_range(0.0..1e6)),
+                eta_s: (verdict == Verdict::Undecided && rng.random_bool(0.5))
+                    .then(|| rng.random_range(0.0..1e6)),
             },
         );
     }

@@ -352,12 +352,13 @@ impl<P: PhaseValue> OctaveId<P> {
             _ => r1b.map(|r| (2u32, delta(r))),
         };
         if let Some((d, dl)) = choice
-            && dl.is_finite() {
-                let a = 2.0 - 2.0 * f64::from(d) - (2.0 * dl).round();
-                id.d = d;
-                id.delta = dl;
-                id.alpha = Some((a as i32).clamp(-2, 2));
-            }
+            && dl.is_finite()
+        {
+            let a = 2.0 - 2.0 * f64::from(d) - (2.0 * dl).round();
+            id.d = d;
+            id.delta = dl;
+            id.alpha = Some((a as i32).clamp(-2, 2));
+        }
         id
     }
 }

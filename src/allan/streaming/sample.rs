@@ -327,9 +327,13 @@ unsafe fn sq_acc_i64_avx2(a: &[i64], b: &[i64], c: &[i64], total: &mut u128) {
                         let xa = _mm256_loadu_si256(pa.add(i + $k) as *const __m256i);
                         let xb = _mm256_loadu_si256(pb.add(i + $k) as *const __m256i);
                         let xc = _mm256_loadu_si256(pc.add(i + $k) as *const __m256i);
-                        let z = _mm256_add_epi64(_mm256_sub_epi64(xc, _mm256_add_epi64(xb, xb)), xa);
+                        let z =
+                            _mm256_add_epi64(_mm256_sub_epi64(xc, _mm256_add_epi64(xb, xb)), xa);
                         // |z| < 2^28 <=> 0 <= z + 2^28 < 2^29 (unsigned): no bit above 28
-                        bad = _mm256_or_si256(bad, _mm256_srli_epi64(_mm256_add_epi64(z, bias), SMALL_Z_BITS as i32 + 1));
+                        bad = _mm256_or_si256(
+                            bad,
+                            _mm256_srli_epi64(_mm256_add_epi64(z, bias), SMALL_Z_BITS as i32 + 1),
+                        );
                         $acc = _mm256_add_epi64($acc, _mm256_mul_epi32(z, z));
                     }};
                 }
@@ -385,9 +389,13 @@ unsafe fn sq_acc_i64_avx512(a: &[i64], b: &[i64], c: &[i64], total: &mut u128) {
                         let xa = _mm512_loadu_si512(pa.add(i + $k) as *const __m512i);
                         let xb = _mm512_loadu_si512(pb.add(i + $k) as *const __m512i);
                         let xc = _mm512_loadu_si512(pc.add(i + $k) as *const __m512i);
-                        let z = _mm512_add_epi64(_mm512_sub_epi64(xc, _mm512_add_epi64(xb, xb)), xa);
+                        let z =
+                            _mm512_add_epi64(_mm512_sub_epi64(xc, _mm512_add_epi64(xb, xb)), xa);
                         // |z| < 2^28 <=> 0 <= z + 2^28 < 2^29 (unsigned): no bit above 28
-                        bad = _mm512_or_si512(bad, _mm512_srli_epi64::<{ SMALL_Z_BITS + 1 }>(_mm512_add_epi64(z, bias)));
+                        bad = _mm512_or_si512(
+                            bad,
+                            _mm512_srli_epi64::<{ SMALL_Z_BITS + 1 }>(_mm512_add_epi64(z, bias)),
+                        );
                         $acc = _mm512_add_epi64($acc, _mm512_mul_epi32(z, z));
                     }};
                 }
@@ -486,7 +494,9 @@ mod tests {
             }
             if has_avx512() {
                 // SAFETY: the CPU supports AVX-512F.
-                k.push(("avx512", |a, b, c, l| unsafe { sq_acc_f64_avx512(a, b, c, l) }));
+                k.push(("avx512", |a, b, c, l| unsafe {
+                    sq_acc_f64_avx512(a, b, c, l)
+                }));
             }
         }
         k
@@ -503,7 +513,9 @@ mod tests {
             }
             if has_avx512() {
                 // SAFETY: the CPU supports AVX-512F.
-                k.push(("avx512", |a, b, c, t| unsafe { sq_acc_i64_avx512(a, b, c, t) }));
+                k.push(("avx512", |a, b, c, t| unsafe {
+                    sq_acc_i64_avx512(a, b, c, t)
+                }));
             }
         }
         k
@@ -527,7 +539,11 @@ mod tests {
             for (name, kernel) in f64_kernels() {
                 let mut b = [0.5f64; 16];
                 kernel(&x[..len], &x[m..m + len], &x[2 * m..2 * m + len], &mut b);
-                assert_eq!(a.map(f64::to_bits), b.map(f64::to_bits), "{name}: len {len} m {m}");
+                assert_eq!(
+                    a.map(f64::to_bits),
+                    b.map(f64::to_bits),
+                    "{name}: len {len} m {m}"
+                );
             }
             // And the lanes hold the plain sum (1e-12 relative, different order).
             let plain: f64 = (0..len)
@@ -553,7 +569,13 @@ mod tests {
             s ^= s << 17;
             s
         };
-        for (scale, wrap) in [(3i64, 0i64), (1 << 20, 0), (1 << 27, 0), (1 << 40, 0), (5, i64::MAX - 1000)] {
+        for (scale, wrap) in [
+            (3i64, 0i64),
+            (1 << 20, 0),
+            (1 << 27, 0),
+            (1 << 40, 0),
+            (5, i64::MAX - 1000),
+        ] {
             let mut x = vec![wrap];
             for _ in 0..3000 {
                 let inc = (next() % (2 * scale as u64 + 1)) as i64 - scale;

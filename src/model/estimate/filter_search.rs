@@ -84,17 +84,32 @@ pub(super) fn search(lf: &Lf, n_samples: u64, from: usize, ci_lr: f64) -> Option
     if r0.y.len() < none_terms.len() + 4 {
         return None;
     }
-    let edf = ml_edf(&r0.phi, &r0.y, &r0.edf0, &lf.edf(&none_terms, &none_basis, from, &r0.phi));
+    let edf = ml_edf(
+        &r0.phi,
+        &r0.y,
+        &r0.edf0,
+        &lf.edf(&none_terms, &none_basis, from, &r0.phi),
+    );
     let l_none = ml_loglik_fixed_edf(&r0.phi, &r0.y, &edf).1;
     let eval = |f: ReadoutFilter| -> Candidate {
         let terms = filtered_terms(n_samples, lf.tau0, f);
         let basis = lf.basis(&terms);
         let Rows { phi, y, .. } = lf.rows(&terms, &basis, from);
         let (theta, loglik) = ml_loglik_fixed_edf(&phi, &y, &edf);
-        Candidate { filter: f, loglik, n2: theta[1] }
+        Candidate {
+            filter: f,
+            loglik,
+            n2: theta[1],
+        }
     };
-    let mut cands: Vec<Candidate> = (2..=MAX_MA).filter_map(|l| ReadoutFilter::moving_average(l).ok()).map(eval).collect();
-    let fo: Vec<Candidate> = fo_grid().into_iter().map(|p| eval(ReadoutFilter::FirstOrder { pole: p })).collect();
+    let mut cands: Vec<Candidate> = (2..=MAX_MA)
+        .filter_map(|l| ReadoutFilter::moving_average(l).ok())
+        .map(eval)
+        .collect();
+    let fo: Vec<Candidate> = fo_grid()
+        .into_iter()
+        .map(|p| eval(ReadoutFilter::FirstOrder { pole: p }))
+        .collect();
     cands.extend(refine_first_order(&fo, &eval));
     cands.extend(fo);
     let best = *cands.iter().max_by(|a, b| a.loglik.total_cmp(&b.loglik))?;
@@ -102,14 +117,26 @@ pub(super) fn search(lf: &Lf, n_samples: u64, from: usize, ci_lr: f64) -> Option
     if !(lr >= FILTER_LR) {
         return None;
     }
-    let mut inside: Vec<Candidate> = cands.iter().copied().filter(|c| 2.0 * (best.loglik - c.loglik) <= ci_lr).collect();
+    let mut inside: Vec<Candidate> = cands
+        .iter()
+        .copied()
+        .filter(|c| 2.0 * (best.loglik - c.loglik) <= ci_lr)
+        .collect();
     if let ReadoutFilter::FirstOrder { .. } = best.filter {
         inside.extend(first_order_ci(&best, &eval, ci_lr));
     }
     let lo = inside.iter().map(corner_of).fold(f64::INFINITY, f64::min);
     let hi = inside.iter().map(corner_of).fold(0.0, f64::max);
-    let n2_inside = inside.iter().map(|c| (c.n2, (2.0 * (best.loglik - c.loglik)).max(0.0))).collect();
-    Some(FilterChoice { filter: best.filter, corner_ci_cycles: (lo, hi), n2_inside, lr })
+    let n2_inside = inside
+        .iter()
+        .map(|c| (c.n2, (2.0 * (best.loglik - c.loglik)).max(0.0)))
+        .collect();
+    Some(FilterChoice {
+        filter: best.filter,
+        corner_ci_cycles: (lo, hi),
+        n2_inside,
+        lr,
+    })
 }
 
 /// The interval of N^2 over the filter's confidence set: each candidate's own
@@ -146,8 +173,12 @@ fn corner_of(c: &Candidate) -> f64 {
 
 /// Golden-section refinement of the best first-order grid point over the
 /// log corner between its neighbours; returns the points evaluated.
-fn refine_first_order(grid: &[Candidate], eval: &dyn Fn(ReadoutFilter) -> Candidate) -> Vec<Candidate> {
-    let Some(ib) = (0..grid.len()).max_by(|&a, &b| grid[a].loglik.total_cmp(&grid[b].loglik)) else {
+fn refine_first_order(
+    grid: &[Candidate],
+    eval: &dyn Fn(ReadoutFilter) -> Candidate,
+) -> Vec<Candidate> {
+    let Some(ib) = (0..grid.len()).max_by(|&a, &b| grid[a].loglik.total_cmp(&grid[b].loglik))
+    else {
         return Vec::new();
     };
     let (mut a, mut b) = (
@@ -155,7 +186,11 @@ fn refine_first_order(grid: &[Candidate], eval: &dyn Fn(ReadoutFilter) -> Candid
         corner_of(&grid[(ib + 1).min(grid.len() - 1)]).ln(),
     );
     let g = 0.5 * (5f64.sqrt() - 1.0);
-    let at = |x: f64| eval(ReadoutFilter::FirstOrder { pole: pole_of(x.exp()) });
+    let at = |x: f64| {
+        eval(ReadoutFilter::FirstOrder {
+            pole: pole_of(x.exp()),
+        })
+    };
     let mut out = Vec::new();
     let (mut x1, mut x2) = (b - g * (b - a), a + g * (b - a));
     let (mut f1, mut f2) = (at(x1), at(x2));
@@ -181,12 +216,24 @@ fn refine_first_order(grid: &[Candidate], eval: &dyn Fn(ReadoutFilter) -> Candid
 /// The ends of the profile-likelihood interval of a first-order corner: from
 /// the best corner, step out in log corner until the deviance passes `ci_lr`,
 /// then bisect; the candidates at both ends.
-fn first_order_ci(best: &Candidate, eval: &dyn Fn(ReadoutFilter) -> Candidate, ci_lr: f64) -> [Candidate; 2] {
+fn first_order_ci(
+    best: &Candidate,
+    eval: &dyn Fn(ReadoutFilter) -> Candidate,
+    ci_lr: f64,
+) -> [Candidate; 2] {
     let x0 = corner_of(best).ln();
-    let at = |x: f64| eval(ReadoutFilter::FirstOrder { pole: pole_of(x.exp()) });
+    let at = |x: f64| {
+        eval(ReadoutFilter::FirstOrder {
+            pole: pole_of(x.exp()),
+        })
+    };
     let dev = |c: &Candidate| 2.0 * (best.loglik - c.loglik);
     let bound = |dir: f64| -> Candidate {
-        let limit = if dir > 0.0 { FO_HI.ln() } else { (FO_LO / 4.0).ln() };
+        let limit = if dir > 0.0 {
+            FO_HI.ln()
+        } else {
+            (FO_LO / 4.0).ln()
+        };
         let (mut inside, mut step) = (*best, 0.02);
         let mut x_in = x0;
         loop {

@@ -77,7 +77,11 @@ impl Lf<'_> {
         let nl = self.levels.len() - from;
         move |j: usize, theta: &[f64]| -> f64 {
             if j < nl {
-                return basis.edf(from + j, &theta[..terms.len()], self.levels[from + j].n_coef);
+                return basis.edf(
+                    from + j,
+                    &theta[..terms.len()],
+                    self.levels[from + j].n_coef,
+                );
             }
             let a = &self.allan[j - nl];
             let tau = a.m as f64 * self.tau0;
@@ -97,7 +101,9 @@ impl Lf<'_> {
     /// must not stop the walk; the deepest pair must rise twice as clearly).
     pub fn qn_cut(&self) -> usize {
         let lv = &self.levels;
-        let rise = |a: &LevelObs, b: &LevelObs| (a.mean_sq / b.mean_sq).ln() / (2.0 / a.n_coef + 2.0 / b.n_coef).sqrt();
+        let rise = |a: &LevelObs, b: &LevelObs| {
+            (a.mean_sq / b.mean_sq).ln() / (2.0 / a.n_coef + 2.0 / b.n_coef).sqrt()
+        };
         let mut from = lv.len();
         while from > 0 {
             let j = from - 1;
@@ -126,7 +132,12 @@ impl Lf<'_> {
                 break;
             }
             let r = self.rows(terms, basis, from + 1);
-            let mut th = ml_theta(&r.phi, &r.y, &r.edf0, &self.edf(terms, basis, from + 1, &r.phi));
+            let mut th = ml_theta(
+                &r.phi,
+                &r.y,
+                &r.edf0,
+                &self.edf(terms, basis, from + 1, &r.phi),
+            );
             th[0] = 0.0;
             let mu = basis.mean(from, &th);
             let nu = basis.edf(from, &th[..terms.len()], self.levels[from].n_coef);
@@ -151,7 +162,9 @@ impl Lf<'_> {
         let mut up = vec![f64::INFINITY; k];
         for (j, l) in self.levels.iter().enumerate() {
             let nu = l.n_coef.max(1.0);
-            let chi = ChiSquared::new(nu).map(|c| c.inverse_cdf(alpha)).unwrap_or(0.0);
+            let chi = ChiSquared::new(nu)
+                .map(|c| c.inverse_cdf(alpha))
+                .unwrap_or(0.0);
             if chi <= 0.0 {
                 continue;
             }

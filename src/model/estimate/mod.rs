@@ -120,7 +120,8 @@ impl RampAccumulator {
             }
             let take = ((RAMP_BLOCK - self.open_n) as usize).min(rest.len());
             let (block, tail) = rest.split_at(take);
-            let (r0, mut s_r, mut s_jr, mut j) = (self.open_ref, self.open_r, self.open_jr, self.open_n as f64);
+            let (r0, mut s_r, mut s_jr, mut j) =
+                (self.open_ref, self.open_r, self.open_jr, self.open_n as f64);
             for &r in block {
                 let d = r - r0;
                 s_r += d;
@@ -152,7 +153,10 @@ impl RampAccumulator {
             // block mean index minus merged mean index: (na + (nb-1)/2) - (na-1)/2
             let dk = 0.5 * n;
             let dr = mean_b - self.mean_r;
-            (self.mean_r + dr * (nb / n), self.c_kr + c_b + dk * dr * (na * nb / n))
+            (
+                self.mean_r + dr * (nb / n),
+                self.c_kr + c_b + dk * dr * (na * nb / n),
+            )
         };
         Self {
             n: self.n + self.open_n,
@@ -293,25 +297,43 @@ impl FitQuality {
         // LevelFit's chi2_per_dof counts only the linear terms
         let chi2 = fit.chi2_per_dof * (n_obs as f64 - (n_par - extra_params) as f64).max(1.0);
         let ok = !chi2.is_finite()
-            || ChiSquared::new(dof).map(|d| 1.0 - d.cdf(chi2) >= MISFIT_P).unwrap_or(true);
-        FitQuality { chi2_per_dof: chi2 / dof, dof, ok: ok || !chi2.is_finite() }
+            || ChiSquared::new(dof)
+                .map(|d| 1.0 - d.cdf(chi2) >= MISFIT_P)
+                .unwrap_or(true);
+        FitQuality {
+            chi2_per_dof: chi2 / dof,
+            dof,
+            ok: ok || !chi2.is_finite(),
+        }
     }
 
     /// A fit with no observations (too short a record, or no noise).
     pub fn none() -> Self {
-        FitQuality { chi2_per_dof: f64::NAN, dof: 0.0, ok: true }
+        FitQuality {
+            chi2_per_dof: f64::NAN,
+            dof: 0.0,
+            ok: true,
+        }
     }
 
     /// The factor intervals are widened by: `sqrt(chi2/dof)` for a misfit, else 1.
     pub fn widening(&self) -> f64 {
-        if self.ok { 1.0 } else { self.chi2_per_dof.sqrt().max(1.0) }
+        if self.ok {
+            1.0
+        } else {
+            self.chi2_per_dof.sqrt().max(1.0)
+        }
     }
 }
 
 impl EstimatorOutput {
     /// A record without noise: nothing found, every upper bound 0.
     pub fn no_noise() -> Self {
-        let zero = Coefficient { value: None, ci95: None, upper95: Some(0.0) };
+        let zero = Coefficient {
+            value: None,
+            ci95: None,
+            upper95: Some(0.0),
+        };
         let mut out = Self::insufficient();
         out.estimates = NoiseEstimates {
             quantization_arcsec: zero,
@@ -326,7 +348,11 @@ impl EstimatorOutput {
 
     /// Every coefficient unknown: too little data.
     pub fn insufficient() -> Self {
-        let none = Coefficient { value: None, ci95: None, upper95: None };
+        let none = Coefficient {
+            value: None,
+            ci95: None,
+            upper95: None,
+        };
         EstimatorOutput {
             estimates: NoiseEstimates {
                 quantization_arcsec: none,
@@ -335,7 +361,13 @@ impl EstimatorOutput {
                 rrw_dphsh: none,
                 rate_ramp_dphh: none,
             },
-            fit: LevelFit { terms: Vec::new(), loglik: 0.0, edf: Vec::new(), fitted: Vec::new(), chi2_per_dof: f64::NAN },
+            fit: LevelFit {
+                terms: Vec::new(),
+                loglik: 0.0,
+                edf: Vec::new(),
+                fitted: Vec::new(),
+                chi2_per_dof: f64::NAN,
+            },
             theta: [0.0; 4],
             ramp_arcsec_s2: None,
             readout_filter: None,
@@ -375,7 +407,9 @@ pub fn standard_terms(n_samples: u64, tau0_s: f64) -> [SpectralTerm; 4] {
         // while the record grows within an octave, so the daemon's periodic
         // updates reuse the memoised quadrature (the level variances move by
         // far less than their uncertainty between such corners)
-        SpectralTerm::Flicker { f_lo_hz: flicker_corner_cycles(n_samples) / tau0_s },
+        SpectralTerm::Flicker {
+            f_lo_hz: flicker_corner_cycles(n_samples) / tau0_s,
+        },
         SpectralTerm::RateRandomWalk,
     ]
 }
@@ -413,13 +447,21 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
     // separate the low-frequency terms from QN; bounds only.
     let too_short = lf.levels.len() - cut < 2;
     let level_bounds = lf.level_bounds(&std_basis, 4);
-    let mut from = if too_short { lf.levels.len().saturating_sub(2) } else { cut };
+    let mut from = if too_short {
+        lf.levels.len().saturating_sub(2)
+    } else {
+        cut
+    };
     from = lf.trim(&std_terms, &std_basis, from);
     // With no more observations than the nuisance, ARW, flicker and RRW
     // columns, the fit is saturated and its likelihood-ratio tests say
     // nothing: fit ARW (and the nuisance) only, and bound the others.
     let saturated = lf.rows(&std_terms, &std_basis, from).y.len() <= std_terms.len();
-    let choice = if too_short || saturated { None } else { filter_search::search(&lf, input.n_samples, from, opts.ci_lr) };
+    let choice = if too_short || saturated {
+        None
+    } else {
+        filter_search::search(&lf, input.n_samples, from, opts.ci_lr)
+    };
     let terms = match &choice {
         Some(c) => filter_search::filtered_terms(input.n_samples, tau0, c.filter),
         None => std_terms,
@@ -438,17 +480,35 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         o.always_keep |= 1 << filter_search::COMPLEMENT_COL;
         o.signed_in_profile |= 1 << filter_search::COMPLEMENT_COL;
     }
-    let fit = fit_rows(&rows.phi, &rows.y, &rows.edf0, &lf.edf(&terms, &basis, from, &rows.phi), &o);
+    let fit = fit_rows(
+        &rows.phi,
+        &rows.y,
+        &rows.edf0,
+        &lf.edf(&terms, &basis, from, &rows.phi),
+        &o,
+    );
     let quality = FitQuality::of(&fit, rows.y.len(), usize::from(choice.is_some()));
     let theta_lf: Vec<f64> = (0..terms.len())
-        .map(|k| if too_short || (saturated && k >= 2) { 0.0 } else { fit.terms[k].theta })
+        .map(|k| {
+            if too_short || (saturated && k >= 2) {
+                0.0
+            } else {
+                fit.terms[k].theta
+            }
+        })
         .collect();
     let (q2, q2_sd) = quantization::q_from_angle(input, &terms, &theta_lf);
     let widen = quality.widening();
     let theta = [q2.max(0.0), theta_lf[1], theta_lf[2], theta_lf[3]];
     let coef = |i: usize| -> Coefficient {
         if too_short || (saturated && i >= 2) {
-            return Coefficient { value: None, ci95: None, upper95: level_bounds[i].is_finite().then(|| CONV[i](level_bounds[i])) };
+            return Coefficient {
+                value: None,
+                ci95: None,
+                upper95: level_bounds[i]
+                    .is_finite()
+                    .then(|| CONV[i](level_bounds[i])),
+            };
         }
         let mut t = fit.terms[i];
         if i == 1 {
@@ -467,7 +527,13 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
     let theta_slope: Vec<f64> = fit.terms[..terms.len()]
         .iter()
         .zip(&theta_lf)
-        .map(|(t, &th)| if t.included { th } else { th.max(t.upper95.unwrap_or(0.0)) })
+        .map(|(t, &th)| {
+            if t.included {
+                th
+            } else {
+                th.max(t.upper95.unwrap_or(0.0))
+            }
+        })
         .collect();
     let ramp_wide = ramp_slope(input, &terms, &theta_slope).map(|(s, sd)| (s, sd * widen));
     EstimatorOutput {
@@ -476,7 +542,13 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
             arw_dpsh: coef(1),
             bias_instability_dph: coef(2),
             rrw_dphsh: coef(3),
-            rate_ramp_dphh: ramp_coefficient(ramp, ramp_wide, lf.ramp_col, ramp_term.is_some_and(|t| t.included), opts.ci_lr),
+            rate_ramp_dphh: ramp_coefficient(
+                ramp,
+                ramp_wide,
+                lf.ramp_col,
+                ramp_term.is_some_and(|t| t.included),
+                opts.ci_lr,
+            ),
         },
         fit,
         theta,
@@ -520,7 +592,15 @@ fn lf_setup<'a>(input: &EstimatorInput<'a>, q2_first: f64) -> Option<lf::Lf<'a>>
     // the fit would put that power into RRW. With Allan points, a ramp column
     // (theta = R^2, (arcsec/s^2)^2; 0 on the levels) takes it.
     let ramp_col = !allan.is_empty();
-    Some(lf::Lf { tau0, dec_lo: input.dec_lo, dec_hi: input.dec_hi, levels, allan, q2_first, ramp_col })
+    Some(lf::Lf {
+        tau0,
+        dec_lo: input.dec_lo,
+        dec_hi: input.dec_hi,
+        levels,
+        allan,
+        q2_first,
+        ramp_col,
+    })
 }
 
 /// A level with enough transient-free coefficients and a finite positive variance.
@@ -546,9 +626,17 @@ fn widen_term(mut t: TermFit, s: f64) -> TermFit {
 fn term_coefficient(t: &TermFit, conv: fn(f64) -> f64) -> Coefficient {
     if t.included {
         let (lo, hi) = t.ci95.unwrap_or((t.theta, t.theta));
-        Coefficient { value: Some(conv(t.theta)), ci95: Some([conv(lo), conv(hi)]), upper95: None }
+        Coefficient {
+            value: Some(conv(t.theta)),
+            ci95: Some([conv(lo), conv(hi)]),
+            upper95: None,
+        }
     } else {
-        Coefficient { value: None, ci95: None, upper95: Some(conv(t.upper95.unwrap_or(0.0))) }
+        Coefficient {
+            value: None,
+            ci95: None,
+            upper95: Some(conv(t.upper95.unwrap_or(0.0))),
+        }
     }
 }
 
@@ -558,7 +646,11 @@ fn ramp_slope(input: &EstimatorInput, terms: &[SpectralTerm], theta: &[f64]) -> 
     input.ramp.filter(|r| r.count() > 2).map(|r| {
         let n = r.count();
         let slope = r.slope_per_sample() / tau0;
-        let var: f64 = terms.iter().zip(theta).map(|(t, th)| th * slope_var_per_theta(t, n, tau0)).sum();
+        let var: f64 = terms
+            .iter()
+            .zip(theta)
+            .map(|(t, th)| th * slope_var_per_theta(t, n, tau0))
+            .sum();
         (slope, var.max(0.0).sqrt())
     })
 }
@@ -571,17 +663,35 @@ fn ramp_slope(input: &EstimatorInput, terms: &[SpectralTerm], theta: &[f64]) -> 
 /// terms at their upper bounds: the slope of one record cannot tell a ramp
 /// from the low-frequency noise the record does not exclude, so the interval
 /// may reach zero although the test found a ramp.
-fn ramp_coefficient(ramp: Option<(f64, f64)>, wide: Option<(f64, f64)>, ramp_col: bool, col_kept: bool, ci_lr: f64) -> Coefficient {
+fn ramp_coefficient(
+    ramp: Option<(f64, f64)>,
+    wide: Option<(f64, f64)>,
+    ramp_col: bool,
+    col_kept: bool,
+    ci_lr: f64,
+) -> Coefficient {
     let z = 1.959_964;
     let to = units::arcsec_per_s2_to_dphh;
     let sd_wide = |sd: f64| wide.map_or(sd, |(_, w)| w.max(sd));
     match ramp {
         Some((s, sd)) if sd > 0.0 && (s / sd).powi(2) >= ci_lr && (!ramp_col || col_kept) => {
             let w = sd_wide(sd);
-            Coefficient { value: Some(to(s)), ci95: Some([to(s - z * w), to(s + z * w)]), upper95: None }
+            Coefficient {
+                value: Some(to(s)),
+                ci95: Some([to(s - z * w), to(s + z * w)]),
+                upper95: None,
+            }
         }
-        Some((s, sd)) => Coefficient { value: None, ci95: None, upper95: Some(to(s.abs() + z * sd_wide(sd))) },
-        None => Coefficient { value: None, ci95: None, upper95: None },
+        Some((s, sd)) => Coefficient {
+            value: None,
+            ci95: None,
+            upper95: Some(to(s.abs() + z * sd_wide(sd))),
+        },
+        None => Coefficient {
+            value: None,
+            ci95: None,
+            upper95: None,
+        },
     }
 }
 
@@ -634,7 +744,6 @@ pub fn slope_var_per_theta(term: &SpectralTerm, n: u64, tau0_s: f64) -> f64 {
     }
     total
 }
-
 
 #[cfg(test)]
 mod tests {
@@ -690,7 +799,11 @@ mod tests {
             one.push(r);
         }
         assert_eq!(one.count(), rates.len() as u64);
-        assert!((one.slope_per_sample() - want).abs() <= 1e-9 * want.abs(), "{} vs {want}", one.slope_per_sample());
+        assert!(
+            (one.slope_per_sample() - want).abs() <= 1e-9 * want.abs(),
+            "{} vs {want}",
+            one.slope_per_sample()
+        );
         assert!((one.mean() - mr).abs() <= 1e-12 * mr.abs());
         // slices of awkward sizes (across block boundaries) and mixed calls: same bits
         for cut in [1usize, 7, 1023, 1024, 1025, 5000, 100_003] {
@@ -720,9 +833,23 @@ mod tests {
 
     #[test]
     fn coefficient_json_shape() {
-        let c = Coefficient { value: None, ci95: None, upper95: Some(0.1) };
-        assert_eq!(serde_json::to_string(&c).unwrap(), r#"{"value":null,"upper95":0.1}"#);
-        let c = Coefficient { value: Some(1.0), ci95: Some([0.5, 2.0]), upper95: None };
-        assert_eq!(serde_json::to_string(&c).unwrap(), r#"{"value":1.0,"ci95":[0.5,2.0]}"#);
+        let c = Coefficient {
+            value: None,
+            ci95: None,
+            upper95: Some(0.1),
+        };
+        assert_eq!(
+            serde_json::to_string(&c).unwrap(),
+            r#"{"value":null,"upper95":0.1}"#
+        );
+        let c = Coefficient {
+            value: Some(1.0),
+            ci95: Some([0.5, 2.0]),
+            upper95: None,
+        };
+        assert_eq!(
+            serde_json::to_string(&c).unwrap(),
+            r#"{"value":1.0,"ci95":[0.5,2.0]}"#
+        );
     }
 }

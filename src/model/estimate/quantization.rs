@@ -14,13 +14,24 @@ use crate::model::wvar::{Domain, LevelBasis, SpectralTerm};
 /// `(Q^2, its standard deviation)`, arcsec^2, with the low-frequency terms
 /// `terms[1..]` at `theta_lf[1..]` subtracted (`theta_lf[0]`, the white-angle
 /// nuisance, is not).
-pub(super) fn q_from_angle(input: &EstimatorInput, terms: &[SpectralTerm], theta_lf: &[f64]) -> (f64, f64) {
+pub(super) fn q_from_angle(
+    input: &EstimatorInput,
+    terms: &[SpectralTerm],
+    theta_lf: &[f64],
+) -> (f64, f64) {
     let angle: Vec<LevelObs> = input.angle_levels.iter().copied().filter(usable).collect();
     if angle.is_empty() {
         return (0.0, f64::INFINITY);
     }
     let ids: Vec<u32> = angle.iter().map(|l| l.level).collect();
-    let b = LevelBasis::new_in(input.dec_lo, input.dec_hi, input.tau0_s, &ids, terms, Domain::Angle);
+    let b = LevelBasis::new_in(
+        input.dec_lo,
+        input.dec_hi,
+        input.tau0_s,
+        &ids,
+        terms,
+        Domain::Angle,
+    );
     let lf_share = |j: usize| -> f64 { (1..terms.len()).map(|k| theta_lf[k] * b.phi[j][k]).sum() };
     let mut jmax = 1u32;
     let (mut q2, mut var) = (0.0, 0.0);
@@ -46,8 +57,15 @@ pub(super) fn q_from_angle(input: &EstimatorInput, terms: &[SpectralTerm], theta
         .iter()
         .map(|blk| {
             let mut q = 0.0;
-            for (j, l) in angle.iter().enumerate().take_while(|(_, l)| l.level <= jmax) {
-                let ms = blk.iter().find(|x| x.level == l.level).map_or(l.mean_sq, |x| x.mean_sq);
+            for (j, l) in angle
+                .iter()
+                .enumerate()
+                .take_while(|(_, l)| l.level <= jmax)
+            {
+                let ms = blk
+                    .iter()
+                    .find(|x| x.level == l.level)
+                    .map_or(l.mean_sq, |x| x.mean_sq);
                 q += 2f64.powi(-(l.level as i32)) * (ms - lf_share(j));
             }
             q
@@ -67,7 +85,10 @@ fn batch_means_var(mut batches: Vec<f64>) -> f64 {
         let mean = batches.iter().sum::<f64>() / k;
         let var_bm = batches.iter().map(|q| (q - mean).powi(2)).sum::<f64>() / (k * (k - 1.0));
         var = var.max(var_bm);
-        batches = batches.chunks_exact(2).map(|p| 0.5 * (p[0] + p[1])).collect();
+        batches = batches
+            .chunks_exact(2)
+            .map(|p| 0.5 * (p[0] + p[1]))
+            .collect();
     }
     var
 }
@@ -77,8 +98,16 @@ fn batch_means_var(mut batches: Vec<f64>) -> f64 {
 pub(super) fn coefficient(q2: f64, q2_sd: f64) -> Coefficient {
     let z = 1.959_964;
     if q2 > z * q2_sd {
-        Coefficient { value: Some(q2.sqrt()), ci95: Some([(q2 - z * q2_sd).max(0.0).sqrt(), (q2 + z * q2_sd).sqrt()]), upper95: None }
+        Coefficient {
+            value: Some(q2.sqrt()),
+            ci95: Some([(q2 - z * q2_sd).max(0.0).sqrt(), (q2 + z * q2_sd).sqrt()]),
+            upper95: None,
+        }
     } else {
-        Coefficient { value: None, ci95: None, upper95: Some((q2.max(0.0) + 1.644_854 * q2_sd).sqrt()) }
+        Coefficient {
+            value: None,
+            ci95: None,
+            upper95: Some((q2.max(0.0) + 1.644_854 * q2_sd).sqrt()),
+        }
     }
 }

@@ -45,13 +45,19 @@ fn write_rows<'a>(
     channel: bool,
     rows: impl Iterator<Item = (Option<&'a str>, &'a AllanPoint)>,
 ) -> Result<(), ExportError> {
-    let err = |source| ExportError::Csv { path: path.to_path_buf(), source };
+    let err = |source| ExportError::Csv {
+        path: path.to_path_buf(),
+        source,
+    };
     let mut w = csv::Writer::from_path(path).map_err(err)?;
     w.write_record(header(unit, channel)).map_err(err)?;
     for (c, p) in rows {
         w.write_record(record(c, p)).map_err(err)?;
     }
-    w.flush().map_err(|source| ExportError::Io { path: path.to_path_buf(), source })
+    w.flush().map_err(|source| ExportError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
 /// One curve, its deviation in `unit`.
@@ -61,8 +67,12 @@ pub fn write_curve(path: &Path, points: &[AllanPoint], unit: &str) -> Result<(),
 
 /// The three channels of an analysis (deg/h), raw then clean then noise.
 pub fn write_channels(path: &Path, curves: &AllanCurves) -> Result<(), ExportError> {
-    let rows = [("raw", &curves.raw), ("clean", &curves.clean), ("noise", &curves.noise)]
-        .into_iter()
-        .flat_map(|(c, pts)| pts.iter().map(move |p| (Some(c), p)));
+    let rows = [
+        ("raw", &curves.raw),
+        ("clean", &curves.clean),
+        ("noise", &curves.noise),
+    ]
+    .into_iter()
+    .flat_map(|(c, pts)| pts.iter().map(move |p| (Some(c), p)));
     write_rows(path, "dph", true, rows)
 }

@@ -36,8 +36,16 @@ pub fn random_walk_from_rrw(k_dphsh: f64) -> f64 {
 pub fn yaml_float(v: f64) -> String {
     let s = format!("{v:e}");
     let (mant, exp) = s.split_once('e').unwrap_or((&s, "0"));
-    let mant = if mant.contains('.') { mant.to_string() } else { format!("{mant}.0") };
-    let exp = if exp.starts_with('-') { exp.to_string() } else { format!("+{exp}") };
+    let mant = if mant.contains('.') {
+        mant.to_string()
+    } else {
+        format!("{mant}.0")
+    };
+    let exp = if exp.starts_with('-') {
+        exp.to_string()
+    } else {
+        format!("+{exp}")
+    };
     format!("{mant}e{exp}")
 }
 
@@ -52,7 +60,10 @@ pub enum Basis {
 
 fn basis(c: &Coefficient, field: &'static str, term: &'static str) -> Result<Basis, ExportError> {
     match (c.value, c.upper95) {
-        (Some(v), _) if v.is_finite() => Ok(Basis::Estimate { value: v, ci95: c.ci95 }),
+        (Some(v), _) if v.is_finite() => Ok(Basis::Estimate {
+            value: v,
+            ci95: c.ci95,
+        }),
         (_, Some(u)) if u.is_finite() => Ok(Basis::UpperBound(u)),
         _ => Err(ExportError::Missing { field, term }),
     }
@@ -60,41 +71,91 @@ fn basis(c: &Coefficient, field: &'static str, term: &'static str) -> Result<Bas
 
 fn describe(b: Basis, sym: &str, unit: &str) -> (f64, String) {
     match b {
-        Basis::Estimate { value, ci95: Some([lo, hi]) } => {
-            (value, format!("from {sym} = {value} {unit} (95 % interval {lo} to {hi})"))
-        }
+        Basis::Estimate {
+            value,
+            ci95: Some([lo, hi]),
+        } => (
+            value,
+            format!("from {sym} = {value} {unit} (95 % interval {lo} to {hi})"),
+        ),
         Basis::Estimate { value, ci95: None } => (value, format!("from {sym} = {value} {unit}")),
         Basis::UpperBound(u) => (
             u,
-            format!("{sym} NOT FOUND: written from its 95 % upper bound {u} {unit} (a bound, not an estimate)"),
+            format!(
+                "{sym} NOT FOUND: written from its 95 % upper bound {u} {unit} (a bound, not an estimate)"
+            ),
         ),
     }
 }
 
 /// The YAML text. `source` names the analysed recording in the header comment.
 pub fn imu_yaml(e: &NoiseEstimates, rate_hz: f64, source: &str) -> Result<String, ExportError> {
-    let (n, n_note) = describe(basis(&e.arw_dpsh, "gyroscope_noise_density", "the ARW N")?, "N", "deg/sqrt(h)");
-    let (k, k_note) = describe(basis(&e.rrw_dphsh, "gyroscope_random_walk", "the RRW K")?, "K", "deg/h/sqrt(h)");
+    let (n, n_note) = describe(
+        basis(&e.arw_dpsh, "gyroscope_noise_density", "the ARW N")?,
+        "N",
+        "deg/sqrt(h)",
+    );
+    let (k, k_note) = describe(
+        basis(&e.rrw_dphsh, "gyroscope_random_walk", "the RRW K")?,
+        "K",
+        "deg/h/sqrt(h)",
+    );
     let mut y = String::new();
     let source = source.replace(['\n', '\r'], " ");
-    let _ = writeln!(y, "# Kalibr IMU noise model (imu.yaml), gyroscope fields only: add the accelerometer");
+    let _ = writeln!(
+        y,
+        "# Kalibr IMU noise model (imu.yaml), gyroscope fields only: add the accelerometer"
+    );
     let _ = writeln!(y, "# fields and rostopic for a complete file.");
-    let _ = writeln!(y, "# Written by sagnac {} (`sagnac analyze --kalibr`) from {source}.", env!("CARGO_PKG_VERSION"));
-    let _ = writeln!(y, "# Continuous-time densities, from the IEEE 952 coefficients of a static recording:");
-    let _ = writeln!(y, "#   gyroscope_noise_density [rad/s/sqrt(Hz)]   = N [deg/sqrt(h)]   * pi/180 / 60");
-    let _ = writeln!(y, "#   gyroscope_random_walk   [rad/s^2/sqrt(Hz)] = K [deg/h/sqrt(h)] * pi/180 / 3600 / 60");
+    let _ = writeln!(
+        y,
+        "# Written by sagnac {} (`sagnac analyze --kalibr`) from {source}.",
+        env!("CARGO_PKG_VERSION")
+    );
+    let _ = writeln!(
+        y,
+        "# Continuous-time densities, from the IEEE 952 coefficients of a static recording:"
+    );
+    let _ = writeln!(
+        y,
+        "#   gyroscope_noise_density [rad/s/sqrt(Hz)]   = N [deg/sqrt(h)]   * pi/180 / 60"
+    );
+    let _ = writeln!(
+        y,
+        "#   gyroscope_random_walk   [rad/s^2/sqrt(Hz)] = K [deg/h/sqrt(h)] * pi/180 / 3600 / 60"
+    );
     let _ = writeln!(y, "# gyroscope_noise_density {n_note}");
-    let _ = writeln!(y, "gyroscope_noise_density: {}", yaml_float(noise_density_from_arw(n)));
+    let _ = writeln!(
+        y,
+        "gyroscope_noise_density: {}",
+        yaml_float(noise_density_from_arw(n))
+    );
     let _ = writeln!(y, "# gyroscope_random_walk {k_note}");
-    let _ = writeln!(y, "gyroscope_random_walk: {}", yaml_float(random_walk_from_rrw(k)));
+    let _ = writeln!(
+        y,
+        "gyroscope_random_walk: {}",
+        yaml_float(random_walk_from_rrw(k))
+    );
     let _ = writeln!(y, "# update_rate: the sample rate, Hz");
-    let rate = if rate_hz.fract() == 0.0 && rate_hz.abs() < 1e15 { format!("{rate_hz:.1}") } else { yaml_float(rate_hz) };
+    let rate = if rate_hz.fract() == 0.0 && rate_hz.abs() < 1e15 {
+        format!("{rate_hz:.1}")
+    } else {
+        yaml_float(rate_hz)
+    };
     let _ = writeln!(y, "update_rate: {rate}");
     Ok(y)
 }
 
 /// Write [`imu_yaml`] to `path`.
-pub fn write(path: &std::path::Path, e: &NoiseEstimates, rate_hz: f64, source: &str) -> Result<(), ExportError> {
+pub fn write(
+    path: &std::path::Path,
+    e: &NoiseEstimates,
+    rate_hz: f64,
+    source: &str,
+) -> Result<(), ExportError> {
     let y = imu_yaml(e, rate_hz, source)?;
-    std::fs::write(path, y).map_err(|source| ExportError::Io { path: path.to_path_buf(), source })
+    std::fs::write(path, y).map_err(|source| ExportError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
 }

@@ -14,10 +14,18 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 pub enum ExportError {
     #[error("writing {}", path.display())]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     #[error("writing {}", path.display())]
     Csv { path: PathBuf, source: csv::Error },
     /// A value the export needs that the analysis neither estimated nor bounded.
-    #[error("{field} cannot be written: the analysis gives neither a value nor an upper bound of {term}")]
-    Missing { field: &'static str, term: &'static str },
+    #[error(
+        "{field} cannot be written: the analysis gives neither a value nor an upper bound of {term}"
+    )]
+    Missing {
+        field: &'static str,
+        term: &'static str,
+    },
 }

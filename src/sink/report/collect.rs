@@ -92,7 +92,10 @@ impl Collector {
     pub fn tap(&mut self, b: &TapBlock<'_>) {
         if b.first_sample == 0 && !self.series.raw_dph.is_empty() {
             // the reader started over
-            *self = Collector { keep_samples: self.keep_samples, ..Collector::new(1.0 / self.tau0_s) };
+            *self = Collector {
+                keep_samples: self.keep_samples,
+                ..Collector::new(1.0 / self.tau0_s)
+            };
         }
         self.series.raw_dph.extend(b.rate_dph);
         self.series.clean_dph.extend(&b.out.clean_dph);
@@ -131,12 +134,14 @@ impl Collector {
 
     /// Every pulse increment, when the input was counts all along (and kept).
     pub fn all_counts(&self) -> Option<&[i64]> {
-        (self.keep_samples && self.counts_complete && !self.counts.is_empty()).then_some(&self.counts[..])
+        (self.keep_samples && self.counts_complete && !self.counts.is_empty())
+            .then_some(&self.counts[..])
     }
 
     /// Every temperature, when each sample had one (and they were kept).
     pub fn all_temps(&self) -> Option<&[f64]> {
-        (self.keep_samples && self.temps_complete && !self.temps.is_empty()).then_some(&self.temps[..])
+        (self.keep_samples && self.temps_complete && !self.temps.is_empty())
+            .then_some(&self.temps[..])
     }
 }
 
@@ -148,7 +153,10 @@ mod tests {
     #[test]
     fn the_noise_integral_is_the_running_sum_and_a_restart_resets() {
         let mut c = Collector::new(100.0).keeping_samples();
-        let out = PipelineOutput { clean_dph: vec![1.0; 4], noise_dph: vec![100.0, -50.0, 25.0, 0.0] };
+        let out = PipelineOutput {
+            clean_dph: vec![1.0; 4],
+            noise_dph: vec![100.0, -50.0, 25.0, 0.0],
+        };
         let counts = [1, 2, 3, 4];
         let block = |first| TapBlock {
             first_sample: first,

@@ -35,7 +35,12 @@ pub struct MinMax {
 impl MinMax {
     /// At most `2 * buckets` buckets (at least 1).
     pub fn new(buckets: usize) -> MinMax {
-        MinMax { span: 1, max_buckets: 2 * buckets.max(1), n: 0, buckets: Vec::new() }
+        MinMax {
+            span: 1,
+            max_buckets: 2 * buckets.max(1),
+            n: 0,
+            buckets: Vec::new(),
+        }
     }
 
     /// Samples pushed (finite or not).
@@ -61,7 +66,8 @@ impl MinMax {
         }
         while self.buckets.len() <= b {
             let first = self.buckets.len() as u64 * self.span;
-            self.buckets.push((first, 0, f64::INFINITY, f64::NEG_INFINITY, 0.0));
+            self.buckets
+                .push((first, 0, f64::INFINITY, f64::NEG_INFINITY, 0.0));
         }
         if v.is_finite() {
             let x = &mut self.buckets[b];
@@ -84,7 +90,11 @@ impl MinMax {
         let merged = self
             .buckets
             .chunks(2)
-            .map(|c| c.iter().skip(1).fold(c[0], |a, x| (a.0, a.1 + x.1, a.2.min(x.2), a.3.max(x.3), a.4 + x.4)))
+            .map(|c| {
+                c.iter().skip(1).fold(c[0], |a, x| {
+                    (a.0, a.1 + x.1, a.2.min(x.2), a.3.max(x.3), a.4 + x.4)
+                })
+            })
             .collect();
         self.buckets = merged;
     }
@@ -94,16 +104,25 @@ impl MinMax {
         self.buckets
             .iter()
             .filter(|b| b.1 > 0)
-            .map(|b| Bucket { first: b.0, count: b.1, min: b.2, max: b.3, mean: b.4 / b.1 as f64 })
+            .map(|b| Bucket {
+                first: b.0,
+                count: b.1,
+                min: b.2,
+                max: b.3,
+                mean: b.4 / b.1 as f64,
+            })
             .collect()
     }
 
     /// Smallest and largest finite value, if any.
     pub fn range(&self) -> Option<(f64, f64)> {
-        self.buckets.iter().filter(|b| b.1 > 0).fold(None, |r, b| match r {
-            None => Some((b.2, b.3)),
-            Some((lo, hi)) => Some((f64::min(lo, b.2), f64::max(hi, b.3))),
-        })
+        self.buckets
+            .iter()
+            .filter(|b| b.1 > 0)
+            .fold(None, |r, b| match r {
+                None => Some((b.2, b.3)),
+                Some((lo, hi)) => Some((f64::min(lo, b.2), f64::max(hi, b.3))),
+            })
     }
 
     /// Forget everything.
@@ -151,7 +170,10 @@ mod tests {
             let got = d.buckets();
             assert_eq!(got.len(), want.len());
             for (g, w) in got.iter().zip(&want) {
-                assert_eq!((g.first, g.count, g.min, g.max), (w.first, w.count, w.min, w.max));
+                assert_eq!(
+                    (g.first, g.count, g.min, g.max),
+                    (w.first, w.count, w.min, w.max)
+                );
                 // the mean: sums in another order, 1e-12 relative
                 assert!((g.mean - w.mean).abs() <= 1e-12 * w.mean.abs());
             }

@@ -7,22 +7,37 @@ use std::fmt::Write;
 
 use super::html::esc;
 use super::{DiagnosisPart, ReportError, fmt_sig};
-use crate::model::Term;
 use crate::diagnose::{self, Verdict};
+use crate::model::Term;
 
 /// The term a model-file key belongs to (`arw_dpsh`, `gauss_markov[0].tau_c_s`, ...),
 /// with placeholder parameters: only its name and explanation are used.
 pub fn term_of_key(key: &str) -> Option<Term> {
     let base = key.split(['[', '.']).next().unwrap_or(key);
     Some(match base {
-        k if k.starts_with("quantization") || k.starts_with("pulse") => Term::Quantization { q_arcsec: 0.0 },
+        k if k.starts_with("quantization") || k.starts_with("pulse") => {
+            Term::Quantization { q_arcsec: 0.0 }
+        }
         k if k.starts_with("arw") => Term::AngleRandomWalk { n_dpsh: 0.0 },
-        k if k.starts_with("bias_instability") => Term::BiasInstability { b_dph: 0.0, f_lo_hz: 0.0, f_hi_hz: f64::INFINITY },
+        k if k.starts_with("bias_instability") => Term::BiasInstability {
+            b_dph: 0.0,
+            f_lo_hz: 0.0,
+            f_hi_hz: f64::INFINITY,
+        },
         k if k.starts_with("rrw") => Term::RateRandomWalk { k_dphsh: 0.0 },
         k if k.starts_with("rate_ramp") => Term::RateRamp { r_dphh: 0.0 },
-        "gauss_markov" => Term::GaussMarkov { sigma_dph: 0.0, tau_c_s: 1.0 },
-        "sinusoid" => Term::Sinusoid { amplitude_dph: 0.0, period_s: 1.0 },
-        "random_telegraph" => Term::RandomTelegraph { amplitude_dph: 0.0, mean_dwell_s: 1.0 },
+        "gauss_markov" => Term::GaussMarkov {
+            sigma_dph: 0.0,
+            tau_c_s: 1.0,
+        },
+        "sinusoid" => Term::Sinusoid {
+            amplitude_dph: 0.0,
+            period_s: 1.0,
+        },
+        "random_telegraph" => Term::RandomTelegraph {
+            amplitude_dph: 0.0,
+            mean_dwell_s: 1.0,
+        },
         _ => return None,
     })
 }
@@ -34,7 +49,11 @@ pub fn section(d: &DiagnosisPart<'_>) -> Result<String, ReportError> {
     let mut h = String::new();
     let svg = diagnose::svg::render(diag, &format!("diagnosis against {}", d.model))
         .map_err(|e| ReportError::Draw(e.to_string()))?;
-    let _ = write!(h, "<section id=\"diagnosis\"><h2>Diagnosis against the model {}</h2>", esc(d.model));
+    let _ = write!(
+        h,
+        "<section id=\"diagnosis\"><h2>Diagnosis against the model {}</h2>",
+        esc(d.model)
+    );
     let (class, verdict) = match r.verdict {
         Verdict::Consistent => ("ok", "consistent: the recording is what the model predicts"),
         Verdict::Mismatch => ("bad", "mismatch: the recording departs from the model"),
@@ -85,16 +104,29 @@ pub fn section(d: &DiagnosisPart<'_>) -> Result<String, ReportError> {
                 .params
                 .iter()
                 .map(|(k, v)| match a.ci95.get(k) {
-                    Some(ci) => format!("{k} = {} (95 %: {} to {})", fmt_sig(*v, 4), fmt_sig(ci[0], 3), fmt_sig(ci[1], 3)),
+                    Some(ci) => format!(
+                        "{k} = {} (95 %: {} to {})",
+                        fmt_sig(*v, 4),
+                        fmt_sig(ci[0], 3),
+                        fmt_sig(ci[1], 3)
+                    ),
                     None => format!("{k} = {}", fmt_sig(*v, 4)),
                 })
                 .collect();
-            let _ =
-                write!(h, "<li><b>{}</b>: {}. {}</li>", esc(&a.term), esc(&params.join(", ")), esc(&a.explanation));
+            let _ = write!(
+                h,
+                "<li><b>{}</b>: {}. {}</li>",
+                esc(&a.term),
+                esc(&params.join(", ")),
+                esc(&a.explanation)
+            );
         }
         h.push_str("</ul>");
     }
-    if r.verdict == Verdict::Consistent && r.parameter_changes.is_empty() && r.added_terms.is_empty() {
+    if r.verdict == Verdict::Consistent
+        && r.parameter_changes.is_empty()
+        && r.added_terms.is_empty()
+    {
         h.push_str("<p>No term needs changing.</p>");
     }
     if !diag.notes.is_empty() {
@@ -121,8 +153,14 @@ mod tests {
     #[test]
     fn model_keys_name_their_terms() {
         assert_eq!(term_of_key("arw_dpsh").map(|t| t.name()), Some("arw"));
-        assert_eq!(term_of_key("quantization_arcsec").map(|t| t.name()), Some("quantization"));
-        assert_eq!(term_of_key("gauss_markov[1].tau_c_s").map(|t| t.name()), Some("gauss_markov"));
+        assert_eq!(
+            term_of_key("quantization_arcsec").map(|t| t.name()),
+            Some("quantization")
+        );
+        assert_eq!(
+            term_of_key("gauss_markov[1].tau_c_s").map(|t| t.name()),
+            Some("gauss_markov")
+        );
         assert_eq!(term_of_key("sinusoid").map(|t| t.name()), Some("sinusoid"));
         assert_eq!(term_of_key("rrw_dphsh").map(|t| t.name()), Some("rrw"));
         assert!(term_of_key("thermal.slope").is_none());

@@ -55,7 +55,9 @@ pub fn page(r: &Report<'_>) -> Result<String, ReportError> {
     let a = r.analysis;
     let m = r.meta;
     let mut h = String::new();
-    let name = std::path::Path::new(&m.input).file_name().map_or(m.input.clone(), |f| f.to_string_lossy().into_owned());
+    let name = std::path::Path::new(&m.input)
+        .file_name()
+        .map_or(m.input.clone(), |f| f.to_string_lossy().into_owned());
     let _ = write!(
         h,
         "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\
@@ -89,7 +91,9 @@ pub fn page(r: &Report<'_>) -> Result<String, ReportError> {
         inline_svg(&allan),
         fmt_sig(100.0 * crate::allan::DEFAULT_CONFIDENCE, 3)
     );
-    let noise = svg(super::NOISE_SIZE, |area| noise_fig::draw(area, r.series, m.pulse_arcsec))?;
+    let noise = svg(super::NOISE_SIZE, |area| {
+        noise_fig::draw(area, r.series, m.pulse_arcsec)
+    })?;
     let check = match (noise_fig::max_abs_angle(r.series), m.pulse_arcsec) {
         (Some(p), Some(d)) => format!(
             " Here the integral stays within {} pulse{} of zero ({} arcsec at most).",
@@ -116,9 +120,17 @@ pub fn page(r: &Report<'_>) -> Result<String, ReportError> {
          as its mean per pixel column (its sample-to-sample spread is the quantization noise above), the clean \
          rate as minimum-maximum band per pixel column and mean (the axis leaves out the most extreme 2 % of \
          the columns, such as the wavelet bank's start-up, drawn at its edge){}.</figcaption></figure></section>\n",
-        if r.series.temperature().is_some() { " and temperature" } else { "" },
+        if r.series.temperature().is_some() {
+            " and temperature"
+        } else {
+            ""
+        },
         inline_svg(&rate),
-        if r.series.temperature().is_some() { "; below, the temperature the frames carry" } else { "; the input has no temperature" }
+        if r.series.temperature().is_some() {
+            "; below, the temperature the frames carry"
+        } else {
+            "; the input has no temperature"
+        }
     );
     if let Some(d) = &r.diagnosis {
         h.push_str(&diagnosis::section(d)?);
@@ -166,14 +178,30 @@ fn metadata(h: &mut String, r: &Report<'_>) {
     row(h, "input", &m.input);
     row(h, "format", &m.format);
     row(h, "samples", &a.samples.to_string());
-    row(h, "duration", &format!("{} s ({} h)", a.duration_s, fmt_sig(a.duration_s / 3600.0, 3)));
-    row(h, "sample rate", &format!("{} Hz ({})", m.rate_hz, m.origin));
+    row(
+        h,
+        "duration",
+        &format!(
+            "{} s ({} h)",
+            a.duration_s,
+            fmt_sig(a.duration_s / 3600.0, 3)
+        ),
+    );
+    row(
+        h,
+        "sample rate",
+        &format!("{} Hz ({})", m.rate_hz, m.origin),
+    );
     match m.pulse_arcsec {
         Some(d) => row(h, "pulse weight", &format!("{d} arcsec ({})", m.origin)),
         None => row(h, "pulse weight", "none: rate input"),
     }
     match m.gaps {
-        Some((g, lost)) => row(h, "gaps", &format!("{g} gaps, {lost} samples lost (filled, the angle kept)")),
+        Some((g, lost)) => row(
+            h,
+            "gaps",
+            &format!("{g} gaps, {lost} samples lost (filled, the angle kept)"),
+        ),
         None => row(h, "gaps", "not recorded by this format"),
     }
     if let Some(s) = &m.frame_stats {
@@ -183,7 +211,13 @@ fn metadata(h: &mut String, r: &Report<'_>) {
             &format!(
                 "{} decoded; {} CRC errors, {} false syncs, {} bytes skipped, {} resyncs; {} duplicate, \
                  {} out-of-sequence frames dropped",
-                s.frames_decoded, s.crc_errors, s.false_syncs, s.bytes_skipped, s.resyncs, s.duplicates, s.out_of_sequence
+                s.frames_decoded,
+                s.crc_errors,
+                s.false_syncs,
+                s.bytes_skipped,
+                s.resyncs,
+                s.duplicates,
+                s.out_of_sequence
             ),
         );
     }
@@ -211,7 +245,11 @@ fn coefficients(h: &mut String, a: &Analysis) {
         "<p class=\"verdict {class}\">Fit: {verdict} (\u{3c7}\u{b2}/dof {} on {} degrees of freedom, {} observations; \
          <code>fit.ok = {}</code>).</p>",
         fmt_sig(a.fit.chi2_per_dof, 3),
-        if a.fit.dof.fract() == 0.0 { format!("{}", a.fit.dof) } else { fmt_sig(a.fit.dof, 4) },
+        if a.fit.dof.fract() == 0.0 {
+            format!("{}", a.fit.dof)
+        } else {
+            fmt_sig(a.fit.dof, 4)
+        },
         a.fit.observations,
         a.fit.ok
     );
@@ -251,9 +289,15 @@ fn coefficients(h: &mut String, a: &Analysis) {
 /// The value and interval cells of a coefficient.
 fn coef_cells(c: &Coefficient) -> (String, String) {
     match (c.value, c.ci95, c.upper95) {
-        (Some(v), Some([lo, hi]), _) => (fmt_sig(v, 4), format!("{} to {}", fmt_sig(lo, 3), fmt_sig(hi, 3))),
+        (Some(v), Some([lo, hi]), _) => (
+            fmt_sig(v, 4),
+            format!("{} to {}", fmt_sig(lo, 3), fmt_sig(hi, 3)),
+        ),
         (Some(v), None, _) => (fmt_sig(v, 4), "\u{2013}".into()),
-        (None, _, Some(u)) => ("not found".into(), format!("&lt; {} (upper bound)", fmt_sig(u, 3))),
+        (None, _, Some(u)) => (
+            "not found".into(),
+            format!("&lt; {} (upper bound)", fmt_sig(u, 3)),
+        ),
         _ => ("n/a".into(), "\u{2013}".into()),
     }
 }
@@ -264,7 +308,13 @@ mod tests {
 
     #[test]
     fn escaping_and_inline_svg() {
-        assert_eq!(esc("a<b & \"c\" 'd'>"), "a&lt;b &amp; &quot;c&quot; &#39;d&#39;&gt;");
-        assert_eq!(inline_svg("<?xml version=\"1.0\"?>\n<svg a=\"1\"/>"), "<svg a=\"1\"/>");
+        assert_eq!(
+            esc("a<b & \"c\" 'd'>"),
+            "a&lt;b &amp; &quot;c&quot; &#39;d&#39;&gt;"
+        );
+        assert_eq!(
+            inline_svg("<?xml version=\"1.0\"?>\n<svg a=\"1\"/>"),
+            "<svg a=\"1\"/>"
+        );
     }
 }

@@ -43,7 +43,10 @@ pub enum ReportError {
     #[error(transparent)]
     Font(#[from] crate::font::FontError),
     #[error("writing {}", path.display())]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     #[error("writing {}: {reason}", path.display())]
     Png { path: PathBuf, reason: String },
 }
@@ -124,7 +127,10 @@ where
     let root = BitMapBackend::new(path, size).into_drawing_area();
     draw(&root)?;
     // the file is encoded and written here
-    root.present().map_err(|e| ReportError::Png { path: path.to_path_buf(), reason: e.to_string() })
+    root.present().map_err(|e| ReportError::Png {
+        path: path.to_path_buf(),
+        reason: e.to_string(),
+    })
 }
 
 /// Write `dir/index.html`, `dir/allan.png` and `dir/noise_integral.png`
@@ -137,8 +143,13 @@ pub fn write(dir: &Path, r: &Report<'_>) -> Result<Written, ReportError> {
         noise_png: dir.join("noise_integral.png"),
     };
     png(&w.allan_png, ALLAN_SIZE, |a| allan_fig::draw(a, r.analysis))?;
-    png(&w.noise_png, NOISE_SIZE, |a| noise_fig::draw(a, r.series, r.meta.pulse_arcsec))?;
-    std::fs::write(&w.html, page).map_err(|source| ReportError::Io { path: w.html.clone(), source })?;
+    png(&w.noise_png, NOISE_SIZE, |a| {
+        noise_fig::draw(a, r.series, r.meta.pulse_arcsec)
+    })?;
+    std::fs::write(&w.html, page).map_err(|source| ReportError::Io {
+        path: w.html.clone(),
+        source,
+    })?;
     Ok(w)
 }
 

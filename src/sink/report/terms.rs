@@ -53,7 +53,12 @@ impl Asymptote {
             Kind::RateRandomWalk => (0.5, units::dphsh_to_arcsec_per_s_sqrt_s(c) / 3f64.sqrt()),
             Kind::RateRamp => (1.0, units::dphh_to_arcsec_per_s2(c).abs() / 2f64.sqrt()),
         };
-        Asymptote { kind, coefficient: c, slope, scale: units::arcsec_per_s_to_dph(scale) }
+        Asymptote {
+            kind,
+            coefficient: c,
+            slope,
+            scale: units::arcsec_per_s_to_dph(scale),
+        }
     }
 
     /// Allan deviation, deg/h, at `tau_s`.
@@ -63,7 +68,11 @@ impl Asymptote {
 
     /// The tau range inside `[tau_lo, tau_hi]` where the deviation is inside
     /// `[dev_lo, dev_hi]` (a power law crosses the box once), if any.
-    pub fn clip(&self, (tau_lo, tau_hi): (f64, f64), (dev_lo, dev_hi): (f64, f64)) -> Option<(f64, f64)> {
+    pub fn clip(
+        &self,
+        (tau_lo, tau_hi): (f64, f64),
+        (dev_lo, dev_hi): (f64, f64),
+    ) -> Option<(f64, f64)> {
         if !(self.scale > 0.0) {
             return None;
         }
@@ -142,8 +151,13 @@ impl Kind {
             Kind::RateRamp => "+1",
         }
     }
-    pub const ALL: [Kind; 5] =
-        [Kind::Quantization, Kind::AngleRandomWalk, Kind::BiasInstability, Kind::RateRandomWalk, Kind::RateRamp];
+    pub const ALL: [Kind; 5] = [
+        Kind::Quantization,
+        Kind::AngleRandomWalk,
+        Kind::BiasInstability,
+        Kind::RateRandomWalk,
+        Kind::RateRamp,
+    ];
 }
 
 /// The asymptotes of the terms the estimator found (a value, not only a bound).
@@ -158,13 +172,20 @@ pub fn asymptotes(e: &NoiseEstimates) -> Vec<Asymptote> {
     Kind::ALL
         .iter()
         .zip(coefs)
-        .filter_map(|(&k, c)| c.filter(|c| c.is_finite() && *c != 0.0).map(|c| Asymptote::new(k, c)))
+        .filter_map(|(&k, c)| {
+            c.filter(|c| c.is_finite() && *c != 0.0)
+                .map(|c| Asymptote::new(k, c))
+        })
         .collect()
 }
 
 /// The total model deviation, deg/h: the root of the summed variances.
 pub fn total_dev(terms: &[Asymptote], tau_s: f64) -> f64 {
-    terms.iter().map(|t| t.dev(tau_s).powi(2)).sum::<f64>().sqrt()
+    terms
+        .iter()
+        .map(|t| t.dev(tau_s).powi(2))
+        .sum::<f64>()
+        .sqrt()
 }
 
 #[cfg(test)]
@@ -199,7 +220,12 @@ mod tests {
         ] {
             for tau in [0.01, 1.0, 300.0] {
                 let want = term.avar(tau).sqrt();
-                assert!((a.dev(tau) / want - 1.0).abs() < 1e-12, "{:?} at {tau}: {} vs {want}", a.kind, a.dev(tau));
+                assert!(
+                    (a.dev(tau) / want - 1.0).abs() < 1e-12,
+                    "{:?} at {tau}: {} vs {want}",
+                    a.kind,
+                    a.dev(tau)
+                );
             }
         }
         // the total adds variances

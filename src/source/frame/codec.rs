@@ -20,7 +20,9 @@ pub struct FrameCodec<W: Wire = Single> {
 
 impl Default for FrameCodec<Single> {
     fn default() -> Self {
-        FrameCodec { decoder: FrameDecoder::default() }
+        FrameCodec {
+            decoder: FrameDecoder::default(),
+        }
     }
 }
 
@@ -41,7 +43,9 @@ impl FrameCodec<Single> {
 impl<W: Wire> FrameCodec<W> {
     /// A codec for wire format `W` with `config`.
     pub fn for_wire(config: DecoderConfig) -> Self {
-        FrameCodec { decoder: FrameDecoder::for_wire(config) }
+        FrameCodec {
+            decoder: FrameDecoder::for_wire(config),
+        }
     }
 
     /// Counts so far (reach it through `FramedRead::decoder()`).

@@ -298,7 +298,10 @@ impl<W: Wire> FrameDecoder<W> {
     }
 
     /// One-shot: decode a whole stream of wire format `W` held in memory.
-    pub fn decode_all_wire(bytes: &[u8], config: DecoderConfig) -> (Vec<WireDecoded<W>>, DecoderStats) {
+    pub fn decode_all_wire(
+        bytes: &[u8],
+        config: DecoderConfig,
+    ) -> (Vec<WireDecoded<W>>, DecoderStats) {
         let mut dec = FrameDecoder::<W>::for_wire(config);
         let mut buf = BytesMut::from(bytes);
         let mut out = Vec::new();
@@ -404,7 +407,12 @@ impl<W: Wire> FrameDecoder<W> {
     /// [`Decoded::Sample`]s with `lost_before == 0`); `None`, with nothing
     /// consumed, when the front of `buf` is anything else, which `decode` then
     /// handles.
-    pub fn decode_run(&mut self, buf: &mut BytesMut, max: usize, increments: &mut Vec<W::Increment>) -> Option<RunEnd> {
+    pub fn decode_run(
+        &mut self,
+        buf: &mut BytesMut,
+        max: usize,
+        increments: &mut Vec<W::Increment>,
+    ) -> Option<RunEnd> {
         if !self.queue.is_empty() || self.skip_run != 0 || max == 0 {
             return None;
         }
@@ -439,7 +447,12 @@ impl<W: Wire> FrameDecoder<W> {
         self.stats.reserved_nonzero += reserved_nonzero;
         self.pending = None;
         self.last = Some(prev);
-        Some(RunEnd { samples: n, seq: last_raw.seq, temp_c: last_raw.temp_c(), status })
+        Some(RunEnd {
+            samples: n,
+            seq: last_raw.seq,
+            temp_c: last_raw.temp_c(),
+            status,
+        })
     }
 
     /// Like [`decode`](Self::decode), at end of stream: once no further item can
@@ -623,7 +636,13 @@ impl<W: Wire> FrameDecoder<W> {
         self.pending = Some(here);
     }
 
-    fn emit_sample(&mut self, prev: Anchor<W::Counter>, raw: &RawFrame<W::Counter>, offset: u64, lost: u16) {
+    fn emit_sample(
+        &mut self,
+        prev: Anchor<W::Counter>,
+        raw: &RawFrame<W::Counter>,
+        offset: u64,
+        lost: u16,
+    ) {
         if lost > 0 {
             self.stats.gaps += 1;
             self.stats.lost_samples += u64::from(lost);

@@ -30,7 +30,10 @@ pub struct FilledSeries {
 
 impl FilledSeries {
     pub fn with_capacity(n: usize) -> Self {
-        FilledSeries { counts: Vec::with_capacity(n), filled: Vec::new() }
+        FilledSeries {
+            counts: Vec::with_capacity(n),
+            filled: Vec::new(),
+        }
     }
 
     pub fn clear(&mut self) {
@@ -199,7 +202,15 @@ mod tests {
         assert_eq!(f.filled, vec![0..1, 2..3]);
         assert_eq!(f.counts.len(), 5);
         // the same increments as fill_gap
-        let s = Sample { seq: 10, counter: 0, lost_before: 3, increment: 7, temp_c: 20.0, status: 0, offset: 0 };
+        let s = Sample {
+            seq: 10,
+            counter: 0,
+            lost_before: 3,
+            increment: 7,
+            temp_c: 20.0,
+            status: 0,
+            offset: 0,
+        };
         let mut g = FilledSeries::default();
         g.push_sample(&s);
         let u: Vec<UniformSample> = fill_gap(&s).collect();

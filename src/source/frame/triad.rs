@@ -23,8 +23,8 @@
 //! difference of its counter; a gap carries the whole difference of each.
 
 use super::{
-    FrameError, NotAFrame, RawFrame, STATUS_ALL_OK, Wire, crc_init_through, crc_position_tables, crc16,
-    increment_between,
+    FrameError, NotAFrame, RawFrame, STATUS_ALL_OK, Wire, crc_init_through, crc_position_tables,
+    crc16, increment_between,
 };
 
 /// Length of one triad frame in bytes.
@@ -105,7 +105,12 @@ impl Wire for Triad {
 }
 
 /// Encode one triad frame (reserved field 0, CRC appended).
-pub fn encode_triad_frame(seq: u16, counters: [u32; 3], temp_raw: i16, status: u16) -> [u8; TRIAD_FRAME_LEN] {
+pub fn encode_triad_frame(
+    seq: u16,
+    counters: [u32; 3],
+    temp_raw: i16,
+    status: u16,
+) -> [u8; TRIAD_FRAME_LEN] {
     let mut f = [0u8; TRIAD_FRAME_LEN];
     f[0..2].copy_from_slice(&TRIAD_SYNC);
     f[2..4].copy_from_slice(&seq.to_le_bytes());
@@ -133,7 +138,12 @@ pub struct TriadEncoder {
 impl TriadEncoder {
     /// Start at `(start_seq, start_counters)`, 25.00 deg C, all status flags OK.
     pub fn new(start_seq: u16, start_counters: [u32; 3]) -> Self {
-        TriadEncoder { seq: start_seq, counters: start_counters, temp_raw: 2500, status: STATUS_ALL_OK }
+        TriadEncoder {
+            seq: start_seq,
+            counters: start_counters,
+            temp_raw: 2500,
+            status: STATUS_ALL_OK,
+        }
     }
 
     /// Sequence number of the last frame produced.
@@ -168,7 +178,8 @@ impl TriadEncoder {
         let seq = self.seq.wrapping_add(1);
         let mut next = self.counters;
         for (c, &increment) in next.iter_mut().zip(&increments) {
-            let inc = i32::try_from(increment).map_err(|_| FrameError::IncrementOutOfRange { seq, increment })?;
+            let inc = i32::try_from(increment)
+                .map_err(|_| FrameError::IncrementOutOfRange { seq, increment })?;
             *c = c.wrapping_add(inc as u32);
         }
         self.seq = seq;
@@ -214,7 +225,10 @@ mod tests {
         assert_eq!(Triad::check(&f), Ok(()));
         let raw = Triad::parse(&f).unwrap();
         assert_eq!(raw.counter, [1, 0xFFFF_FFFF, 0x0102_0304]);
-        assert_eq!((raw.seq, raw.temp_raw, raw.status, raw.reserved), (0x1234, -150, 7, 0));
+        assert_eq!(
+            (raw.seq, raw.temp_raw, raw.status, raw.reserved),
+            (0x1234, -150, 7, 0)
+        );
         // a single frame is not a triad frame, and vice versa
         let single = super::super::encode_frame(1, 2, 3, 4);
         assert_eq!(Triad::check(&single), Err(NotAFrame::NoSync));
