@@ -17,7 +17,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use daemon_common::*;
-use sagnac::source::bench::BenchEmulator;
+use sagnac::daemon::bench::BenchEmulator;
 use sagnac::source::frame::inject::{FaultPlan, InjectorConfig};
 
 fn run_replay(input: &Path, rec_dir: &Path, log: &Path, extra: &[&str]) -> Duration {

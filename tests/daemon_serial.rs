@@ -14,7 +14,7 @@ use std::path::Path;
 use std::time::Duration;
 
 use daemon_common::*;
-use sagnac::source::bench::{BenchEmulator, write_paced};
+use sagnac::daemon::bench::{BenchEmulator, write_paced};
 use sagnac::source::frame::inject::{FaultPlan, FrameAction, InjectorConfig, Ledger};
 
 /// Frame rate of the emulated gyro, Hz, and the emulator's speed-up over real time.

@@ -1,7 +1,8 @@
 //! `sagnac run`: the acquisition daemon.
 //!
 //! ```text
-//! sagnac run [--config FILE] [--serial PATH --baud N [--queue-budget-mib M] | --replay FILE [--speed X] | --simulate MODEL.toml]
+//! sagnac run [--config FILE] [--serial [LABEL=]PATH ... --baud N [--queue-budget-mib M] | --replay [LABEL=]FILE ... [--speed X]
+//!            | --simulate MODEL.toml | --simulate-triad X.toml,Y.toml,Z.toml] [--frame single|triad]
 //!            [--rate-hz F] [--pulse-arcsec D] [--metrics-addr ADDR] [--record-dir DIR]
 //!            [--wavelet sym8] [--duration-s S] [--spec SPEC.toml [--stop-when-decided]]
 //! ```
@@ -26,26 +27,33 @@ use anyhow::{Context, Result};
 use clap::{ArgGroup, Args};
 
 use super::progress::StatusLine;
-use crate::daemon::config::{Config, ConfigError, KeysPresent, LogFormat, SourceKind};
+use crate::daemon::config::{Config, ConfigError, FrameKind, KeysPresent, LabelledInput, LogFormat, SourceKind};
 use crate::daemon::run::{Daemon, DaemonError, Explicit};
 use crate::daemon::shutdown;
 
 /// Arguments of `sagnac run`.
 #[derive(Debug, Args)]
-#[command(group(ArgGroup::new("source").args(["serial", "replay", "simulate"])))]
+#[command(group(ArgGroup::new("source").args(["serial", "replay", "simulate", "simulate_triad"])))]
 pub struct RunArgs {
     /// Configuration file (TOML, every key documented in config/default.toml); flags override it.
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
-    /// Read the gyro's frames from this serial device (e.g. /dev/ttyUSB0).
-    #[arg(long, value_name = "PATH")]
-    pub serial: Option<PathBuf>,
+    /// Read the gyro's frames from this serial device (e.g. /dev/ttyUSB0). Repeat it
+    /// as LABEL=PATH for several devices in one daemon (each gyro's series and
+    /// channels carry its label; a triad's gyros are LABEL_x, LABEL_y, LABEL_z).
+    #[arg(long, value_name = "[LABEL=]PATH")]
+    pub serial: Vec<String>,
     /// Baud rate of the serial device (default 921600).
     #[arg(long, value_name = "N", requires = "serial")]
     pub baud: Option<u32>,
     /// Replay a capture: raw frames (.bin) or an MCAP recording made by `sagnac run`.
-    #[arg(long, value_name = "FILE")]
-    pub replay: Option<PathBuf>,
+    /// Repeat it as LABEL=FILE for several captures in one daemon.
+    #[arg(long, value_name = "[LABEL=]FILE")]
+    pub replay: Vec<String>,
+    /// The frame of serial input and raw captures: single (16 bytes, one gyro) or
+    /// triad (24 bytes, gyros x, y, z). Default single.
+    #[arg(long, value_name = "single|triad")]
+    pub frame: Option<String>,
     /// Pace of a replay or of the simulated bench, in multiples of real time (0 = as fast
     /// as possible; default: 1 for the simulated bench, 0 for a replay).
     #[arg(
@@ -59,6 +67,10 @@ pub struct RunArgs {
     /// model of the founding paper's gyro).
     #[arg(long, value_name = "MODEL.toml")]
     pub simulate: Option<PathBuf>,
+    /// Run the simulated bench as a triad: three gyro models (x, y, z, one sample
+    /// rate) sent through the real triad frame encoder and decoder.
+    #[arg(long, value_name = "X.toml,Y.toml,Z.toml", value_delimiter = ',')]
+    pub simulate_triad: Vec<PathBuf>,
     /// Memory budget of the serial source's pipeline queue, MiB (default 16).
     #[arg(long, value_name = "MIB", allow_negative_numbers = true)]
     pub queue_budget_mib: Option<f64>,
@@ -93,9 +105,15 @@ pub struct RunArgs {
 /// The config key a flag overrides (for error messages).
 fn flag_of(args: &RunArgs, key: &str) -> Option<(&'static str, bool)> {
     Some(match key {
-        "source.serial_path" => ("--serial", args.serial.is_some()),
+        "source.serial_path" => ("--serial", !args.serial.is_empty()),
         "source.baud" => ("--baud", args.baud.is_some()),
-        "source.replay_path" => ("--replay", args.replay.is_some()),
+        "source.replay_path" => ("--replay", !args.replay.is_empty()),
+        "source.inputs" => (
+            if args.serial.is_empty() { "--replay" } else { "--serial" },
+            !args.serial.is_empty() || !args.replay.is_empty(),
+        ),
+        "source.frame" => ("--frame", args.frame.is_some()),
+        "source.triad_models" => ("--simulate-triad", !args.simulate_triad.is_empty()),
         "source.speed" => ("--speed", args.speed.is_some()),
         "source.model" => ("--simulate", args.simulate.is_some()),
         "source.queue_budget_mib" => ("--queue-budget-mib", args.queue_budget_mib.is_some()),
@@ -111,6 +129,28 @@ fn flag_of(args: &RunArgs, key: &str) -> Option<(&'static str, bool)> {
     })
 }
 
+/// `--serial` / `--replay` values: one unlabelled PATH is today's single input
+/// (`source.serial_path` / `source.replay_path`); otherwise every value must be
+/// LABEL=PATH (`source.inputs`).
+fn set_inputs(cfg: &mut Config, values: &[String], serial: bool) -> Result<(), ConfigError> {
+    let single = if serial { &mut cfg.source.serial_path } else { &mut cfg.source.replay_path };
+    if let [one] = values
+        && LabelledInput::parse(one).is_err()
+    {
+        *single = one.clone();
+        cfg.source.inputs.clear();
+        return Ok(());
+    }
+    for v in values {
+        if let Err(message) = LabelledInput::parse(v) {
+            return Err(ConfigError::Invalid { key: "source.inputs", value: v.clone(), message });
+        }
+    }
+    single.clear();
+    cfg.source.inputs = values.to_vec();
+    Ok(())
+}
+
 /// The configuration: the file (or the defaults) with the flags applied, and
 /// which gyro settings were given explicitly.
 pub fn resolve(args: &RunArgs) -> Result<(Config, Explicit), ConfigError> {
@@ -123,20 +163,38 @@ pub fn resolve(args: &RunArgs) -> Result<(Config, Explicit), ConfigError> {
         rate_hz: args.rate_hz.is_some() || keys.contains("gyro.rate_hz"),
         pulse_arcsec: args.pulse_arcsec.is_some() || keys.contains("gyro.pulse_arcsec"),
     };
-    if let Some(p) = &args.serial {
+    if !args.serial.is_empty() {
         cfg.source.kind = SourceKind::Serial;
-        cfg.source.serial_path = p.display().to_string();
+        set_inputs(&mut cfg, &args.serial, true)?;
     }
     if let Some(b) = args.baud {
         cfg.source.baud = b;
     }
-    if let Some(p) = &args.replay {
+    if !args.replay.is_empty() {
         cfg.source.kind = SourceKind::Replay;
-        cfg.source.replay_path = p.display().to_string();
+        set_inputs(&mut cfg, &args.replay, false)?;
     }
     if let Some(p) = &args.simulate {
         cfg.source.kind = SourceKind::Simulate;
         cfg.source.model = p.display().to_string();
+    }
+    if !args.simulate_triad.is_empty() {
+        cfg.source.kind = SourceKind::Simulate;
+        cfg.source.model.clear();
+        cfg.source.triad_models = args.simulate_triad.iter().map(|p| p.display().to_string()).collect();
+    }
+    if let Some(f) = &args.frame {
+        cfg.source.frame = match f.as_str() {
+            "single" => FrameKind::Single,
+            "triad" => FrameKind::Triad,
+            _ => {
+                return Err(ConfigError::Invalid {
+                    key: "source.frame",
+                    value: f.clone(),
+                    message: "must be single or triad",
+                });
+            }
+        };
     }
     if let Some(s) = args.speed {
         cfg.source.speed = Some(s);

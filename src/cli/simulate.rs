@@ -34,7 +34,7 @@ use crate::model::{GyroModel, Simulator, sim};
 use crate::sink::mcap::{Recorder, RecorderConfig};
 use crate::sink::messages::{RawBatch, SinkMessage};
 use crate::sink::meta::RecordingMeta;
-use crate::source::bench::{SIM_START_COUNTER, SIM_START_SEQ};
+use crate::daemon::bench::{SIM_START_COUNTER, SIM_START_SEQ};
 use crate::source::frame::{FrameEncoder, FrameWriter, STATUS_ALL_OK, TriadEncoder};
 
 /// Output format of `sagnac simulate`.

@@ -114,6 +114,8 @@ pub struct Assembler {
     stats: DecoderStats,
     truncated: u64,
     telemetry: Telemetry,
+    /// Whether bytes read are counted here (once per stream of several gyros).
+    counts_bytes: bool,
 }
 
 impl Assembler {
@@ -131,7 +133,19 @@ impl Assembler {
             stats: DecoderStats::default(),
             truncated: 0,
             telemetry,
+            counts_bytes: true,
         }
+    }
+
+    /// Whether this assembler counts the stream's bytes read (the first gyro
+    /// of a triad does; the others share its stream).
+    pub fn count_bytes(&mut self, on: bool) {
+        self.counts_bytes = on;
+    }
+
+    /// The gyro's telemetry.
+    pub fn telemetry(&self) -> &Telemetry {
+        &self.telemetry
     }
 
     /// Whether the period limit is reached (the source should stop).
@@ -361,9 +375,9 @@ impl Assembler {
     pub fn sync_stats(&mut self, stats: &DecoderStats) {
         let m = &self.telemetry.gyro;
         let old = self.stats;
-        self.telemetry
-            .metrics
-            .add_bytes_read(stats.bytes_read - old.bytes_read);
+        if self.counts_bytes {
+            self.telemetry.metrics.add_bytes_read(stats.bytes_read - old.bytes_read);
+        }
         m.add_frames_decoded(stats.frames_decoded - old.frames_decoded);
         m.add_samples(stats.samples - old.samples);
         m.add_lost_samples(stats.lost_samples - old.lost_samples);

@@ -37,11 +37,78 @@ pub enum SourceKind {
     Simulate,
 }
 
+/// The frame a serial port or a raw capture carries.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum FrameKind {
+    /// The 16-byte single-gyro frame.
+    #[default]
+    Single,
+    /// The 24-byte triad frame: gyros x, y, z.
+    Triad,
+}
+
+impl FrameKind {
+    /// Gyros per frame.
+    pub fn gyros(self) -> usize {
+        match self {
+            FrameKind::Single => 1,
+            FrameKind::Triad => 3,
+        }
+    }
+
+    /// The gyro labels of a stream of these frames whose input is labelled
+    /// `input` (`None`: unlabelled). A single frame is its input's label, or
+    /// `gyro`; a triad's gyros are `x`, `y`, `z`, or `LABEL_x`, `LABEL_y`,
+    /// `LABEL_z`.
+    pub fn labels(self, input: Option<&str>) -> Vec<String> {
+        match (self, input) {
+            (FrameKind::Single, Some(l)) => vec![l.to_string()],
+            (FrameKind::Single, None) => vec![crate::sink::metrics::DEFAULT_GYRO.to_string()],
+            (FrameKind::Triad, Some(l)) => AXES.iter().map(|a| format!("{l}_{a}")).collect(),
+            (FrameKind::Triad, None) => AXES.iter().map(|a| a.to_string()).collect(),
+        }
+    }
+}
+
+use crate::source::frame::triad::AXES;
+
+/// One of several labelled inputs: `LABEL=PATH` (a serial device or a capture).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct LabelledInput {
+    /// The input's label (its gyro's, or the prefix of its triad's).
+    pub label: String,
+    /// Device or file path.
+    pub path: String,
+}
+
+impl LabelledInput {
+    /// Parse `LABEL=PATH`; the error says what is wrong.
+    pub fn parse(text: &str) -> Result<LabelledInput, &'static str> {
+        let (label, path) = text.split_once('=').ok_or("must be LABEL=PATH")?;
+        if !crate::sink::messages::valid_gyro_label(label) {
+            return Err("LABEL must be 1-32 ASCII letters, digits, _ or -");
+        }
+        if path.is_empty() {
+            return Err("PATH is empty");
+        }
+        Ok(LabelledInput { label: label.to_string(), path: path.to_string() })
+    }
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SourceConfig {
     /// `serial`, `replay` or `simulate` (the built-in simulated bench).
     pub kind: SourceKind,
+    /// The frame of serial input and raw captures: `single` or `triad`.
+    pub frame: FrameKind,
+    /// Several labelled inputs of `kind` (serial devices or captures), each
+    /// `LABEL=PATH`, instead of `serial_path` / `replay_path`.
+    pub inputs: Vec<String>,
+    /// Three gyro model TOMLs (x, y, z) of a simulated triad (kind = simulate),
+    /// instead of `model`.
+    pub triad_models: Vec<String>,
     /// Serial device path (kind = serial).
     pub serial_path: String,
     /// Serial baud rate.
@@ -70,6 +137,9 @@ impl Default for SourceConfig {
     fn default() -> Self {
         SourceConfig {
             kind: SourceKind::Simulate,
+            frame: FrameKind::Single,
+            inputs: Vec::new(),
+            triad_models: Vec::new(),
             serial_path: String::new(),
             baud: 921_600,
             reconnect_initial_s: 0.5,
@@ -387,15 +457,64 @@ impl Config {
         Ok((cfg, KeysPresent::of_toml(&text)))
     }
 
+    /// The labelled inputs and the triad models: well formed, labels unique,
+    /// no mix with the single-input keys.
+    fn validate_inputs(&self) -> Result<(), ConfigError> {
+        let s = &self.source;
+        let mut labels = std::collections::BTreeSet::new();
+        for text in &s.inputs {
+            let input = LabelledInput::parse(text).map_err(|m| invalid("source.inputs", format!("{text:?}"), m))?;
+            if !labels.insert(input.label) {
+                return Err(invalid("source.inputs", format!("{text:?}"), "labels must be unique"));
+            }
+        }
+        if !s.inputs.is_empty() {
+            if s.kind == SourceKind::Simulate {
+                return Err(invalid(
+                    "source.inputs",
+                    format!("{:?}", s.inputs),
+                    "labelled inputs are serial devices or captures: source.kind must be serial or replay",
+                ));
+            }
+            let single = if s.kind == SourceKind::Serial { &s.serial_path } else { &s.replay_path };
+            if !single.is_empty() {
+                return Err(invalid(
+                    "source.inputs",
+                    format!("{:?}", s.inputs),
+                    "give either labelled inputs or source.serial_path / source.replay_path, not both",
+                ));
+            }
+        }
+        if !s.triad_models.is_empty() {
+            if s.triad_models.len() != 3 {
+                return Err(invalid(
+                    "source.triad_models",
+                    format!("{:?}", s.triad_models),
+                    "a simulated triad needs exactly three models (x, y, z)",
+                ));
+            }
+            if s.kind != SourceKind::Simulate || !s.model.is_empty() {
+                return Err(invalid(
+                    "source.triad_models",
+                    format!("{:?}", s.triad_models),
+                    "a simulated triad needs source.kind = \"simulate\" and no source.model",
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// Check every value; the first problem is reported with its key.
     pub fn validate(&self) -> Result<(), ConfigError> {
         positive("gyro.rate_hz", self.gyro.rate_hz)?;
         positive("gyro.pulse_arcsec", self.gyro.pulse_arcsec)?;
         label_value("gyro.serial_number", &self.gyro.serial_number)?;
         label_value("gyro.model_name", &self.gyro.model_name)?;
+        self.validate_inputs()?;
+        let labelled = !self.source.inputs.is_empty();
         match self.source.kind {
             SourceKind::Serial => {
-                if self.source.serial_path.is_empty() {
+                if self.source.serial_path.is_empty() && !labelled {
                     return Err(invalid(
                         "source.serial_path",
                         "\"\"",
@@ -407,7 +526,7 @@ impl Config {
                 }
             }
             SourceKind::Replay => {
-                if self.source.replay_path.is_empty() {
+                if self.source.replay_path.is_empty() && !labelled {
                     return Err(invalid(
                         "source.replay_path",
                         "\"\"",

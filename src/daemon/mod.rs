@@ -16,14 +16,22 @@
 //! * [`status`]: the live status a terminal shows (`sagnac run`);
 //! * [`telemetry`]: the daemon's own metrics next to [`crate::sink::metrics`].
 //!
-//! The sources live in [`crate::source`]: `serial`, `replay`, `bench`.
+//! * the sources: [`serial`] (a serial port), [`replay`] (a frame capture or
+//!   an MCAP recording), [`bench`] (the simulated bench), each feeding one
+//!   [`lanes::Lanes`] per frame stream (one gyro, or a triad's three).
+//!
+//! The sans-IO frame decoding they use lives in [`crate::source`].
 
 pub mod batch;
+pub mod bench;
 pub mod config;
 pub mod http;
+pub mod lanes;
 pub mod process;
 pub mod queue;
+pub mod replay;
 pub mod run;
+pub mod serial;
 pub mod shutdown;
 pub mod status;
 pub mod summary;

@@ -755,6 +755,7 @@ impl Run<'_> {
             ($level:expr) => {
                 tracing::event!(
                     $level,
+                    gyro = self.out.telemetry.gyro.label(),
                     final_update = last,
                     samples = a.samples,
                     duration_s = a.duration_s,

@@ -30,8 +30,8 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
 
-use crate::daemon::batch::{self, Delivery, SourceReport};
-use crate::daemon::config::{Config, ConfigError, SourceKind};
+use crate::daemon::batch::{self, BatchSender, Delivery, SourceReport};
+use crate::daemon::config::{Config, ConfigError, FrameKind, LabelledInput, SourceKind};
 use crate::daemon::http::{self, HttpError};
 use crate::daemon::process::{Outputs, ProcessConfig, ProcessError, ProcessReport, Processor};
 use crate::daemon::queue::QueueBound;
@@ -43,10 +43,10 @@ use crate::pipeline::PipelineConfig;
 use crate::sink::mcap::{RecordError, Recorder, RecorderConfig, RecordingSummary};
 use crate::sink::meta::{AGREE_REL, Contradiction, RecordingMeta, check_flag};
 use crate::sink::metrics::{Metrics, MetricsError};
-use crate::source::bench::{BenchError, SimBench, SimBenchConfig};
-use crate::source::frame::DecoderConfig;
-use crate::source::replay::{self, CaptureKind, ReplayConfig, ReplayError, ReplaySource};
-use crate::source::serial::{SerialConfig, SerialError, SerialSource};
+use crate::daemon::bench::{BenchError, SimBench, SimBenchConfig};
+use crate::source::frame::{DecoderConfig, Single, Triad};
+use crate::daemon::replay::{self, CaptureKind, ReplayConfig, ReplayError, ReplaySource};
+use crate::daemon::serial::{SerialConfig, SerialError, SerialSource};
 
 /// The built-in gyro model of the simulated bench (the founding paper's RLG).
 pub const PAPER_GYRO_TOML: &str = include_str!("../../config/paper_gyro.toml");
@@ -127,25 +127,43 @@ enum Source {
     Bench(Box<SimBench>),
 }
 
+/// One gyro of the daemon: its label, its numeric stage and what its
+/// recording's metadata says of it.
+struct Gyro {
+    label: String,
+    processor: Processor,
+    meta: RecordingMeta,
+}
+
+/// One source (a serial port, a capture, the simulated bench) and the gyros
+/// its frames carry (one, or three for a triad).
+struct Input {
+    source: Source,
+    frame: FrameKind,
+    gyros: Vec<Gyro>,
+}
+
 /// A daemon ready to run.
 pub struct Daemon {
     config: Config,
-    source: Source,
-    processor: Processor,
+    inputs: Vec<Input>,
     metrics_addr: Option<SocketAddr>,
     /// The metadata record of the recording.
     recording_meta: RecordingMeta,
-    /// The live status a terminal shows, if any.
+    /// The live status a terminal shows, if any (of the first gyro).
     status: Option<Arc<LiveStatus>>,
 }
 
 /// What a run did.
 #[derive(Debug)]
 pub struct RunReport {
-    /// The source's counts.
+    /// The sources' counts, summed over the sources (per gyro of a triad,
+    /// samples and periods are those of one gyro).
     pub source: SourceReport,
-    /// The pipeline's counts and final analysis.
+    /// The first gyro's pipeline counts and final analysis.
     pub process: ProcessReport,
+    /// Every gyro's label and pipeline report, in order.
+    pub gyros: Vec<(String, ProcessReport)>,
     /// The recording, if any.
     pub recording: Option<RecordingSummary>,
     /// Where `/metrics` was served, if anywhere.
@@ -162,16 +180,9 @@ fn require_explicit(explicit: Explicit, input: String) -> Result<(), DaemonError
             "--rate-hz and --pulse-arcsec (config keys `gyro.rate_hz`, `gyro.pulse_arcsec`)",
         ),
         (false, true) => ("sample rate", "--rate-hz (config key `gyro.rate_hz`)"),
-        (true, false) => (
-            "pulse weight",
-            "--pulse-arcsec (config key `gyro.pulse_arcsec`)",
-        ),
+        (true, false) => ("pulse weight", "--pulse-arcsec (config key `gyro.pulse_arcsec`)"),
     };
-    Err(DaemonError::GyroUnspecified {
-        input,
-        missing,
-        how,
-    })
+    Err(DaemonError::GyroUnspecified { input, missing, how })
 }
 
 fn mismatch(key: &'static str, value: f64, message: &'static str) -> DaemonError {
@@ -182,6 +193,41 @@ fn mismatch(key: &'static str, value: f64, message: &'static str) -> DaemonError
     })
 }
 
+/// A gyro model of the simulated bench: `path`, or the built-in paper gyro when empty.
+fn load_model(path: &str) -> Result<(GyroModel, String), DaemonError> {
+    let (model, origin) = if path.is_empty() {
+        let origin = "built-in paper_gyro.toml".to_string();
+        (GyroModel::from_toml_str(PAPER_GYRO_TOML, &origin), origin)
+    } else {
+        let p = PathBuf::from(path);
+        (GyroModel::load(&p), p.display().to_string())
+    };
+    let model = model.map_err(|source| DaemonError::Model { origin: origin.clone(), source })?;
+    if model.gyro.output != crate::model::config::OutputKind::Counts {
+        return Err(DaemonError::Config(ConfigError::Invalid {
+            key: "source.model",
+            value: origin,
+            message: "gyro.output = \"rate\": the simulated bench sends pulse-counter frames; simulate a \
+             rate gyro with `sagnac simulate` (CSV) instead",
+        }));
+    }
+    Ok((model, origin))
+}
+
+/// The (label, path) of each serial device or capture of `kind`.
+fn labelled_inputs(config: &Config, single: &str) -> Vec<(Option<String>, String)> {
+    if config.source.inputs.is_empty() {
+        return vec![(None, single.to_string())];
+    }
+    config
+        .source
+        .inputs
+        .iter()
+        .filter_map(|t| LabelledInput::parse(t).ok()) // validate() checked them
+        .map(|i| (Some(i.label), i.path))
+        .collect()
+}
+
 impl Daemon {
     /// Validate `config` (already overridden by flags) and build every component.
     /// The gyro rate and pulse weight of a simulated bench come from its model,
@@ -190,165 +236,62 @@ impl Daemon {
     /// they must agree). The recording made carries them in its metadata record.
     pub fn build(mut config: Config, explicit: Explicit) -> Result<Daemon, DaemonError> {
         config.validate()?;
-        let speed = config.source.effective_speed();
-        let limit = |rate_hz: f64| {
-            (config.run.duration_s > 0.0)
-                .then(|| (config.run.duration_s * rate_hz).round().max(1.0) as u64)
-        };
         let mut model_toml = None;
-        let source = match config.source.kind {
+        // (source, frame, labels, per-gyro (rate, pulse, model TOML))
+        let mut built: Vec<(Source, FrameKind, Vec<String>, Vec<(f64, f64, Option<String>)>)> = Vec::new();
+        match config.source.kind {
             SourceKind::Simulate => {
-                let (model, origin) = if config.source.model.is_empty() {
-                    (
-                        GyroModel::from_toml_str(PAPER_GYRO_TOML, "built-in paper_gyro.toml"),
-                        "built-in paper_gyro.toml".to_string(),
-                    )
-                } else {
-                    let p = PathBuf::from(&config.source.model);
-                    (GyroModel::load(&p), p.display().to_string())
-                };
-                let model = model.map_err(|source| DaemonError::Model {
-                    origin: origin.clone(),
-                    source,
-                })?;
-                if model.gyro.output != crate::model::config::OutputKind::Counts {
-                    return Err(DaemonError::Config(ConfigError::Invalid {
-                        key: "source.model",
-                        value: origin.clone(),
-                        message: "gyro.output = \"rate\": the simulated bench sends pulse-counter frames; simulate a \
-                         rate gyro with `sagnac simulate` (CSV) instead",
-                    }));
-                }
-                model_toml = model.to_toml().ok();
-                let (rate, pulse) = (model.gyro.sample_rate_hz, model.gyro.pulse_weight_arcsec);
-                if explicit.rate_hz && config.gyro.rate_hz != rate {
-                    return Err(mismatch(
-                        "gyro.rate_hz",
-                        config.gyro.rate_hz,
-                        "differs from the simulated model's gyro.sample_rate_hz (leave it out to use the model's)",
-                    ));
-                }
-                if explicit.pulse_arcsec && config.gyro.pulse_arcsec != pulse {
-                    return Err(mismatch(
-                        "gyro.pulse_arcsec",
-                        config.gyro.pulse_arcsec,
-                        "differs from the simulated model's gyro.pulse_weight_arcsec (leave it out to use the model's)",
-                    ));
-                }
-                config.gyro.rate_hz = rate;
-                config.gyro.pulse_arcsec = pulse;
-                tracing::info!(
-                    model = origin,
-                    seed = config.source.seed,
-                    speed,
-                    "source: simulated bench"
-                );
-                Source::Bench(Box::new(
-                    SimBenchConfig {
-                        model,
-                        seed: config.source.seed,
-                        speed,
-                        duration_s: (config.run.duration_s > 0.0).then_some(config.run.duration_s),
-                    }
-                    .build()?,
-                ))
+                let (bench, gyros) = Daemon::simulated(&mut config, explicit)?;
+                model_toml = gyros[0].2.clone();
+                let frame = if gyros.len() == 3 { FrameKind::Triad } else { FrameKind::Single };
+                built.push((Source::Bench(Box::new(bench)), frame, frame.labels(None), gyros));
             }
             SourceKind::Replay => {
-                let path = PathBuf::from(&config.source.replay_path);
-                if replay::probe(&path)? == CaptureKind::Mcap {
-                    // The recording's own rate and pulse weight (its metadata record,
-                    // else the sample period of /gyro/raw); an explicit value must agree.
-                    let recorded = replay::probe_mcap_gyro(&path)?;
-                    let given = |on: bool, v: f64| on.then_some(v);
-                    if let Some(r) = check_flag(
-                        "gyro.rate_hz",
-                        given(explicit.rate_hz, config.gyro.rate_hz),
-                        recorded.rate_hz,
-                        &path,
-                        recorded.origin,
-                        recorded.rate_rel_tol,
-                    )? {
-                        config.gyro.rate_hz = r;
-                    }
-                    if let Some(p) = check_flag(
-                        "gyro.pulse_arcsec",
-                        given(explicit.pulse_arcsec, config.gyro.pulse_arcsec),
-                        recorded.pulse_arcsec,
-                        &path,
-                        recorded.origin,
-                        AGREE_REL,
-                    )? {
-                        config.gyro.pulse_arcsec = p;
-                    }
-                } else {
-                    require_explicit(explicit, format!("raw frame capture {}", path.display()))?;
+                for (label, path) in labelled_inputs(&config, &config.source.replay_path.clone()) {
+                    let (source, frame) = Daemon::replay(&mut config, explicit, PathBuf::from(path))?;
+                    let g = (config.gyro.rate_hz, config.gyro.pulse_arcsec, None);
+                    built.push((source, frame, frame.labels(label.as_deref()), vec![g; frame.gyros()]));
                 }
-                tracing::info!(path = %path.display(), speed, "source: replay");
-                Source::Replay(Box::new(
-                    ReplayConfig {
-                        path,
-                        speed,
-                        rate_hz: config.gyro.rate_hz,
-                        limit_periods: limit(config.gyro.rate_hz),
-                        decoder: DecoderConfig::default(),
-                    }
-                    .build()?,
-                ))
             }
             SourceKind::Serial => {
-                require_explicit(
-                    explicit,
-                    format!("serial input {}", config.source.serial_path),
-                )?;
-                tracing::info!(
-                    device = config.source.serial_path,
-                    baud = config.source.baud,
-                    "source: serial"
-                );
-                Source::Serial(Box::new(
-                    SerialConfig {
-                        path: PathBuf::from(&config.source.serial_path),
-                        baud: config.source.baud,
-                        reconnect_initial: Duration::from_secs_f64(
-                            config.source.reconnect_initial_s,
-                        ),
-                        reconnect_max: Duration::from_secs_f64(config.source.reconnect_max_s),
-                        rate_hz: config.gyro.rate_hz,
-                        limit_periods: limit(config.gyro.rate_hz),
-                        decoder: DecoderConfig::default(),
-                    }
-                    .build()?,
-                ))
+                for (label, path) in labelled_inputs(&config, &config.source.serial_path.clone()) {
+                    let source = Daemon::serial(&config, explicit, PathBuf::from(path))?;
+                    let frame = config.source.frame;
+                    let g = (config.gyro.rate_hz, config.gyro.pulse_arcsec, None);
+                    built.push((source, frame, frame.labels(label.as_deref()), vec![g; frame.gyros()]));
+                }
             }
-        };
-        let live = config.source.kind == SourceKind::Serial;
-        let mut processor = ProcessConfig {
-            pipeline: PipelineConfig {
-                rate_hz: config.gyro.rate_hz,
-                pulse_arcsec: Some(config.gyro.pulse_arcsec),
-                wavelet: config.dsp.wavelet.clone(),
-                levels: (config.dsp.levels > 0).then_some(config.dsp.levels),
-                allan_cap: config.allan.full_overlap_max_m,
-            },
-            interval_s: config.estimator.interval_s,
-            batch_samples: config.record.batch_samples,
-            delivery: if live {
-                Delivery::Live
-            } else {
-                Delivery::Lossless
-            },
-            update_budget: (!live).then_some(UPDATE_BUDGET),
         }
-        .build()?;
-        if !config.spec.path.is_empty() {
+        let live = config.source.kind == SourceKind::Serial;
+        let spec = if config.spec.path.is_empty() {
+            None
+        } else {
             let spec = crate::model::spec::Spec::load(std::path::Path::new(&config.spec.path))?;
-            tracing::info!(
-                path = config.spec.path,
-                confidence = spec.confidence,
-                "acceptance test"
-            );
-            // the stop trigger is attached in run()
-            processor.set_spec(spec, None);
+            tracing::info!(path = config.spec.path, confidence = spec.confidence, "acceptance test");
+            Some(spec)
+        };
+        let mut inputs = Vec::new();
+        for (source, frame, labels, gyros) in built {
+            let mut list = Vec::new();
+            for (label, (rate_hz, pulse_arcsec, model)) in labels.into_iter().zip(gyros) {
+                let mut processor = Daemon::processor(&config, rate_hz, pulse_arcsec, live)?;
+                if let Some(spec) = &spec {
+                    // the stop trigger is attached in run()
+                    processor.set_spec(spec.clone(), None);
+                }
+                let mut meta = RecordingMeta::counts(rate_hz, pulse_arcsec);
+                meta.model = model;
+                list.push(Gyro { label, processor, meta });
+            }
+            inputs.push(Input { source, frame, gyros: list });
+        }
+        let labels: Vec<&str> = inputs.iter().flat_map(|i| i.gyros.iter().map(|g| g.label.as_str())).collect();
+        if let Some(dup) = labels.iter().enumerate().find(|(k, l)| labels[..*k].contains(l)) {
+            return Err(DaemonError::Config(ConfigError::Invalid {
+                key: "source.inputs",
+                value: dup.1.to_string(),
+                message: "two gyros have this label: give the inputs distinct labels",
+            }));
         }
         let metrics_addr = if config.metrics.addr.is_empty() {
             None
@@ -357,22 +300,169 @@ impl Daemon {
             config.metrics.addr.parse().ok()
         };
         // What the recording says about itself (see crate::sink::meta).
-        let mut recording_meta =
-            RecordingMeta::counts(config.gyro.rate_hz, config.gyro.pulse_arcsec);
+        let mut recording_meta = RecordingMeta::counts(config.gyro.rate_hz, config.gyro.pulse_arcsec);
         recording_meta.config = toml::to_string(&config).ok();
         recording_meta.model = model_toml;
         Ok(Daemon {
             config,
-            source,
-            processor,
+            inputs,
             metrics_addr,
             recording_meta,
             status: None,
         })
     }
 
+    /// The simulated bench (one gyro, or a triad), and each gyro's rate, pulse
+    /// weight and model TOML; sets `config.gyro` from the (first) model.
+    fn simulated(
+        config: &mut Config,
+        explicit: Explicit,
+    ) -> Result<(SimBench, Vec<(f64, f64, Option<String>)>), DaemonError> {
+        let paths = if config.source.triad_models.is_empty() {
+            vec![config.source.model.clone()]
+        } else {
+            config.source.triad_models.clone()
+        };
+        let mut models = Vec::new();
+        let mut gyros = Vec::new();
+        for path in &paths {
+            let (model, origin) = load_model(path)?;
+            let (rate, pulse) = (model.gyro.sample_rate_hz, model.gyro.pulse_weight_arcsec);
+            if explicit.rate_hz && config.gyro.rate_hz != rate {
+                return Err(mismatch(
+                    "gyro.rate_hz",
+                    config.gyro.rate_hz,
+                    "differs from the simulated model's gyro.sample_rate_hz (leave it out to use the model's)",
+                ));
+            }
+            if explicit.pulse_arcsec && config.gyro.pulse_arcsec != pulse {
+                return Err(mismatch(
+                    "gyro.pulse_arcsec",
+                    config.gyro.pulse_arcsec,
+                    "differs from the simulated model's gyro.pulse_weight_arcsec (leave it out to use the model's)",
+                ));
+            }
+            tracing::info!(model = origin, seed = config.source.seed, "source: simulated bench");
+            gyros.push((rate, pulse, model.to_toml().ok()));
+            models.push(model);
+        }
+        config.gyro.rate_hz = gyros[0].0;
+        config.gyro.pulse_arcsec = gyros[0].1;
+        let model = models.remove(0);
+        let triad = match <[GyroModel; 2]>::try_from(models) {
+            Ok(yz) => Some(Box::new(yz)),
+            Err(_) => None,
+        };
+        let bench = SimBenchConfig {
+            model,
+            triad,
+            seed: config.source.seed,
+            speed: config.source.effective_speed(),
+            duration_s: (config.run.duration_s > 0.0).then_some(config.run.duration_s),
+        }
+        .build()?;
+        Ok((bench, gyros))
+    }
+
+    /// Sample periods of `config.run.duration_s` at `rate_hz`, if limited.
+    fn limit(config: &Config, rate_hz: f64) -> Option<u64> {
+        (config.run.duration_s > 0.0).then(|| (config.run.duration_s * rate_hz).round().max(1.0) as u64)
+    }
+
+    /// A replay of `path` and its frame; an MCAP recording's rate and pulse
+    /// weight go into `config.gyro` (an explicit value must agree).
+    fn replay(config: &mut Config, explicit: Explicit, path: PathBuf) -> Result<(Source, FrameKind), DaemonError> {
+        let mut frame = config.source.frame;
+        if replay::probe(&path)? == CaptureKind::Mcap {
+            if frame == FrameKind::Triad {
+                return Err(DaemonError::Config(ConfigError::Invalid {
+                    key: "source.frame",
+                    value: "\"triad\"".into(),
+                    message: "applies to raw frame captures; an MCAP recording is replayed as recorded (one gyro)",
+                }));
+            }
+            // The recording's own rate and pulse weight (its metadata record,
+            // else the sample period of /gyro/raw); an explicit value must agree.
+            let recorded = replay::probe_mcap_gyro(&path)?;
+            let given = |on: bool, v: f64| on.then_some(v);
+            if let Some(r) = check_flag(
+                "gyro.rate_hz",
+                given(explicit.rate_hz, config.gyro.rate_hz),
+                recorded.rate_hz,
+                &path,
+                recorded.origin,
+                recorded.rate_rel_tol,
+            )? {
+                config.gyro.rate_hz = r;
+            }
+            if let Some(p) = check_flag(
+                "gyro.pulse_arcsec",
+                given(explicit.pulse_arcsec, config.gyro.pulse_arcsec),
+                recorded.pulse_arcsec,
+                &path,
+                recorded.origin,
+                AGREE_REL,
+            )? {
+                config.gyro.pulse_arcsec = p;
+            }
+            frame = FrameKind::Single;
+        } else {
+            require_explicit(explicit, format!("raw frame capture {}", path.display()))?;
+        }
+        let speed = config.source.effective_speed();
+        tracing::info!(path = %path.display(), speed, frame = ?frame, "source: replay");
+        let source = Source::Replay(Box::new(
+            ReplayConfig {
+                path,
+                speed,
+                rate_hz: config.gyro.rate_hz,
+                limit_periods: Daemon::limit(config, config.gyro.rate_hz),
+                decoder: DecoderConfig::default(),
+            }
+            .build()?,
+        ));
+        Ok((source, frame))
+    }
+
+    /// A serial source on `path`.
+    fn serial(config: &Config, explicit: Explicit, path: PathBuf) -> Result<Source, DaemonError> {
+        require_explicit(explicit, format!("serial input {}", path.display()))?;
+        tracing::info!(device = %path.display(), baud = config.source.baud, frame = ?config.source.frame, "source: serial");
+        Ok(Source::Serial(Box::new(
+            SerialConfig {
+                path,
+                baud: config.source.baud,
+                reconnect_initial: Duration::from_secs_f64(config.source.reconnect_initial_s),
+                reconnect_max: Duration::from_secs_f64(config.source.reconnect_max_s),
+                rate_hz: config.gyro.rate_hz,
+                limit_periods: Daemon::limit(config, config.gyro.rate_hz),
+                decoder: DecoderConfig::default(),
+            }
+            .build()?,
+        )))
+    }
+
+    /// One gyro's numeric stage.
+    fn processor(config: &Config, rate_hz: f64, pulse_arcsec: f64, live: bool) -> Result<Processor, DaemonError> {
+        Ok(ProcessConfig {
+            pipeline: PipelineConfig {
+                rate_hz,
+                pulse_arcsec: Some(pulse_arcsec),
+                wavelet: config.dsp.wavelet.clone(),
+                levels: (config.dsp.levels > 0).then_some(config.dsp.levels),
+                allan_cap: config.allan.full_overlap_max_m,
+            },
+            interval_s: config.estimator.interval_s,
+            batch_samples: config.record.batch_samples,
+            delivery: if live { Delivery::Live } else { Delivery::Lossless },
+            update_budget: (!live).then_some(UPDATE_BUDGET),
+        }
+        .build()?)
+    }
+
     /// Keep `status` up to date during the run (samples, estimates, and a
-    /// replay's progress through its file), for a terminal's status line.
+    /// replay's progress through its file), for a terminal's status line. With
+    /// several gyros it follows the first.
     pub fn with_status(mut self, status: Arc<LiveStatus>) -> Self {
         self.status = Some(status);
         self
@@ -383,30 +473,40 @@ impl Daemon {
         &self.config
     }
 
+    /// The gyro labels, in order.
+    pub fn gyro_labels(&self) -> Vec<String> {
+        self.inputs.iter().flat_map(|i| i.gyros.iter().map(|g| g.label.clone())).collect()
+    }
+
     /// Run until the source ends or `trigger` fires, then drain everything.
     pub async fn run(self, trigger: ShutdownTrigger) -> Result<RunReport, DaemonError> {
         let Daemon {
             config,
-            mut source,
-            mut processor,
+            mut inputs,
             metrics_addr,
             recording_meta,
             status,
         } = self;
+        let n_gyros: usize = inputs.iter().map(|i| i.gyros.len()).sum();
         if config.spec.stop_when_decided {
-            // --stop-when-decided: the ordinary shutdown once every coefficient is decided
-            processor.attach_spec_stop(trigger.clone());
+            // --stop-when-decided: the ordinary shutdown once every gyro's coefficients are decided
+            let stops = all_decided(&trigger, n_gyros);
+            for (g, stop) in inputs.iter_mut().flat_map(|i| i.gyros.iter_mut()).zip(stops) {
+                g.processor.attach_spec_stop(stop);
+            }
         }
         // A serial port that cannot be opened fails the run before anything starts.
-        if let Source::Serial(s) = &mut source {
-            s.open()?;
+        for input in &mut inputs {
+            if let Source::Serial(s) = &mut input.source {
+                s.open()?;
+            }
         }
-        let gyro = config.gyro.info(crate::sink::metrics::DEFAULT_GYRO);
-        let telemetry = Telemetry::new(Arc::new(Metrics::new()?), &gyro)?;
-        if let (Some(st), Source::Replay(_)) = (&status, &source)
-            && let Ok(m) = std::fs::metadata(&config.source.replay_path)
+        let first_label = inputs[0].gyros[0].label.clone();
+        let base = Telemetry::new(Arc::new(Metrics::new()?), &config.gyro.info(&first_label))?;
+        if let (Some(st), Source::Replay(_)) = (&status, &inputs[0].source)
+            && let Ok(m) = std::fs::metadata(labelled_inputs(&config, &config.source.replay_path)[0].1.as_str())
         {
-            st.set_replay(m.len(), Arc::clone(&telemetry.metrics));
+            st.set_replay(m.len(), Arc::clone(&base.metrics));
         }
         let (drain_guard, drained) = shutdown::drain_channel();
 
@@ -416,7 +516,7 @@ impl Daemon {
         let http_task = match metrics_addr {
             Some(addr) => {
                 let (bound, server) =
-                    http::bind(addr, Arc::clone(&telemetry.metrics), http_shutdown.watch()).await?;
+                    http::bind(addr, Arc::clone(&base.metrics), http_shutdown.watch()).await?;
                 tracing::info!("metrics on http://{bound}/metrics");
                 served = Some(bound);
                 let guard = drain_guard.clone();
@@ -431,103 +531,88 @@ impl Daemon {
         let recorder = if config.record.dir.is_empty() {
             None
         } else {
-            let rc = RecorderConfig {
-                record_dir: PathBuf::from(&config.record.dir),
-                flush_interval_s: config.record.flush_interval_s,
-                zstd_level: ZSTD_LEVEL,
-                chunk_size: CHUNK_SIZE,
-                ..RecorderConfig::default()
-            };
-            let r = tokio::task::spawn_blocking(move || {
-                Recorder::start_with_metadata(
-                    &rc,
-                    std::time::SystemTime::now(),
-                    Some(&recording_meta),
-                )
-            })
-            .await
-            .map_err(|e| join_err("recorder start", e))??;
-            tracing::info!(path = %r.path().display(), "recording");
-            Some(r)
+            Some(start_recorder(&config, recording_meta, &inputs).await?)
         };
 
         tracing::info!(
             rate_hz = config.gyro.rate_hz,
             pulse_arcsec = config.gyro.pulse_arcsec,
             wavelet = config.dsp.wavelet,
-            latency_samples = processor.pipeline().latency(),
+            gyros = n_gyros,
+            latency_samples = inputs[0].gyros[0].processor.pipeline().latency(),
             estimator_interval_s = config.estimator.interval_s,
             "pipeline ready"
         );
 
-        let bound = match source {
-            Source::Serial(_) => QueueBound::Bytes(config.source.queue_budget_bytes()),
-            _ => QueueBound::Batches(config.run.channel_capacity),
+        let live = config.source.kind == SourceKind::Serial;
+        let bound = if live {
+            // the budget is shared by the gyros' queues
+            QueueBound::Bytes(config.source.queue_budget_bytes() / n_gyros as u64)
+        } else {
+            QueueBound::Batches(config.run.channel_capacity)
         };
-        let (sender, rx) = batch::channel(bound, &telemetry);
-        let outputs = Outputs {
-            recorder: recorder.as_ref().map(Recorder::sender),
-            telemetry: telemetry.clone(),
-            stop: Some(trigger.subscribe()),
-            status,
-        };
-        let guard = drain_guard.clone();
-        let process_task = tokio::task::spawn_blocking(move || {
-            let report = processor.run(rx, outputs);
-            drop(guard);
-            report
-        });
-        let sd = trigger.subscribe();
-        let tel = telemetry.clone();
-        let source_result: Result<SourceReport, DaemonError> = match source {
-            Source::Serial(s) => tokio::spawn(async move { s.run(sender, tel, sd).await })
-                .await
-                .map_err(|e| join_err("serial source", e))?
-                .map_err(DaemonError::from),
-            Source::Replay(r) => {
-                tokio::task::spawn_blocking(move || r.run_blocking(sender, tel, sd))
-                    .await
-                    .map_err(|e| join_err("replay source", e))?
-                    .map_err(DaemonError::from)
+        let mut process_tasks = Vec::new();
+        let mut source_tasks = Vec::new();
+        let mut status = status;
+        for input in inputs {
+            let mut outs = Vec::new();
+            for g in input.gyros {
+                let telemetry = base.for_gyro(&config.gyro.info(&g.label));
+                let (sender, rx) = batch::channel(bound, &telemetry);
+                let outputs = Outputs {
+                    recorder: recorder.as_ref().map(|r| r.sender().for_gyro(&g.label)),
+                    telemetry: telemetry.clone(),
+                    stop: Some(trigger.subscribe()),
+                    status: status.take(),
+                };
+                let guard = drain_guard.clone();
+                let processor = g.processor;
+                let label = g.label;
+                process_tasks.push(tokio::task::spawn_blocking(move || {
+                    let report = processor.run(rx, outputs);
+                    drop(guard);
+                    (label, report)
+                }));
+                outs.push((telemetry, sender));
             }
-            Source::Bench(b) => {
-                tokio::task::spawn_blocking(move || b.run_blocking(sender, tel, sd))
-                    .await
-                    .map_err(|e| join_err("simulated bench", e))?
-                    .map_err(DaemonError::from)
+            source_tasks.push(spawn_source(input.source, input.frame, outs, trigger.subscribe()));
+        }
+        let mut source_result: Result<SourceReport, DaemonError> = Ok(SourceReport::default());
+        for task in source_tasks {
+            let r = task.await.map_err(|e| join_err("source", e)).and_then(|r| r);
+            match (r, &mut source_result) {
+                (Ok(r), Ok(total)) => {
+                    total.bytes_read += r.bytes_read;
+                    total.samples += r.samples;
+                    total.periods += r.periods;
+                    total.disconnects += r.disconnects;
+                }
+                (Err(e), Ok(_)) => {
+                    tracing::error!(error = %e, "source failed; draining the pipeline");
+                    // the other sources stop too
+                    trigger.trigger();
+                    source_result = Err(e);
+                }
+                (Err(e), Err(_)) => tracing::error!(error = %e, "source failed"),
+                (Ok(_), Err(_)) => {}
             }
-        };
-        if let Err(e) = &source_result {
-            tracing::error!(error = %e, "source failed; draining the pipeline");
         }
         if trigger.is_triggered() {
             tracing::info!("shutdown requested: draining the pipeline");
         }
-        // The source dropped its sender: the pipeline drains and returns.
-        let process = process_task.await.map_err(|e| join_err("pipeline", e))?;
+        // The sources dropped their senders: the pipelines drain and return.
+        let mut gyros = Vec::new();
+        for t in process_tasks {
+            gyros.push(t.await.map_err(|e| join_err("pipeline", e))?);
+        }
         let recording = match recorder {
-            Some(r) => {
-                let summary = tokio::task::spawn_blocking(move || r.finish())
-                    .await
-                    .map_err(|e| join_err("recorder", e))?;
-                match summary {
-                    Ok(s) => {
-                        telemetry.metrics.set_recording_bytes(s.bytes);
-                        tracing::info!(
-                            path = %s.path.display(),
-                            bytes = s.bytes,
-                            messages = s.messages(),
-                            "recording finished"
-                        );
-                        Some(s)
-                    }
-                    Err(e) => {
-                        tracing::error!(error = %e, "recording failed");
-                        http_trigger.trigger();
-                        return Err(e.into());
-                    }
+            Some(r) => match finish_recorder(r, &base).await {
+                Ok(s) => Some(s),
+                Err(e) => {
+                    http_trigger.trigger();
+                    return Err(e);
                 }
-            }
+            },
             None => None,
         };
         http_trigger.trigger();
@@ -537,21 +622,110 @@ impl Daemon {
         drop(drain_guard);
         drained.wait().await;
         let source = source_result?;
-        tracing::info!(
-            samples = process.samples,
-            periods = process.periods,
-            lost = process.lost,
-            updates = process.updates,
-            max_estimate_latency_s = process.max_estimate_latency_s,
-            recorder_dropped = process.recorder_dropped,
-            "run finished"
-        );
+        for (label, p) in &gyros {
+            tracing::info!(
+                gyro = label,
+                samples = p.samples,
+                periods = p.periods,
+                lost = p.lost,
+                updates = p.updates,
+                max_estimate_latency_s = p.max_estimate_latency_s,
+                recorder_dropped = p.recorder_dropped,
+                "run finished"
+            );
+        }
         Ok(RunReport {
             source,
-            process,
+            process: gyros[0].1.clone(),
+            gyros,
             recording,
             metrics_addr: served,
         })
+    }
+}
+
+/// One stop trigger per gyro; `main` fires once all of them have.
+fn all_decided(main: &ShutdownTrigger, n: usize) -> Vec<ShutdownTrigger> {
+    let subs: Vec<(ShutdownTrigger, shutdown::Shutdown)> = (0..n).map(|_| shutdown::channel()).collect();
+    let main = main.clone();
+    let (triggers, mut waits): (Vec<_>, Vec<_>) = subs.into_iter().unzip();
+    tokio::spawn(async move {
+        for w in &mut waits {
+            w.requested().await;
+        }
+        main.trigger();
+    });
+    triggers
+}
+
+/// The recording: one gyro on today's channels, several on `/gyro/<label>/...`.
+async fn start_recorder(config: &Config, meta: RecordingMeta, inputs: &[Input]) -> Result<Recorder, DaemonError> {
+    let rc = RecorderConfig {
+        record_dir: PathBuf::from(&config.record.dir),
+        flush_interval_s: config.record.flush_interval_s,
+        zstd_level: ZSTD_LEVEL,
+        chunk_size: CHUNK_SIZE,
+        ..RecorderConfig::default()
+    };
+    let gyros: Vec<(String, RecordingMeta)> = inputs
+        .iter()
+        .flat_map(|i| i.gyros.iter())
+        .map(|g| {
+            let mut m = g.meta.clone();
+            m.config = meta.config.clone();
+            (g.label.clone(), m)
+        })
+        .collect();
+    let r = tokio::task::spawn_blocking(move || {
+        Recorder::start_gyros(&rc, std::time::SystemTime::now(), Some(&meta), &gyros)
+    })
+    .await
+    .map_err(|e| join_err("recorder start", e))??;
+    tracing::info!(path = %r.path().display(), "recording");
+    Ok(r)
+}
+
+/// Finish the recording (its error is the run's).
+async fn finish_recorder(r: Recorder, telemetry: &Telemetry) -> Result<RecordingSummary, DaemonError> {
+    let summary = tokio::task::spawn_blocking(move || r.finish())
+        .await
+        .map_err(|e| join_err("recorder", e))?;
+    match summary {
+        Ok(s) => {
+            telemetry.metrics.set_recording_bytes(s.bytes);
+            tracing::info!(path = %s.path.display(), bytes = s.bytes, messages = s.messages(), "recording finished");
+            Ok(s)
+        }
+        Err(e) => {
+            tracing::error!(error = %e, "recording failed");
+            Err(e.into())
+        }
+    }
+}
+
+type SourceTask = tokio::task::JoinHandle<Result<SourceReport, DaemonError>>;
+
+/// Start a source's task: serial on the runtime, replay and bench on blocking threads.
+fn spawn_source(
+    source: Source,
+    frame: FrameKind,
+    outs: Vec<(Telemetry, BatchSender)>,
+    sd: shutdown::Shutdown,
+) -> SourceTask {
+    match (source, frame) {
+        (Source::Serial(s), FrameKind::Single) => {
+            tokio::spawn(async move { s.run::<Single>(outs, sd).await.map_err(DaemonError::from) })
+        }
+        (Source::Serial(s), FrameKind::Triad) => {
+            tokio::spawn(async move { s.run::<Triad>(outs, sd).await.map_err(DaemonError::from) })
+        }
+        (Source::Replay(r), FrameKind::Single) => {
+            tokio::task::spawn_blocking(move || r.run_blocking::<Single>(outs, sd).map_err(DaemonError::from))
+        }
+        (Source::Replay(r), FrameKind::Triad) => {
+            tokio::task::spawn_blocking(move || r.run_blocking::<Triad>(outs, sd).map_err(DaemonError::from))
+        }
+        (Source::Bench(b), _) => tokio::task::spawn_blocking(move || b.run_blocking(outs, sd).map_err(DaemonError::from)),
     }
 }
 

@@ -1,11 +1,9 @@
-//! Sources: where samples come from. File input for the offline commands
-//! (`input`), the gyro's binary frame decoder (`frame`) and capture reader
-//! (`capture`), and the daemon's sources: the serial port (`serial`), replayed
-//! captures (`replay`) and the simulated bench (`bench`).
+//! Sources, the sans-IO part: file input for the offline commands (`input`),
+//! the gyro's binary frames and their decoder (`frame`), and the capture
+//! reader (`capture`). The daemon's async sources (serial port, replayed
+//! captures, simulated bench) are in [`crate::daemon`]; nothing here imports
+//! from `daemon`, `sink` or `model`.
 
-pub mod bench;
 pub mod capture;
 pub mod frame;
 pub mod input;
-pub mod replay;
-pub mod serial;

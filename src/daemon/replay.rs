@@ -25,15 +25,13 @@ use ::mcap::records::{Record, op};
 use ::mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
 use bytes::BytesMut;
 
-use crate::source::frame::FRAME_LEN;
 
-use crate::daemon::batch::{
-    Assembler, BatchSender, PipelineClosed, SourceBatch, SourceReport, wall_ns,
-};
+use crate::daemon::batch::{BatchSender, PipelineClosed, SourceBatch, SourceReport, wall_ns};
+use crate::daemon::lanes::Lanes;
 use crate::daemon::shutdown::Shutdown;
 use crate::daemon::telemetry::Telemetry;
 use crate::sink::messages::{Event, EventKind, RawBatch, SinkMessage, Topic};
-use crate::source::frame::{DecoderConfig, FrameDecoder};
+use crate::source::frame::{Axes, DecoderConfig};
 
 /// Errors of the replay source; each names the file.
 #[derive(Debug, thiserror::Error)]
@@ -270,20 +268,22 @@ impl ReplaySource {
     }
 
     /// Replay on the calling (blocking) thread until the end of the capture, the
-    /// period limit, or a shutdown.
-    pub fn run_blocking(
+    /// period limit, or a shutdown. `W` is the frame format of a frame capture;
+    /// `outs` holds each of its gyros' telemetry and sender (one for an MCAP
+    /// recording, whose replay is of its single gyro).
+    pub fn run_blocking<W: Axes>(
         self,
-        mut out: BatchSender,
-        telemetry: Telemetry,
+        mut outs: Vec<(Telemetry, BatchSender)>,
         shutdown: Shutdown,
     ) -> Result<SourceReport, ReplayError> {
         let path = self.config.path.clone();
         let report = match self.kind {
-            CaptureKind::Frames => self.replay_frames(&mut out, telemetry, &shutdown),
-            CaptureKind::Mcap => self.replay_mcap(&mut out, telemetry, &shutdown),
+            CaptureKind::Frames => self.replay_frames::<W>(outs, &shutdown),
+            CaptureKind::Mcap => {
+                let (telemetry, mut out) = outs.remove(0);
+                self.replay_mcap(&mut out, telemetry, &shutdown)
+            }
         }?;
-        // Nothing is held by a lossless sender.
-        drop(out);
         if report.samples == 0 && !shutdown.is_requested() {
             return Err(ReplayError::NoSamples {
                 path,
@@ -306,10 +306,9 @@ impl ReplaySource {
         }
     }
 
-    fn replay_frames(
+    fn replay_frames<W: Axes>(
         &self,
-        out: &mut BatchSender,
-        telemetry: Telemetry,
+        outs: Vec<(Telemetry, BatchSender)>,
         shutdown: &Shutdown,
     ) -> Result<SourceReport, ReplayError> {
         let cfg = &self.config;
@@ -321,11 +320,9 @@ impl ReplaySource {
         let mut file = File::open(&cfg.path).map_err(|e| io_err(0, e))?;
         let pacer = Pacer::new(cfg.rate_hz, cfg.speed);
         let per_batch = pacer.batch_samples();
-        let mut decoder = FrameDecoder::with_config(cfg.decoder);
-        let mut asm = Assembler::new(cfg.rate_hz, cfg.limit_periods, telemetry);
+        let mut lanes = Lanes::<W>::new(cfg.decoder, cfg.rate_hz, cfg.limit_periods, outs);
         let mut buf = BytesMut::with_capacity(2 * READ_CHUNK);
         let mut in_batch = 0usize;
-        let mut run: Vec<i64> = Vec::with_capacity(per_batch.min(READ_CHUNK / FRAME_LEN + 1));
         let mut eof = false;
         let mut stopped = false;
         while !eof && !stopped {
@@ -335,7 +332,7 @@ impl ReplaySource {
             let n = loop {
                 match file.read(&mut buf[have..]) {
                     Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
-                    r => break r.map_err(|e| io_err(decoder.stats().bytes_read, e)),
+                    r => break r.map_err(|e| io_err(lanes.stats().bytes_read, e)),
                 }
             };
             buf.truncate(have + *n.as_ref().unwrap_or(&0));
@@ -345,52 +342,38 @@ impl ReplaySource {
             loop {
                 // Runs of contiguous frames in bulk (nearly every frame of a clean
                 // capture), then one item at a time; the same samples either way.
-                run.clear();
-                let room = per_batch.saturating_sub(in_batch).max(1).min(asm.room());
-                if let Some(end) = decoder.decode_run(&mut buf, room, &mut run) {
-                    asm.push_run(&run, &end, now);
-                    in_batch += run.len();
+                let room = per_batch.saturating_sub(in_batch).max(1).min(lanes.room());
+                let run = lanes.decode_run(&mut buf, room, now);
+                if run > 0 {
+                    in_batch += run;
                 } else {
-                    let item = if eof {
-                        decoder.decode_eof(&mut buf)
-                    } else {
-                        decoder.decode(&mut buf)
-                    };
-                    let Some(item) = item else { break };
-                    let was = asm.periods();
-                    asm.push(item, now);
-                    in_batch += usize::from(asm.periods() != was);
+                    let was = lanes.periods();
+                    if !lanes.decode_one(&mut buf, eof, now) {
+                        break;
+                    }
+                    in_batch += usize::from(lanes.periods() != was);
                 }
-                if in_batch >= per_batch || asm.done() {
-                    asm.sync_stats(decoder.stats());
-                    if !pacer.wait_until(asm.periods(), shutdown) {
+                if in_batch >= per_batch || lanes.done() {
+                    lanes.sync_stats();
+                    if !pacer.wait_until(lanes.periods(), shutdown) {
                         stopped = true;
                     }
-                    if let Some(b) = asm.take(Instant::now()) {
-                        out.blocking_send(b).map_err(self.pipeline_err())?;
-                    }
+                    lanes.blocking_send().map_err(self.pipeline_err())?;
                     in_batch = 0;
-                    if stopped || asm.done() {
+                    if stopped || lanes.done() {
                         stopped = true;
                         break;
                     }
                 }
             }
         }
-        asm.sync_stats(decoder.stats());
+        lanes.sync_stats();
         if !stopped {
-            pacer.wait_until(asm.periods(), shutdown);
+            pacer.wait_until(lanes.periods(), shutdown);
         }
-        if let Some(b) = asm.take(Instant::now()) {
-            out.blocking_send(b).map_err(self.pipeline_err())?;
-        }
-        let s = decoder.stats();
-        Ok(SourceReport {
-            bytes_read: s.bytes_read,
-            samples: s.samples,
-            periods: asm.periods(),
-            disconnects: 0,
-        })
+        lanes.blocking_send().map_err(self.pipeline_err())?;
+        // Nothing is held by a lossless sender.
+        Ok(lanes.report(0))
     }
 
     fn replay_mcap(

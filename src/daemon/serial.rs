@@ -38,17 +38,18 @@
 //! reconnection is only attempted after a connection was made.
 
 use std::path::PathBuf;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use bytes::BytesMut;
 use tokio::io::AsyncReadExt;
 use tokio_serial::SerialPortBuilderExt;
 
-use crate::daemon::batch::{Assembler, BatchSender, PipelineClosed, SourceReport, wall_ns};
+use crate::daemon::batch::{BatchSender, PipelineClosed, SourceReport, wall_ns};
+use crate::daemon::lanes::Lanes;
 use crate::daemon::shutdown::Shutdown;
 use crate::daemon::telemetry::Telemetry;
 use crate::sink::messages::EventKind;
-use crate::source::frame::{DecoderConfig, FrameDecoder};
+use crate::source::frame::{Axes, DecoderConfig};
 
 /// Errors of the serial source.
 #[derive(Debug, thiserror::Error)]
@@ -170,11 +171,11 @@ impl SerialSource {
         Ok(())
     }
 
-    /// Read until shut down, the period limit, or the pipeline closing.
-    pub async fn run(
+    /// Read until shut down, the period limit, or the pipeline closing. `W` is
+    /// the frame format; `outs` holds each of its gyros' telemetry and sender.
+    pub async fn run<W: Axes>(
         mut self,
-        mut out: BatchSender,
-        telemetry: Telemetry,
+        outs: Vec<(Telemetry, BatchSender)>,
         mut shutdown: Shutdown,
     ) -> Result<SourceReport, SerialError> {
         self.open()?;
@@ -182,17 +183,17 @@ impl SerialSource {
         let cfg = self.config;
         let device = cfg.path.display().to_string();
         let open = || tokio_serial::new(device.clone(), cfg.baud).open_native_async();
-        let device_metrics = telemetry.device();
-        device_metrics.connected.set(1);
+        let devices: Vec<_> = outs.iter().map(|(t, _)| t.device()).collect();
+        let connected = |on: i64| devices.iter().for_each(|d| d.connected.set(on));
+        connected(1);
         let pipeline_err = |source| SerialError::Pipeline {
             path: cfg.path.clone(),
             source,
         };
 
-        let mut decoder = FrameDecoder::with_config(cfg.decoder);
-        let mut asm = Assembler::new(cfg.rate_hz, cfg.limit_periods, telemetry.clone());
+        let mut lanes = Lanes::<W>::new(cfg.decoder, cfg.rate_hz, cfg.limit_periods, outs);
         let mut buf = BytesMut::with_capacity(READ_RESERVE);
-        let mut report = SourceReport::default();
+        let mut disconnects = 0u64;
         let mut backoff = cfg.reconnect_initial;
         let mut flush_at: Option<tokio::time::Instant> = None;
 
@@ -206,9 +207,9 @@ impl SerialSource {
                 match open() {
                     Ok(p) => {
                         tracing::info!(device, "serial device reconnected");
-                        device_metrics.connected.set(1);
-                        device_metrics.reconnects.inc();
-                        asm.push_event(
+                        connected(1);
+                        devices.iter().for_each(|d| d.reconnects.inc());
+                        lanes.push_event(
                             wall_ns(),
                             EventKind::DeviceReconnected {
                                 device: device.clone(),
@@ -234,9 +235,7 @@ impl SerialSource {
             let Some(read) = read else {
                 // The coalescing delay is over: hand the batch to the pipeline.
                 flush_at = None;
-                if let Some(batch) = asm.take(Instant::now()) {
-                    out.send(batch).await.map_err(pipeline_err)?;
-                }
+                lanes.send().await.map_err(pipeline_err)?;
                 continue;
             };
             let now = wall_ns();
@@ -247,18 +246,16 @@ impl SerialSource {
             };
             if let Some(reason) = gone {
                 // Drop the partial frame (counted), keep the decoder's state.
-                while let Some(item) = decoder.decode_eof(&mut buf) {
-                    asm.push(item, now);
-                }
-                asm.sync_stats(decoder.stats());
-                report.disconnects += 1;
+                while lanes.decode_one(&mut buf, true, now) {}
+                lanes.sync_stats();
+                disconnects += 1;
                 tracing::warn!(
                     device,
                     reason,
                     "serial device went away; reconnecting with backoff"
                 );
-                device_metrics.connected.set(0);
-                asm.push_event(
+                connected(0);
+                lanes.push_event(
                     now,
                     EventKind::DeviceDisconnected {
                         device: device.clone(),
@@ -268,29 +265,22 @@ impl SerialSource {
                 port = None;
                 backoff = cfg.reconnect_initial;
             } else {
-                while let Some(item) = decoder.decode(&mut buf) {
-                    asm.push(item, now);
-                    if asm.done() {
-                        break;
-                    }
-                }
-                asm.sync_stats(decoder.stats());
+                lanes.decode_available(&mut buf, now);
+                lanes.sync_stats();
             }
             // Coalesce reads (a USB adapter may deliver a few frames per read) into
             // batches of at most COALESCE or MAX_BATCH samples: few batches, each
             // charged little more than its samples' bytes in the queue budget.
-            let urgent = port.is_none() || asm.done() || asm.pending_samples() >= MAX_BATCH;
+            let urgent = port.is_none() || lanes.done() || lanes.pending_samples() >= MAX_BATCH;
             if urgent {
                 flush_at = None;
-                if let Some(batch) = asm.take(Instant::now()) {
-                    out.send(batch).await.map_err(pipeline_err)?;
-                }
-            } else if flush_at.is_none() && asm.has_pending() {
+                lanes.send().await.map_err(pipeline_err)?;
+            } else if flush_at.is_none() && lanes.has_pending() {
                 flush_at = Some(tokio::time::Instant::now() + COALESCE);
             }
-            if asm.done() {
+            if lanes.done() {
                 tracing::info!(
-                    periods = asm.periods(),
+                    periods = lanes.periods(),
                     "serial source: run duration reached"
                 );
                 break;
@@ -298,20 +288,11 @@ impl SerialSource {
         }
         // Shutdown: whatever is buffered is a partial frame of an interrupted stream.
         let now = wall_ns();
-        if !asm.done() {
-            while let Some(item) = decoder.decode_eof(&mut buf) {
-                asm.push(item, now);
-            }
+        if !lanes.done() {
+            while lanes.decode_one(&mut buf, true, now) {}
         }
-        asm.sync_stats(decoder.stats());
-        if let Some(batch) = asm.take(Instant::now()) {
-            out.send(batch).await.map_err(pipeline_err)?;
-        }
-        out.close().await.map_err(pipeline_err)?;
-        let s = decoder.stats();
-        report.bytes_read = s.bytes_read;
-        report.samples = s.samples;
-        report.periods = asm.periods();
-        Ok(report)
+        lanes.sync_stats();
+        lanes.send().await.map_err(pipeline_err)?;
+        lanes.close(disconnects).await.map_err(pipeline_err)
     }
 }

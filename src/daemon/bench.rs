@@ -21,12 +21,15 @@ use std::time::{Duration, Instant};
 
 use bytes::BytesMut;
 
-use crate::daemon::batch::{Assembler, BatchSender, PipelineClosed, SourceReport, wall_ns};
+use crate::daemon::batch::{BatchSender, PipelineClosed, SourceReport, wall_ns};
+use crate::daemon::lanes::Lanes;
 use crate::daemon::shutdown::Shutdown;
 use crate::daemon::telemetry::Telemetry;
 use crate::model::{GyroModel, ModelError, Simulator};
 use crate::source::frame::inject::{FaultPlan, Injected, inject};
-use crate::source::frame::{FRAME_LEN, FrameDecoder, FrameEncoder, FrameError};
+use crate::source::frame::{
+    Axes, DecoderConfig, FRAME_LEN, FrameEncoder, FrameError, Single, Triad, TriadEncoder,
+};
 
 /// Errors of the simulated bench.
 #[derive(Debug, thiserror::Error)]
@@ -57,9 +60,11 @@ pub const SIM_START_COUNTER: u32 = u32::MAX - 999_999;
 /// Settings of the simulated bench.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SimBenchConfig {
-    /// The gyro model.
+    /// The gyro model: one gyro on single frames.
     pub model: GyroModel,
-    /// Noise seed.
+    /// With two more models (y, z): a triad, `model` as x, on triad frames.
+    pub triad: Option<Box<[GyroModel; 2]>>,
+    /// Noise seed (the triad's y and z use `seed + 1`, `seed + 2`).
     pub seed: u64,
     /// Pace in multiples of real time (0 = as fast as possible).
     pub speed: f64,
@@ -70,13 +75,13 @@ pub struct SimBenchConfig {
 /// A simulated bench, ready to run.
 #[derive(Debug)]
 pub struct SimBench {
-    sim: Simulator,
+    sims: Vec<Simulator>,
     speed: f64,
     rate_hz: f64,
 }
 
 impl SimBenchConfig {
-    /// Validate the model and set up the simulator.
+    /// Validate the models and set up the simulators.
     pub fn build(self) -> Result<SimBench, BenchError> {
         if !(self.speed.is_finite() && self.speed >= 0.0) {
             return Err(BenchError::Config {
@@ -85,10 +90,26 @@ impl SimBenchConfig {
                 reason: "must be >= 0",
             });
         }
-        let sim = Simulator::new(&self.model, self.seed, self.duration_s)?;
+        let mut models = vec![self.model];
+        if let Some(more) = self.triad {
+            models.extend(*more);
+        }
+        let sims = models
+            .iter()
+            .zip(self.seed..)
+            .map(|(m, seed)| Simulator::new(m, seed, self.duration_s))
+            .collect::<Result<Vec<_>, _>>()?;
+        let rate_hz = sims[0].sample_rate_hz();
+        if sims.iter().any(|s| s.sample_rate_hz() != rate_hz) {
+            return Err(BenchError::Config {
+                key: "gyro.sample_rate_hz",
+                value: sims.iter().map(|s| s.sample_rate_hz().to_string()).collect::<Vec<_>>().join(", "),
+                reason: "the three gyros of a triad share its frame: give them one sample rate",
+            });
+        }
         Ok(SimBench {
-            rate_hz: sim.sample_rate_hz(),
-            sim,
+            rate_hz,
+            sims,
             speed: self.speed,
         })
     }
@@ -101,18 +122,67 @@ const FAST_BATCH: usize = 8192;
 /// Longest single sleep.
 const SLEEP_SLICE: Duration = Duration::from_millis(50);
 
+/// The encoder of the bench's frames: single or triad.
+enum BenchEncoder {
+    Single(FrameEncoder),
+    Triad(TriadEncoder),
+}
+
+impl BenchEncoder {
+    fn current_frame(&self, out: &mut BytesMut) {
+        match self {
+            BenchEncoder::Single(e) => out.extend_from_slice(&e.current_frame()),
+            BenchEncoder::Triad(e) => out.extend_from_slice(&e.current_frame()),
+        }
+    }
+
+    fn set_temp_c(&mut self, t: f64) {
+        match self {
+            BenchEncoder::Single(e) => e.set_temp_c(t),
+            BenchEncoder::Triad(e) => e.set_temp_c(t),
+        }
+    }
+
+    /// The frame of sample `i` of the block `counts` (one slice per gyro).
+    fn step(&mut self, counts: &[Vec<i64>], i: usize, out: &mut BytesMut) -> Result<(), FrameError> {
+        match self {
+            BenchEncoder::Single(e) => out.extend_from_slice(&e.step(counts[0][i])?),
+            BenchEncoder::Triad(e) => out.extend_from_slice(&e.step([counts[0][i], counts[1][i], counts[2][i]])?),
+        }
+        Ok(())
+    }
+}
+
 impl SimBench {
-    /// Sample rate of the simulated gyro, Hz.
+    /// Sample rate of the simulated gyros, Hz.
     pub fn rate_hz(&self) -> f64 {
         self.rate_hz
     }
 
+    /// Gyros simulated: 1, or 3 for a triad.
+    pub fn gyros(&self) -> usize {
+        self.sims.len()
+    }
+
     /// Run on the calling (blocking) thread until the run length, a shutdown, or
-    /// the pipeline closing.
+    /// the pipeline closing; `outs` holds each gyro's telemetry and sender (one,
+    /// or three for a triad). The samples go through the real frame encoder and
+    /// decoder (the triad frame for three gyros).
     pub fn run_blocking(
+        self,
+        outs: Vec<(Telemetry, BatchSender)>,
+        shutdown: Shutdown,
+    ) -> Result<SourceReport, BenchError> {
+        if self.sims.len() == 3 {
+            self.run_frames::<Triad>(outs, shutdown)
+        } else {
+            self.run_frames::<Single>(outs, shutdown)
+        }
+    }
+
+    fn run_frames<W: Axes>(
         mut self,
-        mut out: BatchSender,
-        telemetry: Telemetry,
+        outs: Vec<(Telemetry, BatchSender)>,
         shutdown: Shutdown,
     ) -> Result<SourceReport, BenchError> {
         let s_per_sample = if self.speed > 0.0 {
@@ -125,68 +195,64 @@ impl SimBench {
         } else {
             FAST_BATCH
         };
-        let thermal = self.sim.has_temperature();
-        let mut enc = FrameEncoder::new(SIM_START_SEQ, SIM_START_COUNTER);
-        if let Some(t) = self.sim.temperature_at(0.0) {
+        let thermal = self.sims[0].has_temperature();
+        let mut enc = if W::GYROS == 3 {
+            BenchEncoder::Triad(TriadEncoder::new(SIM_START_SEQ, [SIM_START_COUNTER; 3]))
+        } else {
+            BenchEncoder::Single(FrameEncoder::new(SIM_START_SEQ, SIM_START_COUNTER))
+        };
+        if let Some(t) = self.sims[0].temperature_at(0.0) {
             enc.set_temp_c(t);
         }
-        let mut dec = FrameDecoder::new();
-        let mut asm = Assembler::new(self.rate_hz, None, telemetry);
-        let mut bytes = BytesMut::with_capacity((block + 1) * FRAME_LEN);
-        bytes.extend_from_slice(&enc.current_frame());
-        let (mut counts, mut temps) = (Vec::with_capacity(block), Vec::with_capacity(block));
+        let mut lanes = Lanes::<W>::new(DecoderConfig::default(), self.rate_hz, None, outs);
+        let mut bytes = BytesMut::with_capacity((block + 1) * W::LEN);
+        enc.current_frame(&mut bytes);
+        let mut counts = vec![Vec::with_capacity(block); self.sims.len()];
+        let (mut temps, mut scratch) = (Vec::with_capacity(block), Vec::new());
         let start = Instant::now();
         let mut emitted = 0u64;
-        loop {
-            if shutdown.is_requested() {
-                break;
+        while !shutdown.is_requested() {
+            let mut n = usize::MAX;
+            for (k, sim) in self.sims.iter_mut().enumerate() {
+                counts[k].clear();
+                let t = if k == 0 { &mut temps } else { &mut scratch };
+                t.clear();
+                n = n.min(sim.next_block_with_temp(block, &mut counts[k], t));
             }
-            counts.clear();
-            temps.clear();
-            let n = self
-                .sim
-                .next_block_with_temp(block, &mut counts, &mut temps);
             if n == 0 {
                 break;
             }
-            for (i, &c) in counts.iter().enumerate() {
+            for i in 0..n {
                 if thermal {
                     enc.set_temp_c(temps[i]);
                 }
-                bytes.extend_from_slice(&enc.step(c)?);
+                enc.step(&counts, i, &mut bytes)?;
             }
             emitted += n as u64;
             // Pace: the block's last sample is due at start + emitted periods.
             if s_per_sample > 0.0 {
                 let due = start + Duration::from_secs_f64(emitted as f64 * s_per_sample);
-                loop {
-                    if shutdown.is_requested() {
-                        break;
-                    }
-                    let now = Instant::now();
-                    if now >= due {
-                        break;
-                    }
-                    std::thread::sleep((due - now).min(SLEEP_SLICE));
-                }
+                pace_until(due, &shutdown);
             }
             let now = wall_ns();
-            while let Some(item) = dec.decode(&mut bytes) {
-                asm.push(item, now);
-            }
-            asm.sync_stats(dec.stats());
-            if let Some(b) = asm.take(Instant::now()) {
-                out.blocking_send(b)?;
-            }
+            lanes.decode_available(&mut bytes, now);
+            lanes.sync_stats();
+            lanes.blocking_send()?;
         }
-        let s = dec.stats();
-        tracing::info!(samples = s.samples, "simulated bench stopped");
-        Ok(SourceReport {
-            bytes_read: s.bytes_read,
-            samples: s.samples,
-            periods: asm.periods(),
-            disconnects: 0,
-        })
+        let report = lanes.report(0);
+        tracing::info!(samples = report.samples, gyros = W::GYROS, "simulated bench stopped");
+        Ok(report)
+    }
+}
+
+/// Sleep until `due` in short slices, or until a shutdown.
+fn pace_until(due: Instant, shutdown: &Shutdown) {
+    while !shutdown.is_requested() {
+        let now = Instant::now();
+        if now >= due {
+            break;
+        }
+        std::thread::sleep((due - now).min(SLEEP_SLICE));
     }
 }
 
@@ -285,6 +351,7 @@ mod tests {
         let model = GyroModel::from_toml_str(PAPER, "paper_gyro.toml").unwrap();
         let bench = SimBenchConfig {
             model: model.clone(),
+            triad: None,
             seed: 7,
             speed: 0.0,
             duration_s: Some(20.0),
@@ -295,7 +362,7 @@ mod tests {
         let (sender, mut rx) = batch::channel(QueueBound::Batches(4), &telemetry);
         let (_trigger, sd) = shutdown::channel();
         let t2 = telemetry.clone();
-        let h = std::thread::spawn(move || bench.run_blocking(sender, t2, sd).unwrap());
+        let h = std::thread::spawn(move || bench.run_blocking(vec![(t2, sender)], sd).unwrap());
         let mut got = Vec::new();
         while let Some(b) = rx.blocking_recv() {
             assert!(b.gaps.is_empty());
@@ -319,6 +386,63 @@ mod tests {
             !text.contains("sagnac_device_connected"),
             "the simulated bench has no device:\n{text}"
         );
+    }
+
+    #[test]
+    fn a_simulated_triad_delivers_each_gyros_simulator_stream_through_triad_frames() {
+        let x = GyroModel::from_toml_str(PAPER, "paper_gyro.toml").unwrap();
+        let mut y = x.clone();
+        y.gyro.input_rate_dph = -40.0;
+        let mut z = x.clone();
+        z.noise.arw_dpsh *= 3.0;
+        let bench = SimBenchConfig {
+            model: x.clone(),
+            triad: Some(Box::new([y.clone(), z.clone()])),
+            seed: 11,
+            speed: 0.0,
+            duration_s: Some(10.0),
+        }
+        .build()
+        .unwrap();
+        assert_eq!(bench.gyros(), 3);
+        let base = Telemetry::standalone().unwrap();
+        let metrics = base.metrics.clone();
+        let mut outs = Vec::new();
+        let mut rxs = Vec::new();
+        for label in ["x", "y", "z"] {
+            let t = base.for_gyro(&crate::sink::metrics::GyroInfo::labelled(label));
+            let (sender, rx) = batch::channel(QueueBound::Batches(64), &t);
+            outs.push((t, sender));
+            rxs.push(rx);
+        }
+        let (_trigger, sd) = shutdown::channel();
+        let h = std::thread::spawn(move || bench.run_blocking(outs, sd).unwrap());
+        let mut got = vec![Vec::new(); 3];
+        // three queues: drain them in turn until all are closed
+        let mut open = [true; 3];
+        while open.iter().any(|o| *o) {
+            for k in 0..3 {
+                if open[k] {
+                    match rxs[k].blocking_recv() {
+                        Some(b) => got[k].extend(b.counts),
+                        None => open[k] = false,
+                    }
+                }
+            }
+        }
+        let report = h.join().unwrap();
+        assert_eq!(report.samples, 10_000);
+        for (k, (m, seed)) in [(&x, 11), (&y, 12), (&z, 13)].into_iter().enumerate() {
+            let mut want = Vec::new();
+            Simulator::new(m, seed, Some(10.0)).unwrap().next_block(10_000, &mut want);
+            assert_eq!(got[k], want, "gyro {k}: triad encode + decode must be lossless");
+        }
+        let text = metrics.encode();
+        for g in ["x", "y", "z"] {
+            assert!(text.contains(&format!("sagnac_frames_decoded_total{{gyro=\"{g}\"}} 10001\n")), "{text}");
+        }
+        // 10 001 frames of 24 bytes, counted once for the stream
+        assert!(text.contains("sagnac_bytes_read_total 240024\n"), "{text}");
     }
 
     #[test]
