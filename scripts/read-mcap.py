@@ -18,6 +18,10 @@ Summary keys:
   raw_counts_total      sum of all counts on /gyro/raw
   raw_lost_total        sum of gap "lost" on /gyro/raw
   values_total          topic -> number of values on /gyro/clean and /gyro/noise
+  gyros                 a recording of several gyros: label -> raw_samples,
+                        raw_counts_total, raw_lost_total, values_total
+                        (clean/noise), events_by_kind (events naming the gyro),
+                        last_estimates
   events_by_kind        kind -> count on /gyro/events
   time_mismatches       messages whose log_time or publish_time differs from the
                         payload time (t0_ns, t_ns, or timestamp {sec, nsec})
@@ -128,6 +132,8 @@ def main() -> int:
     last_estimates_time = -1
     gap_lost_total = 0
     raw_payloads, clean_payloads, summaries = [], [], []
+    # a recording of several gyros: /gyro/<label>/<name> per gyro
+    gyros: dict[str, dict] = {}
 
     with open(path, "rb") as f:
         reader = make_reader(f, validate_crcs=True)
@@ -157,6 +163,29 @@ def main() -> int:
                 clean_payloads.append(payload)
             elif want_summary and topic == "/gyro/summary":
                 summaries.append(payload)
+            parts = topic.split("/")
+            if len(parts) == 4 and parts[1] == "gyro":
+                g = gyros.setdefault(parts[2], {
+                    "raw_samples": 0, "raw_counts_total": 0, "raw_lost_total": 0,
+                    "values_total": {}, "events_by_kind": {}, "last_estimates": None, "_t": -1,
+                })
+                name = parts[3]
+                if name == "raw":
+                    g["raw_samples"] += len(payload["counts"])
+                    g["raw_counts_total"] += sum(payload["counts"])
+                    g["raw_lost_total"] += sum(x["lost"] for x in payload["gaps"])
+                elif name in ("clean", "noise"):
+                    g["values_total"][name] = g["values_total"].get(name, 0) + len(payload["values"])
+                elif name == "estimates" and message.log_time >= g["_t"]:
+                    g["_t"] = message.log_time
+                    g["last_estimates"] = payload
+            if topic == "/gyro/events" and "gyro" in payload:
+                g = gyros.setdefault(payload["gyro"], {
+                    "raw_samples": 0, "raw_counts_total": 0, "raw_lost_total": 0,
+                    "values_total": {}, "events_by_kind": {}, "last_estimates": None, "_t": -1,
+                })
+                k = payload["kind"]
+                g["events_by_kind"][k] = g["events_by_kind"].get(k, 0) + 1
             if topic == "/gyro/raw":
                 raw_samples += len(payload["counts"])
                 raw_counts_total += sum(payload["counts"])
@@ -212,6 +241,7 @@ def main() -> int:
                 "last_estimates": last_estimates,
                 "gap_lost_total": gap_lost_total,
                 "metadata": metadata,
+                "gyros": {k: {kk: vv for kk, vv in v.items() if kk != "_t"} for k, v in gyros.items()},
             },
             sort_keys=True,
         )

@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 use crate::pipeline::{Pipeline, PipelineConfig, PipelineError, PipelineOutput};
 use crate::sink::messages::SinkMessage;
 use crate::sink::meta::{AGREE_REL, Contradiction, GyroOutput, check_flag};
-use crate::sink::reader::{ReadError, read_metadata, scan_recording};
+use crate::sink::reader::{ReadError, scan_recording};
 use crate::source::capture::{CaptureError, CaptureReader};
 use crate::source::frame::FilledSeries;
 use crate::source::input::{InputError, InputFormat, SampleReader};
@@ -95,6 +95,16 @@ pub enum OfflineError {
     /// A flag that contradicts the recording.
     #[error(transparent)]
     Contradiction(#[from] Contradiction),
+    /// A recording of several gyros read without saying which.
+    #[error("{}: a recording of several gyros ({}): choose one with --gyro LABEL", path.display(), labels.join(", "))]
+    ChooseGyro { path: PathBuf, labels: Vec<String> },
+    /// `--gyro` names a gyro the recording does not have.
+    #[error("--gyro {gyro}: {} has no such gyro ({})", path.display(), if labels.is_empty() { "it is a recording of one gyro, on /gyro/raw: leave --gyro out".to_string() } else { format!("its gyros: {}", labels.join(", ")) })]
+    NoSuchGyro {
+        path: PathBuf,
+        gyro: String,
+        labels: Vec<String>,
+    },
     /// A recording of rate samples, which this reader does not convert.
     #[error("{}: its metadata says output = rate (rate samples, not pulse counts): not supported here yet", path.display())]
     RateOutput { path: PathBuf },
@@ -400,10 +410,12 @@ pub struct RecordingGyro {
 /// What neither gives is an error naming the flag.
 pub fn recording_gyro(
     path: &Path,
+    gyro: Option<&str>,
     rate_flag: Option<f64>,
     pulse_flag: Option<f64>,
 ) -> Result<RecordingGyro, OfflineError> {
-    let (rate, pulse) = match read_metadata(path)? {
+    let gyro = select_gyro(path, gyro)?;
+    let (rate, pulse) = match crate::sink::reader::read_metadata_of(path, gyro.as_deref())? {
         Some(meta) => {
             if meta.output == GyroOutput::Rate {
                 return Err(OfflineError::RateOutput {
@@ -431,7 +443,7 @@ pub fn recording_gyro(
             )
         }
         None => {
-            let dt = recording_period_ns(path)?.filter(|dt| *dt > 0);
+            let dt = recording_period_ns(path, gyro.as_deref())?.filter(|dt| *dt > 0);
             let recorded = dt.map(|dt| 1e9 / dt as f64);
             let tol = dt.map_or(0.0, |dt| 1.0 / dt as f64);
             (
@@ -465,11 +477,34 @@ pub fn recording_gyro(
     })
 }
 
-/// Sample period (ns) of the first `/gyro/raw` batch of a recording, if any.
-pub fn recording_period_ns(path: &Path) -> Result<Option<u64>, OfflineError> {
+/// Which gyro of the recording `path` to read, given `--gyro`: `None` for a
+/// recording of one gyro (and no `--gyro`), the label for one of several; an
+/// error naming the labels when a recording of several gyros is read without
+/// `--gyro`, or `--gyro` names a gyro it does not have.
+pub fn select_gyro(path: &Path, gyro: Option<&str>) -> Result<Option<String>, OfflineError> {
+    let labels = crate::sink::reader::recording_gyro_labels(path)?;
+    match gyro {
+        None if labels.is_empty() => Ok(None),
+        None => Err(OfflineError::ChooseGyro {
+            path: path.to_path_buf(),
+            labels,
+        }),
+        Some(g) if labels.iter().any(|l| l == g) => Ok(Some(g.to_string())),
+        Some(g) => Err(OfflineError::NoSuchGyro {
+            path: path.to_path_buf(),
+            gyro: g.to_string(),
+            labels,
+        }),
+    }
+}
+
+/// Sample period (ns) of the first `/gyro/raw` batch of a recording (of gyro
+/// `gyro`'s `/gyro/<label>/raw`), if any.
+pub fn recording_period_ns(path: &Path, gyro: Option<&str>) -> Result<Option<u64>, OfflineError> {
     let mut dt = None;
     scan_recording(path, false, &mut |m| {
         if dt.is_none()
+            && m.gyro.as_deref() == gyro
             && let SinkMessage::Raw(b) = &m.message
         {
             dt = Some(b.dt_ns);
@@ -478,25 +513,30 @@ pub fn recording_period_ns(path: &Path) -> Result<Option<u64>, OfflineError> {
     Ok(dt)
 }
 
-/// Feed the `/gyro/raw` channel of an MCAP recording (truncated files are read
-/// up to their last complete chunk); gaps are filled. Returns the pipeline and,
-/// for a cut or damaged file, where reading stopped.
+/// Feed the `/gyro/raw` channel of an MCAP recording (of a recording of
+/// several gyros: gyro `gyro`'s `/gyro/<label>/raw`, see [`select_gyro`];
+/// truncated files are read up to their last complete chunk); gaps are
+/// filled. Returns the pipeline and, for a cut or damaged file, where reading
+/// stopped.
 pub fn run_recording(
     path: &Path,
+    gyro: Option<&str>,
     cfg: &PipelineConfig,
     progress: Progress,
 ) -> Result<(Pipeline, Option<crate::sink::reader::Break>), OfflineError> {
-    run_recording_tapped(path, cfg, progress, None)
+    run_recording_tapped(path, gyro, cfg, progress, None)
 }
 
 /// [`run_recording`], showing every push to `tap` (with the batches'
 /// temperature, when they carry one).
 pub fn run_recording_tapped(
     path: &Path,
+    gyro: Option<&str>,
     cfg: &PipelineConfig,
     progress: Progress,
     mut tap: Option<Tap>,
 ) -> Result<(Pipeline, Option<crate::sink::reader::Break>), OfflineError> {
+    let gyro = select_gyro(path, gyro)?;
     let mut pipe = Pipeline::new(cfg)?;
     let (mut rates, mut temps) = (Vec::new(), Vec::new());
     let mut out = PipelineOutput::default();
@@ -505,7 +545,7 @@ pub fn run_recording_tapped(
     let mut mixed: Option<u64> = None;
     let mut implausible: Option<(u64, u64)> = None;
     let report = scan_recording(path, false, &mut |m| {
-        if implausible.is_some() {
+        if implausible.is_some() || m.gyro != gyro {
             return;
         }
         if let SinkMessage::Raw(b) = m.message {

@@ -45,6 +45,10 @@ pub struct AnalyzeArgs {
     /// frame captures; an MCAP recording carries its own (the flag must then agree).
     #[arg(long, value_name = "D", allow_negative_numbers = true)]
     pub pulse_arcsec: Option<f64>,
+    /// Which gyro of an MCAP recording of several gyros (its label, e.g. `x`):
+    /// required for such a recording, refused for a recording of one gyro.
+    #[arg(long, value_name = "LABEL")]
+    pub gyro: Option<String>,
     /// CSV column to analyse (default `counts`).
     #[arg(long, value_name = "NAME")]
     pub column: Option<String>,
@@ -129,6 +133,12 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
     let input = &args.input;
     let given = "given on the command line";
     let settings: InputSettings;
+    if args.gyro.is_some() && args.format != AnalyzeFormat::Mcap {
+        anyhow::bail!(
+            "--gyro selects a gyro of an MCAP recording; --format {:?} has one gyro",
+            args.format
+        );
+    }
     let pipe = match args.format {
         AnalyzeFormat::Csv => {
             let rate = required("--rate-hz", args.rate_hz, input, "sample rate")?;
@@ -206,7 +216,12 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
         }
         AnalyzeFormat::Mcap => {
             // the recording's metadata record supplies what the flags leave out
-            let gyro = offline::recording_gyro(input, args.rate_hz, args.pulse_arcsec)?;
+            let gyro = offline::recording_gyro(
+                input,
+                args.gyro.as_deref(),
+                args.rate_hz,
+                args.pulse_arcsec,
+            )?;
             let cfg = PipelineConfig::counts(gyro.rate_hz, gyro.pulse_arcsec);
             let mut s = InputSettings::new(input, "mcap", gyro.rate_hz, Some(gyro.pulse_arcsec));
             s.origin = Some(
@@ -220,8 +235,9 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
                 .into(),
             );
             settings = s;
-            let (pipe, broken) = offline::run_recording(input, &cfg, &mut progress)
-                .with_context(|| format!("analysing recording {}", input.display()))?;
+            let (pipe, broken) =
+                offline::run_recording(input, args.gyro.as_deref(), &cfg, &mut progress)
+                    .with_context(|| format!("analysing recording {}", input.display()))?;
             if let Some(b) = broken {
                 eprintln!(
                     "warning: {}: unreadable from byte {} ({}); analysed the {} samples before it",

@@ -85,6 +85,10 @@ pub struct DiagnoseArgs {
     /// with `[gyro] output = "rate"`).
     #[arg(long, value_enum, default_value = "counts")]
     pub unit: RateUnit,
+    /// Which gyro of an MCAP recording of several gyros (its label, e.g. `x`):
+    /// required for such a recording, refused for a recording of one gyro.
+    #[arg(long, value_name = "LABEL")]
+    pub gyro: Option<String>,
 }
 
 /// Run `sagnac diagnose`.
@@ -107,6 +111,13 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
     }
     let model = GyroModel::load(&args.model).context("loading the gyro model")?;
     check_input_kind(&args, &model)?;
+    if args.gyro.is_some() && args.format != RecordingFormat::Mcap {
+        bail!(
+            "--gyro selects a gyro of an MCAP recording; {} is read as {}",
+            args.recording.display(),
+            format_name(args.format)
+        );
+    }
     let spinner = super::progress::Spinner::start(format!("reading {}", args.recording.display()));
     let rec = match args.format {
         RecordingFormat::Csv if args.unit != RateUnit::Counts => read_rate_csv(&args, &model)?,
@@ -116,7 +127,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
             &model,
         )?,
         RecordingFormat::Frames => read_frames(&args.recording, &model)?,
-        RecordingFormat::Mcap => read_mcap(&args.recording, &model)?,
+        RecordingFormat::Mcap => read_mcap(&args.recording, args.gyro.as_deref(), &model)?,
     };
     spinner.set_message(format!(
         "diagnosing {} samples against the model ({} + {} Monte-Carlo runs)",
@@ -418,11 +429,15 @@ fn read_frames(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
     ))
 }
 
-fn read_mcap(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
+fn read_mcap(path: &Path, gyro: Option<&str>, model: &GyroModel) -> anyhow::Result<Recording> {
+    let gyro = crate::offline::select_gyro(path, gyro)?;
     let rec = crate::sink::reader::read_recording(path)
         .with_context(|| format!("reading the MCAP recording {}", path.display()))?;
     // the recording's own rate and pulse weight (its metadata record), if it says them
-    let meta = rec.metadata.clone();
+    let meta = match &gyro {
+        Some(g) => crate::sink::reader::read_metadata_of(path, Some(g))?,
+        None => rec.metadata.clone(),
+    };
     if let Some(m) = &meta
         && m.output == GyroOutput::Rate
     {
@@ -436,6 +451,9 @@ fn read_mcap(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
     let mut any_temp = false;
     let mut dt_ns: Option<u64> = None;
     for m in rec.messages {
+        if m.gyro != gyro {
+            continue;
+        }
         let SinkMessage::Raw(b) = m.message else {
             continue;
         };

@@ -40,6 +40,10 @@ pub struct ReportArgs {
     /// frame captures; an MCAP recording carries its own (the flag must then agree).
     #[arg(long, value_name = "D", allow_negative_numbers = true)]
     pub pulse_arcsec: Option<f64>,
+    /// Which gyro of an MCAP recording of several gyros (its label, e.g. `x`):
+    /// required for such a recording, refused for a recording of one gyro.
+    #[arg(long, value_name = "LABEL")]
+    pub gyro: Option<String>,
     /// CSV column to analyse (default `counts`).
     #[arg(long, value_name = "NAME")]
     pub column: Option<String>,
@@ -125,6 +129,12 @@ pub fn run(args: ReportArgs) -> Result<()> {
         input: input.display().to_string(),
         ..Metadata::default()
     };
+    if args.gyro.is_some() && args.format != AnalyzeFormat::Mcap {
+        anyhow::bail!(
+            "--gyro selects a gyro of an MCAP recording; --format {:?} has one gyro",
+            args.format
+        );
+    }
     let (pipe, collector) = match args.format {
         AnalyzeFormat::Csv => {
             let rate = required("--rate-hz", args.rate_hz, input, "sample rate")?;
@@ -183,15 +193,25 @@ pub fn run(args: ReportArgs) -> Result<()> {
             (finish(pipe, &mut meta, &cfg), col)
         }
         AnalyzeFormat::Mcap => {
-            let gyro = offline::recording_gyro(input, args.rate_hz, args.pulse_arcsec)?;
+            let gyro = offline::recording_gyro(
+                input,
+                args.gyro.as_deref(),
+                args.rate_hz,
+                args.pulse_arcsec,
+            )?;
             let cfg = PipelineConfig::counts(gyro.rate_hz, gyro.pulse_arcsec);
             meta.format = "MCAP recording (/gyro/raw)".into();
             meta.origin = "from the recording".into();
             let mut col = collector_for(&cfg, model.is_some());
             let mut tap = |b: &TapBlock<'_>| col.tap(b);
-            let (pipe, broken) =
-                offline::run_recording_tapped(input, &cfg, &mut progress, Some(&mut tap))
-                    .with_context(|| format!("analysing recording {}", input.display()))?;
+            let (pipe, broken) = offline::run_recording_tapped(
+                input,
+                args.gyro.as_deref(),
+                &cfg,
+                &mut progress,
+                Some(&mut tap),
+            )
+            .with_context(|| format!("analysing recording {}", input.display()))?;
             if let Some(b) = broken {
                 let note = format!(
                     "unreadable from byte {} ({}); analysed the {} samples before it",

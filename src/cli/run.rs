@@ -27,7 +27,9 @@ use anyhow::{Context, Result};
 use clap::{ArgGroup, Args};
 
 use super::progress::StatusLine;
-use crate::daemon::config::{Config, ConfigError, FrameKind, KeysPresent, LabelledInput, LogFormat, SourceKind};
+use crate::daemon::config::{
+    Config, ConfigError, FrameKind, KeysPresent, LabelledInput, LogFormat, SourceKind,
+};
 use crate::daemon::run::{Daemon, DaemonError, Explicit};
 use crate::daemon::shutdown;
 
@@ -109,7 +111,11 @@ fn flag_of(args: &RunArgs, key: &str) -> Option<(&'static str, bool)> {
         "source.baud" => ("--baud", args.baud.is_some()),
         "source.replay_path" => ("--replay", !args.replay.is_empty()),
         "source.inputs" => (
-            if args.serial.is_empty() { "--replay" } else { "--serial" },
+            if args.serial.is_empty() {
+                "--replay"
+            } else {
+                "--serial"
+            },
             !args.serial.is_empty() || !args.replay.is_empty(),
         ),
         "source.frame" => ("--frame", args.frame.is_some()),
@@ -133,7 +139,11 @@ fn flag_of(args: &RunArgs, key: &str) -> Option<(&'static str, bool)> {
 /// (`source.serial_path` / `source.replay_path`); otherwise every value must be
 /// LABEL=PATH (`source.inputs`).
 fn set_inputs(cfg: &mut Config, values: &[String], serial: bool) -> Result<(), ConfigError> {
-    let single = if serial { &mut cfg.source.serial_path } else { &mut cfg.source.replay_path };
+    let single = if serial {
+        &mut cfg.source.serial_path
+    } else {
+        &mut cfg.source.replay_path
+    };
     if let [one] = values
         && LabelledInput::parse(one).is_err()
     {
@@ -143,7 +153,11 @@ fn set_inputs(cfg: &mut Config, values: &[String], serial: bool) -> Result<(), C
     }
     for v in values {
         if let Err(message) = LabelledInput::parse(v) {
-            return Err(ConfigError::Invalid { key: "source.inputs", value: v.clone(), message });
+            return Err(ConfigError::Invalid {
+                key: "source.inputs",
+                value: v.clone(),
+                message,
+            });
         }
     }
     single.clear();
@@ -181,7 +195,11 @@ pub fn resolve(args: &RunArgs) -> Result<(Config, Explicit), ConfigError> {
     if !args.simulate_triad.is_empty() {
         cfg.source.kind = SourceKind::Simulate;
         cfg.source.model.clear();
-        cfg.source.triad_models = args.simulate_triad.iter().map(|p| p.display().to_string()).collect();
+        cfg.source.triad_models = args
+            .simulate_triad
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect();
     }
     if let Some(f) = &args.frame {
         cfg.source.frame = match f.as_str() {

@@ -29,12 +29,12 @@ use anyhow::{Context, bail};
 use clap::{Args, ValueEnum};
 
 use super::progress::{DelayedBar, LineCounter};
+use crate::daemon::bench::{SIM_START_COUNTER, SIM_START_SEQ};
 use crate::model::config::OutputKind;
 use crate::model::{GyroModel, Simulator, sim};
 use crate::sink::mcap::{Recorder, RecorderConfig};
 use crate::sink::messages::{RawBatch, SinkMessage};
 use crate::sink::meta::RecordingMeta;
-use crate::daemon::bench::{SIM_START_COUNTER, SIM_START_SEQ};
 use crate::source::frame::{FrameEncoder, FrameWriter, STATUS_ALL_OK, TriadEncoder};
 
 /// Output format of `sagnac simulate`.

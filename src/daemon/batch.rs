@@ -376,7 +376,9 @@ impl Assembler {
         let m = &self.telemetry.gyro;
         let old = self.stats;
         if self.counts_bytes {
-            self.telemetry.metrics.add_bytes_read(stats.bytes_read - old.bytes_read);
+            self.telemetry
+                .metrics
+                .add_bytes_read(stats.bytes_read - old.bytes_read);
         }
         m.add_frames_decoded(stats.frames_decoded - old.frames_decoded);
         m.add_samples(stats.samples - old.samples);

@@ -103,7 +103,11 @@ impl SimBenchConfig {
         if sims.iter().any(|s| s.sample_rate_hz() != rate_hz) {
             return Err(BenchError::Config {
                 key: "gyro.sample_rate_hz",
-                value: sims.iter().map(|s| s.sample_rate_hz().to_string()).collect::<Vec<_>>().join(", "),
+                value: sims
+                    .iter()
+                    .map(|s| s.sample_rate_hz().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", "),
                 reason: "the three gyros of a triad share its frame: give them one sample rate",
             });
         }
@@ -144,10 +148,17 @@ impl BenchEncoder {
     }
 
     /// The frame of sample `i` of the block `counts` (one slice per gyro).
-    fn step(&mut self, counts: &[Vec<i64>], i: usize, out: &mut BytesMut) -> Result<(), FrameError> {
+    fn step(
+        &mut self,
+        counts: &[Vec<i64>],
+        i: usize,
+        out: &mut BytesMut,
+    ) -> Result<(), FrameError> {
         match self {
             BenchEncoder::Single(e) => out.extend_from_slice(&e.step(counts[0][i])?),
-            BenchEncoder::Triad(e) => out.extend_from_slice(&e.step([counts[0][i], counts[1][i], counts[2][i]])?),
+            BenchEncoder::Triad(e) => {
+                out.extend_from_slice(&e.step([counts[0][i], counts[1][i], counts[2][i]])?)
+            }
         }
         Ok(())
     }
@@ -240,7 +251,11 @@ impl SimBench {
             lanes.blocking_send()?;
         }
         let report = lanes.report(0);
-        tracing::info!(samples = report.samples, gyros = W::GYROS, "simulated bench stopped");
+        tracing::info!(
+            samples = report.samples,
+            gyros = W::GYROS,
+            "simulated bench stopped"
+        );
         Ok(report)
     }
 }
@@ -434,12 +449,22 @@ mod tests {
         assert_eq!(report.samples, 10_000);
         for (k, (m, seed)) in [(&x, 11), (&y, 12), (&z, 13)].into_iter().enumerate() {
             let mut want = Vec::new();
-            Simulator::new(m, seed, Some(10.0)).unwrap().next_block(10_000, &mut want);
-            assert_eq!(got[k], want, "gyro {k}: triad encode + decode must be lossless");
+            Simulator::new(m, seed, Some(10.0))
+                .unwrap()
+                .next_block(10_000, &mut want);
+            assert_eq!(
+                got[k], want,
+                "gyro {k}: triad encode + decode must be lossless"
+            );
         }
         let text = metrics.encode();
         for g in ["x", "y", "z"] {
-            assert!(text.contains(&format!("sagnac_frames_decoded_total{{gyro=\"{g}\"}} 10001\n")), "{text}");
+            assert!(
+                text.contains(&format!(
+                    "sagnac_frames_decoded_total{{gyro=\"{g}\"}} 10001\n"
+                )),
+                "{text}"
+            );
         }
         // 10 001 frames of 24 bytes, counted once for the stream
         assert!(text.contains("sagnac_bytes_read_total 240024\n"), "{text}");

@@ -92,7 +92,10 @@ impl LabelledInput {
         if path.is_empty() {
             return Err("PATH is empty");
         }
-        Ok(LabelledInput { label: label.to_string(), path: path.to_string() })
+        Ok(LabelledInput {
+            label: label.to_string(),
+            path: path.to_string(),
+        })
     }
 }
 
@@ -463,9 +466,14 @@ impl Config {
         let s = &self.source;
         let mut labels = std::collections::BTreeSet::new();
         for text in &s.inputs {
-            let input = LabelledInput::parse(text).map_err(|m| invalid("source.inputs", format!("{text:?}"), m))?;
+            let input = LabelledInput::parse(text)
+                .map_err(|m| invalid("source.inputs", format!("{text:?}"), m))?;
             if !labels.insert(input.label) {
-                return Err(invalid("source.inputs", format!("{text:?}"), "labels must be unique"));
+                return Err(invalid(
+                    "source.inputs",
+                    format!("{text:?}"),
+                    "labels must be unique",
+                ));
             }
         }
         if !s.inputs.is_empty() {
@@ -476,7 +484,11 @@ impl Config {
                     "labelled inputs are serial devices or captures: source.kind must be serial or replay",
                 ));
             }
-            let single = if s.kind == SourceKind::Serial { &s.serial_path } else { &s.replay_path };
+            let single = if s.kind == SourceKind::Serial {
+                &s.serial_path
+            } else {
+                &s.replay_path
+            };
             if !single.is_empty() {
                 return Err(invalid(
                     "source.inputs",

@@ -25,7 +25,6 @@ use ::mcap::records::{Record, op};
 use ::mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
 use bytes::BytesMut;
 
-
 use crate::daemon::batch::{BatchSender, PipelineClosed, SourceBatch, SourceReport, wall_ns};
 use crate::daemon::lanes::Lanes;
 use crate::daemon::shutdown::Shutdown;

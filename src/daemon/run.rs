@@ -31,10 +31,13 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use crate::daemon::batch::{self, BatchSender, Delivery, SourceReport};
+use crate::daemon::bench::{BenchError, SimBench, SimBenchConfig};
 use crate::daemon::config::{Config, ConfigError, FrameKind, LabelledInput, SourceKind};
 use crate::daemon::http::{self, HttpError};
 use crate::daemon::process::{Outputs, ProcessConfig, ProcessError, ProcessReport, Processor};
 use crate::daemon::queue::QueueBound;
+use crate::daemon::replay::{self, CaptureKind, ReplayConfig, ReplayError, ReplaySource};
+use crate::daemon::serial::{SerialConfig, SerialError, SerialSource};
 use crate::daemon::shutdown::{self, ShutdownTrigger};
 use crate::daemon::status::LiveStatus;
 use crate::daemon::telemetry::Telemetry;
@@ -43,10 +46,7 @@ use crate::pipeline::PipelineConfig;
 use crate::sink::mcap::{RecordError, Recorder, RecorderConfig, RecordingSummary};
 use crate::sink::meta::{AGREE_REL, Contradiction, RecordingMeta, check_flag};
 use crate::sink::metrics::{Metrics, MetricsError};
-use crate::daemon::bench::{BenchError, SimBench, SimBenchConfig};
 use crate::source::frame::{DecoderConfig, Single, Triad};
-use crate::daemon::replay::{self, CaptureKind, ReplayConfig, ReplayError, ReplaySource};
-use crate::daemon::serial::{SerialConfig, SerialError, SerialSource};
 
 /// The built-in gyro model of the simulated bench (the founding paper's RLG).
 pub const PAPER_GYRO_TOML: &str = include_str!("../../config/paper_gyro.toml");
@@ -180,9 +180,16 @@ fn require_explicit(explicit: Explicit, input: String) -> Result<(), DaemonError
             "--rate-hz and --pulse-arcsec (config keys `gyro.rate_hz`, `gyro.pulse_arcsec`)",
         ),
         (false, true) => ("sample rate", "--rate-hz (config key `gyro.rate_hz`)"),
-        (true, false) => ("pulse weight", "--pulse-arcsec (config key `gyro.pulse_arcsec`)"),
+        (true, false) => (
+            "pulse weight",
+            "--pulse-arcsec (config key `gyro.pulse_arcsec`)",
+        ),
     };
-    Err(DaemonError::GyroUnspecified { input, missing, how })
+    Err(DaemonError::GyroUnspecified {
+        input,
+        missing,
+        how,
+    })
 }
 
 fn mismatch(key: &'static str, value: f64, message: &'static str) -> DaemonError {
@@ -202,7 +209,10 @@ fn load_model(path: &str) -> Result<(GyroModel, String), DaemonError> {
         let p = PathBuf::from(path);
         (GyroModel::load(&p), p.display().to_string())
     };
-    let model = model.map_err(|source| DaemonError::Model { origin: origin.clone(), source })?;
+    let model = model.map_err(|source| DaemonError::Model {
+        origin: origin.clone(),
+        source,
+    })?;
     if model.gyro.output != crate::model::config::OutputKind::Counts {
         return Err(DaemonError::Config(ConfigError::Invalid {
             key: "source.model",
@@ -238,19 +248,39 @@ impl Daemon {
         config.validate()?;
         let mut model_toml = None;
         // (source, frame, labels, per-gyro (rate, pulse, model TOML))
-        let mut built: Vec<(Source, FrameKind, Vec<String>, Vec<(f64, f64, Option<String>)>)> = Vec::new();
+        let mut built: Vec<(
+            Source,
+            FrameKind,
+            Vec<String>,
+            Vec<(f64, f64, Option<String>)>,
+        )> = Vec::new();
         match config.source.kind {
             SourceKind::Simulate => {
                 let (bench, gyros) = Daemon::simulated(&mut config, explicit)?;
                 model_toml = gyros[0].2.clone();
-                let frame = if gyros.len() == 3 { FrameKind::Triad } else { FrameKind::Single };
-                built.push((Source::Bench(Box::new(bench)), frame, frame.labels(None), gyros));
+                let frame = if gyros.len() == 3 {
+                    FrameKind::Triad
+                } else {
+                    FrameKind::Single
+                };
+                built.push((
+                    Source::Bench(Box::new(bench)),
+                    frame,
+                    frame.labels(None),
+                    gyros,
+                ));
             }
             SourceKind::Replay => {
                 for (label, path) in labelled_inputs(&config, &config.source.replay_path.clone()) {
-                    let (source, frame) = Daemon::replay(&mut config, explicit, PathBuf::from(path))?;
+                    let (source, frame) =
+                        Daemon::replay(&mut config, explicit, PathBuf::from(path))?;
                     let g = (config.gyro.rate_hz, config.gyro.pulse_arcsec, None);
-                    built.push((source, frame, frame.labels(label.as_deref()), vec![g; frame.gyros()]));
+                    built.push((
+                        source,
+                        frame,
+                        frame.labels(label.as_deref()),
+                        vec![g; frame.gyros()],
+                    ));
                 }
             }
             SourceKind::Serial => {
@@ -258,7 +288,12 @@ impl Daemon {
                     let source = Daemon::serial(&config, explicit, PathBuf::from(path))?;
                     let frame = config.source.frame;
                     let g = (config.gyro.rate_hz, config.gyro.pulse_arcsec, None);
-                    built.push((source, frame, frame.labels(label.as_deref()), vec![g; frame.gyros()]));
+                    built.push((
+                        source,
+                        frame,
+                        frame.labels(label.as_deref()),
+                        vec![g; frame.gyros()],
+                    ));
                 }
             }
         }
@@ -267,7 +302,11 @@ impl Daemon {
             None
         } else {
             let spec = crate::model::spec::Spec::load(std::path::Path::new(&config.spec.path))?;
-            tracing::info!(path = config.spec.path, confidence = spec.confidence, "acceptance test");
+            tracing::info!(
+                path = config.spec.path,
+                confidence = spec.confidence,
+                "acceptance test"
+            );
             Some(spec)
         };
         let mut inputs = Vec::new();
@@ -281,12 +320,27 @@ impl Daemon {
                 }
                 let mut meta = RecordingMeta::counts(rate_hz, pulse_arcsec);
                 meta.model = model;
-                list.push(Gyro { label, processor, meta });
+                list.push(Gyro {
+                    label,
+                    processor,
+                    meta,
+                });
             }
-            inputs.push(Input { source, frame, gyros: list });
+            inputs.push(Input {
+                source,
+                frame,
+                gyros: list,
+            });
         }
-        let labels: Vec<&str> = inputs.iter().flat_map(|i| i.gyros.iter().map(|g| g.label.as_str())).collect();
-        if let Some(dup) = labels.iter().enumerate().find(|(k, l)| labels[..*k].contains(l)) {
+        let labels: Vec<&str> = inputs
+            .iter()
+            .flat_map(|i| i.gyros.iter().map(|g| g.label.as_str()))
+            .collect();
+        if let Some(dup) = labels
+            .iter()
+            .enumerate()
+            .find(|(k, l)| labels[..*k].contains(l))
+        {
             return Err(DaemonError::Config(ConfigError::Invalid {
                 key: "source.inputs",
                 value: dup.1.to_string(),
@@ -300,7 +354,8 @@ impl Daemon {
             config.metrics.addr.parse().ok()
         };
         // What the recording says about itself (see crate::sink::meta).
-        let mut recording_meta = RecordingMeta::counts(config.gyro.rate_hz, config.gyro.pulse_arcsec);
+        let mut recording_meta =
+            RecordingMeta::counts(config.gyro.rate_hz, config.gyro.pulse_arcsec);
         recording_meta.config = toml::to_string(&config).ok();
         recording_meta.model = model_toml;
         Ok(Daemon {
@@ -342,7 +397,11 @@ impl Daemon {
                     "differs from the simulated model's gyro.pulse_weight_arcsec (leave it out to use the model's)",
                 ));
             }
-            tracing::info!(model = origin, seed = config.source.seed, "source: simulated bench");
+            tracing::info!(
+                model = origin,
+                seed = config.source.seed,
+                "source: simulated bench"
+            );
             gyros.push((rate, pulse, model.to_toml().ok()));
             models.push(model);
         }
@@ -366,12 +425,17 @@ impl Daemon {
 
     /// Sample periods of `config.run.duration_s` at `rate_hz`, if limited.
     fn limit(config: &Config, rate_hz: f64) -> Option<u64> {
-        (config.run.duration_s > 0.0).then(|| (config.run.duration_s * rate_hz).round().max(1.0) as u64)
+        (config.run.duration_s > 0.0)
+            .then(|| (config.run.duration_s * rate_hz).round().max(1.0) as u64)
     }
 
     /// A replay of `path` and its frame; an MCAP recording's rate and pulse
     /// weight go into `config.gyro` (an explicit value must agree).
-    fn replay(config: &mut Config, explicit: Explicit, path: PathBuf) -> Result<(Source, FrameKind), DaemonError> {
+    fn replay(
+        config: &mut Config,
+        explicit: Explicit,
+        path: PathBuf,
+    ) -> Result<(Source, FrameKind), DaemonError> {
         let mut frame = config.source.frame;
         if replay::probe(&path)? == CaptureKind::Mcap {
             if frame == FrameKind::Triad {
@@ -443,7 +507,12 @@ impl Daemon {
     }
 
     /// One gyro's numeric stage.
-    fn processor(config: &Config, rate_hz: f64, pulse_arcsec: f64, live: bool) -> Result<Processor, DaemonError> {
+    fn processor(
+        config: &Config,
+        rate_hz: f64,
+        pulse_arcsec: f64,
+        live: bool,
+    ) -> Result<Processor, DaemonError> {
         Ok(ProcessConfig {
             pipeline: PipelineConfig {
                 rate_hz,
@@ -454,7 +523,11 @@ impl Daemon {
             },
             interval_s: config.estimator.interval_s,
             batch_samples: config.record.batch_samples,
-            delivery: if live { Delivery::Live } else { Delivery::Lossless },
+            delivery: if live {
+                Delivery::Live
+            } else {
+                Delivery::Lossless
+            },
             update_budget: (!live).then_some(UPDATE_BUDGET),
         }
         .build()?)
@@ -475,7 +548,10 @@ impl Daemon {
 
     /// The gyro labels, in order.
     pub fn gyro_labels(&self) -> Vec<String> {
-        self.inputs.iter().flat_map(|i| i.gyros.iter().map(|g| g.label.clone())).collect()
+        self.inputs
+            .iter()
+            .flat_map(|i| i.gyros.iter().map(|g| g.label.clone()))
+            .collect()
     }
 
     /// Run until the source ends or `trigger` fires, then drain everything.
@@ -491,7 +567,11 @@ impl Daemon {
         if config.spec.stop_when_decided {
             // --stop-when-decided: the ordinary shutdown once every gyro's coefficients are decided
             let stops = all_decided(&trigger, n_gyros);
-            for (g, stop) in inputs.iter_mut().flat_map(|i| i.gyros.iter_mut()).zip(stops) {
+            for (g, stop) in inputs
+                .iter_mut()
+                .flat_map(|i| i.gyros.iter_mut())
+                .zip(stops)
+            {
                 g.processor.attach_spec_stop(stop);
             }
         }
@@ -504,7 +584,11 @@ impl Daemon {
         let first_label = inputs[0].gyros[0].label.clone();
         let base = Telemetry::new(Arc::new(Metrics::new()?), &config.gyro.info(&first_label))?;
         if let (Some(st), Source::Replay(_)) = (&status, &inputs[0].source)
-            && let Ok(m) = std::fs::metadata(labelled_inputs(&config, &config.source.replay_path)[0].1.as_str())
+            && let Ok(m) = std::fs::metadata(
+                labelled_inputs(&config, &config.source.replay_path)[0]
+                    .1
+                    .as_str(),
+            )
         {
             st.set_replay(m.len(), Arc::clone(&base.metrics));
         }
@@ -575,11 +659,19 @@ impl Daemon {
                 }));
                 outs.push((telemetry, sender));
             }
-            source_tasks.push(spawn_source(input.source, input.frame, outs, trigger.subscribe()));
+            source_tasks.push(spawn_source(
+                input.source,
+                input.frame,
+                outs,
+                trigger.subscribe(),
+            ));
         }
         let mut source_result: Result<SourceReport, DaemonError> = Ok(SourceReport::default());
         for task in source_tasks {
-            let r = task.await.map_err(|e| join_err("source", e)).and_then(|r| r);
+            let r = task
+                .await
+                .map_err(|e| join_err("source", e))
+                .and_then(|r| r);
             match (r, &mut source_result) {
                 (Ok(r), Ok(total)) => {
                     total.bytes_read += r.bytes_read;
@@ -646,7 +738,8 @@ impl Daemon {
 
 /// One stop trigger per gyro; `main` fires once all of them have.
 fn all_decided(main: &ShutdownTrigger, n: usize) -> Vec<ShutdownTrigger> {
-    let subs: Vec<(ShutdownTrigger, shutdown::Shutdown)> = (0..n).map(|_| shutdown::channel()).collect();
+    let subs: Vec<(ShutdownTrigger, shutdown::Shutdown)> =
+        (0..n).map(|_| shutdown::channel()).collect();
     let main = main.clone();
     let (triggers, mut waits): (Vec<_>, Vec<_>) = subs.into_iter().unzip();
     tokio::spawn(async move {
@@ -659,7 +752,11 @@ fn all_decided(main: &ShutdownTrigger, n: usize) -> Vec<ShutdownTrigger> {
 }
 
 /// The recording: one gyro on today's channels, several on `/gyro/<label>/...`.
-async fn start_recorder(config: &Config, meta: RecordingMeta, inputs: &[Input]) -> Result<Recorder, DaemonError> {
+async fn start_recorder(
+    config: &Config,
+    meta: RecordingMeta,
+    inputs: &[Input],
+) -> Result<Recorder, DaemonError> {
     let rc = RecorderConfig {
         record_dir: PathBuf::from(&config.record.dir),
         flush_interval_s: config.record.flush_interval_s,
@@ -686,7 +783,10 @@ async fn start_recorder(config: &Config, meta: RecordingMeta, inputs: &[Input]) 
 }
 
 /// Finish the recording (its error is the run's).
-async fn finish_recorder(r: Recorder, telemetry: &Telemetry) -> Result<RecordingSummary, DaemonError> {
+async fn finish_recorder(
+    r: Recorder,
+    telemetry: &Telemetry,
+) -> Result<RecordingSummary, DaemonError> {
     let summary = tokio::task::spawn_blocking(move || r.finish())
         .await
         .map_err(|e| join_err("recorder", e))?;
@@ -719,13 +819,16 @@ fn spawn_source(
         (Source::Serial(s), FrameKind::Triad) => {
             tokio::spawn(async move { s.run::<Triad>(outs, sd).await.map_err(DaemonError::from) })
         }
-        (Source::Replay(r), FrameKind::Single) => {
-            tokio::task::spawn_blocking(move || r.run_blocking::<Single>(outs, sd).map_err(DaemonError::from))
+        (Source::Replay(r), FrameKind::Single) => tokio::task::spawn_blocking(move || {
+            r.run_blocking::<Single>(outs, sd)
+                .map_err(DaemonError::from)
+        }),
+        (Source::Replay(r), FrameKind::Triad) => tokio::task::spawn_blocking(move || {
+            r.run_blocking::<Triad>(outs, sd).map_err(DaemonError::from)
+        }),
+        (Source::Bench(b), _) => {
+            tokio::task::spawn_blocking(move || b.run_blocking(outs, sd).map_err(DaemonError::from))
         }
-        (Source::Replay(r), FrameKind::Triad) => {
-            tokio::task::spawn_blocking(move || r.run_blocking::<Triad>(outs, sd).map_err(DaemonError::from))
-        }
-        (Source::Bench(b), _) => tokio::task::spawn_blocking(move || b.run_blocking(outs, sd).map_err(DaemonError::from)),
     }
 }
 

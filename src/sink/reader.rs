@@ -267,6 +267,26 @@ pub fn read_metadata_of(
         || METADATA_NAME.to_string(),
         crate::sink::meta::gyro_metadata_name,
     );
+    for (offset, m) in metadata_records(path)? {
+        if m.name == wanted {
+            return parse_metadata(&m, offset, path).map(Some);
+        }
+    }
+    Ok(None)
+}
+
+/// The gyro labels of a recording of several gyros (from their `sagnac/<label>`
+/// metadata records, in order); empty for a recording of one gyro.
+pub fn recording_gyro_labels(path: &Path) -> Result<Vec<String>, ReadError> {
+    let prefix = format!("{METADATA_NAME}/");
+    Ok(metadata_records(path)?
+        .into_iter()
+        .filter_map(|(_, m)| m.name.strip_prefix(&prefix).map(str::to_string))
+        .collect())
+}
+
+/// The Metadata records before the first chunk or message, with their offsets.
+fn metadata_records(path: &Path) -> Result<Vec<(u64, ::mcap::records::Metadata)>, ReadError> {
     let (file, len) = open(path)?;
     let mut input = BufReader::new(file);
     let io_err = |offset, source| ReadError::Io {
@@ -305,6 +325,7 @@ pub fn read_metadata_of(
         .with_record_length_limit(usize::try_from(len).unwrap_or(usize::MAX));
     let mut reader = LinearReader::new_with_options(options);
     let mut offset: u64 = 8;
+    let mut found = Vec::new();
     while let Some(event) = reader.next_event() {
         match event.map_err(|e| scanner.mcap_error(offset, e))? {
             LinearReadEvent::ReadRequest(need) => {
@@ -316,14 +337,12 @@ pub fn read_metadata_of(
                 let start = offset;
                 offset = start + RECORD_PREFIX + data.len() as u64;
                 match opcode {
-                    ::mcap::records::op::CHUNK | ::mcap::records::op::MESSAGE => return Ok(None),
+                    ::mcap::records::op::CHUNK | ::mcap::records::op::MESSAGE => return Ok(found),
                     ::mcap::records::op::METADATA => {
                         let record = ::mcap::parse_record(opcode, data)
                             .map_err(|e| scanner.mcap_error(start, e))?;
-                        if let Record::Metadata(m) = record
-                            && m.name == wanted
-                        {
-                            return parse_metadata(&m, start, path).map(Some);
+                        if let Record::Metadata(m) = record {
+                            found.push((start, m));
                         }
                     }
                     _ => {}
@@ -331,7 +350,7 @@ pub fn read_metadata_of(
             }
         }
     }
-    Ok(None)
+    Ok(found)
 }
 
 fn parse_metadata(
