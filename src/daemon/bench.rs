@@ -409,7 +409,7 @@ mod tests {
         let mut y = x.clone();
         y.gyro.input_rate_dph = -40.0;
         let mut z = x.clone();
-        z.noise.arw_dpsh *= 3.0;
+        z.noise.arw_dpsh = Some(0.005);
         let bench = SimBenchConfig {
             model: x.clone(),
             triad: Some(Box::new([y.clone(), z.clone()])),

@@ -1146,12 +1146,15 @@ fn event_schema() -> Value {
             let mut props = json!({
                 "t_ns": uint("time of the event, ns since the Unix epoch"),
                 "kind": {"const": kind},
-                "gyro": {"type": "string", "description": "the gyro it concerns, in a recording of several gyros"},
             });
             if let (Some(p), Some(f)) = (props.as_object_mut(), fields.as_object()) {
                 p.extend(f.clone());
             }
-            object(&format!("sagnac.Event.{kind}"), description, props)
+            let mut branch = object(&format!("sagnac.Event.{kind}"), description, props);
+            // optional: only a recording of several gyros names the gyro
+            branch["properties"]["gyro"] =
+                json!({"type": "string", "description": "the gyro it concerns, in a recording of several gyros"});
+            branch
         })
         .collect();
     json!({
