@@ -260,6 +260,7 @@ fn a_triad_over_a_pty_exact_per_gyro_counts_estimates_and_every_pulse_recorded()
         String::from_utf8_lossy(&out.stderr)
     );
     let a: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(a["input"]["gyro"], "z", "the JSON says which gyro it read");
     let rec_z = &v["gyros"]["z"]["last_estimates"]["estimates"]["quantization_arcsec"]["value"];
     let an_z = a["estimates"]["quantization_arcsec"]["value"]
         .as_f64()

@@ -224,6 +224,7 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
             )?;
             let cfg = PipelineConfig::counts(gyro.rate_hz, gyro.pulse_arcsec);
             let mut s = InputSettings::new(input, "mcap", gyro.rate_hz, Some(gyro.pulse_arcsec));
+            s.gyro = args.gyro.clone();
             s.origin = Some(
                 match (args.rate_hz, args.pulse_arcsec) {
                     (None, None) => "from the recording",

@@ -257,6 +257,7 @@ fn provenance(args: &DiagnoseArgs, model: &GyroModel, rec: &Recording) -> Proven
         ));
     }
     input.model = Some(args.model.display().to_string());
+    input.gyro = args.gyro.clone();
     Provenance::new(input, diagnose_units())
 }
 

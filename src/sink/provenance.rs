@@ -50,6 +50,9 @@ pub struct InputSettings {
     /// The gyro model file compared with (`diagnose`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub model: Option<String>,
+    /// The gyro read from a recording of several gyros (`--gyro`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gyro: Option<String>,
 }
 
 impl InputSettings {
@@ -64,6 +67,7 @@ impl InputSettings {
             unit: None,
             origin: None,
             model: None,
+            gyro: None,
         }
     }
 }
