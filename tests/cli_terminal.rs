@@ -10,12 +10,18 @@ use std::process::Command;
 
 const SAGNAC: &str = env!("CARGO_BIN_EXE_sagnac");
 
-/// Run `args` with stderr on a pseudo-terminal (stdout discarded); what the
-/// terminal received, and the exit code.
+/// Run `args` with stderr on a pseudo-terminal 80 columns wide (stdout
+/// discarded); what the terminal received, and the exit code.
 fn on_pty(args: &[&str], cwd: &Path) -> (String, i32) {
+    on_pty_cols(args, cwd, 80)
+}
+
+/// [`on_pty`] on a terminal `cols` columns wide.
+fn on_pty_cols(args: &[&str], cwd: &Path, cols: u16) -> (String, i32) {
     const HELPER: &str = r#"
-import os, pty, select, subprocess, sys
+import fcntl, os, pty, select, struct, subprocess, sys, termios
 master, slave = pty.openpty()
+fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, int(os.environ["COLUMNS_PTY"]), 0, 0))
 p = subprocess.Popen(sys.argv[1:], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=slave)
 os.close(slave)
 out = b""
@@ -43,6 +49,7 @@ sys.exit(p.returncode)
         .current_dir(cwd)
         .env_remove("RUST_LOG")
         .env("SAGNAC_PROGRESS_DELAY_S", "0")
+        .env("COLUMNS_PTY", cols.to_string())
         .output()
         .expect("python3");
     (
@@ -51,23 +58,41 @@ sys.exit(p.returncode)
     )
 }
 
-/// `Q <coefficient> arcsec` and `N <coefficient> deg/sqrt(h)` of a status line,
-/// each "v [lo, hi]" or "< u" in fixed notation.
+/// `Q <coefficient> arcsec` and `N <coefficient> deg/sqrt(h)` of a full status
+/// line, or `Q <coefficient> N <coefficient> ok|MISFIT` of a compact one, each
+/// coefficient "v [lo, hi]" or "< u" in fixed notation.
 fn fixed_notation(line: &str) -> bool {
-    let part = |from: &str, to: &str| -> Option<String> {
+    let part = |from: &str, to: &[&str]| -> Option<String> {
         let a = line.find(from)? + from.len();
-        let b = a + line[a..].find(to)?;
+        let b = to.iter().filter_map(|t| line[a..].find(t)).min()? + a;
         Some(line[a..b].to_string())
     };
-    [part("| Q ", " arcsec"), part("| N ", " deg/sqrt(h)")]
-        .iter()
-        .all(|p| {
-            p.as_ref().is_some_and(|t| {
-                !t.is_empty()
-                    && t.chars()
-                        .all(|c| c.is_ascii_digit() || " .,[]<".contains(c))
-            })
+    let (q, n) = if line.contains(" arcsec") {
+        (part("| Q ", &[" arcsec"]), part("| N ", &[" deg/sqrt(h)"]))
+    } else {
+        (part(" Q ", &[" N "]), part(" N ", &[" ok", " MISFIT"]))
+    };
+    [q, n].iter().all(|p| {
+        p.as_ref().is_some_and(|t| {
+            !t.is_empty()
+                && t.chars()
+                    .all(|c| c.is_ascii_digit() || " .,[]<".contains(c))
         })
+    })
+}
+
+/// The status lines a terminal showed: each redraw, its escape codes removed.
+fn status_lines(tty: &str, marker: &str) -> Vec<String> {
+    tty.split(['\r', '\n'])
+        .map(|l| {
+            l.trim_start_matches("\x1b[2K")
+                .trim_start_matches("\x1b[1A")
+                .trim_start_matches("\x1b[1B")
+                .trim()
+                .to_string()
+        })
+        .filter(|l| l.contains(marker))
+        .collect()
 }
 
 #[test]
@@ -91,34 +116,29 @@ fn run_at_a_terminal_redraws_one_status_line() {
     assert_eq!(code, 0, "{tty}");
     // redrawn in place: carriage return and erase-line before each redraw
     assert!(tty.contains("\r\x1b[2K"), "no in-place redraw: {tty:?}");
-    let lines: Vec<&str> = tty
-        .split(['\r', '\n'])
-        .map(|l| {
-            l.trim_start_matches("\x1b[2K")
-                .trim_start_matches("\x1b[1A")
-                .trim_start_matches("\x1b[1B")
-                .trim()
-        })
-        .filter(|l| l.contains(" samples, ") && l.contains(" lost"))
-        .collect();
+    // 80 columns: the compact line, which fits
+    let lines = status_lines(&tty, " lost)");
     assert!(
         lines.len() >= 4,
         "the status line is redrawn while the run goes: {lines:?}"
     );
+    for l in &lines {
+        assert!(l.chars().count() <= 80, "wider than the terminal: {l:?}");
+    }
     let last = lines.last().unwrap();
-    assert!(last.contains("3000 samples, 0 lost"), "{last}");
+    assert!(last.contains(" 3000 (0 lost) "), "{last}");
     assert!(fixed_notation(last), "QN and ARW in fixed notation: {last}");
     assert!(
-        last.contains("fit ok") || last.contains("misfit"),
+        last.ends_with(" ok") || last.ends_with(" MISFIT"),
         "the fit verdict: {last}"
     );
     // the elapsed time runs: the first status line says less than the last
     let secs = |l: &str| {
-        l.split(" s |")
+        l.split("s ")
             .next()
             .and_then(|t| t.trim().parse::<f64>().ok())
     };
-    assert!(secs(lines[0]).unwrap() < secs(last).unwrap(), "{lines:?}");
+    assert!(secs(&lines[0]).unwrap() < secs(last).unwrap(), "{lines:?}");
     // the intermediate estimate log lines are left to the status line; the final one stays
     assert_eq!(
         tty.matches("final_update\x1b[0m\x1b[2m=\x1b[0mfalse")
@@ -238,7 +258,8 @@ fn offline_commands_show_progress_on_a_terminal_only() {
             "{args:?}: progress on a pipe: {err:?}"
         );
     }
-    let (tty, code) = on_pty(
+    // a wide terminal keeps the full status line
+    let (tty, code) = on_pty_cols(
         &[
             "run",
             "--replay",
@@ -253,10 +274,61 @@ fn offline_commands_show_progress_on_a_terminal_only() {
             "",
         ],
         dir.path(),
+        200,
     );
     assert_eq!(code, 0, "{tty}");
     assert!(
         tty.contains("replay 100 %"),
         "a replay shows its progress: {tty:?}"
+    );
+    let last = status_lines(&tty, " samples, ").pop().unwrap_or_default();
+    assert!(last.contains("| Q ") && fixed_notation(&last), "{last:?}");
+    // the diagnosis: a bar of its Monte-Carlo runs, phase by phase
+    let short = [
+        "simulate",
+        "--model",
+        model,
+        "--duration-s",
+        "60",
+        "--seed",
+        "2",
+        "--format",
+        "frames",
+        "--out",
+        "d.bin",
+    ];
+    let (tty, code) = on_pty(&short, dir.path());
+    assert_eq!(code, 0, "{tty}");
+    let diag = [
+        "diagnose",
+        "--model",
+        model,
+        "--recording",
+        "d.bin",
+        "--format",
+        "frames",
+        "--runs",
+        "4",
+        "--runs-after",
+        "2",
+        "--json",
+        "d.json",
+    ];
+    let (tty, code) = on_pty(&diag, dir.path());
+    assert_eq!(code, 0, "{tty}");
+    assert!(
+        tty.contains("simulating the model") && tty.contains("/4 runs"),
+        "the diagnosis's bar: {tty:?}"
+    );
+    let out = Command::new(SAGNAC)
+        .args(diag)
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        !err.contains('\r') && !err.contains('\x1b'),
+        "progress on a pipe: {err:?}"
     );
 }

@@ -245,6 +245,12 @@ fn monte_carlo_reference_does_not_depend_on_threads() {
     .unwrap();
     let layout = StatLayout::new(60_000, 200.0, 1.21);
     let seeds = [11u64, 12, 13, 14, 15];
+    // each run done is reported once, with the phase and the number of runs
+    let reports = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+    let sink = std::sync::Arc::clone(&reports);
+    let progress = mc::Progress::new(move |phase, done, total| {
+        sink.lock().unwrap().push((phase.to_string(), done, total))
+    });
     let job = McJob {
         model: &model,
         layout: &layout,
@@ -253,8 +259,13 @@ fn monte_carlo_reference_does_not_depend_on_threads() {
         threads: 1,
         full: true,
         sine_probes: &[],
+        phase: "test runs",
+        progress: &progress,
     };
     let one = mc::run(&job, &seeds).unwrap();
+    let told: Vec<_> = reports.lock().unwrap().clone();
+    let want: Vec<_> = (0..=5).map(|d| ("test runs".to_string(), d, 5)).collect();
+    assert_eq!(told, want);
     let two = mc::run(&McJob { threads: 2, ..job }, &seeds).unwrap();
     let three = mc::run(&McJob { threads: 3, ..job }, &seeds).unwrap();
     assert_eq!(one, two);

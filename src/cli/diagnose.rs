@@ -13,8 +13,9 @@
 //!
 //! The JSON verdict also says how it was made: `sagnac_version`, `input` (the
 //! recording, its format, the sample rate and pulse weight used and where they
-//! came from, the model file) and `units`. At a terminal a spinner names the
-//! phase (reading, Monte-Carlo runs) once the job takes more than a moment.
+//! came from, the model file) and `units`. At a terminal a spinner shows the
+//! reading, then a bar the Monte-Carlo runs of each phase, once the job takes
+//! more than a moment.
 
 use std::fs::File;
 use std::io::Write;
@@ -129,12 +130,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
         RecordingFormat::Frames => read_frames(&args.recording, &model)?,
         RecordingFormat::Mcap => read_mcap(&args.recording, args.gyro.as_deref(), &model)?,
     };
-    spinner.set_message(format!(
-        "diagnosing {} samples against the model ({} + {} Monte-Carlo runs)",
-        rec.counts.len(),
-        args.runs,
-        args.runs_after
-    ));
+    spinner.finish();
     // A series without any variation has no noise to compare: a dead gyro or a
     // stuck counter, not a gyro consistent with every noise model.
     if let Some(&c0) = rec.counts.first()
@@ -153,14 +149,16 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
         seed: args.seed,
         ..DiagnoseOptions::default()
     };
-    let diag = diagnose::diagnose(&model, &rec, &opts).with_context(|| {
+    let bar = super::progress::RunsBar::start();
+    let diag = diagnose::diagnose_with_progress(&model, &rec, &opts, &bar.progress());
+    bar.finish();
+    let diag = diag.with_context(|| {
         format!(
             "diagnosing {} against {}",
             args.recording.display(),
             args.model.display()
         )
     })?;
-    spinner.finish();
     let mut value = serde_json::to_value(&diag.report).context("serialising the verdict")?;
     provenance(&args, &model, &rec).insert_into(&mut value);
     let json = serde_json::to_string_pretty(&value).context("serialising the verdict")?;

@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-use crate::daemon::status::{LiveStatus, format_status};
+use crate::daemon::status::{LiveStatus, format_status_for_width};
 
 /// A job shorter than this shows no progress at all.
 pub const SHOW_AFTER: Duration = Duration::from_millis(700);
@@ -151,6 +151,46 @@ impl Drop for Spinner {
     }
 }
 
+/// A bar of the diagnosis's Monte-Carlo runs, one phase at a time
+/// (`simulating the model [00:00:12] ####---- 9/16 runs`), that appears after
+/// [`SHOW_AFTER`]; [`RunsBar::progress`] is what the diagnosis tells.
+pub struct RunsBar {
+    bar: ProgressBar,
+}
+
+impl RunsBar {
+    pub fn start() -> Self {
+        let bar = ProgressBar::hidden();
+        bar.set_style(style(
+            "{msg} [{elapsed_precise}] {wide_bar} {pos}/{len} runs (eta {eta})",
+        ));
+        RunsBar { bar }
+    }
+
+    /// The hook for [`crate::diagnose::diagnose_with_progress`].
+    pub fn progress(&self) -> crate::diagnose::mc::Progress {
+        let (bar, started, delay) = (self.bar.clone(), Instant::now(), show_after());
+        let shown = Arc::new(std::sync::atomic::AtomicBool::new(false));
+        crate::diagnose::mc::Progress::new(move |phase, done, total| {
+            use std::sync::atomic::Ordering;
+            if bar.message() != phase {
+                bar.set_message(phase.to_string());
+                bar.set_length(total as u64);
+                bar.reset_eta();
+            }
+            bar.set_position(done as u64);
+            if started.elapsed() >= delay && !shown.swap(true, Ordering::Relaxed) {
+                bar.set_draw_target(ProgressDrawTarget::stderr());
+            }
+        })
+    }
+
+    /// Remove the bar from the terminal.
+    pub fn finish(&self) {
+        self.bar.finish_and_clear();
+    }
+}
+
 /// A writer that moves `bar` by the number of lines written through it (for
 /// CSV rows written by library code), minus `skip` header lines.
 pub struct LineCounter<'a, W> {
@@ -190,13 +230,23 @@ impl<W: Write> Write for LineCounter<'_, W> {
 }
 
 /// The one live line of `sagnac run` at a terminal, redrawn in place every
-/// 250 ms from a [`LiveStatus`] ([`format_status`]); log lines go above it
+/// 250 ms from a [`LiveStatus`] ([`format_status_for_width`], the terminal's
+/// width read at each redraw); log lines go above it
 /// through [`StatusLine::log_writer`].
 pub struct StatusLine {
     bar: ProgressBar,
     status: Arc<LiveStatus>,
     stop: Option<mpsc::Sender<()>>,
     thread: Option<JoinHandle<()>>,
+}
+
+/// Columns of the terminal on stderr (80 when it does not say).
+fn terminal_width() -> usize {
+    console::Term::stderr()
+        .size_checked()
+        .map(|(_, cols)| usize::from(cols))
+        .filter(|&c| c > 0)
+        .unwrap_or(80)
 }
 
 impl StatusLine {
@@ -233,7 +283,10 @@ impl StatusLine {
             .name("sagnac-status".into())
             .spawn(move || {
                 loop {
-                    bar.set_message(format_status(&status.snapshot()));
+                    bar.set_message(format_status_for_width(
+                        &status.snapshot(),
+                        terminal_width(),
+                    ));
                     match rx.recv_timeout(Duration::from_millis(250)) {
                         Err(RecvTimeoutError::Timeout) => continue,
                         _ => break,
@@ -247,7 +300,10 @@ impl StatusLine {
     /// Draw the final state and leave it on the terminal.
     pub fn finish(mut self) {
         self.halt();
-        self.bar.set_message(format_status(&self.status.snapshot()));
+        self.bar.set_message(format_status_for_width(
+            &self.status.snapshot(),
+            terminal_width(),
+        ));
         self.bar.finish();
     }
 

@@ -11,7 +11,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::progress::{DelayedBar, Spinner};
+use super::progress::{DelayedBar, RunsBar};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 
@@ -286,8 +286,8 @@ fn finish(pipe: Pipeline, meta: &mut Metadata, cfg: &PipelineConfig) -> Pipeline
     pipe
 }
 
-/// Diagnose the collected counts against `model` (a spinner while the
-/// Monte-Carlo runs go).
+/// Diagnose the collected counts against `model` (a bar of the Monte-Carlo
+/// runs at a terminal).
 fn run_diagnosis(
     model: &GyroModel,
     c: &Collector,
@@ -321,9 +321,10 @@ fn run_diagnosis(
         pulse_arcsec: meta.pulse_arcsec.unwrap_or(f64::NAN),
         output: Default::default(),
     };
-    let spinner = Spinner::start("diagnosing against the model (Monte-Carlo runs)");
-    let d = diagnose::diagnose(model, &rec, &DiagnoseOptions::default())
-        .with_context(|| format!("diagnosing {} against the model", input.display()));
-    spinner.finish();
+    let bar = RunsBar::start();
+    let d =
+        diagnose::diagnose_with_progress(model, &rec, &DiagnoseOptions::default(), &bar.progress())
+            .with_context(|| format!("diagnosing {} against the model", input.display()));
+    bar.finish();
     d
 }

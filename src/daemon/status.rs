@@ -167,6 +167,19 @@ pub fn format_coefficient(c: &Coefficient) -> String {
     }
 }
 
+/// The status line for a terminal `width` columns wide: [`format_status`] when
+/// it fits, else [`format_status_compact`] (the same fields, shorter: it fits
+/// 80 columns). Nothing is cut off: on a terminal narrower than the compact
+/// line, the compact line is drawn and the terminal truncates it.
+pub fn format_status_for_width(s: &StatusSnapshot, width: usize) -> String {
+    let full = format_status(s);
+    if full.chars().count() <= width {
+        full
+    } else {
+        format_status_compact(s)
+    }
+}
+
 /// `12.3 s | 12300 samples, 0 lost | Q 0.351 [0.349, 0.353] arcsec | N 0.000990
 /// [0.000641, 0.00120] deg/sqrt(h) | fit ok`, preceded by `replay 45 % |` for a
 /// replay; `estimating...` before the first update.
@@ -201,6 +214,73 @@ pub fn format_status(s: &StatusSnapshot) -> String {
         None => parts.push("estimating...".into()),
     }
     parts.join(" | ")
+}
+
+/// The status line in at most 80 columns: `45% 12m34s 1.23M (3 lost) Q
+/// 0.35[0.34,0.36] N 0.00099[0.00064,0.0012] ok`: replay progress, elapsed
+/// time, samples and lost samples, Q in arcsec and N in deg/sqrt(h) with their
+/// 95 % intervals to 2 significant digits, `ok` or `MISFIT` for the fit.
+pub fn format_status_compact(s: &StatusSnapshot) -> String {
+    let mut parts = Vec::with_capacity(8);
+    if let Some((done, total)) = s.replay_bytes
+        && total > 0
+    {
+        parts.push(format!(
+            "{:.0}%",
+            100.0 * (done.min(total) as f64) / total as f64
+        ));
+    }
+    parts.push(short_duration(s.elapsed_s));
+    parts.push(format!(
+        "{} ({} lost)",
+        short_count(s.samples),
+        short_count(s.lost)
+    ));
+    match &s.estimate {
+        Some(e) => {
+            parts.push(format!("Q {}", compact_coefficient(&e.quantization_arcsec)));
+            parts.push(format!("N {}", compact_coefficient(&e.arw_dpsh)));
+            parts.push(if e.fit.ok { "ok" } else { "MISFIT" }.into());
+        }
+        None => parts.push("estimating...".into()),
+    }
+    parts.join(" ")
+}
+
+/// "12.3s", "12m34s", "12h34m".
+fn short_duration(t_s: f64) -> String {
+    let t = t_s.max(0.0);
+    if t < 60.0 {
+        format!("{t:.1}s")
+    } else if t < 3600.0 {
+        let m = (t / 60.0).floor();
+        format!("{m:.0}m{:02.0}s", (t - 60.0 * m).floor())
+    } else {
+        let h = (t / 3600.0).floor();
+        format!("{h:.0}h{:02.0}m", ((t - 3600.0 * h) / 60.0).floor())
+    }
+}
+
+/// 99999, 123k, 1.23M, 4.56G: every digit up to 5 digits, then 3 significant.
+fn short_count(n: u64) -> String {
+    const UNITS: [(f64, &str); 3] = [(1e9, "G"), (1e6, "M"), (1e3, "k")];
+    let v = n as f64;
+    match UNITS.iter().find(|(scale, _)| v >= *scale && n >= 100_000) {
+        Some((scale, unit)) => format!("{}{unit}", fixed(v / scale, 3)),
+        None => n.to_string(),
+    }
+}
+
+/// "0.35[0.34,0.36]", "<0.0012", "-": 2 significant digits.
+fn compact_coefficient(c: &Coefficient) -> String {
+    match (c.value, c.ci95, c.upper95) {
+        (Some(v), Some([lo, hi]), _) => {
+            format!("{}[{},{}]", fixed(v, 2), fixed(lo, 2), fixed(hi, 2))
+        }
+        (Some(v), None, _) => fixed(v, 2),
+        (None, _, Some(u)) => format!("<{}", fixed(u, 2)),
+        _ => "-".into(),
+    }
 }
 
 #[cfg(test)]
@@ -286,6 +366,46 @@ mod tests {
             format_status(&s),
             "replay 45 % | 12.3 s | 12300 samples, 3 lost | Q 0.351 [0.341, 0.360] arcsec | N < 0.00120 deg/sqrt(h) \
              | MODEL MISFIT (chi2/dof 7.50): run sagnac diagnose"
+        );
+    }
+
+    #[test]
+    fn the_compact_status_line_fits_80_columns() {
+        let worst = StatusSnapshot {
+            elapsed_s: 3.0 * 86_400.0 - 1.0,
+            samples: 259_199_999,
+            lost: 123_456,
+            estimate: Some(StatusEstimate {
+                quantization_arcsec: coef(Some(0.35054), Some([0.34086, 0.35996]), None),
+                arw_dpsh: coef(Some(0.00099011), Some([0.00064116, 0.0012039]), None),
+                fit: FitSummary {
+                    chi2_per_dof: 17.5,
+                    dof: 40.0,
+                    ok: false,
+                    observations: 60,
+                },
+                final_update: false,
+            }),
+            replay_bytes: Some((999, 1000)),
+        };
+        let line = format_status_compact(&worst);
+        assert_eq!(
+            line,
+            "100% 71h59m 259M (123k lost) Q 0.35[0.34,0.36] N 0.00099[0.00064,0.0012] MISFIT"
+        );
+        assert!(line.len() <= 80, "{} columns: {line}", line.len());
+        // the full line is kept where it fits, the compact one where it does not
+        assert!(format_status(&worst).len() > 80);
+        assert_eq!(format_status_for_width(&worst, 80), line);
+        assert_eq!(format_status_for_width(&worst, 200), format_status(&worst));
+        assert_eq!(short_duration(75.2), "1m15s");
+        assert_eq!(short_duration(12.34), "12.3s");
+        assert_eq!(short_count(999), "999");
+        assert_eq!(short_count(12_345), "12345");
+        assert_eq!(short_count(1_234_567), "1.23M");
+        assert_eq!(
+            compact_coefficient(&coef(None, None, Some(0.0012))),
+            "<0.0012"
         );
     }
 }

@@ -8,13 +8,44 @@
 //! a pure function of its seed). A rate-output model's runs are its rate
 //! words, counted in the recording's quantum ([`super::Recording`]).
 
-use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
 
 use super::stats::{self, StatLayout, StatSet};
 use crate::model::config::OutputKind;
 use crate::model::{GyroModel, ModelError, Simulator};
 use crate::units;
+
+/// Told after each Monte-Carlo run: the phase, the runs done in it and the
+/// runs it has (a terminal's progress bar; the numbers never depend on it).
+pub type ProgressFn = dyn Fn(&str, usize, usize) + Send + Sync;
+
+/// An optional [`ProgressFn`].
+#[derive(Clone, Default)]
+pub struct Progress(Option<Arc<ProgressFn>>);
+
+impl std::fmt::Debug for Progress {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(if self.0.is_some() {
+            "Progress(..)"
+        } else {
+            "Progress(none)"
+        })
+    }
+}
+
+impl Progress {
+    /// Report to `f`.
+    pub fn new(f: impl Fn(&str, usize, usize) + Send + Sync + 'static) -> Self {
+        Progress(Some(Arc::new(f)))
+    }
+
+    fn report(&self, phase: &str, done: usize, total: usize) {
+        if let Some(f) = &self.0 {
+            f(phase, done, total);
+        }
+    }
+}
 
 /// What to simulate and reduce.
 #[derive(Debug, Clone, Copy)]
@@ -32,6 +63,16 @@ pub struct McJob<'a> {
     pub full: bool,
     /// Lines to re-estimate in each run: `(f0 Hz, search half-width Hz)`.
     pub sine_probes: &'a [(f64, f64)],
+    /// What the runs are for, and whom to tell of each one done.
+    pub phase: &'static str,
+    pub progress: &'a Progress,
+}
+
+impl McJob<'_> {
+    /// The same job, reported as `phase`.
+    pub fn phase(self, phase: &'static str) -> Self {
+        McJob { phase, ..self }
+    }
 }
 
 /// Simulate `job.model` once per seed (each run as long as the recording)
@@ -42,6 +83,8 @@ pub fn run(job: &McJob, seeds: &[u64]) -> Result<Vec<StatSet>, ModelError> {
     // validate once up front so workers cannot fail on the model
     Simulator::new(job.model, 0, Some(n as f64 / fs))?;
     let next = AtomicUsize::new(0);
+    let done = AtomicUsize::new(0);
+    job.progress.report(job.phase, 0, seeds.len());
     let slots: Mutex<Vec<Option<StatSet>>> = Mutex::new(vec![None; seeds.len()]);
     let err: Mutex<Option<ModelError>> = Mutex::new(None);
     let threads = job.threads.max(1).min(seeds.len().max(1));
@@ -55,7 +98,9 @@ pub fn run(job: &McJob, seeds: &[u64]) -> Result<Vec<StatSet>, ModelError> {
                     }
                     match one_run(job, seeds[i]) {
                         Ok(s) => {
-                            slots.lock().expect("no panics while holding the lock")[i] = Some(s)
+                            slots.lock().expect("no panics while holding the lock")[i] = Some(s);
+                            let d = done.fetch_add(1, Ordering::Relaxed) + 1;
+                            job.progress.report(job.phase, d, seeds.len());
                         }
                         Err(e) => {
                             *err.lock().expect("no panics while holding the lock") = Some(e);

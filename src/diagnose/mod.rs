@@ -293,11 +293,22 @@ pub fn diagnose(
     rec: &Recording,
     opts: &DiagnoseOptions,
 ) -> Result<Diagnosis, DiagnoseError> {
+    diagnose_with_progress(model, rec, opts, &mc::Progress::default())
+}
+
+/// [`diagnose`], telling `progress` of each Monte-Carlo run (the result does
+/// not depend on it).
+pub fn diagnose_with_progress(
+    model: &GyroModel,
+    rec: &Recording,
+    opts: &DiagnoseOptions,
+    progress: &mc::Progress,
+) -> Result<Diagnosis, DiagnoseError> {
     check_recording(rec, opts)?;
     model.validate()?;
     check_output(model, rec)?;
     // 1-2: the reference, and where the recording leaves its band
-    let reference = Reference::simulate(model, rec, opts)?;
+    let reference = Reference::simulate(model, rec, opts, progress)?;
     let r = &reference;
     let located = locate::locate(r, opts.alpha);
     let mut notes: Vec<String> = report::rate_note(r.layout.fs_hz, model.gyro.sample_rate_hz)

@@ -17,6 +17,7 @@ use std::f64::consts::PI;
 
 use super::compare::Point;
 use super::locate::{KTerm, all_points, kurtosis_scales};
+use super::mc::Progress;
 use super::stats::{self, StatLayout, StatSet};
 use super::{DiagnoseError, DiagnoseOptions, Recording, check_recording, mc};
 use crate::model::GyroModel;
@@ -42,6 +43,8 @@ pub struct Reference {
     pub kterms: Vec<KTerm>,
     /// Worker threads of the Monte-Carlo runs.
     pub threads: usize,
+    /// Told of each Monte-Carlo run.
+    pub progress: Progress,
 }
 
 impl Reference {
@@ -50,6 +53,7 @@ impl Reference {
         model: &GyroModel,
         rec: &Recording,
         opts: &DiagnoseOptions,
+        progress: &Progress,
     ) -> Result<Self, DiagnoseError> {
         let threads = if opts.threads == 0 {
             std::thread::available_parallelism().map_or(1, |n| n.get())
@@ -78,6 +82,8 @@ impl Reference {
             threads,
             full: true,
             sine_probes: &[],
+            phase: "simulating the model",
+            progress,
         };
         let runs = mc::run(&job, &seeds)?;
         Ok(Reference {
@@ -89,6 +95,7 @@ impl Reference {
             kurt_taus,
             kterms,
             threads,
+            progress: progress.clone(),
         })
     }
 
@@ -107,6 +114,8 @@ impl Reference {
             threads: self.threads,
             full: true,
             sine_probes: &[],
+            phase: "simulating a candidate",
+            progress: &self.progress,
         }
     }
 
@@ -142,7 +151,7 @@ pub fn points_against(
 ) -> Result<Vec<Point>, DiagnoseError> {
     check_recording(rec, opts)?;
     model.validate()?;
-    let r = Reference::simulate(model, rec, opts)?;
+    let r = Reference::simulate(model, rec, opts, &Progress::default())?;
     Ok(all_points(
         &r.layout,
         &r.model,

@@ -85,7 +85,11 @@ pub(crate) fn refine(
         cutoffs.push(*fc);
     }
     let mut model = with_findings(&r.model, findings);
-    let mut runs = mc::run(&r.job(&model, temp, &cutoffs), &seeds_after)?;
+    let mut runs = mc::run(
+        &r.job(&model, temp, &cutoffs)
+            .phase("simulating the updated model"),
+        &seeds_after,
+    )?;
     let mut telegraph_test = None;
     if let Some((fi, (alt_model, _))) = &alt {
         let out = telegraph::test_new_gauss_markov(
@@ -193,7 +197,11 @@ fn refine_round(
         .iter()
         .map(|s| s.wrapping_add(7_919 * (round as u64 + 1)))
         .collect();
-    let runs_try = mc::run(&r.job(&m_try, temp, cutoffs), &seeds_refine)?;
+    let runs_try = mc::run(
+        &r.job(&m_try, temp, cutoffs)
+            .phase("refining the updated model"),
+        &seeds_refine,
+    )?;
     let after_try = all_points(&r.layout, &m_try, &r.obs, &runs_try, &r.kurt_taus);
     let chi2_try = compare::chi2_per_dof(&detect_points(&after_try), fitted_parameters(findings));
     if !(chi2_try <= cur.chi2.max(ACCEPTABLE_CHI2_PER_DOF)) {

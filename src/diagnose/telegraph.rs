@@ -244,6 +244,7 @@ pub(crate) fn test_new_gauss_markov(
     let job_alt = mc::McJob {
         full: false,
         ..r.job(alt, temp, cutoffs)
+            .phase("simulating a random telegraph")
     };
     let runs_alt = mc::run(&job_alt, seeds)?;
     let kc = cutoffs.len() - 1;
@@ -269,7 +270,11 @@ pub(crate) fn test_new_gauss_markov(
         if let Some(f) = as_telegraph(&findings[fi], &test) {
             findings[fi] = f;
             let rebuilt = with_findings(&r.model, findings);
-            let runs = mc::run(&r.job(&rebuilt, temp, cutoffs), seeds)?;
+            let runs = mc::run(
+                &r.job(&rebuilt, temp, cutoffs)
+                    .phase("simulating the updated model"),
+                seeds,
+            )?;
             return Ok(TelegraphOutcome {
                 test,
                 replaced: Some((rebuilt, runs)),
