@@ -1,6 +1,6 @@
 //! Issue 14, item 3: the power of the diagnosis, measured. For each catalog
 //! effect, on its own gyro (200 Hz .. 2 kHz, pulse 0.5 .. 2", 20 min .. 2 h,
-//! counts output), at three effect sizes from "the raw Allan deviation misses
+//! counts output, and a rate-output gyro for the readout filter), at three effect sizes from "the raw Allan deviation misses
 //! it" to "plainly visible", over N seeds: how often the diagnosis names the
 //! right change, and what the raw Allan deviation says beside it.
 //!
@@ -22,6 +22,7 @@ use std::time::Instant;
 use sagnac::diagnose::compare::{Family, Point, bonferroni_z};
 use sagnac::diagnose::reference::points_against;
 use sagnac::diagnose::{self, DiagnoseOptions, DiagnosisReport, Recording, Verdict};
+use sagnac::model::config::OutputKind;
 use sagnac::model::{GyroModel, Simulator};
 
 struct Effect {
@@ -37,7 +38,12 @@ struct Effect {
     sizes: [f64; 3],
     unit: &'static str,
     named: fn(&DiagnosisReport) -> bool,
+    /// A rate-output gyro (rate words of `RATE_LSB_DPS`; `pulse` unused).
+    rate: bool,
 }
+
+/// The rate word LSB of the rate-output rows, deg/s.
+const RATE_LSB_DPS: f64 = 0.01;
 
 fn added(r: &DiagnosisReport, t: &str) -> bool {
     r.added_terms.iter().any(|a| a.term == t)
@@ -60,6 +66,7 @@ fn effects() -> Vec<Effect> {
             sizes: [0.02, 0.04, 0.08],
             unit: "sigma deg/h",
             named: |r| added(r, "gauss_markov"),
+            rate: false,
         },
         Effect {
             name: "rate random walk (new)",
@@ -72,6 +79,7 @@ fn effects() -> Vec<Effect> {
             sizes: [0.005, 0.01, 0.02],
             unit: "K deg/h/sqrt(h)",
             named: |r| added(r, "rrw_dphsh"),
+            rate: false,
         },
         Effect {
             name: "bias instability 0.005 -> B",
@@ -84,6 +92,7 @@ fn effects() -> Vec<Effect> {
             sizes: [0.008, 0.012, 0.02],
             unit: "B deg/h",
             named: |r| changed(r, "bias_instability_dph"),
+            rate: false,
         },
         Effect {
             name: "ARW 0.002 -> N",
@@ -96,6 +105,7 @@ fn effects() -> Vec<Effect> {
             sizes: [0.0022, 0.0025, 0.003],
             unit: "N deg/sqrt(h)",
             named: |r| changed(r, "arw_dpsh") && r.added_terms.is_empty(),
+            rate: false,
         },
         Effect {
             name: "random telegraph, dwell 10 s",
@@ -110,6 +120,7 @@ fn effects() -> Vec<Effect> {
             sizes: [0.01, 0.02, 0.04],
             unit: "amplitude deg/h",
             named: |r| added(r, "random_telegraph"),
+            rate: false,
         },
         Effect {
             name: "sinusoid, period 40 s",
@@ -122,6 +133,7 @@ fn effects() -> Vec<Effect> {
             sizes: [0.003, 0.006, 0.012],
             unit: "amplitude deg/h",
             named: |r| added(r, "sinusoid"),
+            rate: false,
         },
         Effect {
             name: "rate ramp",
@@ -134,6 +146,21 @@ fn effects() -> Vec<Effect> {
             sizes: [0.005, 0.01, 0.02],
             unit: "deg/h/h",
             named: |r| added(r, "rate_ramp_dphh"),
+            rate: false,
+        },
+        // a readout detail below the ARW/BI crossover of a MEMS-like rate gyro
+        Effect {
+            name: "readout filter, first order (rate output)",
+            fs: 200.0,
+            pulse: 0.0,
+            dur_s: 1200.0,
+            model: "bias_instability_dph = 5.0\n",
+            arw: 0.5,
+            truth: |s| format!("[readout_filter]\nkind = \"first_order\"\ncorner_hz = {s}\n"),
+            sizes: [95.0, 70.0, 30.0],
+            unit: "corner Hz",
+            named: |r| added(r, "readout_filter"),
+            rate: true,
         },
     ]
 }
@@ -148,16 +175,30 @@ fn gyro(e: &Effect, arw: f64, extra: &str) -> GyroModel {
         .filter(|l| !extra.lines().any(|x| key(x) == key(l)))
         .map(|l| format!("{l}\n"))
         .collect();
-    let text = format!(
-        "[gyro]\nsample_rate_hz = {}\npulse_weight_arcsec = {}\ninput_rate_dph = 10.0\n\
-         [noise]\nquantization_arcsec = {q}\narw_dpsh = {arw}\n{base}{extra}",
-        e.fs, e.pulse
-    );
+    let text = if e.rate {
+        format!(
+            "[gyro]\nsample_rate_hz = {}\noutput = \"rate\"\nrate_lsb_dps = {RATE_LSB_DPS}\n\
+             input_rate_dph = 10.0\n[noise]\narw_dpsh = {arw}\n{base}{extra}",
+            e.fs
+        )
+    } else {
+        format!(
+            "[gyro]\nsample_rate_hz = {}\npulse_weight_arcsec = {}\ninput_rate_dph = 10.0\n\
+             [noise]\nquantization_arcsec = {q}\narw_dpsh = {arw}\n{base}{extra}",
+            e.fs, e.pulse
+        )
+    };
     GyroModel::from_toml_str(&text, e.name).unwrap()
 }
 
 fn simulate(m: &GyroModel, seed: u64, dur_s: f64) -> Recording {
     let mut sim = Simulator::new(m, seed, Some(dur_s)).unwrap();
+    if m.gyro.output == OutputKind::Rate {
+        let (mut rates, mut temp) = (Vec::new(), Vec::new());
+        sim.next_block_rates(usize::MAX >> 1, &mut rates, &mut temp);
+        return Recording::from_rates(&rates, None, m.gyro.sample_rate_hz, m.gyro.rate_lsb_dps)
+            .unwrap();
+    }
     let mut counts = Vec::new();
     sim.next_block(usize::MAX >> 1, &mut counts);
     Recording {
@@ -270,11 +311,15 @@ fn bench_power() {
                 sep.push(shift(&raw, &fam(&tp, Family::RawAllan)).1 / crit);
             }
             let n = seeds as f64;
+            let readout = if e.rate {
+                format!("rate words of {RATE_LSB_DPS} deg/s")
+            } else {
+                format!("{}\"", e.pulse)
+            };
             println!(
-                "| {} | {} Hz, {}\", {} min | {} {} | {:.1} | {:.2} | {:.0} % | {:.2} | {:.0} % | {:.0} % | {} |",
+                "| {} | {} Hz, {readout}, {} min | {} {} | {:.1} | {:.2} | {:.0} % | {:.2} | {:.0} % | {:.0} % | {} |",
                 e.name,
                 e.fs,
-                e.pulse,
                 e.dur_s / 60.0,
                 e.unit,
                 size,
