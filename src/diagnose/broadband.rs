@@ -23,7 +23,7 @@ use super::line_search::SearchParams;
 use super::locate::Located;
 use super::lowfreq;
 use super::readout;
-use super::reference::Reference;
+use super::reference::{BlockRate, Reference};
 use super::stats::StatSet;
 use super::wvar_fit::{self, Basis, Fit, LevelData};
 use super::{AddedTerm, ParameterChange};
@@ -162,6 +162,8 @@ struct Ctx<'a> {
     d2_12: f64,
     tc_grid: &'a [f64],
     p_grid: &'a [f64],
+    /// The recording in the time domain, to bound a slow sinusoid.
+    blocks: &'a BlockRate,
 }
 
 fn chi2_quantile(p: f64, dof: f64) -> f64 {
@@ -210,6 +212,7 @@ pub(crate) fn fit(
             d2_12: model.gyro.pulse_weight_arcsec.powi(2) / 12.0,
             tc_grid: &tc_grid,
             p_grid: &p_grid,
+            blocks: &r.blocks,
         };
         let mut cands = parameter_candidates(&ctx);
         if readout::offered(model)
@@ -580,7 +583,14 @@ fn new_gauss_markov(c: &Ctx) -> Option<Candidate> {
     })
 }
 
-/// A new sinusoid too slow for the line search (periods above T / min_cycles).
+/// How far a slow sinusoid's amplitude fitted on the wavelet variances may
+/// exceed the record's least-squares amplitude at its period before it is
+/// refused as a description of the record.
+const SLOW_SINE_MAX_RATIO: f64 = 3.0;
+
+/// A new sinusoid too slow for the line search (periods above T / min_cycles),
+/// refused when its amplitude is over [`SLOW_SINE_MAX_RATIO`] times what the
+/// record holds at that period.
 fn new_sinusoid(c: &Ctx) -> Option<Candidate> {
     if c.p_grid.len() <= 1 {
         return None;
@@ -588,6 +598,12 @@ fn new_sinusoid(c: &Ctx) -> Option<Candidate> {
     let fit = wvar_fit::fit_shape(c.data, c.p_grid, &|p| c.basis.sinusoid(1.0 / p), None)?;
     let amp = fit.theta.sqrt();
     let p = fit.shape.unwrap_or(1.0);
+    // A sinusoid of a few cycles per record is plain in the time domain: the
+    // wavelet variances' excess is not one when the record holds far less at
+    // that period (slow wander of another kind, fitted by a line's leakage).
+    if amp > SLOW_SINE_MAX_RATIO * c.blocks.sine_amplitude(p) {
+        return None;
+    }
     let pci = fit.shape_ci.unwrap_or((p, p));
     let term = Term::Sinusoid {
         amplitude_dph: amp,

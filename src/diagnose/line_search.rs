@@ -443,6 +443,27 @@ fn dft_by(x: &[f64], tau0: f64, f_hz: f64, val: impl Fn(usize, f64) -> f64) -> C
     acc
 }
 
+/// Amplitude of the least-squares sinusoid at `f_hz` in `x` (sampled every
+/// `dt_s`), fitted together with a mean and a line: the time-domain amplitude
+/// a record holds at that frequency, whatever its noise.
+pub fn sine_amplitude_ls(x: &[f64], dt_s: f64, f_hz: f64) -> f64 {
+    let w = 2.0 * PI * f_hz * dt_s;
+    let basis =
+        |g: fn(f64) -> f64| detrend(&(0..x.len()).map(|i| g(w * i as f64)).collect::<Vec<_>>());
+    let (s, c) = (basis(f64::sin), basis(f64::cos));
+    let y = detrend(x);
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(u, v)| u * v).sum::<f64>();
+    let (ss, cc, sc) = (dot(&s, &s), dot(&c, &c), dot(&s, &c));
+    let (sy, cy) = (dot(&s, &y), dot(&c, &y));
+    let det = ss * cc - sc * sc;
+    if !(det > 0.0) {
+        return 0.0;
+    }
+    let a = (cc * sy - sc * cy) / det;
+    let b = (ss * cy - sc * sy) / det;
+    a.hypot(b)
+}
+
 /// `x` with its least-squares line removed.
 pub fn detrend(x: &[f64]) -> Vec<f64> {
     let n = x.len() as f64;

@@ -45,6 +45,45 @@ pub struct Reference {
     pub threads: usize,
     /// Told of each Monte-Carlo run.
     pub progress: Progress,
+    /// The recording's rate averaged over blocks ([`BlockRate`]).
+    pub blocks: BlockRate,
+}
+
+/// A recording's rate averaged over consecutive blocks (at most
+/// [`BlockRate::MAX_BLOCKS`] of them): what the record holds at periods far
+/// longer than a block, in the time domain.
+#[derive(Debug, Clone, Default)]
+pub struct BlockRate {
+    /// Block means, arcsec/s (= deg/h).
+    pub mean: Vec<f64>,
+    /// Block length, s.
+    pub dt_s: f64,
+}
+
+impl BlockRate {
+    pub const MAX_BLOCKS: usize = 4096;
+
+    pub fn of(counts: &[i64], pulse_arcsec: f64, fs_hz: f64) -> BlockRate {
+        let len = counts.len().div_ceil(Self::MAX_BLOCKS).max(1);
+        let g = pulse_arcsec * fs_hz;
+        let mean = counts
+            .chunks_exact(len)
+            .map(|b| g * b.iter().sum::<i64>() as f64 / len as f64)
+            .collect();
+        BlockRate {
+            mean,
+            dt_s: len as f64 / fs_hz,
+        }
+    }
+
+    /// The least-squares amplitude (with a mean and a line) of a sinusoid of
+    /// period `period_s`, corrected for the block average's attenuation.
+    pub fn sine_amplitude(&self, period_s: f64) -> f64 {
+        let f = 1.0 / period_s;
+        let x = PI * f * self.dt_s;
+        let sinc = if x.abs() < 1e-12 { 1.0 } else { x.sin() / x };
+        super::line_search::sine_amplitude_ls(&self.mean, self.dt_s, f) / sinc.max(1e-3)
+    }
 }
 
 impl Reference {
@@ -96,6 +135,7 @@ impl Reference {
             kterms,
             threads,
             progress: progress.clone(),
+            blocks: BlockRate::of(&rec.counts, rec.pulse_arcsec, rec.sample_rate_hz),
         })
     }
 
@@ -344,4 +384,41 @@ fn mask_counter_lines(layout: &mut StatLayout, model: &GyroModel, obs: &StatSet)
         layout.mask_line(f, hw);
     }
     layout.rebuild_bands();
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A slow sinusoid on a mean and a line, in pulse counts: the block
+    /// means give back its amplitude (the block average's attenuation undone).
+    #[test]
+    fn block_rate_gives_a_slow_sinusoids_amplitude() {
+        let (fs, pulse, n) = (100.0, 0.5, 1_000_000usize);
+        let (amp_dph, period_s) = (40.0, 2_500.0);
+        let mut phase = 0.0f64;
+        let mut last = 0i64;
+        let counts: Vec<i64> = (0..n)
+            .map(|i| {
+                let t = i as f64 / fs;
+                let rate =
+                    900.0 + 5.0 * t / 3600.0 + amp_dph * (2.0 * PI * t / period_s + 0.7).sin();
+                phase += rate / fs / pulse;
+                let c = phase.floor() as i64;
+                let d = c - last;
+                last = c;
+                d
+            })
+            .collect();
+        let b = BlockRate::of(&counts, pulse, fs);
+        assert_eq!(
+            b.mean.len(),
+            n / n.div_ceil(4096),
+            "blocks of ceil(n / 4096) samples"
+        );
+        let a = b.sine_amplitude(period_s);
+        assert!((a / amp_dph - 1.0).abs() < 0.01, "{a} against {amp_dph}");
+        // far from its period the record holds almost nothing
+        assert!(b.sine_amplitude(period_s / 1.7) < 0.1 * amp_dph);
+    }
 }
