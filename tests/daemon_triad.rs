@@ -261,6 +261,23 @@ fn a_triad_over_a_pty_exact_per_gyro_counts_estimates_and_every_pulse_recorded()
     );
     let a: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(a["input"]["gyro"], "z", "the JSON says which gyro it read");
+    // `sagnac run` replays one gyro: the recording of three is refused, naming them
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_sagnac"))
+        .args([
+            "run",
+            "--replay",
+            rec.to_str().unwrap(),
+            "--metrics-addr",
+            "",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("a recording of several gyros (x, y, z) cannot be replayed"),
+        "{err}"
+    );
     let rec_z = &v["gyros"]["z"]["last_estimates"]["estimates"]["quantization_arcsec"]["value"];
     let an_z = a["estimates"]["quantization_arcsec"]["value"]
         .as_f64()

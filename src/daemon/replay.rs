@@ -6,10 +6,13 @@
 //!   same sans-IO [`FrameDecoder`] as the serial source, corruption included
 //!   (so the frame counters and events come out as they did live);
 //! * an MCAP recording made by `sagnac run`: the `/gyro/raw` messages (counts,
-//!   gaps, sequence numbers and sample times as recorded) are fed back; the other
-//!   channels are skipped without being decoded. A recording cut by a crash is
-//!   replayed up to its last complete chunk (with a warning). Gap events are
-//!   re-emitted from the recorded gaps; the other recorded events are not.
+//!   gaps, sequence numbers and sample times as recorded), pulled from the shared
+//!   recording reader ([`crate::sink::reader::RawReader`], the one `analyze` and
+//!   `diagnose` read), are fed back; the other channels are skipped without being
+//!   decoded. A recording cut by a crash is replayed up to its last complete
+//!   chunk (with a warning). Gap events are re-emitted from the recorded gaps;
+//!   the other recorded events are not. A recording of several gyros is refused
+//!   with an error naming them.
 //!
 //! Replays are lossless: the source runs on a blocking thread and waits for room
 //! in the pipeline's bounded queue (backpressure), so its speed is that of the
@@ -17,19 +20,18 @@
 //! period `p` is sent no earlier than `start + p / (rate * speed)`.
 
 use std::fs::File;
-use std::io::{self, BufReader, Read};
+use std::io::{self, Read};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use ::mcap::records::{Record, op};
-use ::mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
 use bytes::BytesMut;
 
 use crate::daemon::batch::{BatchSender, PipelineClosed, SourceBatch, SourceReport, wall_ns};
 use crate::daemon::lanes::Lanes;
 use crate::daemon::shutdown::Shutdown;
 use crate::daemon::telemetry::Telemetry;
-use crate::sink::messages::{Event, EventKind, RawBatch, SinkMessage, Topic};
+use crate::sink::messages::{Event, EventKind, RawBatch};
+use crate::sink::reader::RawReader;
 use crate::source::frame::{Axes, DecoderConfig};
 
 /// Errors of the replay source; each names the file.
@@ -49,21 +51,20 @@ pub enum ReplayError {
         offset: u64,
         source: io::Error,
     },
-    /// The MCAP structure is broken before any sample could be read.
-    #[error("{}: MCAP record at byte {offset} is unreadable: {source}", path.display())]
-    Mcap {
+    /// The recording is unreadable before its first sample.
+    #[error("{}: no samples before the recording becomes unreadable at byte {offset}: {reason}", path.display())]
+    BrokenBeforeSamples {
         path: PathBuf,
         offset: u64,
-        source: ::mcap::McapError,
-    },
-    /// A `/gyro/raw` message does not decode.
-    #[error("{}: /gyro/raw message #{sequence} (record at byte {offset}): {reason}", path.display())]
-    Message {
-        path: PathBuf,
-        offset: u64,
-        sequence: u32,
         reason: String,
     },
+    /// A recording of several gyros: `sagnac run` replays one.
+    #[error(
+        "{}: a recording of several gyros ({}) cannot be replayed by `sagnac run`: replay \
+         the raw frame captures, or read each gyro with `sagnac analyze --gyro LABEL`",
+        path.display(), labels.join(", ")
+    )]
+    SeveralGyros { path: PathBuf, labels: Vec<String> },
     /// The recording's sample period disagrees with the configured rate.
     #[error(
         "{}: /gyro/raw has a sample period of {dt_ns} ns but the gyro rate is {rate_hz} Hz \
@@ -81,7 +82,7 @@ pub enum ReplayError {
          capture (.bin) or an MCAP recording made by `sagnac run`?", path.display()
     )]
     NoSamples { path: PathBuf, bytes_read: u64 },
-    /// The recording's metadata record cannot be read.
+    /// The recording cannot be read.
     #[error(transparent)]
     Recording(#[from] crate::sink::reader::ReadError),
     /// The pipeline stopped during the replay.
@@ -118,20 +119,6 @@ pub fn probe(path: &Path) -> Result<CaptureKind, ReplayError> {
     })
 }
 
-/// The sample period (ns) of the first `/gyro/raw` message of an MCAP
-/// recording, or `None` when it has none.
-pub fn probe_mcap_period_ns(path: &Path) -> Result<Option<u64>, ReplayError> {
-    let mut found = None;
-    let mut reader = RawReader::open(path)?;
-    while let Some(m) = reader.next_raw()? {
-        if m.dt_ns > 0 {
-            found = Some(m.dt_ns);
-            break;
-        }
-    }
-    Ok(found)
-}
-
 /// What an MCAP recording says about its gyro.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RecordedGyro {
@@ -149,7 +136,15 @@ pub struct RecordedGyro {
 /// The gyro of an MCAP recording: its `sagnac` metadata record
 /// ([`crate::sink::reader::read_metadata`]), or for an older recording without
 /// one the sample period of its first `/gyro/raw` message (no pulse weight).
+/// A recording of several gyros is an error naming them.
 pub fn probe_mcap_gyro(path: &Path) -> Result<RecordedGyro, ReplayError> {
+    let labels = crate::sink::reader::recording_gyro_labels(path)?;
+    if !labels.is_empty() {
+        return Err(ReplayError::SeveralGyros {
+            path: path.to_path_buf(),
+            labels,
+        });
+    }
     if let Some(meta) = crate::sink::reader::read_metadata(path)? {
         return Ok(RecordedGyro {
             rate_hz: Some(meta.sample_rate_hz),
@@ -158,7 +153,7 @@ pub fn probe_mcap_gyro(path: &Path) -> Result<RecordedGyro, ReplayError> {
             rate_rel_tol: crate::sink::meta::AGREE_REL,
         });
     }
-    let dt = probe_mcap_period_ns(path)?;
+    let dt = crate::sink::reader::first_raw_period_ns(path, None)?;
     Ok(RecordedGyro {
         rate_hz: dt.map(|dt| 1e9 / dt as f64),
         pulse_arcsec: None,
@@ -384,15 +379,14 @@ impl ReplaySource {
         let cfg = &self.config;
         let period_ns = 1e9 / cfg.rate_hz;
         let pacer = Pacer::new(cfg.rate_hz, cfg.speed);
-        let mut reader = RawReader::open(&cfg.path)?;
+        // Up to the last complete chunk of a cut recording (the shared reader's
+        // recovery), the other channels skipped undecoded.
+        let mut reader = RawReader::open(&cfg.path, None, false)?;
         let mut report = SourceReport::default();
         let mut next_seq: Option<u64> = None;
         let mut read_bytes = 0u64;
-        loop {
-            if shutdown.is_requested() {
-                break;
-            }
-            let Some(mut raw) = reader.next_raw()? else {
+        while !shutdown.is_requested() {
+            let Some(mut raw) = reader.next_batch()? else {
                 break;
             };
             if !raw.counts.is_empty() && (raw.dt_ns as f64 - period_ns).abs() > 1.0 {
@@ -411,59 +405,71 @@ impl ReplaySource {
                 }
                 truncate_periods(&mut raw, left);
             }
-            let mut b = SourceBatch::new(Instant::now());
-            b.new_segment = next_seq.is_some_and(|s| s != raw.seq0);
-            b.seq0 = raw.seq0;
-            b.t0_ns = raw.t0_ns;
-            b.temp_c = raw.temp_c;
-            b.status = Some(raw.status);
-            let mut seq = raw.seq0;
-            let mut gi = 0;
-            for (i, _) in raw.counts.iter().enumerate() {
-                while gi < raw.gaps.len() && raw.gaps[gi].index == i as u64 {
-                    let g = raw.gaps[gi];
-                    let t_ns =
-                        raw.t0_ns + ((seq - raw.seq0) as f64 * raw.dt_ns as f64).round() as u64;
-                    b.events.push(Event {
-                        t_ns,
-                        kind: EventKind::Gap { seq, lost: g.lost },
-                        gyro: None,
-                    });
-                    seq += g.lost;
-                    gi += 1;
-                }
-                seq += 1;
-            }
-            b.counts = raw.counts;
-            b.gaps = raw.gaps;
-            let periods = b.periods();
+            let mut b = recorded_batch(raw, next_seq);
             let lost: u64 = b.gaps.iter().map(|g| g.lost).sum();
-            let g = &telemetry.gyro;
-            g.add_samples(b.counts.len() as u64);
-            g.add_lost_samples(lost);
-            let now_read = reader.offset();
+            telemetry.gyro.add_samples(b.counts.len() as u64);
+            telemetry.gyro.add_lost_samples(lost);
+            let now_read = reader.bytes_read();
             telemetry.metrics.add_bytes_read(now_read - read_bytes);
             read_bytes = now_read;
             report.samples += b.counts.len() as u64;
-            report.periods += periods;
-            next_seq = Some(b.seq0 + periods);
+            report.periods += b.periods();
+            next_seq = Some(b.seq0 + b.periods());
             if !pacer.wait_until(report.periods, shutdown) {
                 break;
             }
             b.arrived = Instant::now();
             out.blocking_send(b).map_err(self.pipeline_err())?;
         }
-        report.bytes_read = reader.offset();
-        if let Some((offset, reason)) = reader.broken() {
+        report.bytes_read = reader.bytes_read();
+        if let Some(cut) = &reader.report().break_at {
+            if report.samples == 0 {
+                return Err(ReplayError::BrokenBeforeSamples {
+                    path: cfg.path.clone(),
+                    offset: cut.offset,
+                    reason: cut.reason.clone(),
+                });
+            }
             tracing::warn!(
                 path = %cfg.path.display(),
-                offset,
-                reason,
-                "recording is cut: unreadable from byte {offset}; replayed up to its last complete chunk"
+                offset = cut.offset,
+                reason = cut.reason,
+                "recording is cut: unreadable from byte {}; replayed up to its last complete chunk",
+                cut.offset
             );
         }
         Ok(report)
     }
+}
+
+/// The source batch of a recorded `/gyro/raw` batch, its gaps re-emitted as
+/// gap events; a new segment when it does not follow `next_seq`.
+fn recorded_batch(raw: RawBatch, next_seq: Option<u64>) -> SourceBatch {
+    let mut b = SourceBatch::new(Instant::now());
+    b.new_segment = next_seq.is_some_and(|s| s != raw.seq0);
+    b.seq0 = raw.seq0;
+    b.t0_ns = raw.t0_ns;
+    b.temp_c = raw.temp_c;
+    b.status = Some(raw.status);
+    let mut seq = raw.seq0;
+    let mut gi = 0;
+    for i in 0..raw.counts.len() {
+        while gi < raw.gaps.len() && raw.gaps[gi].index == i as u64 {
+            let g = raw.gaps[gi];
+            let t_ns = raw.t0_ns + ((seq - raw.seq0) as f64 * raw.dt_ns as f64).round() as u64;
+            b.events.push(Event {
+                t_ns,
+                kind: EventKind::Gap { seq, lost: g.lost },
+                gyro: None,
+            });
+            seq += g.lost;
+            gi += 1;
+        }
+        seq += 1;
+    }
+    b.counts = raw.counts;
+    b.gaps = raw.gaps;
+    b
 }
 
 /// Keep at most `periods` sample periods of `raw` (cut at a sample).
@@ -482,138 +488,6 @@ fn truncate_periods(raw: &mut RawBatch, periods: u64) {
             raw.gaps.retain(|g| g.index <= i as u64);
             return;
         }
-    }
-}
-
-/// Streams the `/gyro/raw` messages of an MCAP recording without decoding the
-/// other channels; stops cleanly at a truncation (see [`RawReader::broken`]).
-pub struct RawReader {
-    path: PathBuf,
-    file: BufReader<File>,
-    reader: LinearReader,
-    raw_channel: Option<u16>,
-    offset: u64,
-    broken: Option<(u64, String)>,
-    done: bool,
-    queue: std::collections::VecDeque<RawBatch>,
-}
-
-impl RawReader {
-    /// Open a recording.
-    pub fn open(path: &Path) -> Result<RawReader, ReplayError> {
-        let file = File::open(path).map_err(|source| ReplayError::Io {
-            path: path.to_path_buf(),
-            offset: 0,
-            source,
-        })?;
-        let len = file.metadata().map(|m| m.len()).unwrap_or(u64::MAX);
-        let options = LinearReaderOptions::default()
-            .with_validate_chunk_crcs(true)
-            .with_record_length_limit(usize::try_from(len).unwrap_or(usize::MAX).max(1 << 20));
-        Ok(RawReader {
-            path: path.to_path_buf(),
-            file: BufReader::with_capacity(READ_CHUNK, file),
-            reader: LinearReader::new_with_options(options),
-            raw_channel: None,
-            offset: 0,
-            broken: None,
-            done: false,
-            queue: Default::default(),
-        })
-    }
-
-    /// Bytes of the file read so far.
-    pub fn offset(&self) -> u64 {
-        self.offset
-    }
-
-    /// Where (bytes read when it happened) and why reading stopped early (a cut
-    /// or damaged file), if it did.
-    pub fn broken(&self) -> Option<(u64, &str)> {
-        self.broken
-            .as_ref()
-            .map(|(offset, reason)| (*offset, reason.as_str()))
-    }
-
-    /// The next `/gyro/raw` message, `None` at the end (or at a break).
-    pub fn next_raw(&mut self) -> Result<Option<RawBatch>, ReplayError> {
-        loop {
-            if let Some(m) = self.queue.pop_front() {
-                return Ok(Some(m));
-            }
-            if self.done {
-                return Ok(None);
-            }
-            self.step()?;
-        }
-    }
-
-    fn step(&mut self) -> Result<(), ReplayError> {
-        let Some(event) = self.reader.next_event() else {
-            self.done = true;
-            return Ok(());
-        };
-        match event {
-            Err(e) => {
-                // A cut file (crash): stop here, as recover_recording does. A file
-                // that is not MCAP at all, or broken at its start, is an error.
-                if self.raw_channel.is_none() {
-                    return Err(ReplayError::Mcap {
-                        path: self.path.clone(),
-                        offset: self.offset,
-                        source: e,
-                    });
-                }
-                self.broken = Some((self.offset, e.to_string()));
-                self.done = true;
-            }
-            Ok(LinearReadEvent::ReadRequest(need)) => {
-                let buf = self.reader.insert(need.clamp(1, READ_CHUNK));
-                let n = loop {
-                    match self.file.read(buf) {
-                        Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
-                        r => break r,
-                    }
-                }
-                .map_err(|source| ReplayError::Io {
-                    path: self.path.clone(),
-                    offset: self.offset,
-                    source,
-                })?;
-                self.offset += n as u64;
-                self.reader.notify_read(n);
-            }
-            Ok(LinearReadEvent::Record { data, opcode }) => match opcode {
-                op::CHANNEL => {
-                    if let Ok(Record::Channel(c)) = ::mcap::parse_record(opcode, data)
-                        && c.topic == Topic::Raw.name()
-                    {
-                        self.raw_channel = Some(c.id);
-                    }
-                }
-                // Header: channel id u16, sequence u32, log and publish time u64.
-                op::MESSAGE
-                    if data.len() >= 22
-                        && Some(u16::from_le_bytes([data[0], data[1]])) == self.raw_channel =>
-                {
-                    let sequence = u32::from_le_bytes([data[2], data[3], data[4], data[5]]);
-                    match SinkMessage::from_json(Topic::Raw, &data[22..]) {
-                        Ok(SinkMessage::Raw(m)) => self.queue.push_back(m),
-                        Ok(_) => {}
-                        Err(e) => {
-                            return Err(ReplayError::Message {
-                                path: self.path.clone(),
-                                offset: self.offset,
-                                sequence,
-                                reason: e.to_string(),
-                            });
-                        }
-                    }
-                }
-                _ => {}
-            },
-        }
-        Ok(())
     }
 }
 
