@@ -13,7 +13,7 @@ use std::time::Duration;
 use daemon_common::*;
 use sagnac::daemon::bench::write_paced;
 use sagnac::model::{GyroModel, Simulator};
-use sagnac::source::frame::inject::{FaultPlan, FrameAction, InjectorConfig, inject_wire};
+use sagnac::source::frame::inject::{FaultPlan, FrameAction, inject_wire};
 use sagnac::source::frame::{Triad, TriadEncoder, triad::encode_triad_increments};
 
 const RATE_HZ: f64 = 1000.0;
@@ -49,17 +49,7 @@ fn a_triad_over_a_pty_exact_per_gyro_counts_estimates_and_every_pulse_recorded()
     // the sequence wraps after 536 frames; the x and y counters wrap too
     let mut enc = TriadEncoder::new(65_000, [u32::MAX - 300, 200, 1 << 31]);
     let frames = encode_triad_increments(&mut enc, &triad).unwrap();
-    let cfg = InjectorConfig {
-        drop_prob: 0.004,
-        flip_prob: 0.004,
-        duplicate_prob: 0.001,
-        garbage_prob: 0.004,
-        garbage_max_len: 40,
-        false_sync_prob: 0.3,
-        tail_max_len: 0,
-        protect_first: true,
-        protect_last: true,
-    };
+    let cfg = serial_faults();
     let mut plan = FaultPlan::random_for::<Triad>(frames.len(), &cfg, 9);
     for i in 20_000..20_040 {
         plan.set_action(i, FrameAction::Drop);
