@@ -351,13 +351,9 @@ pub fn run_capture_tapped(
         for s in &block.samples {
             series.push_sample(s);
         }
-        out.clear();
-        let first_sample = pipe.samples();
-        pipe.push_counts_filled(&series.counts, &series.filled, &mut out);
+        let first_sample = push_filled(&mut pipe, &series, &mut out);
         if let Some(tap) = tap.as_deref_mut() {
-            let k = cfg.pulse_arcsec.unwrap_or(1.0) * cfg.rate_hz;
-            rates.clear();
-            rates.extend(series.counts.iter().map(|&c| c as f64 * k));
+            tap_rates(cfg, &series.counts, &mut rates);
             temps.clear();
             let (mut gaps, mut lost) = (0, 0);
             for s in &block.samples {
@@ -389,6 +385,22 @@ pub fn run_capture_tapped(
     pipe.finish(&mut out);
     tap_flush(tap, &pipe, &out);
     Ok((pipe, *reader.stats()))
+}
+
+/// Push a gap-filled block of counts into `pipe` (its output replaces `out`);
+/// the index of the block's first sample.
+fn push_filled(pipe: &mut Pipeline, series: &FilledSeries, out: &mut PipelineOutput) -> u64 {
+    out.clear();
+    let first_sample = pipe.samples();
+    pipe.push_counts_filled(&series.counts, &series.filled, out);
+    first_sample
+}
+
+/// The rates (deg/h) of `counts` at `cfg`'s rate and pulse weight, for a tap.
+fn tap_rates(cfg: &PipelineConfig, counts: &[i64], rates: &mut Vec<f64>) {
+    let k = cfg.pulse_arcsec.unwrap_or(1.0) * cfg.rate_hz;
+    rates.clear();
+    rates.extend(counts.iter().map(|&c| c as f64 * k));
 }
 
 /// The sample rate and pulse weight an MCAP recording's counts are read with.
@@ -548,13 +560,9 @@ pub fn run_recording_tapped(
             }
             series.push(c, lost);
         }
-        out.clear();
-        let first_sample = pipe.samples();
-        pipe.push_counts_filled(&series.counts, &series.filled, &mut out);
+        let first_sample = push_filled(&mut pipe, &series, &mut out);
         if let Some(tap) = tap.as_deref_mut() {
-            let k = cfg.pulse_arcsec.unwrap_or(1.0) * cfg.rate_hz;
-            rates.clear();
-            rates.extend(series.counts.iter().map(|&c| c as f64 * k));
+            tap_rates(cfg, &series.counts, &mut rates);
             let temp_c = b.temp_c.map(|t| {
                 temps.clear();
                 temps.resize(series.counts.len(), t);

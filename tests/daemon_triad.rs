@@ -212,38 +212,25 @@ fn a_triad_over_a_pty_exact_per_gyro_counts_estimates_and_every_pulse_recorded()
         );
     }
     // analyze reads one gyro of the recording
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_sagnac"))
-        .args([
-            "analyze",
-            "--input",
-            rec.to_str().unwrap(),
-            "--format",
-            "mcap",
-            "--json",
-            "-",
-        ])
-        .output()
-        .unwrap();
+    let sagnac = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_sagnac"))
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let rec_s = rec.to_str().unwrap();
+    let out = sagnac(&[
+        "analyze", "--input", rec_s, "--format", "mcap", "--json", "-",
+    ]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         err.contains("several gyros (x, y, z)") && err.contains("--gyro"),
         "{err}"
     );
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_sagnac"))
-        .args([
-            "analyze",
-            "--input",
-            rec.to_str().unwrap(),
-            "--format",
-            "mcap",
-            "--gyro",
-            "z",
-            "--json",
-            "-",
-        ])
-        .output()
-        .unwrap();
+    let out = sagnac(&[
+        "analyze", "--input", rec_s, "--format", "mcap", "--gyro", "z", "--json", "-",
+    ]);
     assert!(
         out.status.success(),
         "{}",
@@ -252,16 +239,7 @@ fn a_triad_over_a_pty_exact_per_gyro_counts_estimates_and_every_pulse_recorded()
     let a: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(a["input"]["gyro"], "z", "the JSON says which gyro it read");
     // `sagnac run` replays one gyro: the recording of three is refused, naming them
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_sagnac"))
-        .args([
-            "run",
-            "--replay",
-            rec.to_str().unwrap(),
-            "--metrics-addr",
-            "",
-        ])
-        .output()
-        .unwrap();
+    let out = sagnac(&["run", "--replay", rec_s, "--metrics-addr", ""]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(

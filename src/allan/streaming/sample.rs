@@ -472,35 +472,31 @@ mod tests {
     type F64Kernel = fn(&[f64], &[f64], &[f64], &mut [f64; LANES]);
     type I64Kernel = fn(&[i64], &[i64], &[i64], &mut u128);
 
-    /// The dispatched kernels and every variant this CPU runs ([`Isa::available`]).
+    /// The dispatched kernel `$dispatched` and every variant of `$on` this CPU
+    /// runs ([`Isa::available`]), named.
+    macro_rules! variants {
+        ($ty:ty, $dispatched:ident, $on:ident) => {{
+            let mut k: Vec<(String, $ty)> = vec![("dispatched".into(), $dispatched)];
+            for isa in Isa::available() {
+                let f: $ty = match isa {
+                    Isa::Baseline => |a, b, c, t| $on(Isa::Baseline, a, b, c, t),
+                    #[cfg(target_arch = "x86_64")]
+                    Isa::Avx2 => |a, b, c, t| $on(Isa::Avx2, a, b, c, t),
+                    #[cfg(target_arch = "x86_64")]
+                    Isa::Avx512 => |a, b, c, t| $on(Isa::Avx512, a, b, c, t),
+                };
+                k.push((format!("{isa:?}"), f));
+            }
+            k
+        }};
+    }
+
     fn f64_kernels() -> Vec<(String, F64Kernel)> {
-        let mut k: Vec<(String, F64Kernel)> = vec![("dispatched".into(), sq_acc_f64)];
-        for isa in Isa::available() {
-            let f: F64Kernel = match isa {
-                Isa::Baseline => |a, b, c, l| sq_acc_f64_on(Isa::Baseline, a, b, c, l),
-                #[cfg(target_arch = "x86_64")]
-                Isa::Avx2 => |a, b, c, l| sq_acc_f64_on(Isa::Avx2, a, b, c, l),
-                #[cfg(target_arch = "x86_64")]
-                Isa::Avx512 => |a, b, c, l| sq_acc_f64_on(Isa::Avx512, a, b, c, l),
-            };
-            k.push((format!("{isa:?}"), f));
-        }
-        k
+        variants!(F64Kernel, sq_acc_f64, sq_acc_f64_on)
     }
 
     fn i64_kernels() -> Vec<(String, I64Kernel)> {
-        let mut k: Vec<(String, I64Kernel)> = vec![("dispatched".into(), sq_acc_i64)];
-        for isa in Isa::available() {
-            let f: I64Kernel = match isa {
-                Isa::Baseline => |a, b, c, t| sq_acc_i64_on(Isa::Baseline, a, b, c, t),
-                #[cfg(target_arch = "x86_64")]
-                Isa::Avx2 => |a, b, c, t| sq_acc_i64_on(Isa::Avx2, a, b, c, t),
-                #[cfg(target_arch = "x86_64")]
-                Isa::Avx512 => |a, b, c, t| sq_acc_i64_on(Isa::Avx512, a, b, c, t),
-            };
-            k.push((format!("{isa:?}"), f));
-        }
-        k
+        variants!(I64Kernel, sq_acc_i64, sq_acc_i64_on)
     }
 
     #[test]
