@@ -664,6 +664,8 @@ enum TopLevel {
 }
 
 /// A record that may sit inside a chunk.
+// Returned by value and consumed at once: boxing the message would allocate per message.
+#[allow(clippy::large_enum_variant)]
 enum Inner {
     /// One of our messages, decoded.
     Ours(RecordedMessage),
