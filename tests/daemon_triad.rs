@@ -13,6 +13,7 @@ use std::time::Duration;
 use daemon_common::*;
 use sagnac::daemon::bench::write_paced;
 use sagnac::model::{GyroModel, Simulator};
+use sagnac::sink::reader::RawReader;
 use sagnac::source::frame::inject::{FaultPlan, FrameAction, inject_wire};
 use sagnac::source::frame::{Triad, TriadEncoder, triad::encode_triad_increments};
 
@@ -238,13 +239,45 @@ fn a_triad_over_a_pty_exact_per_gyro_counts_estimates_and_every_pulse_recorded()
     );
     let a: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(a["input"]["gyro"], "z", "the JSON says which gyro it read");
-    // `sagnac run` replays one gyro: the recording of three is refused, naming them
-    let out = sagnac(&["run", "--replay", rec_s, "--metrics-addr", ""]);
+    // `sagnac run --replay` of the recording: three gyros again, each with its
+    // label; each one's raw channel holds the recorded samples and gaps, so
+    // analyze reads the same gyro z from both recordings
+    let rec2_dir = dir.path().join("replayed");
+    let out = sagnac(&[
+        "run",
+        "--replay",
+        rec_s,
+        "--record-dir",
+        rec2_dir.to_str().unwrap(),
+        "--metrics-addr",
+        "",
+    ]);
     let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{err}");
-    assert!(
-        err.contains("a recording of several gyros (x, y, z) cannot be replayed"),
-        "{err}"
+    assert!(out.status.success(), "{err}");
+    let rec2 = only_recording(&rec2_dir);
+    for g in ["x", "y", "z"] {
+        let raw = |p: &std::path::Path| {
+            let mut r = RawReader::open(p, Some(g), true).unwrap();
+            let (mut counts, mut lost, mut first) = (Vec::new(), 0u64, None);
+            while let Some(b) = r.next_batch().unwrap() {
+                first.get_or_insert((b.seq0, b.t0_ns));
+                counts.extend_from_slice(&b.counts);
+                lost += b.gaps.iter().map(|g| g.lost).sum::<u64>();
+            }
+            (counts, lost, first)
+        };
+        let (live, replayed) = (raw(&rec), raw(&rec2));
+        assert_eq!(live.0.len(), e.samples as usize, "gyro {g}");
+        assert_eq!(live, replayed, "gyro {g}");
+    }
+    let rec2_s = rec2.to_str().unwrap();
+    let out2 = sagnac(&[
+        "analyze", "--input", rec2_s, "--format", "mcap", "--gyro", "z", "--json", "-",
+    ]);
+    let a2: serde_json::Value = serde_json::from_slice(&out2.stdout).unwrap();
+    assert_eq!(
+        a2["estimates"], a["estimates"],
+        "analyze of z, live vs replayed"
     );
     let rec_z = &v["gyros"]["z"]["last_estimates"]["estimates"]["quantization_arcsec"]["value"];
     let an_z = a["estimates"]["quantization_arcsec"]["value"]

@@ -11,8 +11,8 @@
 //!   `diagnose` read), are fed back; the other channels are skipped without being
 //!   decoded. A recording cut by a crash is replayed up to its last complete
 //!   chunk (with a warning). Gap events are re-emitted from the recorded gaps;
-//!   the other recorded events are not. A recording of several gyros is refused
-//!   with an error naming them.
+//!   the other recorded events are not. A recording of several gyros replays
+//!   as several gyros, each with its recorded label and its own pipeline.
 //!
 //! Replays are lossless: the source runs on a blocking thread and waits for room
 //! in the pipeline's bounded queue (backpressure), so its speed is that of the
@@ -58,13 +58,6 @@ pub enum ReplayError {
         offset: u64,
         reason: String,
     },
-    /// A recording of several gyros: `sagnac run` replays one.
-    #[error(
-        "{}: a recording of several gyros ({}) cannot be replayed by `sagnac run`: replay \
-         the raw frame captures, or read each gyro with `sagnac analyze --gyro LABEL`",
-        path.display(), labels.join(", ")
-    )]
-    SeveralGyros { path: PathBuf, labels: Vec<String> },
     /// The recording's sample period disagrees with the configured rate.
     #[error(
         "{}: /gyro/raw has a sample period of {dt_ns} ns but the gyro rate is {rate_hz} Hz \
@@ -133,34 +126,43 @@ pub struct RecordedGyro {
     pub rate_rel_tol: f64,
 }
 
-/// The gyro of an MCAP recording: its `sagnac` metadata record
+/// The gyros of an MCAP recording, in order: for a recording of one gyro
+/// (label `None`), its `sagnac` metadata record
 /// ([`crate::sink::reader::read_metadata`]), or for an older recording without
-/// one the sample period of its first `/gyro/raw` message (no pulse weight).
-/// A recording of several gyros is an error naming them.
-pub fn probe_mcap_gyro(path: &Path) -> Result<RecordedGyro, ReplayError> {
+/// one the sample period of its first `/gyro/raw` message (no pulse weight);
+/// for a recording of several, each gyro's `sagnac/<label>` record.
+pub fn probe_mcap_gyros(path: &Path) -> Result<Vec<(Option<String>, RecordedGyro)>, ReplayError> {
+    let from_meta = |meta: crate::sink::meta::RecordingMeta| RecordedGyro {
+        rate_hz: Some(meta.sample_rate_hz),
+        pulse_arcsec: meta.pulse_arcsec,
+        origin: "in its sagnac metadata record",
+        rate_rel_tol: crate::sink::meta::AGREE_REL,
+    };
     let labels = crate::sink::reader::recording_gyro_labels(path)?;
     if !labels.is_empty() {
-        return Err(ReplayError::SeveralGyros {
-            path: path.to_path_buf(),
-            labels,
-        });
+        let mut gyros = Vec::new();
+        for label in labels {
+            // the labels are those of the gyros' metadata records
+            if let Some(meta) = crate::sink::reader::read_metadata_of(path, Some(&label))? {
+                gyros.push((Some(label), from_meta(meta)));
+            }
+        }
+        return Ok(gyros);
     }
     if let Some(meta) = crate::sink::reader::read_metadata(path)? {
-        return Ok(RecordedGyro {
-            rate_hz: Some(meta.sample_rate_hz),
-            pulse_arcsec: meta.pulse_arcsec,
-            origin: "in its sagnac metadata record",
-            rate_rel_tol: crate::sink::meta::AGREE_REL,
-        });
+        return Ok(vec![(None, from_meta(meta))]);
     }
     let dt = crate::sink::reader::first_raw_period_ns(path, None)?;
-    Ok(RecordedGyro {
-        rate_hz: dt.map(|dt| 1e9 / dt as f64),
-        pulse_arcsec: None,
-        origin: "as the sample period of /gyro/raw",
-        // 1 ns in the period
-        rate_rel_tol: dt.map_or(0.0, |dt| 1.0 / dt as f64),
-    })
+    Ok(vec![(
+        None,
+        RecordedGyro {
+            rate_hz: dt.map(|dt| 1e9 / dt as f64),
+            pulse_arcsec: None,
+            origin: "as the sample period of /gyro/raw",
+            // 1 ns in the period
+            rate_rel_tol: dt.map_or(0.0, |dt| 1.0 / dt as f64),
+        },
+    )])
 }
 
 /// Settings of the replay source.
@@ -183,6 +185,8 @@ pub struct ReplayConfig {
 pub struct ReplaySource {
     config: ReplayConfig,
     kind: CaptureKind,
+    /// The gyros of an MCAP recording of several, in order (empty: one gyro).
+    gyros: Vec<String>,
 }
 
 impl ReplayConfig {
@@ -196,7 +200,15 @@ impl ReplayConfig {
             return Err(bad("rate_hz", self.rate_hz.to_string(), "must be > 0"));
         }
         let kind = probe(&self.path)?;
-        Ok(ReplaySource { config: self, kind })
+        let gyros = match kind {
+            CaptureKind::Mcap => crate::sink::reader::recording_gyro_labels(&self.path)?,
+            CaptureKind::Frames => Vec::new(),
+        };
+        Ok(ReplaySource {
+            config: self,
+            kind,
+            gyros,
+        })
     }
 }
 
@@ -261,22 +273,25 @@ impl ReplaySource {
         self.kind
     }
 
+    /// The gyros of an MCAP recording of several, in order (empty for one gyro
+    /// and for a frame capture, whose gyros its frame format says).
+    pub fn recorded_gyros(&self) -> &[String] {
+        &self.gyros
+    }
+
     /// Replay on the calling (blocking) thread until the end of the capture, the
     /// period limit, or a shutdown. `W` is the frame format of a frame capture;
-    /// `outs` holds each of its gyros' telemetry and sender (one for an MCAP
-    /// recording, whose replay is of its single gyro).
+    /// `outs` holds each of its gyros' telemetry and sender (for an MCAP
+    /// recording, one per recorded gyro, in [`ReplaySource::recorded_gyros`] order).
     pub fn run_blocking<W: Axes>(
         self,
-        mut outs: Vec<(Telemetry, BatchSender)>,
+        outs: Vec<(Telemetry, BatchSender)>,
         shutdown: Shutdown,
     ) -> Result<SourceReport, ReplayError> {
         let path = self.config.path.clone();
         let report = match self.kind {
             CaptureKind::Frames => self.replay_frames::<W>(outs, &shutdown),
-            CaptureKind::Mcap => {
-                let (telemetry, mut out) = outs.remove(0);
-                self.replay_mcap(&mut out, telemetry, &shutdown)
-            }
+            CaptureKind::Mcap => self.replay_mcap(outs, &shutdown),
         }?;
         if report.samples == 0 && !shutdown.is_requested() {
             return Err(ReplayError::NoSamples {
@@ -372,55 +387,51 @@ impl ReplaySource {
 
     fn replay_mcap(
         &self,
-        out: &mut BatchSender,
-        telemetry: Telemetry,
+        outs: Vec<(Telemetry, BatchSender)>,
         shutdown: &Shutdown,
     ) -> Result<SourceReport, ReplayError> {
         let cfg = &self.config;
-        let period_ns = 1e9 / cfg.rate_hz;
         let pacer = Pacer::new(cfg.rate_hz, cfg.speed);
         // Up to the last complete chunk of a cut recording (the shared reader's
         // recovery), the other channels skipped undecoded.
-        let mut reader = RawReader::open(&cfg.path, None, false)?;
-        let mut report = SourceReport::default();
-        let mut next_seq: Option<u64> = None;
+        let mut reader = if self.gyros.is_empty() {
+            RawReader::open(&cfg.path, None, false)?
+        } else {
+            RawReader::open_every(&cfg.path, false)?
+        };
+        let mut lanes: Vec<McapLane> = outs.into_iter().map(McapLane::new).collect();
         let mut read_bytes = 0u64;
         while !shutdown.is_requested() {
-            let Some(mut raw) = reader.next_batch()? else {
+            let Some((gyro, raw)) = reader.next_labelled()? else {
                 break;
             };
-            if !raw.counts.is_empty() && (raw.dt_ns as f64 - period_ns).abs() > 1.0 {
-                return Err(ReplayError::RateMismatch {
-                    path: cfg.path.clone(),
-                    dt_ns: raw.dt_ns,
-                    rate_hz: cfg.rate_hz,
-                    recorded_hz: 1e9 / raw.dt_ns as f64,
-                });
-            }
-            // Apply the period limit at a sample boundary.
-            if let Some(limit) = cfg.limit_periods {
-                let left = limit.saturating_sub(report.periods);
-                if left == 0 {
+            let i = match &gyro {
+                None => 0,
+                Some(g) => match self.gyros.iter().position(|l| l == g) {
+                    Some(i) => i,
+                    None => continue,
+                },
+            };
+            let Some(mut b) = lanes[i].batch(raw, cfg)? else {
+                if lanes.iter().all(|l| l.done) {
                     break;
                 }
-                truncate_periods(&mut raw, left);
-            }
-            let mut b = recorded_batch(raw, next_seq);
-            let lost: u64 = b.gaps.iter().map(|g| g.lost).sum();
-            telemetry.gyro.add_samples(b.counts.len() as u64);
-            telemetry.gyro.add_lost_samples(lost);
+                continue;
+            };
             let now_read = reader.bytes_read();
-            telemetry.metrics.add_bytes_read(now_read - read_bytes);
+            lanes[0]
+                .telemetry
+                .metrics
+                .add_bytes_read(now_read - read_bytes);
             read_bytes = now_read;
-            report.samples += b.counts.len() as u64;
-            report.periods += b.periods();
-            next_seq = Some(b.seq0 + b.periods());
-            if !pacer.wait_until(report.periods, shutdown) {
+            if !pacer.wait_until(lanes[i].report.periods, shutdown) {
                 break;
             }
             b.arrived = Instant::now();
-            out.blocking_send(b).map_err(self.pipeline_err())?;
+            lanes[i].out.blocking_send(b).map_err(self.pipeline_err())?;
         }
+        // per gyro: every gyro's samples and periods are those of the first
+        let mut report = lanes.swap_remove(0).report;
         report.bytes_read = reader.bytes_read();
         if let Some(cut) = &reader.report().break_at {
             if report.samples == 0 {
@@ -439,6 +450,64 @@ impl ReplaySource {
             );
         }
         Ok(report)
+    }
+}
+
+/// One recorded gyro of an MCAP replay: where its batches go, and its counts.
+struct McapLane {
+    telemetry: Telemetry,
+    out: BatchSender,
+    report: SourceReport,
+    next_seq: Option<u64>,
+    /// The period limit is reached.
+    done: bool,
+}
+
+impl McapLane {
+    fn new((telemetry, out): (Telemetry, BatchSender)) -> McapLane {
+        McapLane {
+            telemetry,
+            out,
+            report: SourceReport::default(),
+            next_seq: None,
+            done: false,
+        }
+    }
+
+    /// The source batch of the recorded batch `raw` (cut at the period limit),
+    /// counted; `None` once the limit is reached. The recorded sample period
+    /// must be the configured rate's.
+    fn batch(
+        &mut self,
+        mut raw: RawBatch,
+        cfg: &ReplayConfig,
+    ) -> Result<Option<SourceBatch>, ReplayError> {
+        let period_ns = 1e9 / cfg.rate_hz;
+        if !raw.counts.is_empty() && (raw.dt_ns as f64 - period_ns).abs() > 1.0 {
+            return Err(ReplayError::RateMismatch {
+                path: cfg.path.clone(),
+                dt_ns: raw.dt_ns,
+                rate_hz: cfg.rate_hz,
+                recorded_hz: 1e9 / raw.dt_ns as f64,
+            });
+        }
+        // Apply the period limit at a sample boundary.
+        if let Some(limit) = cfg.limit_periods {
+            let left = limit.saturating_sub(self.report.periods);
+            if left == 0 {
+                self.done = true;
+                return Ok(None);
+            }
+            truncate_periods(&mut raw, left);
+        }
+        let b = recorded_batch(raw, self.next_seq);
+        let lost: u64 = b.gaps.iter().map(|g| g.lost).sum();
+        self.telemetry.gyro.add_samples(b.counts.len() as u64);
+        self.telemetry.gyro.add_lost_samples(lost);
+        self.report.samples += b.counts.len() as u64;
+        self.report.periods += b.periods();
+        self.next_seq = Some(b.seq0 + b.periods());
+        Ok(Some(b))
     }
 }
 

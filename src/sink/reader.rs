@@ -271,6 +271,8 @@ pub enum Selection {
     /// Only the raw counts of one gyro: `/gyro/raw` for `None` (a recording of
     /// one gyro), `/gyro/<label>/raw` for `Some(label)`.
     Raw(Option<String>),
+    /// The raw counts of every gyro.
+    EveryRaw,
 }
 
 impl Selection {
@@ -278,6 +280,7 @@ impl Selection {
         match self {
             Selection::All => true,
             Selection::Raw(g) => topic == Topic::Raw && gyro == g.as_deref(),
+            Selection::EveryRaw => topic == Topic::Raw,
         }
     }
 }
@@ -486,9 +489,9 @@ impl<R: Read> RecordingReader<R> {
     }
 }
 
-/// One gyro's raw counts in a recording, pulled batch by batch
-/// ([`RawReader::next_batch`]): what replay, `analyze` and `diagnose` read.
-/// The recording's other channels are skipped without being decoded.
+/// One gyro's raw counts in a recording (or every gyro's), pulled batch by
+/// batch ([`RawReader::next_batch`]): what replay, `analyze` and `diagnose`
+/// read. The recording's other channels are skipped without being decoded.
 pub struct RawReader<R: Read = BufReader<File>> {
     inner: RecordingReader<R>,
 }
@@ -499,6 +502,14 @@ impl RawReader {
     pub fn open(path: &Path, gyro: Option<&str>, strict: bool) -> Result<RawReader, ReadError> {
         let (file, len) = open(path)?;
         RawReader::from_reader(BufReader::new(file), len, path, gyro, strict)
+    }
+
+    /// The raw batches of every gyro of `path`, in file order (see
+    /// [`RawReader::next_labelled`]).
+    pub fn open_every(path: &Path, strict: bool) -> Result<RawReader, ReadError> {
+        Ok(RawReader {
+            inner: RecordingReader::open(path, strict)?.select(Selection::EveryRaw),
+        })
     }
 }
 
@@ -520,9 +531,15 @@ impl<R: Read> RawReader<R> {
     /// The next batch of raw counts (with its gaps, sequence numbers, times,
     /// temperature and status as recorded), `None` at the end or at the break.
     pub fn next_batch(&mut self) -> Result<Option<RawBatch>, ReadError> {
+        Ok(self.next_labelled()?.map(|(_, b)| b))
+    }
+
+    /// [`RawReader::next_batch`] with the gyro whose batch it is (`None`: the
+    /// `/gyro/raw` of a recording of one gyro).
+    pub fn next_labelled(&mut self) -> Result<Option<(Option<String>, RawBatch)>, ReadError> {
         while let Some(m) = self.inner.next_message()? {
             if let SinkMessage::Raw(b) = m.message {
-                return Ok(Some(b));
+                return Ok(Some((m.gyro, b)));
             }
         }
         Ok(None)
