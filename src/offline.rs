@@ -13,9 +13,8 @@
 use std::path::{Path, PathBuf};
 
 use crate::pipeline::{Pipeline, PipelineConfig, PipelineError, PipelineOutput};
-use crate::sink::messages::SinkMessage;
 use crate::sink::meta::{AGREE_REL, Contradiction, GyroOutput, check_flag};
-use crate::sink::reader::{ReadError, scan_recording};
+use crate::sink::reader::{RawReader, ReadError, first_raw_period_ns};
 use crate::source::capture::{CaptureError, CaptureReader};
 use crate::source::frame::FilledSeries;
 use crate::source::input::{InputError, InputFormat, SampleReader};
@@ -352,13 +351,9 @@ pub fn run_capture_tapped(
         for s in &block.samples {
             series.push_sample(s);
         }
-        out.clear();
-        let first_sample = pipe.samples();
-        pipe.push_counts_filled(&series.counts, &series.filled, &mut out);
+        let first_sample = push_filled(&mut pipe, &series, &mut out);
         if let Some(tap) = tap.as_deref_mut() {
-            let k = cfg.pulse_arcsec.unwrap_or(1.0) * cfg.rate_hz;
-            rates.clear();
-            rates.extend(series.counts.iter().map(|&c| c as f64 * k));
+            tap_rates(cfg, &series.counts, &mut rates);
             temps.clear();
             let (mut gaps, mut lost) = (0, 0);
             for s in &block.samples {
@@ -390,6 +385,22 @@ pub fn run_capture_tapped(
     pipe.finish(&mut out);
     tap_flush(tap, &pipe, &out);
     Ok((pipe, *reader.stats()))
+}
+
+/// Push a gap-filled block of counts into `pipe` (its output replaces `out`);
+/// the index of the block's first sample.
+fn push_filled(pipe: &mut Pipeline, series: &FilledSeries, out: &mut PipelineOutput) -> u64 {
+    out.clear();
+    let first_sample = pipe.samples();
+    pipe.push_counts_filled(&series.counts, &series.filled, out);
+    first_sample
+}
+
+/// The rates (deg/h) of `counts` at `cfg`'s rate and pulse weight, for a tap.
+fn tap_rates(cfg: &PipelineConfig, counts: &[i64], rates: &mut Vec<f64>) {
+    let k = cfg.pulse_arcsec.unwrap_or(1.0) * cfg.rate_hz;
+    rates.clear();
+    rates.extend(counts.iter().map(|&c| c as f64 * k));
 }
 
 /// The sample rate and pulse weight an MCAP recording's counts are read with.
@@ -443,7 +454,7 @@ pub fn recording_gyro(
             )
         }
         None => {
-            let dt = recording_period_ns(path, gyro.as_deref())?.filter(|dt| *dt > 0);
+            let dt = first_raw_period_ns(path, gyro.as_deref())?;
             let recorded = dt.map(|dt| 1e9 / dt as f64);
             let tol = dt.map_or(0.0, |dt| 1.0 / dt as f64);
             (
@@ -498,21 +509,6 @@ pub fn select_gyro(path: &Path, gyro: Option<&str>) -> Result<Option<String>, Of
     }
 }
 
-/// Sample period (ns) of the first `/gyro/raw` batch of a recording (of gyro
-/// `gyro`'s `/gyro/<label>/raw`), if any.
-pub fn recording_period_ns(path: &Path, gyro: Option<&str>) -> Result<Option<u64>, OfflineError> {
-    let mut dt = None;
-    scan_recording(path, false, &mut |m| {
-        if dt.is_none()
-            && m.gyro.as_deref() == gyro
-            && let SinkMessage::Raw(b) = &m.message
-        {
-            dt = Some(b.dt_ns);
-        }
-    })?;
-    Ok(dt)
-}
-
 /// Feed the `/gyro/raw` channel of an MCAP recording (of a recording of
 /// several gyros: gyro `gyro`'s `/gyro/<label>/raw`, see [`select_gyro`];
 /// truncated files are read up to their last complete chunk); gaps are
@@ -544,54 +540,47 @@ pub fn run_recording_tapped(
     let mut first_dt: Option<u64> = None;
     let mut mixed: Option<u64> = None;
     let mut implausible: Option<(u64, u64)> = None;
-    let report = scan_recording(path, false, &mut |m| {
-        if implausible.is_some() || m.gyro != gyro {
-            return;
+    let mut reader = RawReader::open(path, gyro.as_deref(), false)?;
+    while let Some(b) = reader.next_batch()? {
+        if let Some(g) = b.gaps.iter().find(|g| g.lost > MAX_GAP_SAMPLES) {
+            implausible = Some((b.t0_ns, g.lost));
+            break;
         }
-        if let SinkMessage::Raw(b) = m.message {
-            if let Some(g) = b.gaps.iter().find(|g| g.lost > MAX_GAP_SAMPLES) {
-                implausible = Some((b.t0_ns, g.lost));
-                return;
-            }
-            match first_dt {
-                None => first_dt = Some(b.dt_ns),
-                Some(d) if d != b.dt_ns && !b.counts.is_empty() => mixed = Some(b.dt_ns),
-                _ => {}
-            }
-            series.clear();
-            let mut gaps = b.gaps.iter().peekable();
-            for (i, &c) in b.counts.iter().enumerate() {
-                let mut lost = 0u64;
-                while let Some(g) = gaps.next_if(|g| g.index as usize == i) {
-                    lost += g.lost;
-                }
-                series.push(c, lost);
-            }
-            out.clear();
-            let first_sample = pipe.samples();
-            pipe.push_counts_filled(&series.counts, &series.filled, &mut out);
-            if let Some(tap) = tap.as_deref_mut() {
-                let k = cfg.pulse_arcsec.unwrap_or(1.0) * cfg.rate_hz;
-                rates.clear();
-                rates.extend(series.counts.iter().map(|&c| c as f64 * k));
-                let temp_c = b.temp_c.map(|t| {
-                    temps.clear();
-                    temps.resize(series.counts.len(), t);
-                    &temps[..]
-                });
-                tap(&TapBlock {
-                    first_sample,
-                    counts: Some(&series.counts),
-                    rate_dph: &rates,
-                    temp_c,
-                    gaps: b.gaps.len() as u64,
-                    lost_samples: b.gaps.iter().map(|g| g.lost).sum(),
-                    out: &out,
-                });
-            }
-            progress(pipe.samples(), None);
+        match first_dt {
+            None => first_dt = Some(b.dt_ns),
+            Some(d) if d != b.dt_ns && !b.counts.is_empty() => mixed = Some(b.dt_ns),
+            _ => {}
         }
-    })?;
+        series.clear();
+        let mut gaps = b.gaps.iter().peekable();
+        for (i, &c) in b.counts.iter().enumerate() {
+            let mut lost = 0u64;
+            while let Some(g) = gaps.next_if(|g| g.index as usize == i) {
+                lost += g.lost;
+            }
+            series.push(c, lost);
+        }
+        let first_sample = push_filled(&mut pipe, &series, &mut out);
+        if let Some(tap) = tap.as_deref_mut() {
+            tap_rates(cfg, &series.counts, &mut rates);
+            let temp_c = b.temp_c.map(|t| {
+                temps.clear();
+                temps.resize(series.counts.len(), t);
+                &temps[..]
+            });
+            tap(&TapBlock {
+                first_sample,
+                counts: Some(&series.counts),
+                rate_dph: &rates,
+                temp_c,
+                gaps: b.gaps.len() as u64,
+                lost_samples: b.gaps.iter().map(|g| g.lost).sum(),
+                out: &out,
+            });
+        }
+        progress(pipe.samples(), None);
+    }
+    let report = reader.report().clone();
     if let Some((t0_ns, lost)) = implausible {
         return Err(OfflineError::ImplausibleGap {
             path: path.to_path_buf(),

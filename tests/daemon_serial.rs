@@ -15,7 +15,7 @@ use std::time::Duration;
 
 use daemon_common::*;
 use sagnac::daemon::bench::{BenchEmulator, write_paced};
-use sagnac::source::frame::inject::{FaultPlan, FrameAction, InjectorConfig, Ledger};
+use sagnac::source::frame::inject::{FaultPlan, FrameAction, Ledger};
 
 /// Frame rate of the emulated gyro, Hz, and the emulator's speed-up over real time.
 const RATE_HZ: f64 = 1000.0;
@@ -36,17 +36,7 @@ fn config_file(dir: &Path) -> std::path::PathBuf {
 }
 
 fn faults(n_frames: usize, seed: u64) -> FaultPlan {
-    let cfg = InjectorConfig {
-        drop_prob: 0.004,
-        flip_prob: 0.004,
-        duplicate_prob: 0.001,
-        garbage_prob: 0.004,
-        garbage_max_len: 40,
-        false_sync_prob: 0.3,
-        tail_max_len: 0,
-        protect_first: true,
-        protect_last: true,
-    };
+    let cfg = serial_faults();
     let mut plan = FaultPlan::random(n_frames, &cfg, seed);
     // and one burst of 50 dropped frames
     for i in 7_000..7_050 {

@@ -13,7 +13,8 @@ use std::time::Duration;
 use daemon_common::*;
 use sagnac::daemon::bench::write_paced;
 use sagnac::model::{GyroModel, Simulator};
-use sagnac::source::frame::inject::{FaultPlan, FrameAction, InjectorConfig, inject_wire};
+use sagnac::sink::reader::RawReader;
+use sagnac::source::frame::inject::{FaultPlan, FrameAction, inject_wire};
 use sagnac::source::frame::{Triad, TriadEncoder, triad::encode_triad_increments};
 
 const RATE_HZ: f64 = 1000.0;
@@ -49,17 +50,7 @@ fn a_triad_over_a_pty_exact_per_gyro_counts_estimates_and_every_pulse_recorded()
     // the sequence wraps after 536 frames; the x and y counters wrap too
     let mut enc = TriadEncoder::new(65_000, [u32::MAX - 300, 200, 1 << 31]);
     let frames = encode_triad_increments(&mut enc, &triad).unwrap();
-    let cfg = InjectorConfig {
-        drop_prob: 0.004,
-        flip_prob: 0.004,
-        duplicate_prob: 0.001,
-        garbage_prob: 0.004,
-        garbage_max_len: 40,
-        false_sync_prob: 0.3,
-        tail_max_len: 0,
-        protect_first: true,
-        protect_last: true,
-    };
+    let cfg = serial_faults();
     let mut plan = FaultPlan::random_for::<Triad>(frames.len(), &cfg, 9);
     for i in 20_000..20_040 {
         plan.set_action(i, FrameAction::Drop);
@@ -222,38 +213,25 @@ fn a_triad_over_a_pty_exact_per_gyro_counts_estimates_and_every_pulse_recorded()
         );
     }
     // analyze reads one gyro of the recording
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_sagnac"))
-        .args([
-            "analyze",
-            "--input",
-            rec.to_str().unwrap(),
-            "--format",
-            "mcap",
-            "--json",
-            "-",
-        ])
-        .output()
-        .unwrap();
+    let sagnac = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_sagnac"))
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let rec_s = rec.to_str().unwrap();
+    let out = sagnac(&[
+        "analyze", "--input", rec_s, "--format", "mcap", "--json", "-",
+    ]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         err.contains("several gyros (x, y, z)") && err.contains("--gyro"),
         "{err}"
     );
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_sagnac"))
-        .args([
-            "analyze",
-            "--input",
-            rec.to_str().unwrap(),
-            "--format",
-            "mcap",
-            "--gyro",
-            "z",
-            "--json",
-            "-",
-        ])
-        .output()
-        .unwrap();
+    let out = sagnac(&[
+        "analyze", "--input", rec_s, "--format", "mcap", "--gyro", "z", "--json", "-",
+    ]);
     assert!(
         out.status.success(),
         "{}",
@@ -261,6 +239,46 @@ fn a_triad_over_a_pty_exact_per_gyro_counts_estimates_and_every_pulse_recorded()
     );
     let a: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(a["input"]["gyro"], "z", "the JSON says which gyro it read");
+    // `sagnac run --replay` of the recording: three gyros again, each with its
+    // label; each one's raw channel holds the recorded samples and gaps, so
+    // analyze reads the same gyro z from both recordings
+    let rec2_dir = dir.path().join("replayed");
+    let out = sagnac(&[
+        "run",
+        "--replay",
+        rec_s,
+        "--record-dir",
+        rec2_dir.to_str().unwrap(),
+        "--metrics-addr",
+        "",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let rec2 = only_recording(&rec2_dir);
+    for g in ["x", "y", "z"] {
+        let raw = |p: &std::path::Path| {
+            let mut r = RawReader::open(p, Some(g), true).unwrap();
+            let (mut counts, mut lost, mut first) = (Vec::new(), 0u64, None);
+            while let Some(b) = r.next_batch().unwrap() {
+                first.get_or_insert((b.seq0, b.t0_ns));
+                counts.extend_from_slice(&b.counts);
+                lost += b.gaps.iter().map(|g| g.lost).sum::<u64>();
+            }
+            (counts, lost, first)
+        };
+        let (live, replayed) = (raw(&rec), raw(&rec2));
+        assert_eq!(live.0.len(), e.samples as usize, "gyro {g}");
+        assert_eq!(live, replayed, "gyro {g}");
+    }
+    let rec2_s = rec2.to_str().unwrap();
+    let out2 = sagnac(&[
+        "analyze", "--input", rec2_s, "--format", "mcap", "--gyro", "z", "--json", "-",
+    ]);
+    let a2: serde_json::Value = serde_json::from_slice(&out2.stdout).unwrap();
+    assert_eq!(
+        a2["estimates"], a["estimates"],
+        "analyze of z, live vs replayed"
+    );
     let rec_z = &v["gyros"]["z"]["last_estimates"]["estimates"]["quantization_arcsec"]["value"];
     let an_z = a["estimates"]["quantization_arcsec"]["value"]
         .as_f64()

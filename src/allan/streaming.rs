@@ -114,6 +114,7 @@ pub use noise_id::{MIN_ID_POINTS, NoiseId};
 pub use sample::{Neumaier, PhaseValue};
 pub use strided_edf::{EdfError, edf_strided};
 
+use crate::dsp::isa::Isa;
 use noise_id::OctaveId;
 use strided_edf::LagSums;
 
@@ -557,14 +558,15 @@ impl<P: PhaseValue> Accumulators<P> {
         if !filled.is_empty() && end > b0 {
             self.subtract_filled(buf, base, b0, end, filled);
         }
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: the CPU supports AVX2 (checked just above).
-                return unsafe { self.process_avx2(g, buf, base, end, scratch, filled) };
-            }
+        match Isa::detect() {
+            Isa::Baseline => self.process_body(g, buf, base, end, scratch, filled),
+            // SAFETY: an `Avx2` or `Avx512` exists only on a CPU with AVX2
+            // (crate::dsp::isa), the one feature the variant enables.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 | Isa::Avx512 => unsafe {
+                self.process_avx2(g, buf, base, end, scratch, filled)
+            },
         }
-        self.process_body(g, buf, base, end, scratch, filled)
     }
 
     /// Full-overlap octaves: sum, separately, the terms ending in `[b0, end)`
@@ -620,12 +622,9 @@ impl<P: PhaseValue> Accumulators<P> {
     }
 
     /// The same code compiled for 256-bit vectors (no FMA: identical results).
-    ///
-    /// # Safety
-    /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn process_avx2(
+    fn process_avx2(
         &mut self,
         g: &Geometry,
         buf: &[P],

@@ -28,7 +28,6 @@ use crate::diagnose::{self, DiagnoseOptions, Recording};
 use crate::model::GyroModel;
 use crate::model::config::OutputKind;
 use crate::offline::RateUnit;
-use crate::sink::messages::SinkMessage;
 use crate::sink::meta::GyroOutput;
 use crate::sink::provenance::{InputSettings, Provenance};
 use crate::source::capture::CaptureReader;
@@ -430,32 +429,17 @@ fn read_frames(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
 
 fn read_mcap(path: &Path, gyro: Option<&str>, model: &GyroModel) -> anyhow::Result<Recording> {
     let gyro = crate::offline::select_gyro(path, gyro)?;
-    let rec = crate::sink::reader::read_recording(path)
+    // strict: a damaged or cut recording is an error (with the offset where it breaks)
+    let mut reader = crate::sink::reader::RawReader::open(path, gyro.as_deref(), true)
         .with_context(|| format!("reading the MCAP recording {}", path.display()))?;
-    // the recording's own rate and pulse weight (its metadata record), if it says them
-    let meta = match &gyro {
-        Some(g) => crate::sink::reader::read_metadata_of(path, Some(g))?,
-        None => rec.metadata.clone(),
-    };
-    if let Some(m) = &meta
-        && m.output == GyroOutput::Rate
-    {
-        bail!(
-            "{}: its metadata says output = rate (rate samples, not pulse counts): not supported by diagnose yet",
-            path.display()
-        );
-    }
     let mut series = FilledSeries::default();
     let mut temps: Vec<f64> = Vec::new();
     let mut any_temp = false;
     let mut dt_ns: Option<u64> = None;
-    for m in rec.messages {
-        if m.gyro != gyro {
-            continue;
-        }
-        let SinkMessage::Raw(b) = m.message else {
-            continue;
-        };
+    while let Some(b) = reader
+        .next_batch()
+        .with_context(|| format!("reading the MCAP recording {}", path.display()))?
+    {
         if b.counts.is_empty() {
             continue;
         }
@@ -495,6 +479,19 @@ fn read_mcap(path: &Path, gyro: Option<&str>, model: &GyroModel) -> anyhow::Resu
                 }
             }
         }
+    }
+    // the recording's own rate and pulse weight (its metadata record), if it says them
+    let meta = match &gyro {
+        Some(g) => crate::sink::reader::read_metadata_of(path, Some(g))?,
+        None => reader.report().metadata.clone(),
+    };
+    if let Some(m) = &meta
+        && m.output == GyroOutput::Rate
+    {
+        bail!(
+            "{}: its metadata says output = rate (rate samples, not pulse counts): not supported by diagnose yet",
+            path.display()
+        );
     }
     if series.is_empty() {
         bail!("{}: no /gyro/raw samples in the recording", path.display());

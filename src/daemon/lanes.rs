@@ -142,9 +142,9 @@ impl<W: Axes> Lanes<W> {
             return 0;
         };
         for (i, l) in self.lanes.iter_mut().enumerate() {
-            self.split.clear();
-            W::axis_run(&self.run, i, &mut self.split);
-            l.asm.push_run(&self.split, &end, now_ns);
+            // a single frame's run as decoded; a triad's split per gyro
+            let incs = W::axis_run(&self.run, i, &mut self.split);
+            l.asm.push_run(incs, &end, now_ns);
         }
         self.run.len()
     }

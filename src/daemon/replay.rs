@@ -6,10 +6,13 @@
 //!   same sans-IO [`FrameDecoder`] as the serial source, corruption included
 //!   (so the frame counters and events come out as they did live);
 //! * an MCAP recording made by `sagnac run`: the `/gyro/raw` messages (counts,
-//!   gaps, sequence numbers and sample times as recorded) are fed back; the other
-//!   channels are skipped without being decoded. A recording cut by a crash is
-//!   replayed up to its last complete chunk (with a warning). Gap events are
-//!   re-emitted from the recorded gaps; the other recorded events are not.
+//!   gaps, sequence numbers and sample times as recorded), pulled from the shared
+//!   recording reader ([`crate::sink::reader::RawReader`], the one `analyze` and
+//!   `diagnose` read), are fed back; the other channels are skipped without being
+//!   decoded. A recording cut by a crash is replayed up to its last complete
+//!   chunk (with a warning). Gap events are re-emitted from the recorded gaps;
+//!   the other recorded events are not. A recording of several gyros replays
+//!   as several gyros, each with its recorded label and its own pipeline.
 //!
 //! Replays are lossless: the source runs on a blocking thread and waits for room
 //! in the pipeline's bounded queue (backpressure), so its speed is that of the
@@ -17,19 +20,18 @@
 //! period `p` is sent no earlier than `start + p / (rate * speed)`.
 
 use std::fs::File;
-use std::io::{self, BufReader, Read};
+use std::io::{self, Read};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use ::mcap::records::{Record, op};
-use ::mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
 use bytes::BytesMut;
 
 use crate::daemon::batch::{BatchSender, PipelineClosed, SourceBatch, SourceReport, wall_ns};
 use crate::daemon::lanes::Lanes;
 use crate::daemon::shutdown::Shutdown;
 use crate::daemon::telemetry::Telemetry;
-use crate::sink::messages::{Event, EventKind, RawBatch, SinkMessage, Topic};
+use crate::sink::messages::{Event, EventKind, RawBatch};
+use crate::sink::reader::RawReader;
 use crate::source::frame::{Axes, DecoderConfig};
 
 /// Errors of the replay source; each names the file.
@@ -49,19 +51,11 @@ pub enum ReplayError {
         offset: u64,
         source: io::Error,
     },
-    /// The MCAP structure is broken before any sample could be read.
-    #[error("{}: MCAP record at byte {offset} is unreadable: {source}", path.display())]
-    Mcap {
+    /// The recording is unreadable before its first sample.
+    #[error("{}: no samples before the recording becomes unreadable at byte {offset}: {reason}", path.display())]
+    BrokenBeforeSamples {
         path: PathBuf,
         offset: u64,
-        source: ::mcap::McapError,
-    },
-    /// A `/gyro/raw` message does not decode.
-    #[error("{}: /gyro/raw message #{sequence} (record at byte {offset}): {reason}", path.display())]
-    Message {
-        path: PathBuf,
-        offset: u64,
-        sequence: u32,
         reason: String,
     },
     /// The recording's sample period disagrees with the configured rate.
@@ -81,7 +75,7 @@ pub enum ReplayError {
          capture (.bin) or an MCAP recording made by `sagnac run`?", path.display()
     )]
     NoSamples { path: PathBuf, bytes_read: u64 },
-    /// The recording's metadata record cannot be read.
+    /// The recording cannot be read.
     #[error(transparent)]
     Recording(#[from] crate::sink::reader::ReadError),
     /// The pipeline stopped during the replay.
@@ -118,20 +112,6 @@ pub fn probe(path: &Path) -> Result<CaptureKind, ReplayError> {
     })
 }
 
-/// The sample period (ns) of the first `/gyro/raw` message of an MCAP
-/// recording, or `None` when it has none.
-pub fn probe_mcap_period_ns(path: &Path) -> Result<Option<u64>, ReplayError> {
-    let mut found = None;
-    let mut reader = RawReader::open(path)?;
-    while let Some(m) = reader.next_raw()? {
-        if m.dt_ns > 0 {
-            found = Some(m.dt_ns);
-            break;
-        }
-    }
-    Ok(found)
-}
-
 /// What an MCAP recording says about its gyro.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RecordedGyro {
@@ -146,26 +126,43 @@ pub struct RecordedGyro {
     pub rate_rel_tol: f64,
 }
 
-/// The gyro of an MCAP recording: its `sagnac` metadata record
+/// The gyros of an MCAP recording, in order: for a recording of one gyro
+/// (label `None`), its `sagnac` metadata record
 /// ([`crate::sink::reader::read_metadata`]), or for an older recording without
-/// one the sample period of its first `/gyro/raw` message (no pulse weight).
-pub fn probe_mcap_gyro(path: &Path) -> Result<RecordedGyro, ReplayError> {
-    if let Some(meta) = crate::sink::reader::read_metadata(path)? {
-        return Ok(RecordedGyro {
-            rate_hz: Some(meta.sample_rate_hz),
-            pulse_arcsec: meta.pulse_arcsec,
-            origin: "in its sagnac metadata record",
-            rate_rel_tol: crate::sink::meta::AGREE_REL,
-        });
+/// one the sample period of its first `/gyro/raw` message (no pulse weight);
+/// for a recording of several, each gyro's `sagnac/<label>` record.
+pub fn probe_mcap_gyros(path: &Path) -> Result<Vec<(Option<String>, RecordedGyro)>, ReplayError> {
+    let from_meta = |meta: crate::sink::meta::RecordingMeta| RecordedGyro {
+        rate_hz: Some(meta.sample_rate_hz),
+        pulse_arcsec: meta.pulse_arcsec,
+        origin: "in its sagnac metadata record",
+        rate_rel_tol: crate::sink::meta::AGREE_REL,
+    };
+    let labels = crate::sink::reader::recording_gyro_labels(path)?;
+    if !labels.is_empty() {
+        let mut gyros = Vec::new();
+        for label in labels {
+            // the labels are those of the gyros' metadata records
+            if let Some(meta) = crate::sink::reader::read_metadata_of(path, Some(&label))? {
+                gyros.push((Some(label), from_meta(meta)));
+            }
+        }
+        return Ok(gyros);
     }
-    let dt = probe_mcap_period_ns(path)?;
-    Ok(RecordedGyro {
-        rate_hz: dt.map(|dt| 1e9 / dt as f64),
-        pulse_arcsec: None,
-        origin: "as the sample period of /gyro/raw",
-        // 1 ns in the period
-        rate_rel_tol: dt.map_or(0.0, |dt| 1.0 / dt as f64),
-    })
+    if let Some(meta) = crate::sink::reader::read_metadata(path)? {
+        return Ok(vec![(None, from_meta(meta))]);
+    }
+    let dt = crate::sink::reader::first_raw_period_ns(path, None)?;
+    Ok(vec![(
+        None,
+        RecordedGyro {
+            rate_hz: dt.map(|dt| 1e9 / dt as f64),
+            pulse_arcsec: None,
+            origin: "as the sample period of /gyro/raw",
+            // 1 ns in the period
+            rate_rel_tol: dt.map_or(0.0, |dt| 1.0 / dt as f64),
+        },
+    )])
 }
 
 /// Settings of the replay source.
@@ -188,6 +185,8 @@ pub struct ReplayConfig {
 pub struct ReplaySource {
     config: ReplayConfig,
     kind: CaptureKind,
+    /// The gyros of an MCAP recording of several, in order (empty: one gyro).
+    gyros: Vec<String>,
 }
 
 impl ReplayConfig {
@@ -201,7 +200,15 @@ impl ReplayConfig {
             return Err(bad("rate_hz", self.rate_hz.to_string(), "must be > 0"));
         }
         let kind = probe(&self.path)?;
-        Ok(ReplaySource { config: self, kind })
+        let gyros = match kind {
+            CaptureKind::Mcap => crate::sink::reader::recording_gyro_labels(&self.path)?,
+            CaptureKind::Frames => Vec::new(),
+        };
+        Ok(ReplaySource {
+            config: self,
+            kind,
+            gyros,
+        })
     }
 }
 
@@ -266,22 +273,25 @@ impl ReplaySource {
         self.kind
     }
 
+    /// The gyros of an MCAP recording of several, in order (empty for one gyro
+    /// and for a frame capture, whose gyros its frame format says).
+    pub fn recorded_gyros(&self) -> &[String] {
+        &self.gyros
+    }
+
     /// Replay on the calling (blocking) thread until the end of the capture, the
     /// period limit, or a shutdown. `W` is the frame format of a frame capture;
-    /// `outs` holds each of its gyros' telemetry and sender (one for an MCAP
-    /// recording, whose replay is of its single gyro).
+    /// `outs` holds each of its gyros' telemetry and sender (for an MCAP
+    /// recording, one per recorded gyro, in [`ReplaySource::recorded_gyros`] order).
     pub fn run_blocking<W: Axes>(
         self,
-        mut outs: Vec<(Telemetry, BatchSender)>,
+        outs: Vec<(Telemetry, BatchSender)>,
         shutdown: Shutdown,
     ) -> Result<SourceReport, ReplayError> {
         let path = self.config.path.clone();
         let report = match self.kind {
             CaptureKind::Frames => self.replay_frames::<W>(outs, &shutdown),
-            CaptureKind::Mcap => {
-                let (telemetry, mut out) = outs.remove(0);
-                self.replay_mcap(&mut out, telemetry, &shutdown)
-            }
+            CaptureKind::Mcap => self.replay_mcap(outs, &shutdown),
         }?;
         if report.samples == 0 && !shutdown.is_requested() {
             return Err(ReplayError::NoSamples {
@@ -377,93 +387,158 @@ impl ReplaySource {
 
     fn replay_mcap(
         &self,
-        out: &mut BatchSender,
-        telemetry: Telemetry,
+        outs: Vec<(Telemetry, BatchSender)>,
         shutdown: &Shutdown,
     ) -> Result<SourceReport, ReplayError> {
         let cfg = &self.config;
-        let period_ns = 1e9 / cfg.rate_hz;
         let pacer = Pacer::new(cfg.rate_hz, cfg.speed);
-        let mut reader = RawReader::open(&cfg.path)?;
-        let mut report = SourceReport::default();
-        let mut next_seq: Option<u64> = None;
+        // Up to the last complete chunk of a cut recording (the shared reader's
+        // recovery), the other channels skipped undecoded.
+        let mut reader = if self.gyros.is_empty() {
+            RawReader::open(&cfg.path, None, false)?
+        } else {
+            RawReader::open_every(&cfg.path, false)?
+        };
+        let mut lanes: Vec<McapLane> = outs.into_iter().map(McapLane::new).collect();
         let mut read_bytes = 0u64;
-        loop {
-            if shutdown.is_requested() {
-                break;
-            }
-            let Some(mut raw) = reader.next_raw()? else {
+        while !shutdown.is_requested() {
+            let Some((gyro, raw)) = reader.next_labelled()? else {
                 break;
             };
-            if !raw.counts.is_empty() && (raw.dt_ns as f64 - period_ns).abs() > 1.0 {
-                return Err(ReplayError::RateMismatch {
-                    path: cfg.path.clone(),
-                    dt_ns: raw.dt_ns,
-                    rate_hz: cfg.rate_hz,
-                    recorded_hz: 1e9 / raw.dt_ns as f64,
-                });
-            }
-            // Apply the period limit at a sample boundary.
-            if let Some(limit) = cfg.limit_periods {
-                let left = limit.saturating_sub(report.periods);
-                if left == 0 {
+            let i = match &gyro {
+                None => 0,
+                Some(g) => match self.gyros.iter().position(|l| l == g) {
+                    Some(i) => i,
+                    None => continue,
+                },
+            };
+            let Some(mut b) = lanes[i].batch(raw, cfg)? else {
+                if lanes.iter().all(|l| l.done) {
                     break;
                 }
-                truncate_periods(&mut raw, left);
-            }
-            let mut b = SourceBatch::new(Instant::now());
-            b.new_segment = next_seq.is_some_and(|s| s != raw.seq0);
-            b.seq0 = raw.seq0;
-            b.t0_ns = raw.t0_ns;
-            b.temp_c = raw.temp_c;
-            b.status = Some(raw.status);
-            let mut seq = raw.seq0;
-            let mut gi = 0;
-            for (i, _) in raw.counts.iter().enumerate() {
-                while gi < raw.gaps.len() && raw.gaps[gi].index == i as u64 {
-                    let g = raw.gaps[gi];
-                    let t_ns =
-                        raw.t0_ns + ((seq - raw.seq0) as f64 * raw.dt_ns as f64).round() as u64;
-                    b.events.push(Event {
-                        t_ns,
-                        kind: EventKind::Gap { seq, lost: g.lost },
-                        gyro: None,
-                    });
-                    seq += g.lost;
-                    gi += 1;
-                }
-                seq += 1;
-            }
-            b.counts = raw.counts;
-            b.gaps = raw.gaps;
-            let periods = b.periods();
-            let lost: u64 = b.gaps.iter().map(|g| g.lost).sum();
-            let g = &telemetry.gyro;
-            g.add_samples(b.counts.len() as u64);
-            g.add_lost_samples(lost);
-            let now_read = reader.offset();
-            telemetry.metrics.add_bytes_read(now_read - read_bytes);
+                continue;
+            };
+            let now_read = reader.bytes_read();
+            lanes[0]
+                .telemetry
+                .metrics
+                .add_bytes_read(now_read - read_bytes);
             read_bytes = now_read;
-            report.samples += b.counts.len() as u64;
-            report.periods += periods;
-            next_seq = Some(b.seq0 + periods);
-            if !pacer.wait_until(report.periods, shutdown) {
+            if !pacer.wait_until(lanes[i].report.periods, shutdown) {
                 break;
             }
             b.arrived = Instant::now();
-            out.blocking_send(b).map_err(self.pipeline_err())?;
+            lanes[i].out.blocking_send(b).map_err(self.pipeline_err())?;
         }
-        report.bytes_read = reader.offset();
-        if let Some((offset, reason)) = reader.broken() {
+        // per gyro: every gyro's samples and periods are those of the first
+        let mut report = lanes.swap_remove(0).report;
+        report.bytes_read = reader.bytes_read();
+        if let Some(cut) = &reader.report().break_at {
+            if report.samples == 0 {
+                return Err(ReplayError::BrokenBeforeSamples {
+                    path: cfg.path.clone(),
+                    offset: cut.offset,
+                    reason: cut.reason.clone(),
+                });
+            }
             tracing::warn!(
                 path = %cfg.path.display(),
-                offset,
-                reason,
-                "recording is cut: unreadable from byte {offset}; replayed up to its last complete chunk"
+                offset = cut.offset,
+                reason = cut.reason,
+                "recording is cut: unreadable from byte {}; replayed up to its last complete chunk",
+                cut.offset
             );
         }
         Ok(report)
     }
+}
+
+/// One recorded gyro of an MCAP replay: where its batches go, and its counts.
+struct McapLane {
+    telemetry: Telemetry,
+    out: BatchSender,
+    report: SourceReport,
+    next_seq: Option<u64>,
+    /// The period limit is reached.
+    done: bool,
+}
+
+impl McapLane {
+    fn new((telemetry, out): (Telemetry, BatchSender)) -> McapLane {
+        McapLane {
+            telemetry,
+            out,
+            report: SourceReport::default(),
+            next_seq: None,
+            done: false,
+        }
+    }
+
+    /// The source batch of the recorded batch `raw` (cut at the period limit),
+    /// counted; `None` once the limit is reached. The recorded sample period
+    /// must be the configured rate's.
+    fn batch(
+        &mut self,
+        mut raw: RawBatch,
+        cfg: &ReplayConfig,
+    ) -> Result<Option<SourceBatch>, ReplayError> {
+        let period_ns = 1e9 / cfg.rate_hz;
+        if !raw.counts.is_empty() && (raw.dt_ns as f64 - period_ns).abs() > 1.0 {
+            return Err(ReplayError::RateMismatch {
+                path: cfg.path.clone(),
+                dt_ns: raw.dt_ns,
+                rate_hz: cfg.rate_hz,
+                recorded_hz: 1e9 / raw.dt_ns as f64,
+            });
+        }
+        // Apply the period limit at a sample boundary.
+        if let Some(limit) = cfg.limit_periods {
+            let left = limit.saturating_sub(self.report.periods);
+            if left == 0 {
+                self.done = true;
+                return Ok(None);
+            }
+            truncate_periods(&mut raw, left);
+        }
+        let b = recorded_batch(raw, self.next_seq);
+        let lost: u64 = b.gaps.iter().map(|g| g.lost).sum();
+        self.telemetry.gyro.add_samples(b.counts.len() as u64);
+        self.telemetry.gyro.add_lost_samples(lost);
+        self.report.samples += b.counts.len() as u64;
+        self.report.periods += b.periods();
+        self.next_seq = Some(b.seq0 + b.periods());
+        Ok(Some(b))
+    }
+}
+
+/// The source batch of a recorded `/gyro/raw` batch, its gaps re-emitted as
+/// gap events; a new segment when it does not follow `next_seq`.
+fn recorded_batch(raw: RawBatch, next_seq: Option<u64>) -> SourceBatch {
+    let mut b = SourceBatch::new(Instant::now());
+    b.new_segment = next_seq.is_some_and(|s| s != raw.seq0);
+    b.seq0 = raw.seq0;
+    b.t0_ns = raw.t0_ns;
+    b.temp_c = raw.temp_c;
+    b.status = Some(raw.status);
+    let mut seq = raw.seq0;
+    let mut gi = 0;
+    for i in 0..raw.counts.len() {
+        while gi < raw.gaps.len() && raw.gaps[gi].index == i as u64 {
+            let g = raw.gaps[gi];
+            let t_ns = raw.t0_ns + ((seq - raw.seq0) as f64 * raw.dt_ns as f64).round() as u64;
+            b.events.push(Event {
+                t_ns,
+                kind: EventKind::Gap { seq, lost: g.lost },
+                gyro: None,
+            });
+            seq += g.lost;
+            gi += 1;
+        }
+        seq += 1;
+    }
+    b.counts = raw.counts;
+    b.gaps = raw.gaps;
+    b
 }
 
 /// Keep at most `periods` sample periods of `raw` (cut at a sample).
@@ -482,138 +557,6 @@ fn truncate_periods(raw: &mut RawBatch, periods: u64) {
             raw.gaps.retain(|g| g.index <= i as u64);
             return;
         }
-    }
-}
-
-/// Streams the `/gyro/raw` messages of an MCAP recording without decoding the
-/// other channels; stops cleanly at a truncation (see [`RawReader::broken`]).
-pub struct RawReader {
-    path: PathBuf,
-    file: BufReader<File>,
-    reader: LinearReader,
-    raw_channel: Option<u16>,
-    offset: u64,
-    broken: Option<(u64, String)>,
-    done: bool,
-    queue: std::collections::VecDeque<RawBatch>,
-}
-
-impl RawReader {
-    /// Open a recording.
-    pub fn open(path: &Path) -> Result<RawReader, ReplayError> {
-        let file = File::open(path).map_err(|source| ReplayError::Io {
-            path: path.to_path_buf(),
-            offset: 0,
-            source,
-        })?;
-        let len = file.metadata().map(|m| m.len()).unwrap_or(u64::MAX);
-        let options = LinearReaderOptions::default()
-            .with_validate_chunk_crcs(true)
-            .with_record_length_limit(usize::try_from(len).unwrap_or(usize::MAX).max(1 << 20));
-        Ok(RawReader {
-            path: path.to_path_buf(),
-            file: BufReader::with_capacity(READ_CHUNK, file),
-            reader: LinearReader::new_with_options(options),
-            raw_channel: None,
-            offset: 0,
-            broken: None,
-            done: false,
-            queue: Default::default(),
-        })
-    }
-
-    /// Bytes of the file read so far.
-    pub fn offset(&self) -> u64 {
-        self.offset
-    }
-
-    /// Where (bytes read when it happened) and why reading stopped early (a cut
-    /// or damaged file), if it did.
-    pub fn broken(&self) -> Option<(u64, &str)> {
-        self.broken
-            .as_ref()
-            .map(|(offset, reason)| (*offset, reason.as_str()))
-    }
-
-    /// The next `/gyro/raw` message, `None` at the end (or at a break).
-    pub fn next_raw(&mut self) -> Result<Option<RawBatch>, ReplayError> {
-        loop {
-            if let Some(m) = self.queue.pop_front() {
-                return Ok(Some(m));
-            }
-            if self.done {
-                return Ok(None);
-            }
-            self.step()?;
-        }
-    }
-
-    fn step(&mut self) -> Result<(), ReplayError> {
-        let Some(event) = self.reader.next_event() else {
-            self.done = true;
-            return Ok(());
-        };
-        match event {
-            Err(e) => {
-                // A cut file (crash): stop here, as recover_recording does. A file
-                // that is not MCAP at all, or broken at its start, is an error.
-                if self.raw_channel.is_none() {
-                    return Err(ReplayError::Mcap {
-                        path: self.path.clone(),
-                        offset: self.offset,
-                        source: e,
-                    });
-                }
-                self.broken = Some((self.offset, e.to_string()));
-                self.done = true;
-            }
-            Ok(LinearReadEvent::ReadRequest(need)) => {
-                let buf = self.reader.insert(need.clamp(1, READ_CHUNK));
-                let n = loop {
-                    match self.file.read(buf) {
-                        Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
-                        r => break r,
-                    }
-                }
-                .map_err(|source| ReplayError::Io {
-                    path: self.path.clone(),
-                    offset: self.offset,
-                    source,
-                })?;
-                self.offset += n as u64;
-                self.reader.notify_read(n);
-            }
-            Ok(LinearReadEvent::Record { data, opcode }) => match opcode {
-                op::CHANNEL => {
-                    if let Ok(Record::Channel(c)) = ::mcap::parse_record(opcode, data)
-                        && c.topic == Topic::Raw.name()
-                    {
-                        self.raw_channel = Some(c.id);
-                    }
-                }
-                // Header: channel id u16, sequence u32, log and publish time u64.
-                op::MESSAGE
-                    if data.len() >= 22
-                        && Some(u16::from_le_bytes([data[0], data[1]])) == self.raw_channel =>
-                {
-                    let sequence = u32::from_le_bytes([data[2], data[3], data[4], data[5]]);
-                    match SinkMessage::from_json(Topic::Raw, &data[22..]) {
-                        Ok(SinkMessage::Raw(m)) => self.queue.push_back(m),
-                        Ok(_) => {}
-                        Err(e) => {
-                            return Err(ReplayError::Message {
-                                path: self.path.clone(),
-                                offset: self.offset,
-                                sequence,
-                                reason: e.to_string(),
-                            });
-                        }
-                    }
-                }
-                _ => {}
-            },
-        }
-        Ok(())
     }
 }
 

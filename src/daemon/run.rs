@@ -170,6 +170,9 @@ pub struct RunReport {
     pub metrics_addr: Option<SocketAddr>,
 }
 
+/// The gyros of an MCAP recording: (label, rate in Hz, pulse weight in arcsec).
+type RecordedGyros = Vec<(Option<String>, f64, f64)>;
+
 /// Serial input and raw frame captures do not carry the rate or pulse weight:
 /// both must be given explicitly.
 fn require_explicit(explicit: Explicit, input: String) -> Result<(), DaemonError> {
@@ -272,15 +275,24 @@ impl Daemon {
             }
             SourceKind::Replay => {
                 for (label, path) in labelled_inputs(&config, &config.source.replay_path.clone()) {
-                    let (source, frame) =
+                    let (source, frame, several) =
                         Daemon::replay(&mut config, explicit, PathBuf::from(path))?;
-                    let g = (config.gyro.rate_hz, config.gyro.pulse_arcsec, None);
-                    built.push((
-                        source,
-                        frame,
-                        frame.labels(label.as_deref()),
-                        vec![g; frame.gyros()],
-                    ));
+                    let (labels, gyros) = match several {
+                        // a recording of several gyros: its labels (after the input's)
+                        Some(recorded) => recorded
+                            .into_iter()
+                            .map(|(l, rate, pulse)| {
+                                let l = l.unwrap_or_default();
+                                let l = label.as_ref().map_or(l.clone(), |i| format!("{i}_{l}"));
+                                (l, (rate, pulse, None))
+                            })
+                            .unzip(),
+                        None => {
+                            let g = (config.gyro.rate_hz, config.gyro.pulse_arcsec, None);
+                            (frame.labels(label.as_deref()), vec![g; frame.gyros()])
+                        }
+                    };
+                    built.push((source, frame, labels, gyros));
                 }
             }
             SourceKind::Serial => {
@@ -429,45 +441,37 @@ impl Daemon {
             .then(|| (config.run.duration_s * rate_hz).round().max(1.0) as u64)
     }
 
-    /// A replay of `path` and its frame; an MCAP recording's rate and pulse
-    /// weight go into `config.gyro` (an explicit value must agree).
+    /// A replay of `path`, its frame, and for an MCAP recording of several
+    /// gyros each one's (recorded label, rate, pulse weight). An MCAP
+    /// recording's rate and pulse weight (its first gyro's) go into
+    /// `config.gyro`; an explicit value must agree with every gyro's.
     fn replay(
         config: &mut Config,
         explicit: Explicit,
         path: PathBuf,
-    ) -> Result<(Source, FrameKind), DaemonError> {
+    ) -> Result<(Source, FrameKind, Option<RecordedGyros>), DaemonError> {
         let mut frame = config.source.frame;
+        let mut several = None;
         if replay::probe(&path)? == CaptureKind::Mcap {
             if frame == FrameKind::Triad {
                 return Err(DaemonError::Config(ConfigError::Invalid {
                     key: "source.frame",
                     value: "\"triad\"".into(),
-                    message: "applies to raw frame captures; an MCAP recording is replayed as recorded (one gyro)",
+                    message: "applies to raw frame captures; an MCAP recording is replayed as recorded",
                 }));
             }
-            // The recording's own rate and pulse weight (its metadata record,
-            // else the sample period of /gyro/raw); an explicit value must agree.
-            let recorded = replay::probe_mcap_gyro(&path)?;
-            let given = |on: bool, v: f64| on.then_some(v);
-            if let Some(r) = check_flag(
-                "gyro.rate_hz",
-                given(explicit.rate_hz, config.gyro.rate_hz),
-                recorded.rate_hz,
-                &path,
-                recorded.origin,
-                recorded.rate_rel_tol,
-            )? {
-                config.gyro.rate_hz = r;
+            let recorded = Daemon::recorded_gyros(config, explicit, &path)?;
+            (config.gyro.rate_hz, config.gyro.pulse_arcsec) = (recorded[0].1, recorded[0].2);
+            if recorded.iter().any(|g| g.1 != recorded[0].1) {
+                return Err(DaemonError::Config(ConfigError::Invalid {
+                    key: "source.replay_path",
+                    value: path.display().to_string(),
+                    message: "its gyros have different sample rates: replay them one by one \
+                     from their raw captures, or analyze each with --gyro",
+                }));
             }
-            if let Some(p) = check_flag(
-                "gyro.pulse_arcsec",
-                given(explicit.pulse_arcsec, config.gyro.pulse_arcsec),
-                recorded.pulse_arcsec,
-                &path,
-                recorded.origin,
-                AGREE_REL,
-            )? {
-                config.gyro.pulse_arcsec = p;
+            if recorded[0].0.is_some() {
+                several = Some(recorded);
             }
             frame = FrameKind::Single;
         } else {
@@ -485,7 +489,42 @@ impl Daemon {
             }
             .build()?,
         ));
-        Ok((source, frame))
+        Ok((source, frame, several))
+    }
+
+    /// Each gyro of the MCAP recording `path`: (label, rate, pulse weight), from
+    /// its metadata record (else the sample period of `/gyro/raw`); an explicit
+    /// `gyro.rate_hz` / `gyro.pulse_arcsec` must agree, and supplies what the
+    /// recording does not say.
+    fn recorded_gyros(
+        config: &Config,
+        explicit: Explicit,
+        path: &std::path::Path,
+    ) -> Result<RecordedGyros, DaemonError> {
+        let given = |on: bool, v: f64| on.then_some(v);
+        let mut out = Vec::new();
+        for (label, recorded) in replay::probe_mcap_gyros(path)? {
+            let rate = check_flag(
+                "gyro.rate_hz",
+                given(explicit.rate_hz, config.gyro.rate_hz),
+                recorded.rate_hz,
+                path,
+                recorded.origin,
+                recorded.rate_rel_tol,
+            )?
+            .unwrap_or(config.gyro.rate_hz);
+            let pulse = check_flag(
+                "gyro.pulse_arcsec",
+                given(explicit.pulse_arcsec, config.gyro.pulse_arcsec),
+                recorded.pulse_arcsec,
+                path,
+                recorded.origin,
+                AGREE_REL,
+            )?
+            .unwrap_or(config.gyro.pulse_arcsec);
+            out.push((label, rate, pulse));
+        }
+        Ok(out)
     }
 
     /// A serial source on `path`.

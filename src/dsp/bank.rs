@@ -42,7 +42,8 @@
 //! sequence of floating-point operations whatever the block split, so results are
 //! bit-identical for any way of cutting the stream (tested).
 
-use super::kernel::{Isa, Taps};
+use super::isa::Isa;
+use super::kernel::Taps;
 use super::wavelet::Wavelet;
 use super::{DspError, Result};
 

@@ -1,4 +1,4 @@
-//! Block kernels of the streaming bank: one analysis step (filter + decimate, both
+//! Block kernels of the streaming bank, dispatched on [`Isa`]: one analysis step (filter + decimate, both
 //! channels) and one synthesis step (upsample + filter, both channels), written
 //! polyphase so the loops run over output index with unit stride and a fixed,
 //! compile-time number of taps per phase (P = L/2: 1, 4 or 8), which LLVM unrolls
@@ -13,6 +13,8 @@
 //! outputs at once. That also makes every output independent of how the stream
 //! was cut into blocks. On the 2-core Xeon used for development the AVX-512
 //! variant runs the bank about 1.5x faster than the AVX2 one.
+
+use super::isa::Isa;
 
 /// Filter taps rearranged by phase for the kernels. For analysis,
 /// `c[r] = sum_u (ao[u] * O[r+u] + ae[u] * E[r+u])` where `E[q] = x[2q]`,
@@ -185,63 +187,13 @@ fn synthesis_avx512(t: &Taps, u: &[f64], v: &[f64], out: &mut [f64]) {
     dispatch_p!(t.p, synthesis_impl, t, u, v, out)
 }
 
-/// Which compiled variant of the kernels to run (chosen once per bank).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Isa {
-    Baseline,
-    #[cfg(target_arch = "x86_64")]
-    Avx2,
-    #[cfg(target_arch = "x86_64")]
-    Avx512,
-}
-
 impl Isa {
-    /// The variant called `name` (`baseline`, `avx2`, `avx512`), if this CPU runs it.
-    pub fn by_name(name: &str) -> Option<Isa> {
-        match name {
-            "baseline" => Some(Isa::Baseline),
-            #[cfg(target_arch = "x86_64")]
-            "avx2"
-                if std::arch::is_x86_feature_detected!("avx2")
-                    && std::arch::is_x86_feature_detected!("fma") =>
-            {
-                Some(Isa::Avx2)
-            }
-            #[cfg(target_arch = "x86_64")]
-            "avx512"
-                if std::arch::is_x86_feature_detected!("avx512f")
-                    && std::arch::is_x86_feature_detected!("avx512vl")
-                    && std::arch::is_x86_feature_detected!("fma") =>
-            {
-                Some(Isa::Avx512)
-            }
-            _ => None,
-        }
-    }
-
-    /// The best variant this CPU runs (AVX-512 > AVX2 > baseline).
-    pub fn detect() -> Isa {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx512f")
-            && std::arch::is_x86_feature_detected!("avx512vl")
-            && std::arch::is_x86_feature_detected!("fma")
-        {
-            return Isa::Avx512;
-        }
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-        {
-            return Isa::Avx2;
-        }
-        Isa::Baseline
-    }
-
     #[inline]
     pub fn analysis(self, t: &Taps, e: &[f64], o: &[f64], lo: &mut [f64], hi: &mut [f64]) {
         match self {
             Isa::Baseline => analysis_base(t, e, o, lo, hi),
-            // SAFETY: `Avx2` / `Avx512` are only constructed by `detect` after
-            // `is_x86_feature_detected!` confirmed every feature the function enables.
+            // SAFETY: an `Avx2` / `Avx512` exists only once `is_x86_feature_detected!`
+            // confirmed every feature the function enables (see `super::isa`).
             #[cfg(target_arch = "x86_64")]
             Isa::Avx2 => unsafe { analysis_avx2(t, e, o, lo, hi) },
             // SAFETY: as above.

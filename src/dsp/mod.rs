@@ -11,6 +11,8 @@
 //! - [`wavelet`]: orthogonal filter sets by name (`haar`, `db4`, `sym4`, `db8`, `sym8`).
 //! - [`dwt`]: the batch reference (plain convolution and decimation, PyWavelets'
 //!   definitions for modes `zero` and `periodization`).
+//! - `isa` (crate-private): the one SIMD dispatch of the crate, `Isa`,
+//!   also used by the Allan accumulators.
 //! - `kernel` (private): the auto-vectorised block kernels the streaming code uses.
 //! - [`bank`]: the streaming analysis ([`bank::StreamingAnalysis`]) and
 //!   analysis + synthesis bank ([`bank::StreamingBank`]) with a fixed latency.
@@ -20,6 +22,7 @@
 pub mod bank;
 pub mod dwt;
 pub mod gaps;
+pub(crate) mod isa;
 mod kernel;
 pub mod qn;
 pub mod wavelet;

@@ -1,23 +1,29 @@
-//! Reading recordings back: for replay and `analyze --format mcap`, and to recover
+//! Reading recordings back: the one reader of our MCAP recordings, shared by
+//! the daemon's replay, `analyze`, `report` and `diagnose`, and used to recover
 //! what a crash left behind.
 //!
-//! Both paths read the file linearly with the `mcap` crate's sans-io reader, one
-//! top-level record at a time, so every error can name its byte offset; a chunk
-//! is decoded whole before any of its messages is handed out, so a damaged chunk
-//! yields nothing. [`read_recording`] wants a complete file (footer and end magic;
-//! message count equal to the Statistics record when there is one).
-//! [`recover_recording`] accepts a file cut anywhere (a crash, `kill -9`, a full
-//! disk): it keeps every message up to the last complete chunk and reports the
-//! offset where the file breaks. Messages come back as typed [`SinkMessage`]s;
-//! channels of other topics are skipped and counted.
+//! [`RecordingReader`] is a pull API: [`RecordingReader::next_message`] hands out
+//! one typed [`RecordedMessage`] at a time, reading the file linearly with the
+//! `mcap` crate's sans-io reader, one top-level record at a time, so every error
+//! can name its byte offset; memory is bounded by one chunk (a chunk is decoded
+//! whole before any of its messages is handed out, so a damaged chunk yields
+//! nothing). A [`Selection`] limits which of our messages are decoded (the others
+//! are counted and skipped); [`RawReader`] is the selection of one gyro's raw
+//! counts (`/gyro/raw` or `/gyro/<label>/raw`) that replay, `analyze` and
+//! `diagnose` read. A *strict* reader wants a complete file (footer and end
+//! magic; message count equal to the Statistics record when there is one); the
+//! other kind accepts a file cut anywhere (a crash, `kill -9`, a full disk): it
+//! stops after the last complete chunk and reports the offset where the file
+//! breaks. [`read_recording`] and [`recover_recording`] collect a whole file with
+//! them; channels of other topics are skipped and counted.
 //!
 //! The recording's `sagnac` Metadata record ([`crate::sink::meta`]: sample rate,
-//! pulse weight, model, config) is read here too, and only here: every scan
-//! returns it, and [`read_metadata`] reads just the start of a file for it (the
+//! pulse weight, model, config) is read here too, and only here: every reader
+//! reports it, and [`read_metadata`] reads just the start of a file for it (the
 //! writers put it before any chunk), for the commands that must know the rate
 //! before they read the samples (`analyze`, `diagnose`, the daemon's replay).
 
-use std::collections::HashMap;
+use std::collections::{HashMap, VecDeque};
 use std::fs::File;
 use std::io::{self, BufReader, Read};
 use std::path::{Path, PathBuf};
@@ -26,7 +32,7 @@ use ::mcap::McapError;
 use ::mcap::records::Record;
 use ::mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
 
-use crate::sink::messages::{MESSAGE_ENCODING, MessageError, SinkMessage, Topic};
+use crate::sink::messages::{MESSAGE_ENCODING, MessageError, RawBatch, SinkMessage, Topic};
 use crate::sink::meta::{METADATA_NAME, MetaError, RecordingMeta};
 
 /// Errors of the reader; each names the file and a byte offset.
@@ -158,24 +164,24 @@ impl Recovery {
 /// Read a complete recording; any damage or truncation is an error.
 pub fn read_recording(path: &Path) -> Result<Recording, ReadError> {
     let (file, len) = open(path)?;
-    read_impl(&mut BufReader::new(file), len, path)
+    read_impl(BufReader::new(file), len, path)
 }
 
 /// [`read_recording`] of a recording held in memory; `name` appears in errors.
 pub fn read_recording_bytes(data: &[u8], name: &Path) -> Result<Recording, ReadError> {
-    read_impl(&mut &data[..], data.len() as u64, name)
+    read_impl(data, data.len() as u64, name)
 }
 
 /// Read as much as possible of a recording that may be cut or damaged at its end.
 /// Errors only when the file cannot be read or is not MCAP at all.
 pub fn recover_recording(path: &Path) -> Result<Recovery, ReadError> {
     let (file, len) = open(path)?;
-    recover_impl(&mut BufReader::new(file), len, path)
+    recover_impl(BufReader::new(file), len, path)
 }
 
 /// [`recover_recording`] of a recording held in memory; `name` appears in errors.
 pub fn recover_recording_bytes(data: &[u8], name: &Path) -> Result<Recovery, ReadError> {
-    recover_impl(&mut &data[..], data.len() as u64, name)
+    recover_impl(data, data.len() as u64, name)
 }
 
 fn open(path: &Path) -> Result<(File, u64), ReadError> {
@@ -189,16 +195,13 @@ fn open(path: &Path) -> Result<(File, u64), ReadError> {
     Ok((file, len))
 }
 
-fn read_impl(input: &mut dyn Read, len: u64, path: &Path) -> Result<Recording, ReadError> {
+fn read_impl<R: Read>(input: R, len: u64, path: &Path) -> Result<Recording, ReadError> {
+    let mut reader = RecordingReader::from_reader(input, len, path, true)?;
     let mut messages = Vec::new();
-    let report = scan(input, len, path, true, &mut |m| messages.push(m))?;
-    if let Some(b) = report.break_at {
-        // Unreachable in strict mode (scan returns the error), kept as a guard.
-        return Err(ReadError::Incomplete {
-            path: path.to_path_buf(),
-            offset: b.offset,
-        });
+    while let Some(m) = reader.next_message()? {
+        messages.push(m);
     }
+    let report = reader.into_report();
     Ok(Recording {
         messages,
         foreign_messages: report.foreign_messages,
@@ -207,9 +210,13 @@ fn read_impl(input: &mut dyn Read, len: u64, path: &Path) -> Result<Recording, R
     })
 }
 
-fn recover_impl(input: &mut dyn Read, len: u64, path: &Path) -> Result<Recovery, ReadError> {
+fn recover_impl<R: Read>(input: R, len: u64, path: &Path) -> Result<Recovery, ReadError> {
+    let mut reader = RecordingReader::from_reader(input, len, path, false)?;
     let mut messages = Vec::new();
-    let report = scan(input, len, path, false, &mut |m| messages.push(m))?;
+    while let Some(m) = reader.next_message()? {
+        messages.push(m);
+    }
+    let report = reader.into_report();
     Ok(Recovery {
         messages,
         foreign_messages: report.foreign_messages,
@@ -220,18 +227,20 @@ fn recover_impl(input: &mut dyn Read, len: u64, path: &Path) -> Result<Recovery,
     })
 }
 
-/// The outcome of [`scan_recording`].
+/// What a reader has read so far (all of it once it returned `None`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ScanReport {
-    /// Messages handed to the callback.
+    /// Messages handed out.
     pub messages: u64,
     /// Messages on topics that are not ours, skipped.
     pub foreign_messages: u64,
+    /// Messages of ours that the reader's [`Selection`] left undecoded.
+    pub unselected_messages: u64,
     /// Bytes up to the end of the last record read whole.
     pub recovered_bytes: u64,
     /// File size, bytes.
     pub file_len: u64,
-    /// Where reading stopped (only when `strict` is false; strict scans return the error).
+    /// Where reading stopped (only when `strict` is false; strict readers return the error).
     pub break_at: Option<Break>,
     /// The first `sagnac` metadata record read, if any.
     pub metadata: Option<RecordingMeta>,
@@ -245,8 +254,318 @@ pub fn scan_recording(
     strict: bool,
     each: &mut dyn FnMut(RecordedMessage),
 ) -> Result<ScanReport, ReadError> {
-    let (file, len) = open(path)?;
-    scan(&mut BufReader::new(file), len, path, strict, each)
+    let mut reader = RecordingReader::open(path, strict)?;
+    while let Some(m) = reader.next_message()? {
+        each(m);
+    }
+    Ok(reader.into_report())
+}
+
+/// Which of our messages a reader decodes; the others are counted
+/// ([`ScanReport::unselected_messages`]) without being decoded.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub enum Selection {
+    /// Every message of our topics.
+    #[default]
+    All,
+    /// Only the raw counts of one gyro: `/gyro/raw` for `None` (a recording of
+    /// one gyro), `/gyro/<label>/raw` for `Some(label)`.
+    Raw(Option<String>),
+    /// The raw counts of every gyro.
+    EveryRaw,
+}
+
+impl Selection {
+    fn wants(&self, topic: Topic, gyro: Option<&str>) -> bool {
+        match self {
+            Selection::All => true,
+            Selection::Raw(g) => topic == Topic::Raw && gyro == g.as_deref(),
+            Selection::EveryRaw => topic == Topic::Raw,
+        }
+    }
+}
+
+/// The one reader of our recordings, with a pull API: [`RecordingReader::next_message`]
+/// hands out the messages in file order, reading the file as it goes (memory is
+/// bounded by one chunk). `strict` readers fail on any damage or truncation
+/// ([`read_recording`]); the others stop at the break and report it in
+/// [`ScanReport::break_at`] ([`recover_recording`]).
+pub struct RecordingReader<R: Read = BufReader<File>> {
+    input: R,
+    reader: LinearReader,
+    /// Offset of the next record to come out of `reader`.
+    offset: u64,
+    /// Bytes taken from `input`.
+    bytes_read: u64,
+    strict: bool,
+    footer_seen: bool,
+    /// (offset, message count) of the Statistics record.
+    stats_count: Option<(u64, u64)>,
+    done: bool,
+    scanner: Scanner,
+}
+
+impl RecordingReader {
+    /// Open the recording `path`.
+    pub fn open(path: &Path, strict: bool) -> Result<RecordingReader, ReadError> {
+        let (file, len) = open(path)?;
+        RecordingReader::from_reader(BufReader::new(file), len, path, strict)
+    }
+}
+
+impl<R: Read> RecordingReader<R> {
+    /// A reader of `input`, `file_len` bytes long, called `name` in errors.
+    pub fn from_reader(
+        mut input: R,
+        file_len: u64,
+        name: &Path,
+        strict: bool,
+    ) -> Result<RecordingReader<R>, ReadError> {
+        // Check the magic ourselves so that a file cut inside it is "empty", not "foreign".
+        let mut magic = Vec::with_capacity(8);
+        (&mut input)
+            .take(8)
+            .read_to_end(&mut magic)
+            .map_err(|source| ReadError::Io {
+                path: name.to_path_buf(),
+                offset: 0,
+                source,
+            })?;
+        if magic[..] != ::mcap::MAGIC[..magic.len()] {
+            return Err(ReadError::NotMcap {
+                path: name.to_path_buf(),
+            });
+        }
+        let options = LinearReaderOptions::default()
+            .with_skip_start_magic(true)
+            .with_check_finishes_after_end_magic(strict)
+            .with_emit_chunks(true)
+            // No record can be longer than the file: fail at once on a corrupt length.
+            .with_record_length_limit(usize::try_from(file_len).unwrap_or(usize::MAX));
+        let mut r = RecordingReader {
+            input,
+            reader: LinearReader::new_with_options(options),
+            offset: 8,
+            bytes_read: magic.len() as u64,
+            strict,
+            footer_seen: false,
+            stats_count: None,
+            done: false,
+            scanner: Scanner::new(name, file_len, magic.len() as u64),
+        };
+        if magic.len() < 8 {
+            r.scanner.report.recovered_bytes = 0;
+            let e = r.scanner.mcap_error(0, McapError::UnexpectedEof);
+            r.stop(0, e)?;
+        }
+        Ok(r)
+    }
+
+    /// Decode only the messages `selection` names.
+    pub fn select(mut self, selection: Selection) -> Self {
+        self.scanner.selection = selection;
+        self
+    }
+
+    /// The next message, `None` at the end of the file (or at the break of a
+    /// non-strict reader). A chunk's messages come out only once the whole
+    /// chunk has decoded.
+    pub fn next_message(&mut self) -> Result<Option<RecordedMessage>, ReadError> {
+        loop {
+            if let Some(m) = self.scanner.pending.pop_front() {
+                return Ok(Some(m));
+            }
+            if self.done {
+                return Ok(None);
+            }
+            self.step()?;
+        }
+    }
+
+    /// Bytes of the file read so far.
+    pub fn bytes_read(&self) -> u64 {
+        self.bytes_read
+    }
+
+    /// What was read so far.
+    pub fn report(&self) -> &ScanReport {
+        &self.scanner.report
+    }
+
+    /// What was read.
+    pub fn into_report(self) -> ScanReport {
+        self.scanner.report
+    }
+
+    /// Stop at `offset` because of `error`: return it (strict) or report a break.
+    fn stop(&mut self, offset: u64, error: ReadError) -> Result<(), ReadError> {
+        self.done = true;
+        if self.strict {
+            return Err(error);
+        }
+        self.scanner.report.break_at = Some(Break {
+            offset,
+            reason: error.to_string(),
+        });
+        Ok(())
+    }
+
+    /// Take one event from the sans-io reader.
+    fn step(&mut self) -> Result<(), ReadError> {
+        let event = match self.reader.next_event() {
+            None => return self.finish(),
+            Some(Ok(e)) => e,
+            Some(Err(e)) => {
+                let e = self.scanner.mcap_error(self.offset, e);
+                return self.stop(self.offset, e);
+            }
+        };
+        match event {
+            LinearReadEvent::ReadRequest(need) => {
+                let buf = self.reader.insert(need.clamp(1, READ_BLOCK));
+                let n = read_some(&mut self.input, buf).map_err(|source| {
+                    self.done = true;
+                    ReadError::Io {
+                        path: self.scanner.path.clone(),
+                        offset: self.offset,
+                        source,
+                    }
+                })?;
+                self.bytes_read += n as u64;
+                self.reader.notify_read(n);
+                Ok(())
+            }
+            LinearReadEvent::Record { data, opcode } => {
+                let start = self.offset;
+                let end = start + RECORD_PREFIX + data.len() as u64;
+                let handled = if opcode == ::mcap::records::op::CHUNK {
+                    self.scanner.chunk(opcode, data, start)
+                } else {
+                    self.scanner
+                        .top_level(opcode, data, start)
+                        .map(|seen| match seen {
+                            TopLevel::Footer => self.footer_seen = true,
+                            TopLevel::Statistics(count) => self.stats_count = Some((start, count)),
+                            TopLevel::Other => {}
+                        })
+                };
+                match handled {
+                    Ok(()) => {
+                        self.offset = end;
+                        self.scanner.report.recovered_bytes = end;
+                        Ok(())
+                    }
+                    Err(e) => self.stop(start, e),
+                }
+            }
+        }
+    }
+
+    /// The sans-io reader is done: check that the file was whole.
+    fn finish(&mut self) -> Result<(), ReadError> {
+        self.done = true;
+        // The reader only ends cleanly after the footer and the end magic.
+        if !self.footer_seen {
+            let e = self
+                .scanner
+                .mcap_error(self.offset, McapError::UnexpectedEof);
+            return self.stop(self.offset, e);
+        }
+        let report = &mut self.scanner.report;
+        report.recovered_bytes = self.offset + ::mcap::MAGIC.len() as u64;
+        if let Some((at, expected)) = self.stats_count {
+            let read = report.messages + report.foreign_messages + report.unselected_messages;
+            if expected != read {
+                let e = ReadError::CountMismatch {
+                    path: self.scanner.path.clone(),
+                    offset: at,
+                    expected,
+                    read,
+                };
+                return self.stop(at, e);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// One gyro's raw counts in a recording (or every gyro's), pulled batch by
+/// batch ([`RawReader::next_batch`]): what replay, `analyze` and `diagnose`
+/// read. The recording's other channels are skipped without being decoded.
+pub struct RawReader<R: Read = BufReader<File>> {
+    inner: RecordingReader<R>,
+}
+
+impl RawReader {
+    /// The `/gyro/raw` batches of `path` (of gyro `gyro`'s `/gyro/<label>/raw`
+    /// when `Some`); `strict` as in [`RecordingReader`].
+    pub fn open(path: &Path, gyro: Option<&str>, strict: bool) -> Result<RawReader, ReadError> {
+        let (file, len) = open(path)?;
+        RawReader::from_reader(BufReader::new(file), len, path, gyro, strict)
+    }
+
+    /// The raw batches of every gyro of `path`, in file order (see
+    /// [`RawReader::next_labelled`]).
+    pub fn open_every(path: &Path, strict: bool) -> Result<RawReader, ReadError> {
+        Ok(RawReader {
+            inner: RecordingReader::open(path, strict)?.select(Selection::EveryRaw),
+        })
+    }
+}
+
+impl<R: Read> RawReader<R> {
+    /// [`RawReader::open`] of `input` (`file_len` bytes, called `name` in errors).
+    pub fn from_reader(
+        input: R,
+        file_len: u64,
+        name: &Path,
+        gyro: Option<&str>,
+        strict: bool,
+    ) -> Result<RawReader<R>, ReadError> {
+        let selection = Selection::Raw(gyro.map(str::to_string));
+        Ok(RawReader {
+            inner: RecordingReader::from_reader(input, file_len, name, strict)?.select(selection),
+        })
+    }
+
+    /// The next batch of raw counts (with its gaps, sequence numbers, times,
+    /// temperature and status as recorded), `None` at the end or at the break.
+    pub fn next_batch(&mut self) -> Result<Option<RawBatch>, ReadError> {
+        Ok(self.next_labelled()?.map(|(_, b)| b))
+    }
+
+    /// [`RawReader::next_batch`] with the gyro whose batch it is (`None`: the
+    /// `/gyro/raw` of a recording of one gyro).
+    pub fn next_labelled(&mut self) -> Result<Option<(Option<String>, RawBatch)>, ReadError> {
+        while let Some(m) = self.inner.next_message()? {
+            if let SinkMessage::Raw(b) = m.message {
+                return Ok(Some((m.gyro, b)));
+            }
+        }
+        Ok(None)
+    }
+
+    /// Bytes of the file read so far.
+    pub fn bytes_read(&self) -> u64 {
+        self.inner.bytes_read()
+    }
+
+    /// What was read so far; its `break_at` says where a cut file stopped.
+    pub fn report(&self) -> &ScanReport {
+        self.inner.report()
+    }
+}
+
+/// The sample period (ns) of the first `/gyro/raw` batch (of gyro `gyro`) with
+/// one, `None` when the recording has none; reads only up to that batch.
+pub fn first_raw_period_ns(path: &Path, gyro: Option<&str>) -> Result<Option<u64>, ReadError> {
+    let mut reader = RawReader::open(path, gyro, false)?;
+    while let Some(b) = reader.next_batch()? {
+        if b.dt_ns > 0 {
+            return Ok(Some(b.dt_ns));
+        }
+    }
+    Ok(None)
 }
 
 /// The `sagnac` metadata record of a recording, read from the start of the file
@@ -287,60 +606,28 @@ pub fn recording_gyro_labels(path: &Path) -> Result<Vec<String>, ReadError> {
 
 /// The Metadata records before the first chunk or message, with their offsets.
 fn metadata_records(path: &Path) -> Result<Vec<(u64, ::mcap::records::Metadata)>, ReadError> {
-    let (file, len) = open(path)?;
-    let mut input = BufReader::new(file);
-    let io_err = |offset, source| ReadError::Io {
-        path: path.to_path_buf(),
-        offset,
-        source,
-    };
-    let mut magic = Vec::with_capacity(8);
-    (&mut input)
-        .take(8)
-        .read_to_end(&mut magic)
-        .map_err(|e| io_err(0, e))?;
-    if magic[..] != ::mcap::MAGIC[..magic.len()] {
-        return Err(ReadError::NotMcap {
-            path: path.to_path_buf(),
-        });
-    }
-    let scanner = Scanner {
-        path,
-        channels: HashMap::new(),
-        report: ScanReport {
-            messages: 0,
-            foreign_messages: 0,
-            recovered_bytes: 0,
-            file_len: len,
-            break_at: None,
-            metadata: None,
-        },
-    };
-    if magic.len() < 8 {
-        return Err(scanner.mcap_error(0, McapError::UnexpectedEof));
-    }
-    let options = LinearReaderOptions::default()
-        .with_skip_start_magic(true)
-        .with_emit_chunks(true)
-        .with_record_length_limit(usize::try_from(len).unwrap_or(usize::MAX));
-    let mut reader = LinearReader::new_with_options(options);
-    let mut offset: u64 = 8;
+    // strict: a file cut inside its magic is an error here
+    let mut r = RecordingReader::open(path, true)?;
     let mut found = Vec::new();
-    while let Some(event) = reader.next_event() {
-        match event.map_err(|e| scanner.mcap_error(offset, e))? {
+    while let Some(event) = r.reader.next_event() {
+        let start = r.offset;
+        match event.map_err(|e| r.scanner.mcap_error(start, e))? {
             LinearReadEvent::ReadRequest(need) => {
-                let buf = reader.insert(need.clamp(1, 4096));
-                let n = read_some(&mut input, buf).map_err(|e| io_err(offset, e))?;
-                reader.notify_read(n);
+                let buf = r.reader.insert(need.clamp(1, 4096));
+                let n = read_some(&mut r.input, buf).map_err(|source| ReadError::Io {
+                    path: path.to_path_buf(),
+                    offset: start,
+                    source,
+                })?;
+                r.reader.notify_read(n);
             }
             LinearReadEvent::Record { data, opcode } => {
-                let start = offset;
-                offset = start + RECORD_PREFIX + data.len() as u64;
+                r.offset = start + RECORD_PREFIX + data.len() as u64;
                 match opcode {
                     ::mcap::records::op::CHUNK | ::mcap::records::op::MESSAGE => return Ok(found),
                     ::mcap::records::op::METADATA => {
                         let record = ::mcap::parse_record(opcode, data)
-                            .map_err(|e| scanner.mcap_error(start, e))?;
+                            .map_err(|e| r.scanner.mcap_error(start, e))?;
                         if let Record::Metadata(m) = record {
                             found.push((start, m));
                         }
@@ -374,143 +661,41 @@ const MAX_CHUNK_BYTES: usize = 1 << 30;
 /// Opcode (1) and length (8) before every record body.
 const RECORD_PREFIX: u64 = 9;
 
-struct Scanner<'a> {
-    path: &'a Path,
-    /// Declared channels: id -> our topic, or None for a foreign one.
+/// The record-level half of a [`RecordingReader`]: channels, counts, and the
+/// messages decoded and not yet handed out.
+struct Scanner {
+    path: PathBuf,
+    selection: Selection,
+    /// Declared channels: id -> our topic (and gyro), or None for a foreign one.
     channels: HashMap<u16, Option<(Topic, Option<String>)>>,
     report: ScanReport,
+    pending: VecDeque<RecordedMessage>,
 }
 
-/// Read `input` (`file_len` bytes, named `path` in errors) linearly.
-fn scan(
-    input: &mut dyn Read,
-    file_len: u64,
-    path: &Path,
-    strict: bool,
-    each: &mut dyn FnMut(RecordedMessage),
-) -> Result<ScanReport, ReadError> {
-    let io_err = |offset, source| ReadError::Io {
-        path: path.to_path_buf(),
-        offset,
-        source,
-    };
+/// A top-level record other than a chunk, as far as the reader cares.
+enum TopLevel {
+    Footer,
+    /// The Statistics record's message count.
+    Statistics(u64),
+    Other,
+}
 
-    // Check the magic ourselves so that a file cut inside it is "empty", not "foreign".
-    let mut magic = Vec::with_capacity(8);
-    input
-        .take(8)
-        .read_to_end(&mut magic)
-        .map_err(|e| io_err(0, e))?;
-    if magic[..] != ::mcap::MAGIC[..magic.len()] {
-        return Err(ReadError::NotMcap {
-            path: path.to_path_buf(),
-        });
-    }
-    let mut scanner = Scanner {
-        path,
-        channels: HashMap::new(),
-        report: ScanReport {
-            messages: 0,
-            foreign_messages: 0,
-            recovered_bytes: magic.len() as u64,
-            file_len,
-            break_at: None,
-            metadata: None,
-        },
-    };
-    if magic.len() < 8 {
-        scanner.report.recovered_bytes = 0;
-        let e = scanner.mcap_error(0, McapError::UnexpectedEof);
-        return scanner.stop(strict, 0, e);
-    }
-
-    let options = LinearReaderOptions::default()
-        .with_skip_start_magic(true)
-        .with_check_finishes_after_end_magic(strict)
-        .with_emit_chunks(true)
-        // No record can be longer than the file: fail at once on a corrupt length.
-        .with_record_length_limit(usize::try_from(file_len).unwrap_or(usize::MAX));
-    let mut reader = LinearReader::new_with_options(options);
-    // Offset of the next record to come out of the reader.
-    let mut offset: u64 = 8;
-    let mut footer_seen = false;
-    let mut stats_count: Option<(u64, u64)> = None;
-    while let Some(event) = reader.next_event() {
-        let event = match event {
-            Ok(e) => e,
-            Err(e) => {
-                let e = scanner.mcap_error(offset, e);
-                return scanner.stop(strict, offset, e);
-            }
-        };
-        match event {
-            LinearReadEvent::ReadRequest(need) => {
-                let buf = reader.insert(need.clamp(1, READ_BLOCK));
-                let n = read_some(input, buf).map_err(|e| io_err(offset, e))?;
-                reader.notify_read(n);
-            }
-            LinearReadEvent::Record { data, opcode } => {
-                let start = offset;
-                let len = data.len() as u64;
-                if opcode == ::mcap::records::op::CHUNK {
-                    if let Err(e) = scanner.chunk(opcode, data, start, each) {
-                        return scanner.stop(strict, start, e);
-                    }
-                    offset = start + RECORD_PREFIX + len;
-                    scanner.report.recovered_bytes = offset;
-                    continue;
-                }
-                let record = match ::mcap::parse_record(opcode, data) {
-                    Ok(r) => r,
-                    Err(e) => {
-                        let e = scanner.mcap_error(start, e);
-                        return scanner.stop(strict, start, e);
-                    }
-                };
-                match record {
-                    Record::Footer(_) => footer_seen = true,
-                    Record::Statistics(ref s) => stats_count = Some((start, s.message_count)),
-                    Record::Metadata(ref m)
-                        if m.name == METADATA_NAME && scanner.report.metadata.is_none() =>
-                    {
-                        match parse_metadata(m, start, path) {
-                            Ok(meta) => scanner.report.metadata = Some(meta),
-                            Err(e) => return scanner.stop(strict, start, e),
-                        }
-                    }
-                    _ => {}
-                }
-                if let Err(e) = scanner.record(record, start, each) {
-                    return scanner.stop(strict, start, e);
-                }
-                offset = start + RECORD_PREFIX + len;
-                scanner.report.recovered_bytes = offset;
-            }
-        }
-    }
-    // The reader only ends cleanly after the footer and the end magic.
-    if !footer_seen {
-        let e = scanner.mcap_error(offset, McapError::UnexpectedEof);
-        return scanner.stop(strict, offset, e);
-    }
-    scanner.report.recovered_bytes = offset + ::mcap::MAGIC.len() as u64;
-    if let Some((at, expected)) = stats_count {
-        let read = scanner.report.messages + scanner.report.foreign_messages;
-        if expected != read {
-            let e = ReadError::CountMismatch {
-                path: path.to_path_buf(),
-                offset: at,
-                expected,
-                read,
-            };
-            return scanner.stop(strict, at, e);
-        }
-    }
-    Ok(scanner.report)
+/// A record that may sit inside a chunk.
+// Returned by value and consumed at once: boxing the message would allocate per message.
+#[allow(clippy::large_enum_variant)]
+enum Inner {
+    /// One of our messages, decoded.
+    Ours(RecordedMessage),
+    /// One of our messages, not selected.
+    Unselected,
+    /// A message on a foreign topic.
+    Foreign,
+    /// Any other record.
+    Other,
 }
 
 /// Read up to `buf.len()` bytes, retrying on interruption; 0 means end of file.
-fn read_some(input: &mut dyn Read, buf: &mut [u8]) -> io::Result<usize> {
+fn read_some(input: &mut impl Read, buf: &mut [u8]) -> io::Result<usize> {
     loop {
         match input.read(buf) {
             Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
@@ -519,22 +704,23 @@ fn read_some(input: &mut dyn Read, buf: &mut [u8]) -> io::Result<usize> {
     }
 }
 
-impl Scanner<'_> {
-    /// Stop at `offset` because of `error`: return it (strict) or report a break.
-    fn stop(
-        mut self,
-        strict: bool,
-        offset: u64,
-        error: ReadError,
-    ) -> Result<ScanReport, ReadError> {
-        if strict {
-            return Err(error);
+impl Scanner {
+    fn new(path: &Path, file_len: u64, recovered_bytes: u64) -> Scanner {
+        Scanner {
+            path: path.to_path_buf(),
+            selection: Selection::All,
+            channels: HashMap::new(),
+            report: ScanReport {
+                messages: 0,
+                foreign_messages: 0,
+                unselected_messages: 0,
+                recovered_bytes,
+                file_len,
+                break_at: None,
+                metadata: None,
+            },
+            pending: VecDeque::new(),
         }
-        self.report.break_at = Some(Break {
-            offset,
-            reason: error.to_string(),
-        });
-        Ok(self.report)
     }
 
     /// The error for an MCAP failure in the record starting at `offset`; the end of
@@ -547,15 +733,15 @@ impl Scanner<'_> {
         };
         match source {
             McapError::UnexpectedEof => ReadError::Incomplete {
-                path: self.path.to_path_buf(),
+                path: self.path.clone(),
                 offset,
             },
             McapError::RecordTooLarge { len, .. } if past_end(len) => ReadError::Incomplete {
-                path: self.path.to_path_buf(),
+                path: self.path.clone(),
                 offset,
             },
             source => ReadError::Mcap {
-                path: self.path.to_path_buf(),
+                path: self.path.clone(),
                 offset,
                 source,
             },
@@ -565,14 +751,8 @@ impl Scanner<'_> {
     /// Decode a whole chunk record (body `body`, starting at `offset`) with its own
     /// sans-io reader: the chunk is decompressed and its CRC checked before any
     /// record is used, and `MAX_CHUNK_BYTES` bounds what a corrupt size field may
-    /// make it allocate. Its messages are handed out only if the whole chunk decodes.
-    fn chunk(
-        &mut self,
-        opcode: u8,
-        body: &[u8],
-        offset: u64,
-        each: &mut dyn FnMut(RecordedMessage),
-    ) -> Result<(), ReadError> {
+    /// make it allocate. Its messages are queued only if the whole chunk decodes.
+    fn chunk(&mut self, opcode: u8, body: &[u8], offset: u64) -> Result<(), ReadError> {
         let mut prefix = [0u8; RECORD_PREFIX as usize];
         prefix[0] = opcode;
         prefix[1..].copy_from_slice(&(body.len() as u64).to_le_bytes());
@@ -585,7 +765,7 @@ impl Scanner<'_> {
                 .with_record_length_limit(MAX_CHUNK_BYTES),
         );
         let mut decoded = Vec::new();
-        let mut foreign = 0;
+        let (mut foreign, mut unselected) = (0, 0);
         while let Some(event) = reader.next_event() {
             match event.map_err(|e| self.mcap_error(offset, e))? {
                 LinearReadEvent::ReadRequest(need) => {
@@ -598,9 +778,10 @@ impl Scanner<'_> {
                     let record = ::mcap::parse_record(opcode, data)
                         .map_err(|e| self.mcap_error(offset, e))?;
                     match self.inner_record(record, offset)? {
-                        Some(Some(m)) => decoded.push(m),
-                        Some(None) => foreign += 1,
-                        None => {}
+                        Inner::Ours(m) => decoded.push(m),
+                        Inner::Unselected => unselected += 1,
+                        Inner::Foreign => foreign += 1,
+                        Inner::Other => {}
                     }
                 }
             }
@@ -608,35 +789,40 @@ impl Scanner<'_> {
         // The chunk is whole: hand out its messages.
         self.report.messages += decoded.len() as u64;
         self.report.foreign_messages += foreign;
-        decoded.into_iter().for_each(each);
+        self.report.unselected_messages += unselected;
+        self.pending.extend(decoded);
         Ok(())
     }
 
-    /// Handle one top-level record other than a chunk that starts at `offset`.
-    fn record(
-        &mut self,
-        record: Record<'_>,
-        offset: u64,
-        each: &mut dyn FnMut(RecordedMessage),
-    ) -> Result<(), ReadError> {
-        match self.inner_record(record, offset)? {
-            Some(Some(m)) => {
-                self.report.messages += 1;
-                each(m);
+    /// Handle one top-level record other than a chunk (`data`, starting at `offset`).
+    fn top_level(&mut self, opcode: u8, data: &[u8], offset: u64) -> Result<TopLevel, ReadError> {
+        let record = ::mcap::parse_record(opcode, data).map_err(|e| self.mcap_error(offset, e))?;
+        let seen = match record {
+            Record::Footer(_) => TopLevel::Footer,
+            Record::Statistics(ref s) => TopLevel::Statistics(s.message_count),
+            Record::Metadata(ref m)
+                if m.name == METADATA_NAME && self.report.metadata.is_none() =>
+            {
+                self.report.metadata = Some(parse_metadata(m, offset, &self.path)?);
+                TopLevel::Other
             }
-            Some(None) => self.report.foreign_messages += 1,
-            None => {}
+            _ => TopLevel::Other,
+        };
+        match self.inner_record(record, offset)? {
+            Inner::Ours(m) => {
+                self.report.messages += 1;
+                self.pending.push_back(m);
+            }
+            Inner::Unselected => self.report.unselected_messages += 1,
+            Inner::Foreign => self.report.foreign_messages += 1,
+            Inner::Other => {}
         }
-        Ok(())
+        Ok(seen)
     }
 
-    /// Handle a record that may sit inside a chunk: `Some(Some(m))` for one of our
-    /// messages, `Some(None)` for a foreign message, `None` for any other record.
-    fn inner_record(
-        &mut self,
-        record: Record<'_>,
-        offset: u64,
-    ) -> Result<Option<Option<RecordedMessage>>, ReadError> {
+    /// Handle a record that may sit inside a chunk (`offset`: where the record
+    /// holding it starts).
+    fn inner_record(&mut self, record: Record<'_>, offset: u64) -> Result<Inner, ReadError> {
         match record {
             Record::Channel(c) => {
                 let topic = Topic::parse_channel(&c.topic);
@@ -644,45 +830,47 @@ impl Scanner<'_> {
                     && c.message_encoding != MESSAGE_ENCODING
                 {
                     return Err(ReadError::Encoding {
-                        path: self.path.to_path_buf(),
+                        path: self.path.clone(),
                         offset,
                         topic: t.name(),
                         encoding: c.message_encoding,
                     });
                 }
                 self.channels.insert(c.id, topic);
-                Ok(None)
+                Ok(Inner::Other)
             }
             Record::Message { header, data } => {
-                let topic = self
-                    .channels
-                    .get(&header.channel_id)
-                    .cloned()
-                    .ok_or_else(|| ReadError::UnknownChannel {
-                        path: self.path.to_path_buf(),
+                let Some(channel) = self.channels.get(&header.channel_id) else {
+                    return Err(ReadError::UnknownChannel {
+                        path: self.path.clone(),
                         offset,
                         channel_id: header.channel_id,
-                    })?;
-                let Some((topic, gyro)) = topic else {
-                    return Ok(Some(None));
+                    });
                 };
+                let Some((topic, gyro)) = channel else {
+                    return Ok(Inner::Foreign);
+                };
+                if !self.selection.wants(*topic, gyro.as_deref()) {
+                    return Ok(Inner::Unselected);
+                }
+                let (topic, gyro) = (*topic, gyro.clone());
                 let message =
                     SinkMessage::from_json(topic, &data).map_err(|source| ReadError::Message {
-                        path: self.path.to_path_buf(),
+                        path: self.path.clone(),
                         offset,
                         topic: topic.name(),
                         sequence: header.sequence,
                         source: Box::new(source),
                     })?;
-                Ok(Some(Some(RecordedMessage {
+                Ok(Inner::Ours(RecordedMessage {
                     log_time_ns: header.log_time,
                     publish_time_ns: header.publish_time,
                     sequence: header.sequence,
                     message,
                     gyro,
-                })))
+                }))
             }
-            _ => Ok(None),
+            _ => Ok(Inner::Other),
         }
     }
 }

@@ -21,6 +21,20 @@ pub fn paper_model() -> sagnac::model::GyroModel {
     sagnac::model::GyroModel::load(&repo().join("config/paper_gyro.toml")).unwrap()
 }
 
+/// The corruption a serial stream gets in the pty tests (single and triad
+/// frames): drops, bit flips, duplicates and garbage with false syncs, at
+/// 0.4 % of frames each (duplicates 0.1 %), sparing the first and last frame
+/// (the baseline and the final counter).
+pub fn serial_faults() -> sagnac::source::frame::inject::InjectorConfig {
+    sagnac::source::frame::inject::InjectorConfig {
+        drop_prob: 0.004,
+        flip_prob: 0.004,
+        duplicate_prob: 0.001,
+        garbage_prob: 0.004,
+        ..Default::default()
+    }
+}
+
 /// A free loopback port (bound then released).
 pub fn free_addr() -> SocketAddr {
     let l = TcpListener::bind("127.0.0.1:0").unwrap();

@@ -37,6 +37,7 @@
 //! shorter octave that has one (0, white FM, when none has).
 
 use super::sample::{Neumaier, PhaseValue};
+use crate::dsp::isa::Isa;
 
 /// Minimum number of non-overlapping `m`-averages (first differences) for an octave's
 /// own lag-1 estimate (Riley recommends at least about 30).
@@ -117,16 +118,16 @@ impl SumLanes {
         self.s11[0] += first * prev;
         let (cur, before) = (&u[1..], &u[..u.len() - 1]);
         let whole = cur.len() / SUM_LANES * SUM_LANES;
-        #[cfg(target_arch = "x86_64")]
-        let done = if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked just above).
-            unsafe { self.add_avx2(&cur[..whole], &before[..whole]) };
-            true
-        } else {
-            false
+        let done = match Isa::detect() {
+            Isa::Baseline => false,
+            // SAFETY: an `Avx2` or `Avx512` exists only on a CPU with AVX2
+            // (crate::dsp::isa), the one feature the variant enables.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 | Isa::Avx512 => {
+                unsafe { self.add_avx2(&cur[..whole], &before[..whole]) };
+                true
+            }
         };
-        #[cfg(not(target_arch = "x86_64"))]
-        let done = false;
         if !done {
             let chunks = cur[..whole]
                 .chunks_exact(SUM_LANES)
@@ -146,11 +147,10 @@ impl SumLanes {
         }
     }
 
-    /// # Safety
-    /// The CPU must support AVX2.
+    /// The AVX2 variant of the grouped sums (see [`SumLanes::add`]).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn add_avx2(&mut self, cur: &[f64], before: &[f64]) {
+    fn add_avx2(&mut self, cur: &[f64], before: &[f64]) {
         use std::arch::x86_64::*;
         let n = cur.len().min(before.len()) / SUM_LANES * SUM_LANES;
         // SAFETY: AVX2 is enabled; loads read 4 f64 at `i + 4k < n`, `i + 8 <= n` within

@@ -7,7 +7,7 @@
 //!   `z = (c - (b + b)) + a` is evaluated in exactly the order of the NIST SP 1065 /
 //!   AllanTools formula `x[i+2m] - 2 x[i+m] + x[i]` (`b + b == 2 b` exactly), so each
 //!   term is bitwise the one a batch evaluation produces. Squares are summed into 16
-//!   independent lanes (explicit AVX2 when the CPU has it, else a portable loop doing
+//!   independent lanes (explicit AVX2 or AVX-512 as [`Isa`] picks, else a portable loop doing
 //!   the same IEEE operations per lane - no FMA - so both give identical bits). The lane
 //!   of a term is fixed by tile boundaries at absolute sample indices, so the order never
 //!   depends on how the caller split its input. Each block's lanes are reduced pairwise
@@ -22,6 +22,8 @@
 //!   exact while the sum stays below `2^128` (always for `|z| < 2^48` over 2^32 terms).
 
 use std::fmt::Debug;
+
+use crate::dsp::isa::Isa;
 
 mod sealed {
     pub trait Sealed {}
@@ -114,11 +116,9 @@ fn sq_acc_f64_body(a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; LANES]) {
     }
 }
 
-/// # Safety
-/// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn sq_acc_f64_avx2(a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; LANES]) {
+fn sq_acc_f64_avx2(a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; LANES]) {
     use std::arch::x86_64::*;
     let n = c.len();
     let (a, b) = (&a[..n], &b[..n]);
@@ -162,12 +162,9 @@ unsafe fn sq_acc_f64_avx2(a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; LANES
 
 /// The same kernel with 512-bit vectors: lanes 0-7 and 8-15 in two registers,
 /// the same IEEE operations per lane (no FMA), hence the same bits.
-///
-/// # Safety
-/// The CPU must support AVX-512F.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-unsafe fn sq_acc_f64_avx512(a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; LANES]) {
+fn sq_acc_f64_avx512(a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; LANES]) {
     use std::arch::x86_64::*;
     let n = c.len();
     let (a, b) = (&a[..n], &b[..n]);
@@ -203,25 +200,21 @@ unsafe fn sq_acc_f64_avx512(a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; LAN
     }
 }
 
-/// Whether this CPU runs the 512-bit kernels.
-#[cfg(target_arch = "x86_64")]
-fn has_avx512() -> bool {
-    std::arch::is_x86_feature_detected!("avx512f")
+fn sq_acc_f64(a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; LANES]) {
+    sq_acc_f64_on(Isa::detect(), a, b, c, acc)
 }
 
-fn sq_acc_f64(a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; LANES]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if has_avx512() {
-            // SAFETY: the CPU supports AVX-512F (checked just above).
-            return unsafe { sq_acc_f64_avx512(a, b, c, acc) };
-        }
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { sq_acc_f64_avx2(a, b, c, acc) };
-        }
+/// The f64 kernel variant `isa`.
+fn sq_acc_f64_on(isa: Isa, a: &[f64], b: &[f64], c: &[f64], acc: &mut [f64; LANES]) {
+    match isa {
+        Isa::Baseline => sq_acc_f64_body(a, b, c, acc),
+        // SAFETY: an `Avx2` exists only on a CPU with AVX2 (crate::dsp::isa).
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2 => unsafe { sq_acc_f64_avx2(a, b, c, acc) },
+        // SAFETY: an `Avx512` exists only on a CPU with AVX-512F (crate::dsp::isa).
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx512 => unsafe { sq_acc_f64_avx512(a, b, c, acc) },
     }
-    sq_acc_f64_body(a, b, c, acc)
 }
 
 impl PhaseValue for f64 {
@@ -301,11 +294,9 @@ const SMALL_Z_BITS: u32 = 28;
 /// a larger `z` is redone by the exact `u128` scalar kernel. Same integer total
 /// as [`sq_acc_i64_scalar`], hence bitwise the same result.
 ///
-/// # Safety
-/// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn sq_acc_i64_avx2(a: &[i64], b: &[i64], c: &[i64], total: &mut u128) {
+fn sq_acc_i64_avx2(a: &[i64], b: &[i64], c: &[i64], total: &mut u128) {
     use std::arch::x86_64::*;
     let n = c.len();
     let (a, b) = (&a[..n], &b[..n]);
@@ -362,12 +353,9 @@ unsafe fn sq_acc_i64_avx2(a: &[i64], b: &[i64], c: &[i64], total: &mut u128) {
 /// The count kernel with 512-bit vectors (8 lanes, two registers; each lane sums
 /// 16 squares of a chunk): exact under the same `|z| < 2^28` test, a chunk that
 /// fails it redone in `u128`.
-///
-/// # Safety
-/// The CPU must support AVX-512F.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-unsafe fn sq_acc_i64_avx512(a: &[i64], b: &[i64], c: &[i64], total: &mut u128) {
+fn sq_acc_i64_avx512(a: &[i64], b: &[i64], c: &[i64], total: &mut u128) {
     use std::arch::x86_64::*;
     let n = c.len();
     let (a, b) = (&a[..n], &b[..n]);
@@ -422,18 +410,20 @@ unsafe fn sq_acc_i64_avx512(a: &[i64], b: &[i64], c: &[i64], total: &mut u128) {
 }
 
 fn sq_acc_i64(a: &[i64], b: &[i64], c: &[i64], total: &mut u128) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if has_avx512() {
-            // SAFETY: the CPU supports AVX-512F (checked just above).
-            return unsafe { sq_acc_i64_avx512(a, b, c, total) };
-        }
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { sq_acc_i64_avx2(a, b, c, total) };
-        }
+    sq_acc_i64_on(Isa::detect(), a, b, c, total)
+}
+
+/// The count kernel variant `isa`.
+fn sq_acc_i64_on(isa: Isa, a: &[i64], b: &[i64], c: &[i64], total: &mut u128) {
+    match isa {
+        Isa::Baseline => sq_acc_i64_scalar(a, b, c, total),
+        // SAFETY: an `Avx2` exists only on a CPU with AVX2 (crate::dsp::isa).
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2 => unsafe { sq_acc_i64_avx2(a, b, c, total) },
+        // SAFETY: an `Avx512` exists only on a CPU with AVX-512F (crate::dsp::isa).
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx512 => unsafe { sq_acc_i64_avx512(a, b, c, total) },
     }
-    sq_acc_i64_scalar(a, b, c, total)
 }
 
 impl PhaseValue for i64 {
@@ -482,43 +472,31 @@ mod tests {
     type F64Kernel = fn(&[f64], &[f64], &[f64], &mut [f64; LANES]);
     type I64Kernel = fn(&[i64], &[i64], &[i64], &mut u128);
 
-    /// The dispatched kernels and every vector variant this CPU runs.
-    fn f64_kernels() -> Vec<(&'static str, F64Kernel)> {
-        #[allow(unused_mut)]
-        let mut k: Vec<(&'static str, F64Kernel)> = vec![("dispatched", sq_acc_f64)];
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: the CPU supports AVX2.
-                k.push(("avx2", |a, b, c, l| unsafe { sq_acc_f64_avx2(a, b, c, l) }));
+    /// The dispatched kernel `$dispatched` and every variant of `$on` this CPU
+    /// runs ([`Isa::available`]), named.
+    macro_rules! variants {
+        ($ty:ty, $dispatched:ident, $on:ident) => {{
+            let mut k: Vec<(String, $ty)> = vec![("dispatched".into(), $dispatched)];
+            for isa in Isa::available() {
+                let f: $ty = match isa {
+                    Isa::Baseline => |a, b, c, t| $on(Isa::Baseline, a, b, c, t),
+                    #[cfg(target_arch = "x86_64")]
+                    Isa::Avx2 => |a, b, c, t| $on(Isa::Avx2, a, b, c, t),
+                    #[cfg(target_arch = "x86_64")]
+                    Isa::Avx512 => |a, b, c, t| $on(Isa::Avx512, a, b, c, t),
+                };
+                k.push((format!("{isa:?}"), f));
             }
-            if has_avx512() {
-                // SAFETY: the CPU supports AVX-512F.
-                k.push(("avx512", |a, b, c, l| unsafe {
-                    sq_acc_f64_avx512(a, b, c, l)
-                }));
-            }
-        }
-        k
+            k
+        }};
     }
 
-    fn i64_kernels() -> Vec<(&'static str, I64Kernel)> {
-        #[allow(unused_mut)]
-        let mut k: Vec<(&'static str, I64Kernel)> = vec![("dispatched", sq_acc_i64)];
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: the CPU supports AVX2.
-                k.push(("avx2", |a, b, c, t| unsafe { sq_acc_i64_avx2(a, b, c, t) }));
-            }
-            if has_avx512() {
-                // SAFETY: the CPU supports AVX-512F.
-                k.push(("avx512", |a, b, c, t| unsafe {
-                    sq_acc_i64_avx512(a, b, c, t)
-                }));
-            }
-        }
-        k
+    fn f64_kernels() -> Vec<(String, F64Kernel)> {
+        variants!(F64Kernel, sq_acc_f64, sq_acc_f64_on)
+    }
+
+    fn i64_kernels() -> Vec<(String, I64Kernel)> {
+        variants!(I64Kernel, sq_acc_i64, sq_acc_i64_on)
     }
 
     #[test]

@@ -14,8 +14,14 @@ pub trait Axes: Wire {
     /// Gyro `axis`'s view of a decoder item.
     fn axis(item: &WireDecoded<Self>, axis: usize) -> Decoded;
     /// Gyro `axis`'s increments of a run from
-    /// [`FrameDecoder::decode_run`](super::FrameDecoder::decode_run), appended to `out`.
-    fn axis_run(run: &[Self::Increment], axis: usize, out: &mut Vec<i64>);
+    /// [`FrameDecoder::decode_run`](super::FrameDecoder::decode_run): the run
+    /// itself when the frame carries one gyro (no copy), else split out into
+    /// `scratch` (cleared first).
+    fn axis_run<'a>(
+        run: &'a [Self::Increment],
+        axis: usize,
+        scratch: &'a mut Vec<i64>,
+    ) -> &'a [i64];
 }
 
 /// `ev` with its counter (a baseline's) mapped by `f`.
@@ -90,8 +96,8 @@ impl Axes for Single {
         *item
     }
 
-    fn axis_run(run: &[i64], _axis: usize, out: &mut Vec<i64>) {
-        out.extend_from_slice(run);
+    fn axis_run<'a>(run: &'a [i64], _axis: usize, _scratch: &'a mut Vec<i64>) -> &'a [i64] {
+        run
     }
 }
 
@@ -114,8 +120,10 @@ impl Axes for Triad {
         }
     }
 
-    fn axis_run(run: &[[i64; 3]], axis: usize, out: &mut Vec<i64>) {
-        out.extend(run.iter().map(|inc| inc[axis]));
+    fn axis_run<'a>(run: &'a [[i64; 3]], axis: usize, scratch: &'a mut Vec<i64>) -> &'a [i64] {
+        scratch.clear();
+        scratch.extend(run.iter().map(|inc| inc[axis]));
+        scratch
     }
 }
 
@@ -163,9 +171,17 @@ mod tests {
                 "axis {axis}"
             );
             assert_eq!(samples[39], (incs[39][axis], 0), "axis {axis}");
-            let mut run = Vec::new();
-            Triad::axis_run(&incs, axis, &mut run);
+            let mut scratch = vec![99];
+            let run = Triad::axis_run(&incs, axis, &mut scratch);
             assert_eq!(run, incs.iter().map(|v| v[axis]).collect::<Vec<_>>());
+            let single: Vec<i64> = incs.iter().map(|v| v[axis]).collect();
+            let mut untouched = vec![7];
+            let same = Single::axis_run(&single, 0, &mut untouched);
+            assert!(
+                std::ptr::eq(same, &single[..]),
+                "a single frame's run is not copied"
+            );
+            assert_eq!(untouched, vec![7]);
         }
         let mut buf = BytesMut::from(&bytes[..]);
         let mut dec = FrameDecoder::<Triad>::for_wire(DecoderConfig::default());
