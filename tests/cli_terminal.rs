@@ -181,10 +181,16 @@ fn run_without_a_terminal_writes_plain_log_lines() {
         "progress or escape codes in {err:?}"
     );
     let estimates: Vec<&str> = err.lines().filter(|l| l.contains(" estimate ")).collect();
-    assert_eq!(
-        estimates.len(),
-        4,
-        "three interval updates and the final one:\n{err}"
+    // three interval updates and the final one; the simulated bench skips an
+    // update that would take over 5 % of the wall time, as one may on a
+    // loaded machine (the final one is always made)
+    assert!(
+        (2..=4).contains(&estimates.len()),
+        "interval updates and the final one:\n{err}"
+    );
+    assert!(
+        estimates.last().unwrap().contains("final_update=true"),
+        "the last estimate is the final one:\n{err}"
     );
     for l in estimates {
         for key in ["quantization_arcsec=", "arw_dpsh=", "bias_instability_dph="] {

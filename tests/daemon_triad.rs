@@ -92,12 +92,17 @@ fn a_triad_over_a_pty_exact_per_gyro_counts_estimates_and_every_pulse_recorded()
         e.bytes_read as f64,
         Duration::from_secs(30),
     );
-    let text = wait_metric(
-        addr,
-        "sagnac_estimator_updates_total{gyro=\"z\"}",
-        6.0,
-        Duration::from_secs(30),
-    );
+    // each gyro's pipeline runs on its own thread: wait for all three (an
+    // update still queued at the shutdown request is not made)
+    let mut text = String::new();
+    for g in ["x", "y", "z"] {
+        text = wait_metric(
+            addr,
+            &format!("sagnac_estimator_updates_total{{gyro=\"{g}\"}}"),
+            6.0,
+            Duration::from_secs(30),
+        );
+    }
     for g in ["x", "y", "z"] {
         for (series, want) in [
             (
