@@ -130,7 +130,7 @@ fn effects() -> Vec<Effect> {
             model: "",
             arw: 0.002,
             truth: |s| format!("[[noise.sinusoid]]\namplitude_dph = {s}\nperiod_s = 40.0\n"),
-            sizes: [0.003, 0.006, 0.012],
+            sizes: [0.015, 0.03, 0.06],
             unit: "amplitude deg/h",
             named: |r| added(r, "sinusoid"),
             rate: false,
