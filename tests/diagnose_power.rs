@@ -258,6 +258,10 @@ fn median(mut v: Vec<f64>) -> f64 {
 fn bench_power() {
     let seeds: u64 = std::env::var("SAGNAC_BENCH_SEEDS").map_or(10, |s| s.parse().unwrap());
     let only = std::env::var("SAGNAC_BENCH_ONLY").ok();
+    // one size of the effects kept (for a rerun of one row)
+    let size_only: Option<f64> = std::env::var("SAGNAC_BENCH_SIZE")
+        .ok()
+        .and_then(|v| v.parse().ok());
     let t_all = Instant::now();
     println!(
         "| effect | gyro | size | sigma_w | raw z/crit (median) | concealed | raw sep/crit | detected | named | named as (seeds) |"
@@ -269,6 +273,9 @@ fn bench_power() {
         }
         let model = gyro(&e, e.arw, "");
         for &size in &e.sizes {
+            if size_only.is_some_and(|v| v != size) {
+                continue;
+            }
             let extra = (e.truth)(size);
             let arw = if extra.starts_with("#arw") {
                 size
