@@ -143,7 +143,7 @@ fn effects() -> Vec<Effect> {
             model: "",
             arw: 0.002,
             truth: |s| format!("rate_ramp_dphh = {s}\n"),
-            sizes: [0.005, 0.01, 0.02],
+            sizes: [0.02, 0.04, 0.08],
             unit: "deg/h/h",
             named: |r| added(r, "rate_ramp_dphh"),
             rate: false,
