@@ -43,7 +43,14 @@
 //!   30 % ([`default_systematic_rel`]). No verdict is given closer to the limit
 //!   than about `z_k` times that.
 //!   The rate ramp is signed: its interval is widened on the linear scale and the
-//!   limit applies to its magnitude.
+//!   limit applies to its magnitude. A gyro inside the limit can then be failed
+//!   from either side (`s > limit + y se` or `s < -limit - y se`), so the lower
+//!   bound of the magnitude uses the quantile `y` that solves
+//!   `Q(y) + Q(y + 2 limit / se) = alpha_k` ([`magnitude_fail_z`]): `z_k` when
+//!   the standard error is small against the limit, the two-sided quantile
+//!   when it is large (a short record, where the one-sided `z_k` erred up to
+//!   `2 alpha_k` per look). The upper bound, which decides a `pass`, needs only
+//!   one side and keeps `z_k`.
 //! * A coefficient reported only as a 95 % upper bound `u` (the data do not
 //!   resolve the term: value `null`) gets `upper = u (z_k / 1.645) exp(z_k systematic_rel)`, conservative
 //!   because every such bound is of the form `a + z b` with `a, b >= 0` (or its

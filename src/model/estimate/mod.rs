@@ -21,7 +21,10 @@
 //! of each variance, model selection by likelihood ratio, profile intervals).
 //! The ramp is a least-squares slope whose variance is computed from the
 //! fitted noise spectrum (`int S(nu) |W(nu)|^2 dnu`), not from a white-noise
-//! formula, so its interval stays honest under flicker and random walk. The
+//! formula, so its interval stays honest under flicker and random walk; its
+//! white-angle part is the quantization read from the angle, which on a short
+//! record (below about 25 min at Q 0.5 arcsec, N 0.0005 deg/rt(h)) is most of
+//! it, through the angle errors at the record's two ends. The
 //! long-tau Allan points also see a ramp (R^2 tau^2 / 2): they get a ramp
 //! column in the fit (0 on the wavelet levels), so that power does not go
 //! into K, and a ramp is reported only when the slope's z test passes and
