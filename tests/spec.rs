@@ -253,9 +253,16 @@ fn a_signed_coefficient_fails_inside_its_limit_at_most_alpha() {
     let runs = 40_000;
     // binomial sd at 5 %: 0.11 %; allow 4 sd
     let tol = 4.0 * (0.05f64 * 0.95 / runs as f64).sqrt();
-    for (i, (truth, se)) in [(1.0, 20.0), (1.0, 3.0), (1.0, 1.0), (1.0, 0.2), (-1.0, 20.0), (0.0, 20.0)]
-        .into_iter()
-        .enumerate()
+    for (i, (truth, se)) in [
+        (1.0, 20.0),
+        (1.0, 3.0),
+        (1.0, 1.0),
+        (1.0, 0.2),
+        (-1.0, 20.0),
+        (0.0, 20.0),
+    ]
+    .into_iter()
+    .enumerate()
     {
         let (_, fail) = signed_one_look(100 + i as u64, truth, se, 1.0, runs);
         eprintln!("truth {truth}, se {se}: fail {:.2} %", 100.0 * fail);
