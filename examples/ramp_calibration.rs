@@ -26,6 +26,7 @@
 //! ([`sagnac::model::spec::magnitude_fail_z`]), `fails (one-sided z_k)` with
 //! the plain one-sided quantile on the magnitude; the last line counts the
 //! runs failed at some listed length (a wrong verdict: the truth is inside).
+//! `DIAG_DEBUG=1` prints each record whose reported standard error is 0.
 
 use sagnac::model::GyroModel;
 use sagnac::model::estimate::{slope_var_per_theta, standard_terms};
@@ -117,7 +118,7 @@ fn main() -> Result<(), String> {
                 (_, _, Some(u)) => (u - s_dphh.abs()) / z,
                 _ => continue,
             };
-            if !(se > 0.0) && std::env::var_os("DIAG_DEBUG").is_some() {
+            if (se.is_nan() || se <= 0.0) && std::env::var_os("DIAG_DEBUG").is_some() {
                 eprintln!(
                     "T {len} seed {seed}: s {s_dphh} sd {sd_narrow} coef {c:?}\n  theta {:?}\n  fit {:?}\n  quality {:?} est {:?}",
                     est.theta, est.fit.terms, est.quality, est.estimates

@@ -592,7 +592,8 @@ fn bounds_at(c: SpecCoefficient, s: Scaled, z: f64, shrink: f64, limit: f64) -> 
 /// `se` is the standard error on the other side (the tail towards `-limit`).
 pub fn magnitude_fail_z(z: f64, se: f64, limit: f64) -> f64 {
     let n = Normal::new(0.0, 1.0).expect("standard normal");
-    if !(z.is_finite() && limit > 0.0) || !(se > 0.0) {
+    let usable = z.is_finite() && limit > 0.0 && se > 0.0;
+    if !usable {
         return z;
     }
     if !se.is_finite() {
