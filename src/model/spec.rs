@@ -43,7 +43,14 @@
 //!   30 % ([`default_systematic_rel`]). No verdict is given closer to the limit
 //!   than about `z_k` times that.
 //!   The rate ramp is signed: its interval is widened on the linear scale and the
-//!   limit applies to its magnitude.
+//!   limit applies to its magnitude. A gyro inside the limit can then be failed
+//!   from either side (`s > limit + y se` or `s < -limit - y se`), so the lower
+//!   bound of the magnitude uses the quantile `y` that solves
+//!   `Q(y) + Q(y + 2 limit / se) = alpha_k` ([`magnitude_fail_z`]): `z_k` when
+//!   the standard error is small against the limit, the two-sided quantile
+//!   when it is large (a short record, where the one-sided `z_k` erred up to
+//!   `2 alpha_k` per look). The upper bound, which decides a `pass`, needs only
+//!   one side and keeps `z_k`.
 //! * A coefficient reported only as a 95 % upper bound `u` (the data do not
 //!   resolve the term: value `null`) gets `upper = u (z_k / 1.645) exp(z_k systematic_rel)`, conservative
 //!   because every such bound is of the form `a + z b` with `a, b >= 0` (or its
@@ -547,16 +554,19 @@ fn scaled(c: SpecCoefficient, v: f64, lo: f64, hi: f64, sys: f64) -> Option<Scal
 }
 
 /// (lower, upper) bounds of the coefficient's magnitude at quantile `z` with the
-/// standard errors scaled by `shrink`.
-fn bounds_at(c: SpecCoefficient, s: Scaled, z: f64, shrink: f64) -> (f64, f64) {
+/// standard errors scaled by `shrink`. For a signed coefficient the lower bound
+/// of the magnitude, which decides a `fail`, uses [`magnitude_fail_z`]: both
+/// signs can fail a gyro whose truth is inside `[-limit, limit]`.
+fn bounds_at(c: SpecCoefficient, s: Scaled, z: f64, shrink: f64, limit: f64) -> (f64, f64) {
     let lo = s.centre - z * s.se_lo * shrink;
     let hi = s.centre + z * s.se_hi * shrink;
     if c.signed() {
         let upper = lo.abs().max(hi.abs());
+        let (se_lo, se_hi) = (s.se_lo * shrink, s.se_hi * shrink);
         let lower = if lo > 0.0 {
-            lo
+            (s.centre - magnitude_fail_z(z, se_hi, limit) * se_lo).max(0.0)
         } else if hi < 0.0 {
-            -hi
+            (-(s.centre + magnitude_fail_z(z, se_lo, limit) * se_hi)).max(0.0)
         } else {
             0.0
         };
@@ -565,6 +575,44 @@ fn bounds_at(c: SpecCoefficient, s: Scaled, z: f64, shrink: f64) -> (f64, f64) {
         let lower = if lo.is_finite() { lo.exp() } else { 0.0 };
         (lower, hi.exp())
     }
+}
+
+/// The quantile that keeps a wrong `fail` of a signed coefficient at the
+/// one-sided level `alpha = 1 - Phi(z)` of quantile `z`.
+///
+/// The verdict is on the magnitude: `fail` when `|s| - y se > limit`. For an
+/// estimate `s ~ N(R, se^2)` with `|R| <= limit` that happens on either side,
+/// `s > limit + y se` or `s < -limit - y se`, with probability at most (at
+/// `|R| = limit`) `Q(y) + Q(y + 2 limit / se)`, `Q` the normal tail. The
+/// one-sided `y = z` therefore errs up to `2 alpha` when `se` is large against
+/// the limit (a short record: the truth, whatever its sign, is within a
+/// fraction of a standard error of both `+limit` and `-limit`). `y` solves
+/// `Q(y) + Q(y + 2 limit / se) = alpha`: `z` when `se << limit`, the
+/// two-sided `Phi^-1(1 - alpha/2)` when `se >> limit`.
+/// `se` is the standard error on the other side (the tail towards `-limit`).
+pub fn magnitude_fail_z(z: f64, se: f64, limit: f64) -> f64 {
+    let n = Normal::new(0.0, 1.0).expect("standard normal");
+    let usable = z.is_finite() && limit > 0.0 && se > 0.0;
+    if !usable {
+        return z;
+    }
+    if !se.is_finite() {
+        return normal_quantile(1.0 - 0.5 * n.sf(z));
+    }
+    let alpha = n.sf(z);
+    let d = 2.0 * limit / se;
+    let excess = |y: f64| n.sf(y) + n.sf(y + d) - alpha;
+    // excess(z) >= 0 and excess is decreasing; the root is below the two-sided quantile
+    let (mut a, mut b) = (z, normal_quantile(1.0 - 0.5 * alpha).max(z));
+    for _ in 0..60 {
+        let m = 0.5 * (a + b);
+        if excess(m) > 0.0 {
+            a = m;
+        } else {
+            b = m;
+        }
+    }
+    b
 }
 
 /// The verdict on one coefficient at one look with one-sided quantile `z`.
@@ -596,7 +644,7 @@ fn judge(
                     "the estimate's interval is not usable (not finite)".into(),
                 );
             };
-            let (lower, upper) = bounds_at(c, s, z, 1.0);
+            let (lower, upper) = bounds_at(c, s, z, 1.0, limit);
             let (verdict, bound) = if upper < limit {
                 (Verdict::Pass, upper)
             } else if lower > limit {
@@ -815,7 +863,7 @@ impl SequentialSpec {
                 (k + 1..k + HORIZON).find_map(|j| {
                     let t = self.schedule.length_s(j);
                     let (lower, upper) =
-                        bounds_at(c, s, self.schedule.z(j), (duration_s / t).sqrt());
+                        bounds_at(c, s, self.schedule.z(j), (duration_s / t).sqrt(), limit);
                     (upper < limit || lower > limit).then_some(t - duration_s)
                 })
             }

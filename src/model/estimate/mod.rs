@@ -21,7 +21,10 @@
 //! of each variance, model selection by likelihood ratio, profile intervals).
 //! The ramp is a least-squares slope whose variance is computed from the
 //! fitted noise spectrum (`int S(nu) |W(nu)|^2 dnu`), not from a white-noise
-//! formula, so its interval stays honest under flicker and random walk. The
+//! formula, so its interval stays honest under flicker and random walk; its
+//! white-angle part is the quantization read from the angle, which on a short
+//! record (below about 25 min at Q 0.5 arcsec, N 0.0005 deg/rt(h)) is most of
+//! it, through the angle errors at the record's two ends. The
 //! long-tau Allan points also see a ramp (R^2 tau^2 / 2): they get a ramp
 //! column in the fit (0 on the wavelet levels), so that power does not go
 //! into K, and a ramp is reported only when the slope's z test passes and
@@ -519,14 +522,28 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         term_coefficient(&widen_term(t, widen), CONV[i])
     };
     let ramp_term = fit.terms.get(terms.len()).filter(|_| lf.ramp_col);
-    let ramp = ramp_slope(input, &terms, &theta_lf).map(|(s, sd)| (s, sd * widen));
+    // The slope's white-angle part is the quantization read from the angle
+    // (`q2`, thousands of degrees of freedom), not the low-frequency fit's
+    // white-angle nuisance (a few levels below the QN band, often 0 or far
+    // off). On a short record it is the largest part of the slope's variance:
+    // the slope's end weights `+-(n/2) / S_kk` fall on the rate differences at
+    // the two ends, so the first and last angle errors enter as
+    // `72 Q^2 / T^4` (against `12 N^2 / T^3` for ARW; at Q 0.48 arcsec and N
+    // 0.0005 deg/rt(h) the QN part is larger below about 25 min). With the
+    // nuisance in its place the standard error scattered from record to
+    // record and the slope's z-scores had heavy tails (examples/ramp_calibration.rs).
+    let mut theta_ramp = theta_lf.clone();
+    if q2.is_finite() {
+        theta_ramp[0] = theta_ramp[0].max(q2);
+    }
+    let ramp = ramp_slope(input, &terms, &theta_ramp).map(|(s, sd)| (s, sd * widen));
     // The ramp's interval allows every term the record cannot rule out at its
     // upper bound (an unresolved bias instability or RRW wanders the rate as
     // much as a ramp over the record); whether a ramp is reported at all stays
     // the z test under the fitted spectrum with the Allan ramp column kept.
     let theta_slope: Vec<f64> = fit.terms[..terms.len()]
         .iter()
-        .zip(&theta_lf)
+        .zip(&theta_ramp)
         .map(|(t, &th)| {
             if t.included {
                 th
