@@ -783,3 +783,75 @@ fn issue_13_an_mcap_recording_without_metadata_needs_the_pulse_flag() {
         "{err}"
     );
 }
+
+/// A short record whose low-frequency fit collapses (every term at 0, a
+/// chi-square that is not finite): the fit is reported as not ok, and each
+/// unresolved term gets its per-level bound, which holds the truth, instead of
+/// the collapsed profile's bound (ARW < 2e-122 deg/sqrt(h) before, for a true
+/// 0.0005: an ARW limit would have passed on nothing).
+#[test]
+fn a_collapsed_low_frequency_fit_bounds_nothing_tightly() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("m.toml");
+    std::fs::write(
+        &model,
+        "[gyro]\nsample_rate_hz = 100\npulse_weight_arcsec = 1.21\ninput_rate_dph = 12.3\n\
+         [noise]\nquantization_arcsec = 0.484\narw_dpsh = 0.0005\nbias_instability_dph = 0.002\n\
+         rate_ramp_dphh = 0.0455\n",
+    )
+    .unwrap();
+    let csv = dir.path().join("s.csv");
+    let out = sagnac(&[
+        "simulate",
+        "--model",
+        model.to_str().unwrap(),
+        "--duration-s",
+        "480",
+        "--seed",
+        "7000057",
+        "--format",
+        "csv",
+        "--out",
+        csv.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = sagnac(&[
+        "analyze",
+        "--input",
+        csv.to_str().unwrap(),
+        "--rate-hz",
+        "100",
+        "--pulse-arcsec",
+        "1.21",
+        "--json",
+        "-",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let j: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(j["fit"]["ok"], false, "{}", j["fit"]);
+    let e = &j["estimates"];
+    let bound = |k: &str, truth: f64| {
+        let c = &e[k];
+        let hi = c["upper95"]
+            .as_f64()
+            .or_else(|| c["ci95"][1].as_f64())
+            .unwrap_or(f64::INFINITY);
+        assert!(hi >= truth, "{k}: bound {hi} below the truth {truth}: {c}");
+    };
+    bound("arw_dpsh", 0.0005);
+    bound("bias_instability_dph", 0.002);
+    bound("rate_ramp_dphh", 0.0455);
+    let q = e["quantization_arcsec"]["ci95"].as_array().unwrap();
+    assert!(
+        q[0].as_f64().unwrap() < 0.484 && 0.484 < q[1].as_f64().unwrap(),
+        "{q:?}"
+    );
+}

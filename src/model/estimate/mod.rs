@@ -299,15 +299,23 @@ impl FitQuality {
         let dof = (n_obs as f64 - n_par as f64).max(1.0);
         // LevelFit's chi2_per_dof counts only the linear terms
         let chi2 = fit.chi2_per_dof * (n_obs as f64 - (n_par - extra_params) as f64).max(1.0);
-        let ok = !chi2.is_finite()
-            || ChiSquared::new(dof)
+        // A chi-square that is not finite is a collapsed fit (every term at 0,
+        // a predicted variance of 0 against observed noise): not a description.
+        let ok = chi2.is_finite()
+            && ChiSquared::new(dof)
                 .map(|d| 1.0 - d.cdf(chi2) >= MISFIT_P)
                 .unwrap_or(true);
         FitQuality {
             chi2_per_dof: chi2 / dof,
             dof,
-            ok: ok || !chi2.is_finite(),
+            ok,
         }
+    }
+
+    /// The fit collapsed (its chi-square is not finite): its profile bounds
+    /// say nothing, and the per-level bounds are reported instead.
+    pub fn collapsed(&self) -> bool {
+        self.dof > 0.0 && !self.chi2_per_dof.is_finite()
     }
 
     /// A fit with no observations (too short a record, or no noise).
@@ -319,9 +327,10 @@ impl FitQuality {
         }
     }
 
-    /// The factor intervals are widened by: `sqrt(chi2/dof)` for a misfit, else 1.
+    /// The factor intervals are widened by: `sqrt(chi2/dof)` for a misfit, else
+    /// 1 (also for a collapsed fit, whose terms get the per-level bounds).
     pub fn widening(&self) -> f64 {
-        if self.ok {
+        if self.ok || self.collapsed() {
             1.0
         } else {
             self.chi2_per_dof.sqrt().max(1.0)
@@ -503,8 +512,11 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
     let (q2, q2_sd) = quantization::q_from_angle(input, &terms, &theta_lf);
     let widen = quality.widening();
     let theta = [q2.max(0.0), theta_lf[1], theta_lf[2], theta_lf[3]];
+    // a collapsed fit bounds nothing: each term gets its per-level bound, as
+    // on a record too short for the fit
+    let collapsed = quality.collapsed();
     let coef = |i: usize| -> Coefficient {
-        if too_short || (saturated && i >= 2) {
+        if too_short || collapsed || (saturated && i >= 2) {
             return Coefficient {
                 value: None,
                 ci95: None,
@@ -544,8 +556,17 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
     let theta_slope: Vec<f64> = fit.terms[..terms.len()]
         .iter()
         .zip(&theta_ramp)
-        .map(|(t, &th)| {
-            if t.included {
+        .enumerate()
+        .map(|(k, (t, &th))| {
+            if collapsed {
+                th.max(
+                    level_bounds
+                        .get(k)
+                        .copied()
+                        .filter(|b| b.is_finite())
+                        .unwrap_or(0.0),
+                )
+            } else if t.included {
                 th
             } else {
                 th.max(t.upper95.unwrap_or(0.0))
