@@ -252,17 +252,7 @@ fn offline_commands_show_progress_on_a_terminal_only() {
             "a.json",
         ],
     ] {
-        let out = Command::new(SAGNAC)
-            .args(&args)
-            .current_dir(dir.path())
-            .output()
-            .unwrap();
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(out.status.success(), "{args:?}: {err}");
-        assert!(
-            !err.contains('\r') && !err.contains('\x1b'),
-            "{args:?}: progress on a pipe: {err:?}"
-        );
+        plain_on_a_pipe(&args, dir.path());
     }
     // a wide terminal keeps the full status line
     let (tty, code) = on_pty_cols(
@@ -326,15 +316,21 @@ fn offline_commands_show_progress_on_a_terminal_only() {
         tty.contains("simulating the model") && tty.contains("/4 runs"),
         "the diagnosis's bar: {tty:?}"
     );
+    plain_on_a_pipe(&diag, dir.path());
+}
+
+/// `args` run with stderr on a pipe succeed and write no progress (no carriage
+/// return, no escape code).
+fn plain_on_a_pipe(args: &[&str], cwd: &Path) {
     let out = Command::new(SAGNAC)
-        .args(diag)
-        .current_dir(dir.path())
+        .args(args)
+        .current_dir(cwd)
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{err}");
+    assert!(out.status.success(), "{args:?}: {err}");
     assert!(
         !err.contains('\r') && !err.contains('\x1b'),
-        "progress on a pipe: {err:?}"
+        "{args:?}: progress on a pipe: {err:?}"
     );
 }

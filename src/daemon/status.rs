@@ -39,6 +39,14 @@ pub struct StatusSnapshot {
     pub replay_bytes: Option<(u64, u64)>,
 }
 
+impl StatusSnapshot {
+    /// How far a replay has got through its file, %.
+    fn replay_percent(&self) -> Option<f64> {
+        let (done, total) = self.replay_bytes.filter(|&(_, t)| t > 0)?;
+        Some(100.0 * (done.min(total) as f64) / total as f64)
+    }
+}
+
 #[derive(Debug, Default)]
 struct State {
     samples: u64,
@@ -185,13 +193,8 @@ pub fn format_status_for_width(s: &StatusSnapshot, width: usize) -> String {
 /// replay; `estimating...` before the first update.
 pub fn format_status(s: &StatusSnapshot) -> String {
     let mut parts = Vec::with_capacity(6);
-    if let Some((done, total)) = s.replay_bytes
-        && total > 0
-    {
-        parts.push(format!(
-            "replay {:.0} %",
-            100.0 * (done.min(total) as f64) / total as f64
-        ));
+    if let Some(pct) = s.replay_percent() {
+        parts.push(format!("replay {pct:.0} %"));
     }
     parts.push(format!("{:.1} s", s.elapsed_s));
     parts.push(format!("{} samples, {} lost", s.samples, s.lost));
@@ -222,13 +225,8 @@ pub fn format_status(s: &StatusSnapshot) -> String {
 /// 95 % intervals to 2 significant digits, `ok` or `MISFIT` for the fit.
 pub fn format_status_compact(s: &StatusSnapshot) -> String {
     let mut parts = Vec::with_capacity(8);
-    if let Some((done, total)) = s.replay_bytes
-        && total > 0
-    {
-        parts.push(format!(
-            "{:.0}%",
-            100.0 * (done.min(total) as f64) / total as f64
-        ));
+    if let Some(pct) = s.replay_percent() {
+        parts.push(format!("{pct:.0}%"));
     }
     parts.push(short_duration(s.elapsed_s));
     parts.push(format!(
