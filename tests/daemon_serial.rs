@@ -241,13 +241,7 @@ fn serial_pty_exact_counts_live_qn_promtool_sigterm_and_every_pulse_recorded() {
         "promtool check metrics on the live scrape:\n{out}\n---\n{text}"
     );
 
-    daemon.sigterm();
-    let status = daemon.wait(Duration::from_secs(10));
-    assert!(
-        status.success(),
-        "exit {status:?}; log:\n{}",
-        daemon.log_text()
-    );
+    daemon.stop_ok(Duration::from_secs(10));
     drop(w);
     let log = daemon.log_text();
     assert!(log.contains("estimate"), "{log}");
@@ -335,13 +329,7 @@ fn serial_device_vanishes_and_returns_angle_continuity_and_exact_loss() {
     exact_counts(&text, &ledger);
     assert!(ledger.expected.lost_samples >= 2000);
 
-    daemon.sigterm();
-    let status = daemon.wait(Duration::from_secs(10));
-    assert!(
-        status.success(),
-        "exit {status:?}; log:\n{}",
-        daemon.log_text()
-    );
+    daemon.stop_ok(Duration::from_secs(10));
     drop(w);
     let v = check_recording(&only_recording(&rec_dir), &emu, &ledger, 40_000, false);
     assert_eq!(v["events_by_kind"]["device_disconnected"], 1);
@@ -427,13 +415,7 @@ fn serial_overload_drops_are_counted_recorded_and_lose_no_angle() {
     let peak = peak_rss_bytes(daemon.child.id()).unwrap();
     assert!(peak < 128 << 20, "peak RSS {} MB", peak >> 20);
 
-    daemon.sigterm();
-    let status = daemon.wait(Duration::from_secs(20));
-    assert!(
-        status.success(),
-        "exit {status:?}; log:\n{}",
-        daemon.log_text()
-    );
+    daemon.stop_ok(Duration::from_secs(20));
     drop(w);
 
     let v = read_mcap_py_fast(&only_recording(&rec_dir));
@@ -543,13 +525,7 @@ fn issue_13_a_600_s_burst_at_full_speed_drops_nothing_and_equals_analyze() {
         Some(600_000.0)
     );
 
-    daemon.sigterm();
-    let status = daemon.wait(Duration::from_secs(20));
-    assert!(
-        status.success(),
-        "exit {status:?}; log:\n{}",
-        daemon.log_text()
-    );
+    daemon.stop_ok(Duration::from_secs(20));
     drop(w);
 
     let (live, raw) = final_and_raw(&only_recording(&rec_dir));

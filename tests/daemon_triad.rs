@@ -140,13 +140,7 @@ fn a_triad_over_a_pty_exact_per_gyro_counts_estimates_and_every_pulse_recorded()
     let (ok, out) = promtool(&text);
     assert!(ok, "promtool check metrics:\n{out}");
 
-    daemon.sigterm();
-    let status = daemon.wait(Duration::from_secs(10));
-    assert!(
-        status.success(),
-        "exit {status:?}; log:\n{}",
-        daemon.log_text()
-    );
+    daemon.stop_ok(Duration::from_secs(10));
     drop(w);
 
     let rec = only_recording(&rec_dir);

@@ -233,6 +233,17 @@ impl DaemonProc {
     }
 
     /// Wait for the exit, at most `timeout`.
+    /// SIGTERM, then an exit 0 within `timeout` (the log shown otherwise).
+    pub fn stop_ok(&mut self, timeout: Duration) {
+        self.sigterm();
+        let status = self.wait(timeout);
+        assert!(
+            status.success(),
+            "exit {status:?}; log:\n{}",
+            self.log_text()
+        );
+    }
+
     pub fn wait(&mut self, timeout: Duration) -> ExitStatus {
         let start = Instant::now();
         loop {
