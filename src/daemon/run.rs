@@ -812,6 +812,12 @@ async fn start_recorder(
             (g.label.clone(), m)
         })
         .collect();
+    // every gyro's pipeline sends into the one queue: each gets a single
+    // gyro's room, so a live source's burst drops no more often with three
+    let rc = RecorderConfig {
+        queue_capacity: rc.queue_capacity * gyros.len().max(1),
+        ..rc
+    };
     let r = tokio::task::spawn_blocking(move || {
         Recorder::start_gyros(&rc, std::time::SystemTime::now(), Some(&meta), &gyros)
     })
