@@ -94,9 +94,14 @@ impl ReadoutFilter {
 
     /// Power response `|H(nu)|^2` at `nu` cycles per sample (1 at DC).
     pub fn power(&self, nu: f64) -> f64 {
+        self.power_trig(nu, (PI * nu).sin(), || (2.0 * PI * nu).cos())
+    }
+
+    /// [`ReadoutFilter::power`] from `s0 = sin(pi nu)` and (for a first-order
+    /// filter) `c2 = cos(2 pi nu)`, for quadratures that hold them per node.
+    pub fn power_trig(&self, nu: f64, s0: f64, c2: impl FnOnce() -> f64) -> f64 {
         match *self {
             ReadoutFilter::MovingAverage { length } => {
-                let s0 = (PI * nu).sin();
                 if s0.abs() < 1e-300 {
                     return 1.0;
                 }
@@ -105,7 +110,7 @@ impl ReadoutFilter {
                 r * r
             }
             ReadoutFilter::FirstOrder { pole: a } => {
-                (1.0 - a) * (1.0 - a) / (1.0 + a * a - 2.0 * a * (2.0 * PI * nu).cos())
+                (1.0 - a) * (1.0 - a) / (1.0 + a * a - 2.0 * a * c2())
             }
         }
     }

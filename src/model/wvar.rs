@@ -74,20 +74,52 @@ impl SpectralTerm {
     /// arcsec^2 per (cycle/sample). The angle is the running sum of rate x tau0,
     /// so its PSD is the rate PSD times `tau0^2 / (4 sin^2(pi nu))`.
     pub fn psd_domain(&self, nu: f64, tau0_s: f64, domain: Domain) -> f64 {
+        self.psd_domain_trig(
+            nu,
+            (PI * nu).sin(),
+            || (2.0 * PI * nu).cos(),
+            tau0_s,
+            domain,
+        )
+    }
+
+    /// [`SpectralTerm::psd_domain`] from `s = sin(pi nu)` and (called only
+    /// by the terms that need it) `c2 = cos(2 pi nu)`, for quadratures that
+    /// hold them per node.
+    pub fn psd_domain_trig(
+        &self,
+        nu: f64,
+        s: f64,
+        c2: impl FnOnce() -> f64,
+        tau0_s: f64,
+        domain: Domain,
+    ) -> f64 {
         match (domain, self) {
-            (Domain::Rate, _) => self.psd_cs(nu, tau0_s),
+            (Domain::Rate, _) => self.psd_cs_trig(nu, s, c2, tau0_s),
             (Domain::Angle, SpectralTerm::WhiteAngle) => 2.0,
             (Domain::Angle, _) => {
-                let s = (PI * nu).sin();
-                self.psd_cs(nu, tau0_s) * tau0_s * tau0_s / (4.0 * s * s)
+                self.psd_cs_trig(nu, s, c2, tau0_s) * tau0_s * tau0_s / (4.0 * s * s)
             }
+        }
+    }
+
+    /// The readout filter a term passes through, if any.
+    pub fn filter(&self) -> Option<ReadoutFilter> {
+        match *self {
+            SpectralTerm::FilteredWhiteRate { filter }
+            | SpectralTerm::WhiteRateComplement { filter } => Some(filter),
+            _ => None,
         }
     }
 
     /// One-sided PSD per unit theta in (arcsec/s)^2 per (cycle/sample), at `nu`
     /// cycles/sample, for sample period `tau0_s` (discrete-time forms).
     pub fn psd_cs(&self, nu: f64, tau0_s: f64) -> f64 {
-        let s = (PI * nu).sin();
+        self.psd_cs_trig(nu, (PI * nu).sin(), || (2.0 * PI * nu).cos(), tau0_s)
+    }
+
+    /// [`SpectralTerm::psd_cs`] from `s = sin(pi nu)` and `c2 = cos(2 pi nu)`.
+    fn psd_cs_trig(&self, nu: f64, s: f64, c2: impl FnOnce() -> f64, tau0_s: f64) -> f64 {
         match *self {
             SpectralTerm::WhiteAngle => 8.0 * s * s / (tau0_s * tau0_s),
             SpectralTerm::WhiteRate => 2.0 / tau0_s,
@@ -101,11 +133,14 @@ impl SpectralTerm {
             SpectralTerm::RateRandomWalk => tau0_s / (2.0 * s * s),
             SpectralTerm::GaussMarkov { tau_c_s } => {
                 let phi = (-tau0_s / tau_c_s).exp();
-                let c = (2.0 * PI * nu).cos();
-                2.0 * (1.0 - phi * phi) / (1.0 + phi * phi - 2.0 * phi * c)
+                2.0 * (1.0 - phi * phi) / (1.0 + phi * phi - 2.0 * phi * c2())
             }
-            SpectralTerm::FilteredWhiteRate { filter } => 2.0 / tau0_s * filter.power(nu),
-            SpectralTerm::WhiteRateComplement { filter } => 2.0 / tau0_s * (1.0 - filter.power(nu)),
+            SpectralTerm::FilteredWhiteRate { filter } => {
+                2.0 / tau0_s * filter.power_trig(nu, s, c2)
+            }
+            SpectralTerm::WhiteRateComplement { filter } => {
+                2.0 / tau0_s * (1.0 - filter.power_trig(nu, s, c2))
+            }
         }
     }
 
@@ -143,68 +178,80 @@ impl SpectralTerm {
     /// closed forms for white angle (3/tau^2) and white rate (1/tau), else
     /// `int_0^{1/2} S(nu) 2 sin^4(pi nu m) / (m^2 sin^2(pi nu)) dnu` by
     /// quadrature (resolved panels up to nu = 64/m, the sin^4 -> 3/8 envelope beyond).
+    ///
+    /// The quadratures are memoised process-wide (the estimator evaluates the
+    /// same long-tau points for every candidate filter and at every update).
     pub fn allan_var(&self, m: u64, tau0_s: f64) -> f64 {
         let tau = m as f64 * tau0_s;
         match *self {
             SpectralTerm::WhiteAngle => 3.0 / (tau * tau),
             SpectralTerm::WhiteRate => 1.0 / tau,
             _ => {
-                let mf = m as f64;
-                let nu_lo = match *self {
-                    SpectralTerm::Flicker { f_lo_hz } => f_lo_hz * tau0_s,
-                    _ => 0.0,
-                };
-                let g = |nu: f64| {
-                    let s1 = (PI * nu * mf).sin();
-                    let s0 = (PI * nu).sin();
-                    self.psd_cs(nu, tau0_s) * 2.0 * s1.powi(4) / (mf * mf * s0 * s0)
-                };
-                let envelope = |nu: f64| {
-                    let s0 = (PI * nu).sin();
-                    self.psd_cs(nu, tau0_s) * 0.75 / (mf * mf * s0 * s0)
-                };
-                let split = (64.0 / mf).min(0.5);
-                let mut total = 0.0;
-                // resolved part: panels of width 1/(4m) in nu
-                let mut panels = ((split - nu_lo).max(0.0) * 4.0 * mf).ceil() as usize;
-                if let SpectralTerm::FilteredWhiteRate { filter }
-                | SpectralTerm::WhiteRateComplement { filter } = self
-                {
-                    // resolve the filter's own structure (a moving average's lobes)
-                    let lobes = match filter {
-                        ReadoutFilter::MovingAverage { length } => *length as usize,
-                        ReadoutFilter::FirstOrder { .. } => 8,
-                    };
-                    panels = panels.max(16 * lobes);
-                }
-                if panels > 0 {
-                    let h = (split - nu_lo) / panels as f64;
-                    for p in 0..panels {
-                        let c = nu_lo + (p as f64 + 0.5) * h;
-                        for &(x, w) in &GL8 {
-                            total += 0.5 * h * w * g(c + 0.5 * h * x);
-                        }
-                    }
-                }
-                if split < 0.5 {
-                    // envelope part on a log grid
-                    let a = split.max(nu_lo).ln();
-                    let b = 0.5f64.ln();
-                    if b > a {
-                        let panels = 256;
-                        let h = (b - a) / panels as f64;
-                        for p in 0..panels {
-                            let c = a + (p as f64 + 0.5) * h;
-                            for &(x, w) in &GL8 {
-                                let nu = (c + 0.5 * h * x).exp();
-                                total += 0.5 * h * w * nu * envelope(nu);
-                            }
-                        }
-                    }
-                }
-                total
+                let mut key = term_key(self).to_vec();
+                key.extend([m, tau0_s.to_bits()]);
+                memoised(&ALLAN_CACHE, ALLAN_CACHE_ENTRIES, key, || {
+                    self.allan_var_quadrature(m, tau0_s)
+                })
             }
         }
+    }
+
+    /// [`SpectralTerm::allan_var`] by quadrature, for the terms without a closed form.
+    fn allan_var_quadrature(&self, m: u64, tau0_s: f64) -> f64 {
+        let mf = m as f64;
+        let nu_lo = match *self {
+            SpectralTerm::Flicker { f_lo_hz } => f_lo_hz * tau0_s,
+            _ => 0.0,
+        };
+        let g = |nu: f64| {
+            let s1 = (PI * nu * mf).sin();
+            let s0 = (PI * nu).sin();
+            self.psd_cs(nu, tau0_s) * 2.0 * s1.powi(4) / (mf * mf * s0 * s0)
+        };
+        let envelope = |nu: f64| {
+            let s0 = (PI * nu).sin();
+            self.psd_cs(nu, tau0_s) * 0.75 / (mf * mf * s0 * s0)
+        };
+        let split = (64.0 / mf).min(0.5);
+        let mut total = 0.0;
+        // resolved part: panels of width 1/(4m) in nu
+        let mut panels = ((split - nu_lo).max(0.0) * 4.0 * mf).ceil() as usize;
+        if let SpectralTerm::FilteredWhiteRate { filter }
+        | SpectralTerm::WhiteRateComplement { filter } = self
+        {
+            // resolve the filter's own structure (a moving average's lobes)
+            let lobes = match filter {
+                ReadoutFilter::MovingAverage { length } => *length as usize,
+                ReadoutFilter::FirstOrder { .. } => 8,
+            };
+            panels = panels.max(16 * lobes);
+        }
+        if panels > 0 {
+            let h = (split - nu_lo) / panels as f64;
+            for p in 0..panels {
+                let c = nu_lo + (p as f64 + 0.5) * h;
+                for &(x, w) in &GL8 {
+                    total += 0.5 * h * w * g(c + 0.5 * h * x);
+                }
+            }
+        }
+        if split < 0.5 {
+            // envelope part on a log grid
+            let a = split.max(nu_lo).ln();
+            let b = 0.5f64.ln();
+            if b > a {
+                let panels = 256;
+                let h = (b - a) / panels as f64;
+                for p in 0..panels {
+                    let c = a + (p as f64 + 0.5) * h;
+                    for &(x, w) in &GL8 {
+                        let nu = (c + 0.5 * h * x).exp();
+                        total += 0.5 * h * w * nu * envelope(nu);
+                    }
+                }
+            }
+        }
+        total
     }
 
     /// Power-law exponent alpha of the phase/frequency noise this term looks
@@ -353,11 +400,79 @@ pub fn level_nodes(
     nodes
 }
 
-/// Most levels [`LevelBasis::new_in`] keeps memoised; the cache is emptied when full.
-pub const BASIS_CACHE_ENTRIES: usize = 256;
+/// Most level quadratures [`LevelBasis::new_in`] keeps memoised (a few
+/// hundred bytes each); the cache is emptied when full. One estimate with the
+/// readout-filter search needs about 100 candidate filters x 10-20 levels.
+pub const BASIS_CACHE_ENTRIES: usize = 4096;
+/// Most levels' quadrature nodes kept memoised (about 200 kB each).
+const NODE_CACHE_ENTRIES: usize = 128;
 
-/// Quadrature nodes `(nu, weight, |H_j(nu)|^2)` of one level, shared.
-type Nodes = Arc<Vec<(f64, f64, f64)>>;
+/// Quadrature nodes of one level, shared: `(nu, weight, |H_j(nu)|^2)` and
+/// each node's `(sin(pi nu), cos(2 pi nu))`, which every term's PSD is made of
+/// (computed once here, not per term and per candidate filter).
+struct LevelNodes {
+    pts: Vec<(f64, f64, f64)>,
+    trig: Vec<(f64, f64)>,
+    /// The weights alone, and a column of ones (for sums as dot products).
+    w: Vec<f64>,
+    ones: Vec<f64>,
+    /// `sum w h2` and `sum w h2^2` (the EDF's white normalisation).
+    w_int: f64,
+    w_int2: f64,
+}
+
+/// One term's values over a level's nodes: `(P(nu) |H_j|^2, w P(nu) |H_j|^2)`.
+type Column = Arc<(Vec<f64>, Vec<f64>)>;
+
+static COLUMN_CACHE: Memo<Column> = OnceLock::new();
+/// Most term columns kept memoised (about 75 kB each).
+const COLUMN_CACHE_ENTRIES: usize = 256;
+
+static ALLAN_CACHE: Memo<f64> = OnceLock::new();
+/// Most Allan-variance quadratures kept memoised.
+const ALLAN_CACHE_ENTRIES: usize = 8192;
+
+fn term_column(
+    t: &SpectralTerm,
+    nodes: &LevelNodes,
+    tau0_s: f64,
+    domain: Domain,
+) -> (Vec<f64>, Vec<f64>) {
+    let col: Vec<f64> = nodes
+        .pts
+        .iter()
+        .zip(&nodes.trig)
+        .map(|(&(nu, _, h2), &(sn, c2))| t.psd_domain_trig(nu, sn, || c2, tau0_s, domain) * h2)
+        .collect();
+    let wcol = col.iter().zip(&nodes.w).map(|(p, w)| w * p).collect();
+    (col, wcol)
+}
+
+/// The column of `a - b` (both columns of the same nodes).
+fn difference(a: &Column, b: &Column) -> (Vec<f64>, Vec<f64>) {
+    let sub = |x: &[f64], y: &[f64]| x.iter().zip(y).map(|(p, q)| p - q).collect();
+    (sub(&a.0, &b.0), sub(&a.1, &b.1))
+}
+
+/// `sum a_i b_i` over four interleaved partial sums (vectorisable).
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut acc = [0.0; 4];
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = ca
+        .remainder()
+        .iter()
+        .zip(cb.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    for (x, y) in ca.zip(cb) {
+        for l in 0..4 {
+            acc[l] += x[l] * y[l];
+        }
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
+}
+
+type Nodes = Arc<LevelNodes>;
 
 /// A process-wide memo keyed by exact bit patterns.
 type Memo<V> = OnceLock<Mutex<HashMap<Vec<u64>, V>>>;
@@ -365,15 +480,15 @@ type Memo<V> = OnceLock<Mutex<HashMap<Vec<u64>, V>>>;
 static NODE_CACHE: Memo<Nodes> = OnceLock::new();
 
 /// The memoised value of `key`, computed (outside the lock) and kept if absent;
-/// the memo is emptied when it holds [`BASIS_CACHE_ENTRIES`] values.
-fn memoised<V: Clone>(memo: &Memo<V>, key: Vec<u64>, compute: impl FnOnce() -> V) -> V {
+/// the memo is emptied when it holds `cap` values.
+fn memoised<V: Clone>(memo: &Memo<V>, cap: usize, key: Vec<u64>, compute: impl FnOnce() -> V) -> V {
     let map = memo.get_or_init(Default::default);
     if let Some(v) = map.lock().unwrap_or_else(|e| e.into_inner()).get(&key) {
         return v.clone();
     }
     let v = compute();
     let mut m = map.lock().unwrap_or_else(|e| e.into_inner());
-    if m.len() >= BASIS_CACHE_ENTRIES {
+    if m.len() >= cap {
         m.clear();
     }
     m.insert(key, v.clone());
@@ -394,8 +509,26 @@ fn memo_level_nodes(lo: &[f64], hi: &[f64], level: u32, extra_breaks: &[f64]) ->
             .filter(|&&e| e > bottom && e < top && e.log2().fract() != 0.0)
             .map(|e| e.to_bits()),
     );
-    memoised(&NODE_CACHE, key, || {
-        Arc::new(level_nodes(lo, hi, level, extra_breaks))
+    memoised(&NODE_CACHE, NODE_CACHE_ENTRIES, key, || {
+        let pts = level_nodes(lo, hi, level, extra_breaks);
+        let trig = pts
+            .iter()
+            .map(|&(nu, _, _)| ((PI * nu).sin(), (2.0 * PI * nu).cos()))
+            .collect();
+        let w: Vec<f64> = pts.iter().map(|p| p.1).collect();
+        let (mut w_int, mut w_int2) = (0.0, 0.0);
+        for &(_, w, h2) in &pts {
+            w_int += w * h2;
+            w_int2 += w * h2 * h2;
+        }
+        Arc::new(LevelNodes {
+            ones: vec![1.0; pts.len()],
+            pts,
+            trig,
+            w,
+            w_int,
+            w_int2,
+        })
     })
 }
 
@@ -426,24 +559,29 @@ fn level_key(
     k.push(tau0_s.to_bits());
     k.push(domain as u64);
     for t in terms {
-        let (tag, p) = match *t {
-            SpectralTerm::WhiteAngle => (0, 0.0),
-            SpectralTerm::WhiteRate => (1, 0.0),
-            SpectralTerm::Flicker { f_lo_hz } => (2, f_lo_hz),
-            SpectralTerm::RateRandomWalk => (3, 0.0),
-            SpectralTerm::GaussMarkov { tau_c_s } => (4, tau_c_s),
-            SpectralTerm::FilteredWhiteRate { filter } => {
-                let (kind, bits) = filter.key();
-                (4 + kind, f64::from_bits(bits))
-            }
-            SpectralTerm::WhiteRateComplement { filter } => {
-                let (kind, bits) = filter.key();
-                (8 + kind, f64::from_bits(bits))
-            }
-        };
-        k.extend([tag, p.to_bits()]);
+        k.extend(term_key(t));
     }
     k
+}
+
+/// A term as exact bit patterns: its kind and its parameter.
+fn term_key(t: &SpectralTerm) -> [u64; 2] {
+    let (tag, p) = match *t {
+        SpectralTerm::WhiteAngle => (0, 0.0),
+        SpectralTerm::WhiteRate => (1, 0.0),
+        SpectralTerm::Flicker { f_lo_hz } => (2, f_lo_hz),
+        SpectralTerm::RateRandomWalk => (3, 0.0),
+        SpectralTerm::GaussMarkov { tau_c_s } => (4, tau_c_s),
+        SpectralTerm::FilteredWhiteRate { filter } => {
+            let (kind, bits) = filter.key();
+            (4 + kind, f64::from_bits(bits))
+        }
+        SpectralTerm::WhiteRateComplement { filter } => {
+            let (kind, bits) = filter.key();
+            (8 + kind, f64::from_bits(bits))
+        }
+    };
+    [tag, p.to_bits()]
 }
 
 /// The spectral quadrature of one level: band integrals of the terms, their
@@ -472,24 +610,53 @@ impl LevelQuadrature {
             })
             .collect();
         let nodes = memo_level_nodes(lo, hi, j, &breaks);
-        let k = terms.len();
-        let mut row = vec![0.0; k];
-        let mut g = vec![vec![0.0; k]; k];
-        let mut p = vec![0.0; k];
-        let (mut w_int, mut w_int2) = (0.0, 0.0);
-        for &(nu, w, h2) in nodes.iter() {
-            for (i, t) in terms.iter().enumerate() {
-                p[i] = t.psd_domain(nu, tau0_s, domain) * h2;
-                row[i] += w * p[i];
-            }
-            for a in 0..k {
-                for b in 0..k {
-                    g[a][b] += w * p[a] * p[b];
+        // one column per term over the nodes (PSD x |H_j|^2, and x weight),
+        // then the band integrals and the Gram matrix as dot products of
+        // contiguous columns; a term without a filter has the same column in
+        // every candidate of the readout-filter search: memoised
+        let column = |t: &SpectralTerm| -> Column {
+            let mut key = level_key(lo, hi, tau0_s, j, std::slice::from_ref(t), domain);
+            key.extend(breaks.iter().map(|b| b.to_bits()));
+            memoised(&COLUMN_CACHE, COLUMN_CACHE_ENTRIES, key, || {
+                Arc::new(term_column(t, &nodes, tau0_s, domain))
+            })
+        };
+        let mut cols: Vec<Column> = Vec::with_capacity(terms.len());
+        for t in terms {
+            let c = match *t {
+                // not memoised: a new column per candidate filter
+                SpectralTerm::FilteredWhiteRate { .. } => {
+                    Arc::new(term_column(t, &nodes, tau0_s, domain))
                 }
-            }
-            w_int += w * h2;
-            w_int2 += w * h2 * h2;
+                // what the filter removes from a white rate: the white rate's
+                // column less the filtered one, when that is already here
+                SpectralTerm::WhiteRateComplement { filter } => {
+                    let f = SpectralTerm::FilteredWhiteRate { filter };
+                    match terms
+                        .iter()
+                        .position(|u| *u == f)
+                        .filter(|&i| i < cols.len())
+                    {
+                        Some(i) => {
+                            Arc::new(difference(&column(&SpectralTerm::WhiteRate), &cols[i]))
+                        }
+                        None => Arc::new(term_column(t, &nodes, tau0_s, domain)),
+                    }
+                }
+                _ => column(t),
+            };
+            cols.push(c);
         }
+        let k = terms.len();
+        let row: Vec<f64> = cols.iter().map(|c| dot(&c.1, &nodes.ones)).collect();
+        let mut g = vec![vec![0.0; k]; k];
+        for a in 0..k {
+            for b in a..k {
+                g[a][b] = dot(&cols[a].1, &cols[b].0);
+                g[b][a] = g[a][b];
+            }
+        }
+        let (w_int, w_int2) = (nodes.w_int, nodes.w_int2);
         let scale = 2f64.powi(-(j as i32) - 1);
         LevelQuadrature {
             band: row,
@@ -560,6 +727,7 @@ impl LevelBasis {
         for &j in levels {
             let q = memoised(
                 &LEVEL_CACHE,
+                BASIS_CACHE_ENTRIES,
                 level_key(lo, hi, tau0_s, j, terms, domain),
                 || LevelQuadrature::compute(lo, hi, tau0_s, j, terms, domain),
             );
@@ -629,8 +797,9 @@ mod tests {
                 // memoised nodes and quadrature are the ones computed afresh, bit for bit
                 let nodes = memo_level_nodes(&SYM8_LO, &SYM8_HI, j, &[1e-5]);
                 let fresh_nodes = level_nodes(&SYM8_LO, &SYM8_HI, j, &[1e-5]);
-                assert_eq!(nodes.len(), fresh_nodes.len());
-                for (a, f) in nodes.iter().zip(&fresh_nodes) {
+                assert_eq!(nodes.pts.len(), fresh_nodes.len());
+                assert_eq!(nodes.trig.len(), fresh_nodes.len());
+                for (a, f) in nodes.pts.iter().zip(&fresh_nodes) {
                     assert_eq!(bits(&[a.0, a.1, a.2]), bits(&[f.0, f.1, f.2]));
                 }
                 let q =
