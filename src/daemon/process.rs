@@ -560,9 +560,11 @@ impl Run<'_> {
             });
         }
         // Gap-fill into the uniform series; assemble /gyro/raw on the way.
+        // A sample after a gap is filled on its own; the gap-free run up to
+        // the next gap (or a full /gyro/raw message) is copied whole.
         let bs = self.p.cfg.batch_samples;
-        let mut gi = 0;
-        for (i, &c) in b.counts.iter().enumerate() {
+        let (n, mut gi, mut i) = (b.counts.len(), 0, 0);
+        while i < n {
             let mut lost = 0u64;
             while gi < b.gaps.len() && b.gaps[gi].index == i as u64 {
                 lost += b.gaps[gi].lost;
@@ -571,15 +573,27 @@ impl Run<'_> {
             if self.raw.counts.is_empty() {
                 self.raw.u0 = self.pushed + self.pending.len() as u64;
             }
-            if lost > 0 {
+            let end = if lost > 0 {
                 self.raw.gaps.push(Gap {
                     index: self.raw.counts.len() as u64,
                     lost,
                 });
                 self.lost += lost;
-            }
-            self.pending.push(c, lost);
-            self.raw.counts.push(c);
+                self.pending.push(b.counts[i], lost);
+                self.raw.counts.push(b.counts[i]);
+                i + 1
+            } else {
+                let next_gap = b
+                    .gaps
+                    .get(gi)
+                    .map_or(n, |g| (g.index as usize).clamp(i + 1, n));
+                let room = bs.saturating_sub(self.raw.counts.len()).max(1);
+                let end = next_gap.min(i + room);
+                self.pending.push_run(&b.counts[i..end]);
+                self.raw.counts.extend_from_slice(&b.counts[i..end]);
+                end
+            };
+            i = end;
             if self.raw.counts.len() >= bs {
                 self.flush_raw();
             }

@@ -68,6 +68,12 @@ impl FilledSeries {
         n as usize
     }
 
+    /// Append measured samples with no period lost before any of them (one
+    /// copy, where [`FilledSeries::push`] per sample would test and grow each).
+    pub fn push_run(&mut self, increments: &[i64]) {
+        self.counts.extend_from_slice(increments);
+    }
+
     /// Append a decoded frame sample (its `lost_before` periods filled).
     pub fn push_sample(&mut self, s: &Sample) -> usize {
         self.push(s.increment, u64::from(s.lost_before))
