@@ -238,3 +238,116 @@ fn a_misnamed_bias_instability_does_not_bring_a_spurious_ramp() {
     );
     assert!(d.ramp_z.abs() < 3.0, "ramp z {:.2}", d.ramp_z);
 }
+
+/// A rate-output model (FOG or MEMS rate word): `[gyro] output = "rate"`.
+fn rate_model(fs: f64, lsb_dps: f64, n: f64, extra: &str) -> GyroModel {
+    let text = format!(
+        "[gyro]\nsample_rate_hz = {fs}\noutput = \"rate\"\nrate_lsb_dps = {lsb_dps}\ninput_rate_dph = 10.0\n\
+         [noise]\narw_dpsh = {n}\n{extra}"
+    );
+    GyroModel::from_toml_str(&text, "rate null").unwrap()
+}
+
+/// (model, duration s): rate-output gyros from a MEMS datasheet to a FOG,
+/// 100 Hz .. 1 kHz, with and without readout filters of both kinds.
+fn matched_rate() -> Vec<(GyroModel, f64)> {
+    vec![
+        // the ADIS16405 datasheet model (docs/diagnose.md's real-data table)
+        (
+            rate_model(100.0, 0.05, 3.0, "bias_instability_dph = 25.0\n"),
+            300.0,
+        ),
+        // a MEMS gyro behind an anti-alias RC stage
+        (
+            rate_model(
+                200.0,
+                0.01,
+                0.5,
+                "bias_instability_dph = 5.0\n[readout_filter]\nkind = \"first_order\"\ncorner_hz = 30.0\n",
+            ),
+            300.0,
+        ),
+        // a FOG rate word behind an averaging filter, with a Gauss-Markov bias
+        (
+            rate_model(
+                1000.0,
+                0.0005,
+                0.02,
+                "[[noise.gauss_markov]]\nsigma_dph = 0.5\ntau_c_s = 2.0\n[readout_filter]\nkind = \"moving_average\"\nlength = 4\n",
+            ),
+            60.0,
+        ),
+        // a FOG with a coarse word, no filter
+        (
+            rate_model(500.0, 0.002, 0.05, "bias_instability_dph = 0.3\n"),
+            120.0,
+        ),
+        // a MEMS gyro with a rate random walk behind a first-order filter near Nyquist
+        (
+            rate_model(
+                400.0,
+                0.02,
+                1.0,
+                "rrw_dphsh = 20.0\n[readout_filter]\nkind = \"first_order\"\ncorner_hz = 150.0\n",
+            ),
+            200.0,
+        ),
+    ]
+}
+
+fn simulate_rate(m: &GyroModel, seed: u64, dur_s: f64) -> Recording {
+    let mut sim = Simulator::new(m, seed, Some(dur_s)).unwrap();
+    let (mut rates, mut temp) = (Vec::new(), Vec::new());
+    sim.next_block_rates(usize::MAX >> 1, &mut rates, &mut temp);
+    Recording::from_rates(&rates, None, m.gyro.sample_rate_hz, m.gyro.rate_lsb_dps).unwrap()
+}
+
+/// Null honesty on rate-output gyros: 40 matched recordings over five rate
+/// models (issue 14: false alarms at most 5 % over at least 40 matched seeds):
+/// at most two. Measured: 2/40, at that bound (seed 34, a quantization change
+/// on the 400 Hz gyro behind its 150 Hz filter; seed 38, one broadband point
+/// at 4.25 against the threshold 4.16), so the rate-output false-alarm rate is
+/// not shown to be below the design alpha of about 2 %.
+#[test]
+fn false_alarm_rate_on_matched_rate_output_simulations_is_below_5_percent_over_40_seeds() {
+    let models = matched_rate();
+    let seeds = 40u64;
+    let mut alarms = Vec::new();
+    let t = Instant::now();
+    for s in 0..seeds {
+        let (m, dur) = &models[(s as usize) % models.len()];
+        let rec = simulate_rate(m, 19_000 + s, *dur);
+        let opts = DiagnoseOptions {
+            seed: 87_000 + 31 * s,
+            ..DiagnoseOptions::default()
+        };
+        let d = diagnose::diagnose(m, &rec, &opts).unwrap();
+        let r = &d.report;
+        if r.verdict == Verdict::Mismatch
+            || !r.added_terms.is_empty()
+            || !r.parameter_changes.is_empty()
+        {
+            eprintln!(
+                "seed {s} (rate model {}): alarm, max|z| {:.2} / crit {:.2}, added {:?}, changes {:?}",
+                s as usize % models.len(),
+                d.max_abs_z,
+                d.z_crit,
+                r.added_terms.iter().map(|a| &a.term).collect::<Vec<_>>(),
+                r.parameter_changes
+                    .iter()
+                    .map(|c| &c.term)
+                    .collect::<Vec<_>>()
+            );
+            alarms.push(s);
+        }
+    }
+    eprintln!(
+        "rate-output false alarms: {}/{seeds} (seeds {alarms:?}); {:.1} s",
+        alarms.len(),
+        t.elapsed().as_secs_f64()
+    );
+    assert!(
+        alarms.len() <= 2,
+        "false alarms on matched rate-output recordings at seeds {alarms:?}"
+    );
+}

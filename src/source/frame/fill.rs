@@ -196,6 +196,13 @@ mod tests {
         f.push(-2, 1);
         f.push(1, 0);
         assert_eq!(f.counts, vec![5, 1, 2, 2, 2, -1, -1, 1]);
+        // a gap-free run is the same as its samples pushed one by one
+        let mut r = FilledSeries::default();
+        r.push_run(&[5]);
+        r.push(7, 3);
+        r.push(-2, 1);
+        r.push_run(&[1]);
+        assert_eq!(r, f);
         assert_eq!(f.counts.iter().sum::<i64>(), 5 + 7 - 2 + 1);
         // the lost periods are filled, the sample carrying the rest is not;
         // adjacent spans stay separate only when a measured sample lies between
