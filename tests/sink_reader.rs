@@ -91,7 +91,8 @@ fn record(dir: &Path, msgs: &[SinkMessage], every: usize) -> PathBuf {
         chunk_size: 1024 * 1024,
         zstd_level: 0,
     };
-    let start = SystemTime::UNIX_EPOCH + Duration::from_secs(1_800_000_000 + every.min(1_000_000) as u64);
+    let start =
+        SystemTime::UNIX_EPOCH + Duration::from_secs(1_800_000_000 + every.min(1_000_000) as u64);
     let rec = Recorder::start_at(&cfg, start).unwrap();
     for (i, m) in msgs.iter().enumerate() {
         rec.send(m.clone()).unwrap();

@@ -167,9 +167,22 @@ pub fn fit(
         }
         ReadoutFilter::FirstOrder { .. } => None,
     };
+    // N^2's interval profiled over the filter too: each candidate inside the
+    // corner's confidence set contributes its own N^2 interval, shrunk to the
+    // deviance it has left (sqrt(1 - d / CI_DEVIANCE)); the union. At the best
+    // filter alone the interval ignores that the corner and N^2 trade off.
+    let mut fit = best.2.clone();
+    for c in cands.iter().filter(|c| inside(c.2.loglik)) {
+        let d = (2.0 * (l_max - c.2.loglik)).max(0.0);
+        let k = (1.0 - d / CI_DEVIANCE).max(0.0).sqrt();
+        let (a, b) = c.2.theta_ci;
+        let (t, f) = (c.2.theta, &mut fit.theta_ci);
+        f.0 = f.0.min(t - k * (t - a)).max(0.0);
+        f.1 = f.1.max(t + k * (b - t));
+    }
     Some(FilterFit {
         filter: best.1,
-        fit: best.2,
+        fit,
         corner_ci_cycles: (lo, hi),
         length_ci,
     })

@@ -133,6 +133,7 @@ pub(crate) fn refine(
             break;
         }
     }
+    widen_about_updated(r, &basis, &cur, findings);
     let Current {
         model: mut m_new,
         after,
@@ -345,28 +346,10 @@ fn refine_broadband(
     runs: &[StatSet],
     knobs: &[Knob],
 ) -> Option<Vec<Refit>> {
-    let layout = &r.layout;
-    let wpts: Vec<&Point> = after
-        .iter()
-        .filter(|p| p.family == Family::Wavelet)
-        .collect();
-    if knobs.is_empty() || runs.is_empty() || wpts.len() != layout.levels.len() {
+    if knobs.is_empty() {
         return None;
     }
-    let nr = runs.len() as f64;
-    let mut data = LevelData {
-        levels: layout.levels.clone(),
-        y: r.obs.wvar.clone(),
-        e0: mean_stats(runs).wvar,
-        nu: wpts
-            .iter()
-            .map(|p| 2.0 / (p.sd_log * p.sd_log * (1.0 + 1.0 / nr)))
-            .collect(),
-    };
-    if basis.has_lf() {
-        let all: Vec<&StatSet> = runs.iter().collect();
-        lowfreq::append_rows(&mut data, &layout.lf, &r.obs.lf_psd, &all);
-    }
+    let mut data = after_data(r, basis, after, runs)?;
     // (knob, basis shape, current theta, floor, theta -> model units)
     let mut state: Vec<(Knob, Vec<f64>, f64, f64, UnitConv)> = knobs
         .iter()
@@ -386,6 +369,7 @@ fn refine_broadband(
             cis[i] = fit.theta_ci;
         }
     }
+
     Some(
         state
             .iter()
@@ -397,6 +381,96 @@ fn refine_broadband(
             })
             .collect(),
     )
+}
+
+/// The recording's wavelet-level data about the expectation of a model's own
+/// runs (`after`, `runs`); None when the levels are incomplete.
+fn after_data(
+    r: &Reference,
+    basis: &Basis,
+    after: &[Point],
+    runs: &[StatSet],
+) -> Option<LevelData> {
+    let layout = &r.layout;
+    let wpts: Vec<&Point> = after
+        .iter()
+        .filter(|p| p.family == Family::Wavelet)
+        .collect();
+    if runs.is_empty() || wpts.len() != layout.levels.len() {
+        return None;
+    }
+    let nr = runs.len() as f64;
+    let mut data = LevelData {
+        levels: layout.levels.clone(),
+        y: r.obs.wvar.clone(),
+        e0: mean_stats(runs).wvar,
+        nu: wpts
+            .iter()
+            .map(|p| 2.0 / (p.sd_log * p.sd_log * (1.0 + 1.0 / nr)))
+            .collect(),
+    };
+    if basis.has_lf() {
+        let all: Vec<&StatSet> = runs.iter().collect();
+        lowfreq::append_rows(&mut data, &layout.lf, &r.obs.lf_psd, &all);
+    }
+    Some(data)
+}
+
+/// Give every broadband parameter change (Q, ARW, bias instability, RRW;
+/// refitted or not) an interval at least as wide as its one-parameter fit
+/// about the updated model's own runs, with those runs' EDFs and widened by
+/// the levels' correlation ([`wvar_fit::level_correlation_factor`]). A change
+/// found about the original model carries that model's EDFs, which overstate
+/// the information of levels a readout filter attenuates (the ARW refitted
+/// with a 5-sample average scattered 4x its claimed width).
+fn widen_about_updated(r: &Reference, basis: &Basis, cur: &Current, findings: &mut [Finding]) {
+    let Some(data) = after_data(r, basis, &cur.after, &cur.runs) else {
+        return;
+    };
+    let run_wvar: Vec<&[f64]> = cur.runs.iter().map(|s| s.wvar.as_slice()).collect();
+    let knobs = [
+        Knob::Quantization,
+        Knob::Arw,
+        Knob::BiasInstability,
+        Knob::Rrw,
+    ];
+    for kn in knobs {
+        let key = Refit {
+            knob: kn,
+            value: 0.0,
+            ci95: [0.0; 2],
+        }
+        .key();
+        if !findings
+            .iter()
+            .flat_map(|f| &f.changes)
+            .any(|c| c.term == key)
+        {
+            continue;
+        }
+        let (_, phi, theta, floor, conv) = knob_state(kn, basis, &cur.model);
+        let fit = wvar_fit::fit_amplitude(&data, &phi, theta, floor);
+        if !(fit.theta.is_finite() && fit.theta > 0.0) {
+            continue;
+        }
+        let factor = wvar_fit::level_correlation_factor(&data, &phi, &run_wvar);
+        let ci = sqrt_ci(
+            wvar_fit::widen_ci(fit.theta, fit.theta_ci, factor, floor),
+            conv,
+        );
+        let v = conv(fit.theta.sqrt());
+        let (below, above) = (v - ci[0], ci[1] - v);
+        for c in findings
+            .iter_mut()
+            .flat_map(|f| f.changes.iter_mut())
+            .filter(|c| c.term == key)
+        {
+            c.ci95 = [
+                c.ci95[0].min(c.fitted - below).max(0.0),
+                c.ci95[1].max(c.fitted + above),
+            ];
+        }
+    }
 }
 
 /// A knob's basis shape, current squared amplitude (internal units), lower
