@@ -86,28 +86,33 @@ fn simulate(m: &GyroModel, seed: u64, dur_s: f64) -> Recording {
     }
 }
 
-#[test]
-fn false_alarm_rate_on_matched_simulations_is_below_5_percent_over_40_seeds() {
-    let models = matched();
-    let seeds = 40u64;
-    let mut alarms = Vec::new();
-    let mut max_z: Vec<f64> = Vec::new();
-    let t = Instant::now();
+/// Diagnose `seeds` matched recordings, cycling over `models`: recording `s`
+/// simulated with seed `rec_seed + s`, its reference runs from
+/// `ref_seed + 31 s` (other seeds than the recording). Returns the seeds that
+/// raised an alarm (a mismatch verdict, an added term or a parameter change)
+/// and every run's max|z| / threshold.
+fn null_runs(
+    models: &[(GyroModel, f64)],
+    seeds: u64,
+    simulate: fn(&GyroModel, u64, f64) -> Recording,
+    rec_seed: u64,
+    ref_seed: u64,
+) -> (Vec<u64>, Vec<f64>) {
+    let (mut alarms, mut max_z) = (Vec::new(), Vec::new());
     for s in 0..seeds {
         let (m, dur) = &models[(s as usize) % models.len()];
-        let rec = simulate(m, 9000 + s, *dur);
+        let rec = simulate(m, rec_seed + s, *dur);
         let opts = DiagnoseOptions {
-            // the reference runs use other seeds than the recording
-            seed: 77_000 + 31 * s,
+            seed: ref_seed + 31 * s,
             ..DiagnoseOptions::default()
         };
         let d = diagnose::diagnose(m, &rec, &opts).unwrap();
         let r = &d.report;
-        let alarm = r.verdict == Verdict::Mismatch
-            || !r.added_terms.is_empty()
-            || !r.parameter_changes.is_empty();
         max_z.push(d.max_abs_z / d.z_crit);
-        if alarm {
+        if r.verdict == Verdict::Mismatch
+            || !r.added_terms.is_empty()
+            || !r.parameter_changes.is_empty()
+        {
             eprintln!(
                 "seed {s} (model {}): alarm, max|z| {:.2} / crit {:.2}, lines {}, ramp z {:.2}, added {:?}, changes {:?}",
                 s as usize % models.len(),
@@ -124,6 +129,14 @@ fn false_alarm_rate_on_matched_simulations_is_below_5_percent_over_40_seeds() {
             alarms.push(s);
         }
     }
+    (alarms, max_z)
+}
+
+#[test]
+fn false_alarm_rate_on_matched_simulations_is_below_5_percent_over_40_seeds() {
+    let seeds = 40u64;
+    let t = Instant::now();
+    let (alarms, mut max_z) = null_runs(&matched(), seeds, simulate, 9000, 77_000);
     let rate = alarms.len() as f64 / seeds as f64;
     max_z.sort_by(f64::total_cmp);
     eprintln!(
@@ -310,37 +323,9 @@ fn simulate_rate(m: &GyroModel, seed: u64, dur_s: f64) -> Recording {
 /// not shown to be below the design alpha of about 2 %.
 #[test]
 fn false_alarm_rate_on_matched_rate_output_simulations_is_below_5_percent_over_40_seeds() {
-    let models = matched_rate();
     let seeds = 40u64;
-    let mut alarms = Vec::new();
     let t = Instant::now();
-    for s in 0..seeds {
-        let (m, dur) = &models[(s as usize) % models.len()];
-        let rec = simulate_rate(m, 19_000 + s, *dur);
-        let opts = DiagnoseOptions {
-            seed: 87_000 + 31 * s,
-            ..DiagnoseOptions::default()
-        };
-        let d = diagnose::diagnose(m, &rec, &opts).unwrap();
-        let r = &d.report;
-        if r.verdict == Verdict::Mismatch
-            || !r.added_terms.is_empty()
-            || !r.parameter_changes.is_empty()
-        {
-            eprintln!(
-                "seed {s} (rate model {}): alarm, max|z| {:.2} / crit {:.2}, added {:?}, changes {:?}",
-                s as usize % models.len(),
-                d.max_abs_z,
-                d.z_crit,
-                r.added_terms.iter().map(|a| &a.term).collect::<Vec<_>>(),
-                r.parameter_changes
-                    .iter()
-                    .map(|c| &c.term)
-                    .collect::<Vec<_>>()
-            );
-            alarms.push(s);
-        }
-    }
+    let (alarms, _) = null_runs(&matched_rate(), seeds, simulate_rate, 19_000, 87_000);
     eprintln!(
         "rate-output false alarms: {}/{seeds} (seeds {alarms:?}); {:.1} s",
         alarms.len(),

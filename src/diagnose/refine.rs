@@ -235,6 +235,18 @@ enum Knob {
     Rrw,
 }
 
+impl Knob {
+    /// The parameter's name in the model file and the JSON.
+    fn key(self) -> &'static str {
+        match self {
+            Knob::Quantization => "quantization_arcsec",
+            Knob::Arw => "arw_dpsh",
+            Knob::BiasInstability => "bias_instability_dph",
+            Knob::Rrw => "rrw_dphsh",
+        }
+    }
+}
+
 /// A refitted broadband parameter, in the model file's units.
 #[derive(Debug, Clone, Copy)]
 struct Refit {
@@ -265,12 +277,7 @@ impl Refit {
     }
 
     fn key(&self) -> &'static str {
-        match self.knob {
-            Knob::Quantization => "quantization_arcsec",
-            Knob::Arw => "arw_dpsh",
-            Knob::BiasInstability => "bias_instability_dph",
-            Knob::Rrw => "rrw_dphsh",
-        }
+        self.knob.key()
     }
 
     /// Put the refitted value into the last finding that set this parameter
@@ -435,12 +442,7 @@ fn widen_about_updated(r: &Reference, basis: &Basis, cur: &Current, findings: &m
         Knob::Rrw,
     ];
     for kn in knobs {
-        let key = Refit {
-            knob: kn,
-            value: 0.0,
-            ci95: [0.0; 2],
-        }
-        .key();
+        let key = kn.key();
         if !findings
             .iter()
             .flat_map(|f| &f.changes)

@@ -413,9 +413,8 @@ const NODE_CACHE_ENTRIES: usize = 128;
 struct LevelNodes {
     pts: Vec<(f64, f64, f64)>,
     trig: Vec<(f64, f64)>,
-    /// The weights alone, and a column of ones (for sums as dot products).
+    /// The weights alone, contiguous.
     w: Vec<f64>,
-    ones: Vec<f64>,
     /// `sum w h2` and `sum w h2^2` (the EDF's white normalisation).
     w_int: f64,
     w_int2: f64,
@@ -522,7 +521,6 @@ fn memo_level_nodes(lo: &[f64], hi: &[f64], level: u32, extra_breaks: &[f64]) ->
             w_int2 += w * h2 * h2;
         }
         Arc::new(LevelNodes {
-            ones: vec![1.0; pts.len()],
             pts,
             trig,
             w,
@@ -648,7 +646,7 @@ impl LevelQuadrature {
             cols.push(c);
         }
         let k = terms.len();
-        let row: Vec<f64> = cols.iter().map(|c| dot(&c.1, &nodes.ones)).collect();
+        let row: Vec<f64> = cols.iter().map(|c| c.1.iter().sum()).collect();
         let mut g = vec![vec![0.0; k]; k];
         for a in 0..k {
             for b in a..k {
