@@ -57,7 +57,7 @@ use crate::daemon::summary::{Place, SummaryAcc};
 use crate::daemon::telemetry::Telemetry;
 use crate::model::estimate::Coefficient;
 use crate::pipeline::{Analysis, Pipeline, PipelineConfig, PipelineError, PipelineOutput};
-use crate::sink::mcap::{RecordError, RecordSender};
+use crate::sink::mcap::{Checked, RecordError, RecordSender};
 use crate::sink::messages::{
     AllanCurve, AllanUpdate, EstimateUpdate, Event, EventKind, Gap, RateBatch, RawBatch,
     SinkMessage, SummaryUpdate, VerdictUpdate,
@@ -256,6 +256,8 @@ struct Run<'a> {
     recorder_dropped: u64,
     unreported_drops: u64,
     recorder_failed: bool,
+    /// Messages of the current input batch, not yet handed to the recorder.
+    outbox: Vec<Checked>,
 }
 
 impl Processor {
@@ -319,8 +321,12 @@ impl Processor {
             recorder_dropped: 0,
             unreported_drops: 0,
             recorder_failed: false,
+            outbox: Vec::new(),
         };
-        input.for_each_blocking(|batch| run.batch(batch));
+        input.for_each_blocking(|batch| {
+            run.batch(batch);
+            run.send_outbox();
+        });
         run.finish()
     }
 }
@@ -404,6 +410,8 @@ impl Run<'_> {
         }
     }
 
+    /// Queue `msg` for the recorder; the messages of one input batch go to the
+    /// writer thread together ([`Run::send_outbox`]).
     fn record(&mut self, msg: SinkMessage) {
         if self.recorder_failed {
             return;
@@ -411,11 +419,27 @@ impl Run<'_> {
         let Some(rec) = &self.out.recorder else {
             return;
         };
-        let live = self.p.cfg.delivery == Delivery::Live;
-        let r = if live {
-            rec.try_send(msg)
+        match rec.checked(msg) {
+            Ok(m) => self.outbox.push(m),
+            Err(e) => tracing::warn!(error = %e, "message not recorded"),
+        }
+    }
+
+    /// Hand the queued messages to the recorder in one queue entry: blocking for
+    /// lossless sources; a live source's full queue drops them, counted.
+    fn send_outbox(&mut self) {
+        let msgs = std::mem::take(&mut self.outbox);
+        let Some(rec) = &self.out.recorder else {
+            return;
+        };
+        if msgs.is_empty() || self.recorder_failed {
+            return;
+        }
+        let n = msgs.len() as u64;
+        let r = if self.p.cfg.delivery == Delivery::Live {
+            rec.try_send_all(msgs)
         } else {
-            rec.send(msg)
+            rec.send_all(msgs)
         };
         match r {
             Ok(()) => {
@@ -438,16 +462,13 @@ impl Run<'_> {
                 if self.recorder_dropped == 0 {
                     tracing::warn!("MCAP recorder queue full: dropping messages (counted)");
                 }
-                self.recorder_dropped += 1;
-                self.unreported_drops += 1;
+                self.recorder_dropped += n;
+                self.unreported_drops += n;
                 self.out
                     .telemetry
                     .dropped_messages
                     .with_label_values(&["mcap"])
-                    .inc();
-            }
-            Err(e @ RecordError::Invalid { .. }) => {
-                tracing::warn!(error = %e, "message not recorded");
+                    .inc_by(n);
             }
             Err(e) => {
                 // The writer thread stopped; finish() reports its error.
@@ -853,6 +874,7 @@ impl Run<'_> {
         if a.samples > 0 {
             self.publish(&a, Instant::now(), true);
         }
+        self.send_outbox();
         if self.unreported_drops > 0
             && let Some(rec) = &self.out.recorder
         {

@@ -107,7 +107,9 @@ pub struct RecorderConfig {
     pub record_dir: PathBuf,
     /// Longest time a recorded message waits before its chunk is closed, s.
     pub flush_interval_s: f64,
-    /// Capacity of the queue between the daemon and the writer thread, messages.
+    /// Capacity of the queue between the daemon and the writer thread, messages:
+    /// the queue holds `queue_capacity / GROUP_MAX` entries (at least one), each
+    /// one message or a group of up to [`GROUP_MAX`] (`RecordSender::send_all`).
     pub queue_capacity: usize,
     /// Uncompressed chunk size at which a chunk is closed early, bytes.
     pub chunk_size: u64,
@@ -257,9 +259,18 @@ enum Command {
     /// A message of gyro `.0` (its index in the recording's gyro list; `None`
     /// with one gyro, or for a daemon-wide event).
     Message(Option<u16>, SinkMessage),
+    /// Messages of gyro `.0` queued together (one wake of the writer thread).
+    Messages(Option<u16>, Vec<SinkMessage>),
     Flush(SyncSender<Result<u64, RecordError>>),
     Finish,
 }
+
+/// Messages per queue entry of [`RecordSender::send_all`] at most.
+pub const GROUP_MAX: usize = 8;
+
+/// A message that [`RecordSender::checked`] found recordable.
+#[derive(Debug)]
+pub struct Checked(SinkMessage);
 
 /// A cloneable handle that queues messages for a [`Recorder`].
 #[derive(Clone)]
@@ -299,21 +310,77 @@ impl RecordSender {
         s
     }
 
-    fn command(&self, mut msg: SinkMessage) -> Command {
+    fn command(&self, msg: SinkMessage) -> Command {
+        Command::Message(self.gyro, self.tag(msg))
+    }
+
+    /// `msg` with its event (if it is one) naming this handle's gyro.
+    fn tag(&self, mut msg: SinkMessage) -> SinkMessage {
         if let (Some(i), SinkMessage::Event(e)) = (self.gyro, &mut msg) {
             e.gyro = Some(self.gyros[usize::from(i)].clone());
         }
-        Command::Message(self.gyro, msg)
+        msg
     }
 
-    /// Queue a message without blocking (the daemon). A full queue drops the message,
-    /// counts it in [`RecordSender::dropped`] and returns [`RecordError::QueueFull`].
-    pub fn try_send(&self, msg: SinkMessage) -> Result<(), RecordError> {
+    /// Queue `msgs` as one entry of the queue, blocking while it is full: one
+    /// hand-over to the writer thread for up to [`GROUP_MAX`] messages (the
+    /// daemon queues what one input batch produced in such groups).
+    pub fn send_all(&self, msgs: Vec<Checked>) -> Result<(), RecordError> {
+        for cmd in self.groups(msgs) {
+            self.tx.send(cmd.1).map_err(|_| self.stopped())?;
+        }
+        Ok(())
+    }
+
+    /// [`RecordSender::send_all`] without blocking: a group the full queue
+    /// refuses is dropped, each of its messages counted in
+    /// [`RecordSender::dropped`]; the result is the first refusal.
+    pub fn try_send_all(&self, msgs: Vec<Checked>) -> Result<(), RecordError> {
+        let mut first = Ok(());
+        for (n, cmd) in self.groups(msgs) {
+            if let Err(e) = self.offer(cmd, n) {
+                if matches!(e, RecordError::Stopped { .. }) {
+                    return Err(e);
+                }
+                if first.is_ok() {
+                    first = Err(e);
+                }
+            }
+        }
+        first
+    }
+
+    /// `msg` if it can be recorded ([`RecordError::Invalid`] if not), for
+    /// [`RecordSender::send_all`].
+    pub fn checked(&self, msg: SinkMessage) -> Result<Checked, RecordError> {
         self.check(&msg)?;
-        match self.tx.try_send(self.command(msg)) {
+        Ok(Checked(msg))
+    }
+
+    /// The queue entries of `msgs`, each with its number of messages.
+    fn groups(&self, msgs: Vec<Checked>) -> Vec<(u64, Command)> {
+        let mut out = Vec::with_capacity(msgs.len().div_ceil(GROUP_MAX));
+        let mut it = msgs.into_iter().peekable();
+        while it.peek().is_some() {
+            let group: Vec<SinkMessage> =
+                it.by_ref().take(GROUP_MAX).map(|m| self.tag(m.0)).collect();
+            let n = group.len() as u64;
+            let cmd = if n == 1 {
+                Command::Message(self.gyro, group.into_iter().next().expect("one message"))
+            } else {
+                Command::Messages(self.gyro, group)
+            };
+            out.push((n, cmd));
+        }
+        out
+    }
+
+    /// Queue `cmd` (holding `n` messages) without blocking.
+    fn offer(&self, cmd: Command, n: u64) -> Result<(), RecordError> {
+        match self.tx.try_send(cmd) {
             Ok(()) => Ok(()),
             Err(TrySendError::Full(_)) => {
-                self.dropped.fetch_add(1, Ordering::Relaxed);
+                self.dropped.fetch_add(n, Ordering::Relaxed);
                 Err(RecordError::QueueFull {
                     path: self.path.to_path_buf(),
                     capacity: self.capacity,
@@ -321,6 +388,13 @@ impl RecordSender {
             }
             Err(TrySendError::Disconnected(_)) => Err(self.stopped()),
         }
+    }
+
+    /// Queue a message without blocking (the daemon). A full queue drops the message,
+    /// counts it in [`RecordSender::dropped`] and returns [`RecordError::QueueFull`].
+    pub fn try_send(&self, msg: SinkMessage) -> Result<(), RecordError> {
+        self.check(&msg)?;
+        self.offer(self.command(msg), 1)
     }
 
     /// Bytes of the recording written to the OS so far (the `sagnac_recording_bytes` gauge).
@@ -462,7 +536,7 @@ impl Recorder {
         writer
             .flush()
             .map_err(|e| mcap_err("closing the first chunk", e))?;
-        let (tx, rx) = mpsc::sync_channel(config.queue_capacity);
+        let (tx, rx) = mpsc::sync_channel((config.queue_capacity / GROUP_MAX).max(1));
         let path = Arc::new(path);
         let mut worker = Worker {
             writer,
@@ -631,6 +705,16 @@ impl Worker {
             match command {
                 Some(Command::Message(gyro, msg)) => {
                     self.write(gyro, &msg)?;
+                    let since = *pending_since.get_or_insert_with(Instant::now);
+                    if since.elapsed() >= self.flush_interval {
+                        self.flush()?;
+                        pending_since = None;
+                    }
+                }
+                Some(Command::Messages(gyro, msgs)) => {
+                    for msg in &msgs {
+                        self.write(gyro, msg)?;
+                    }
                     let since = *pending_since.get_or_insert_with(Instant::now);
                     if since.elapsed() >= self.flush_interval {
                         self.flush()?;

@@ -615,7 +615,7 @@ impl SinkMessage {
             SinkMessage::Allan(m) => serde_json::to_writer(&mut *out, m)?,
             SinkMessage::Event(m) => serde_json::to_writer(&mut *out, m)?,
             SinkMessage::Verdict(m) => serde_json::to_writer(&mut *out, m)?,
-            SinkMessage::Summary(m) => serde_json::to_writer(&mut *out, m)?,
+            SinkMessage::Summary(m) => write_summary(m, out),
         }
         Ok(())
     }
@@ -830,6 +830,29 @@ fn write_raw_batch(m: &RawBatch, out: &mut Vec<u8>) {
     out.push(b'}');
 }
 
+/// A `/gyro/summary` message, byte for byte as serde_json writes it (10 of
+/// them a second per gyro: the recorder's most frequent message).
+fn write_summary(m: &SummaryUpdate, out: &mut Vec<u8>) {
+    out.extend_from_slice(b"{\"timestamp\":{\"sec\":");
+    put_u64(out, m.timestamp.sec);
+    out.extend_from_slice(b",\"nsec\":");
+    put_u64(out, u64::from(m.timestamp.nsec));
+    out.extend_from_slice(b"},\"samples\":");
+    put_u64(out, m.samples);
+    out.extend_from_slice(b",\"lost_samples\":");
+    put_u64(out, m.lost_samples);
+    out.extend_from_slice(b",\"raw_rate_dph\":");
+    put_f64(out, quantize_rate(m.raw_rate_dph));
+    out.extend_from_slice(b",\"clean_rate_dph\":");
+    put_f64(out, quantize_rate(m.clean_rate_dph));
+    out.extend_from_slice(b",\"temp_c\":");
+    match m.temp_c {
+        Some(t) => put_f64(out, t),
+        None => out.extend_from_slice(b"null"),
+    }
+    out.push(b'}');
+}
+
 fn write_rate_batch(m: &RateBatch, out: &mut Vec<u8>) {
     put_batch_head(out, m.t0_ns, m.dt_ns);
     out.extend_from_slice(b",\"values\":[");
@@ -847,27 +870,36 @@ fn write_rate_batch(m: &RateBatch, out: &mut Vec<u8>) {
 const SLOT: usize = 32;
 type Slot = [u8; SLOT];
 
-/// Values per zero-filled extension of the output in [`put_slotted`].
+/// Values formatted per pass of [`put_slotted`] into its scratch.
 const SLOTS_PER_CHUNK: usize = 256;
+
+thread_local! {
+    /// The formatting scratch of [`put_slotted`], zeroed once per thread: each
+    /// value is written into a fixed-width slot of it, and only the bytes
+    /// written are copied to the output (zero-filling a 32-byte slot in the
+    /// output for each value cost more than formatting it).
+    static SLOT_SCRATCH: std::cell::RefCell<Box<[u8]>> =
+        std::cell::RefCell::new(vec![0u8; SLOT * SLOTS_PER_CHUNK].into_boxed_slice());
+}
 
 /// `values` as the elements of a JSON array (the `[` already written), and the
 /// closing `]`. `put` writes one value and a `,` at the start of its slot and
-/// returns the length written; values are formatted in place into one
-/// zero-filled extension of `out` per chunk, which is then cut to length (no
-/// capacity check or copy per value).
+/// returns the length written; a chunk of values is formatted into the
+/// thread's scratch (no capacity check per value) and then appended to `out`.
 #[inline(always)]
 fn put_slotted<T>(out: &mut Vec<u8>, values: &[T], mut put: impl FnMut(&mut Slot, &T) -> usize) {
-    for chunk in values.chunks(SLOTS_PER_CHUNK) {
-        let mut pos = out.len();
-        out.resize(pos + SLOT * chunk.len(), 0);
-        for v in chunk {
-            let slot: &mut Slot = (&mut out[pos..pos + SLOT])
-                .try_into()
-                .expect("a chunk has a slot for each value");
-            pos += put(slot, v);
+    SLOT_SCRATCH.with_borrow_mut(|scratch| {
+        for chunk in values.chunks(SLOTS_PER_CHUNK) {
+            let mut pos = 0;
+            for v in chunk {
+                let slot: &mut Slot = (&mut scratch[pos..pos + SLOT])
+                    .try_into()
+                    .expect("a chunk has a slot for each value");
+                pos += put(slot, v);
+            }
+            out.extend_from_slice(&scratch[..pos]);
         }
-        out.truncate(pos);
-    }
+    });
     // the last separator becomes the closing bracket
     match out.last_mut() {
         Some(c) if !values.is_empty() => *c = b']',
