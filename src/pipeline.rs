@@ -634,10 +634,15 @@ impl Pipeline {
     /// rate slope and its spread under the fitted spectrum) from everything
     /// pushed so far.
     pub fn estimator_output(&self) -> EstimatorOutput {
-        self.estimate_from(&self.raw_points())
+        self.estimator_output_with(&FitOptions::default())
     }
 
-    fn estimate_from(&self, raw_points: &[StreamPoint]) -> EstimatorOutput {
+    /// [`Pipeline::estimator_output`] with other fit options.
+    pub fn estimator_output_with(&self, opts: &FitOptions) -> EstimatorOutput {
+        self.estimate_from(&self.raw_points(), opts)
+    }
+
+    fn estimate_from(&self, raw_points: &[StreamPoint], opts: &FitOptions) -> EstimatorOutput {
         let levels = self.rate_levels.observations();
         let angle_levels = self.angle_levels.observations();
         let angle_blocks = self.angle_levels.block_observations();
@@ -662,7 +667,7 @@ impl Pipeline {
             allan: &allan_obs,
             ramp: Some(self.ramp),
         };
-        estimate::estimate(&input, &FitOptions::default())
+        estimate::estimate(&input, opts)
     }
 
     /// Phase points of a gap-free record giving the same number of terms as
@@ -679,7 +684,7 @@ impl Pipeline {
     pub fn analysis(&self) -> Analysis {
         let conf = allan::DEFAULT_CONFIDENCE;
         let raw_points = self.raw_points();
-        let est = self.estimate_from(&raw_points);
+        let est = self.estimate_from(&raw_points, &FitOptions::default());
         let adev: Vec<AdevPoint> = raw_points
             .iter()
             .filter(|p| p.n > 0)

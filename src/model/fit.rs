@@ -83,6 +83,10 @@ pub struct FitOptions {
     /// the rows it would have absorbed would pin the term of interest: the
     /// interval would be that of a model that knows the nuisance is absent.
     pub signed_in_profile: u64,
+    /// Profile every readout-filter candidate of the estimator even when its
+    /// coarse pass finds none within reach (default false: the coarse pass
+    /// decides; true is the reference it is checked against).
+    pub full_filter_search: bool,
 }
 
 impl Default for FitOptions {
@@ -93,6 +97,7 @@ impl Default for FitOptions {
             upper_lr: 2.705_543_454_095_404,
             always_keep: 0,
             signed_in_profile: 0,
+            full_filter_search: false,
         }
     }
 }

@@ -23,7 +23,7 @@
 use super::lf::{Lf, Rows, saturate};
 use super::standard_terms;
 use crate::model::filter::ReadoutFilter;
-use crate::model::fit::{ml_edf, ml_loglik_fixed_edf};
+use crate::model::fit::{FitOptions, ml_edf, ml_loglik_fixed_edf};
 use crate::model::wvar::SpectralTerm;
 
 /// Longest moving average searched, samples.
@@ -76,7 +76,13 @@ pub struct FilterChoice {
 
 /// Profile the likelihood over readout filters; `None` when no filter beats
 /// the unfiltered model by [`FILTER_LR`].
-pub(super) fn search(lf: &Lf, n_samples: u64, from: usize, ci_lr: f64) -> Option<FilterChoice> {
+pub(super) fn search(
+    lf: &Lf,
+    n_samples: u64,
+    from: usize,
+    opts: &FitOptions,
+) -> Option<FilterChoice> {
+    let ci_lr = opts.ci_lr;
     let none_terms = standard_terms(n_samples, lf.tau0).to_vec();
     let none_basis = lf.basis(&none_terms);
     let r0 = lf.rows(&none_terms, &none_basis, from);
@@ -102,6 +108,9 @@ pub(super) fn search(lf: &Lf, n_samples: u64, from: usize, ci_lr: f64) -> Option
             n2: theta[1],
         }
     };
+    if !opts.full_filter_search && !coarse_pass(&eval, l_none) {
+        return None;
+    }
     let mut cands: Vec<Candidate> = (2..=MAX_MA)
         .filter_map(|l| ReadoutFilter::moving_average(l).ok())
         .map(eval)
@@ -149,6 +158,34 @@ pub fn n2_interval(c: &FilterChoice, n2_best: f64, (lo, hi): (f64, f64), ci_lr: 
         let s = (1.0 - dev / ci_lr).max(0.0).sqrt();
         (a.min(n2 - s * dl).max(0.0), b.max(n2 + s * dh))
     })
+}
+
+/// Deviance over no filter that the best candidate of the coarse pass must
+/// reach for the full search to run (a third of [`FILTER_LR`]).
+pub const COARSE_LR: f64 = FILTER_LR / 3.0;
+/// Moving-average lengths of the coarse pass (steps of at most 1.5x).
+const COARSE_MA: [u32; 9] = [2, 3, 4, 6, 8, 12, 16, 24, 32];
+/// Every this many points of the first-order grid are in the coarse pass.
+const COARSE_FO_STEP: usize = 3;
+
+/// Whether a coarse subset of the candidates (19 of about 75) comes within
+/// reach of [`FILTER_LR`]: on a record with no filter, the estimate then skips
+/// the full profile. The likelihood is smooth in the corner, and a filter
+/// strong enough to be reported beats no filter by far more than
+/// [`COARSE_LR`] at the coarse candidate nearest to it
+/// (`tests/estimate_filter.rs`, `coarse_pass_never_hides_a_reported_filter`;
+/// [`FitOptions::full_filter_search`] turns the pass off).
+fn coarse_pass(eval: &dyn Fn(ReadoutFilter) -> Candidate, l_none: f64) -> bool {
+    let ma = COARSE_MA
+        .iter()
+        .filter_map(|&l| ReadoutFilter::moving_average(l).ok());
+    let fo = fo_grid()
+        .into_iter()
+        .step_by(COARSE_FO_STEP)
+        .map(|p| ReadoutFilter::FirstOrder { pole: p });
+    ma.chain(fo)
+        .map(|f| eval(f).loglik)
+        .any(|l| 2.0 * (l - l_none) >= COARSE_LR)
 }
 
 /// Poles of the first-order grid (log-spaced corners).

@@ -472,7 +472,7 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
     let choice = if too_short || saturated {
         None
     } else {
-        filter_search::search(&lf, input.n_samples, from, opts.ci_lr)
+        filter_search::search(&lf, input.n_samples, from, opts)
     };
     let terms = match &choice {
         Some(c) => filter_search::filtered_terms(input.n_samples, tau0, c.filter),
