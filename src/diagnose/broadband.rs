@@ -141,7 +141,9 @@ impl Current {
                 amplitude_dph,
                 mean_dwell_s,
             } => self.rtn[*i] = (amplitude_dph * amplitude_dph, *mean_dwell_s),
-            Edit::ReadoutFilter { params, arw_dpsh } => {
+            Edit::ReadoutFilter {
+                params, arw_dpsh, ..
+            } => {
                 self.filter = params.filter(self.tau0_s).ok();
                 self.n2 = units::dpsh_to_arcsec_per_sqrt_s(*arw_dpsh).powi(2);
             }

@@ -47,6 +47,11 @@ pub(crate) enum Edit {
     ReadoutFilter {
         params: ReadoutFilterParams,
         arw_dpsh: f64,
+        /// How much wider (below, above) the ARW's interval is when profiled
+        /// over the corner's confidence set than at the fitted corner alone:
+        /// the corner and the white level trade off, and a refit through the
+        /// fitted filter carries only the conditional width.
+        arw_profile_widen: (f64, f64),
     },
     /// Replace gauss_markov[i] by a telegraph (amplitude, mean dwell), fitted
     /// on the recording's wavelet variances.
@@ -107,7 +112,9 @@ impl Edit {
                 }
             }
             Edit::Thermal(t) => m.thermal = Some(t.clone()),
-            Edit::ReadoutFilter { params, arw_dpsh } => {
+            Edit::ReadoutFilter {
+                params, arw_dpsh, ..
+            } => {
                 m.readout_filter = Some(params.clone());
                 m.noise.arw_dpsh = Some(*arw_dpsh);
             }

@@ -30,6 +30,8 @@ use super::{AddedTerm, ParameterChange};
 use crate::model::GyroModel;
 use crate::model::config::OutputKind;
 use crate::model::filter::{ReadoutFilter, ReadoutFilterParams};
+use statrs::distribution::{ContinuousCDF, StudentsT};
+
 use crate::units;
 
 /// Longest moving average searched, samples.
@@ -51,6 +53,9 @@ pub struct FilterFit {
     pub corner_ci_cycles: (f64, f64),
     /// Moving-average lengths inside the interval (when a moving average won).
     pub length_ci: Option<(u32, u32)>,
+    /// N^2's interval profiled over the corner against it at `filter` alone,
+    /// (below, above) half-width ratios, at least 1.
+    pub arw_profile_widen: (f64, f64),
 }
 
 /// One filter's profile: N^2 refitted through it.
@@ -172,6 +177,7 @@ pub fn fit(
     // deviance it has left (sqrt(1 - d / CI_DEVIANCE)); the union. At the best
     // filter alone the interval ignores that the corner and N^2 trade off.
     let mut fit = best.2.clone();
+    let cond = best.2.theta_ci;
     for c in cands.iter().filter(|c| inside(c.2.loglik)) {
         let d = (2.0 * (l_max - c.2.loglik)).max(0.0);
         let k = (1.0 - d / CI_DEVIANCE).max(0.0).sqrt();
@@ -180,11 +186,35 @@ pub fn fit(
         f.0 = f.0.min(t - k * (t - a)).max(0.0);
         f.1 = f.1.max(t + k * (b - t));
     }
+    // The first-order corner is continuous: N^2 at the ends of its interval
+    // is how far the trade-off moves it, added in quadrature to the width at
+    // the fitted corner (the projection of the joint ellipse); the grid
+    // candidates above may all lie on one side of the best corner.
+    let t = fit.theta;
+    if let ReadoutFilter::FirstOrder { .. } = best.1 {
+        let (mut dl, mut dh) = (0.0f64, 0.0f64);
+        for f in [lo, hi].into_iter().filter_map(first_order) {
+            let d = eval(f).theta - t;
+            if d.is_finite() {
+                dl = dl.max(-d);
+                dh = dh.max(d);
+            }
+        }
+        let (cl, ch) = (t - cond.0, cond.1 - t);
+        fit.theta_ci.0 = fit.theta_ci.0.min(t - cl.hypot(dl)).max(0.0);
+        fit.theta_ci.1 = fit.theta_ci.1.max(t + ch.hypot(dh));
+    }
+    let ratio = |p: f64, c: f64| if c > 0.0 { (p / c).max(1.0) } else { 1.0 };
+    let arw_profile_widen = (
+        ratio(t - fit.theta_ci.0, t - cond.0),
+        ratio(fit.theta_ci.1 - t, cond.1 - t),
+    );
     Some(FilterFit {
         filter: best.1,
         fit,
         corner_ci_cycles: (lo, hi),
         length_ci,
+        arw_profile_widen,
     })
 }
 
@@ -277,6 +307,7 @@ pub(crate) fn finding(ff: &FilterFit, model: &GyroModel, n2_model: f64, regions:
         edit: Edit::ReadoutFilter {
             params: ReadoutFilterParams::from_filter(&f, tau0),
             arw_dpsh: arw,
+            arw_profile_widen: ff.arw_profile_widen,
         },
         changes,
         added: Some(AddedTerm {
@@ -297,5 +328,222 @@ pub(crate) fn finding(ff: &FilterFit, model: &GyroModel, n2_model: f64, regions:
             fmt_g(arw_model),
             fmt_g(arw)
         ),
+    }
+}
+
+/// Widen a `readout_filter` finding's corner and ARW intervals to at least
+/// those of `about`, the filter refitted about the updated model's own runs
+/// (their EDFs: the original model's overstate the information of the levels
+/// the filter attenuates, and the corner found with them scattered 1.7x its
+/// claimed width). Half-widths are carried about the finding's own values;
+/// intervals only grow. Nothing changes when `about` is of another kind.
+pub(crate) fn widen_about_updated(f: &mut Finding, about: &FilterFit, tau0_s: f64) {
+    let Edit::ReadoutFilter { params, .. } = &f.edit else {
+        return;
+    };
+    let Ok(ours) = params.filter(tau0_s) else {
+        return;
+    };
+    if ours.kind() != about.filter.kind() {
+        return;
+    }
+    let fc = ours.corner_hz(tau0_s);
+    let (c, (a, b)) = (about.filter.corner_cycles(), about.corner_ci_cycles);
+    let corner = [fc - (c - a) / tau0_s, fc + (b - c) / tau0_s];
+    let t = about.fit.theta;
+    let arw_of = |x: f64| units::arcsec_per_sqrt_s_to_dpsh(x.max(0.0).sqrt());
+    let (arw_lo, arw_hi) = (
+        arw_of(t) - arw_of(about.fit.theta_ci.0),
+        arw_of(about.fit.theta_ci.1) - arw_of(t),
+    );
+    widen_finding(f, corner, (arw_lo, arw_hi));
+}
+
+/// Widen a `readout_filter` finding's corner and ARW intervals to at least
+/// `t sd` about its values, `sd` the scatter of the corner and of the ARW over
+/// `boot` (the filter refitted on each of the updated model's runs against the
+/// others; `t` Student's 97.5 % point for that many runs, inflated by
+/// `sqrt(1 + 1/n)` for the mean the recording is judged against). The
+/// likelihood intervals assume independent levels; a filter's transition
+/// band spans several, and the corner so found scattered 1.6x its claimed
+/// width. Nothing with fewer than 4 refits of the finding's kind.
+pub(crate) fn widen_by_scatter(f: &mut Finding, boot: &[FilterFit], tau0_s: f64) {
+    let Edit::ReadoutFilter { params, .. } = &f.edit else {
+        return;
+    };
+    let Ok(ours) = params.filter(tau0_s) else {
+        return;
+    };
+    let same: Vec<&FilterFit> = boot
+        .iter()
+        .filter(|b| b.filter.kind() == ours.kind())
+        .collect();
+    let n = same.len();
+    if n < 4 {
+        return;
+    }
+    let sd = |v: Vec<f64>| {
+        let m = v.iter().sum::<f64>() / n as f64;
+        (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt()
+    };
+    let t = StudentsT::new(0.0, 1.0, (n - 1) as f64).map_or(1.96, |d| d.inverse_cdf(0.975))
+        * (1.0 + 1.0 / n as f64).sqrt();
+    let corner_sd = sd(same.iter().map(|b| b.filter.corner_hz(tau0_s)).collect());
+    let arw_sd = sd(same
+        .iter()
+        .map(|b| units::arcsec_per_sqrt_s_to_dpsh(b.fit.theta.max(0.0).sqrt()))
+        .collect());
+    let fc = ours.corner_hz(tau0_s);
+    let corner = [fc - t * corner_sd, fc + t * corner_sd];
+    widen_finding(f, corner, (t * arw_sd, t * arw_sd));
+}
+
+/// Widen the finding's corner interval (Hz) to include `corner`, and its ARW
+/// interval to at least `arw` (below, above) about the refitted ARW.
+fn widen_finding(f: &mut Finding, corner: [f64; 2], arw: (f64, f64)) {
+    for ch in f.changes.iter_mut() {
+        match ch.term.as_str() {
+            "arw_dpsh" => widen(&mut ch.ci95, ch.fitted - arw.0, ch.fitted + arw.1),
+            "readout_filter.corner_hz" => {
+                ch.ci95 = widened_text(ch.ci95, corner, &mut f.note, &mut None);
+            }
+            _ => {}
+        }
+    }
+    if let Some(added) = f.added.as_mut() {
+        if let Some(ci) = added.ci95.get_mut("corner_hz") {
+            *ci = widened_text(*ci, corner, &mut f.note, &mut Some(&mut added.explanation));
+        }
+    }
+}
+
+fn widen(ci: &mut [f64; 2], lo: f64, hi: f64) {
+    ci[0] = ci[0].min(lo).max(0.0);
+    ci[1] = ci[1].max(hi);
+}
+
+/// `old` widened to include `new`, with the interval's text in the note
+/// (`[lo, hi]`) and the explanation (`95 % lo..hi Hz`) rewritten.
+fn widened_text(
+    old: [f64; 2],
+    new: [f64; 2],
+    note: &mut String,
+    explanation: &mut Option<&mut String>,
+) -> [f64; 2] {
+    let mut ci = old;
+    widen(&mut ci, new[0], new[1]);
+    let text = |c: [f64; 2], sep: &str| format!("{}{sep}{}", fmt_g(c[0]), fmt_g(c[1]));
+    *note = note.replace(&text(old, ", "), &text(ci, ", "));
+    if let Some(e) = explanation.as_mut() {
+        **e = e.replace(&text(old, ".."), &text(ci, ".."));
+    }
+    ci
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const TAU0: f64 = 1.0 / 200.0;
+
+    fn filter_fit(corner_hz: f64, arw_dpsh: f64, half: f64) -> FilterFit {
+        let theta = units::dpsh_to_arcsec_per_sqrt_s(arw_dpsh).powi(2);
+        let c = corner_hz * TAU0;
+        FilterFit {
+            filter: ReadoutFilter::first_order(corner_hz, TAU0).unwrap(),
+            fit: Fit {
+                theta,
+                theta_ci: (theta * (1.0 - half), theta * (1.0 + half)),
+                shape: None,
+                shape_ci: None,
+                loglik: 0.0,
+                n_par: 2,
+                delta_mu: Vec::new(),
+            },
+            corner_ci_cycles: (c * (1.0 - half), c * (1.0 + half)),
+            length_ci: None,
+            arw_profile_widen: (1.0, 1.0),
+        }
+    }
+
+    fn a_finding() -> Finding {
+        let model = GyroModel::from_toml_str(
+            "[gyro]\nsample_rate_hz = 200.0\noutput = \"rate\"\nrate_lsb_dps = 0.01\n\
+             [noise]\narw_dpsh = 0.5\n",
+            "test",
+        )
+        .unwrap();
+        let n2 = units::dpsh_to_arcsec_per_sqrt_s(0.5).powi(2);
+        finding(&filter_fit(15.0, 0.5, 0.01), &model, n2, "0.005..0.04 s")
+    }
+
+    fn corner_ci(f: &Finding) -> [f64; 2] {
+        f.added.as_ref().unwrap().ci95["corner_hz"]
+    }
+
+    #[test]
+    fn scatter_of_the_refits_sets_the_interval_floor() {
+        let mut f = a_finding();
+        let fc = 15.0;
+        let before = corner_ci(&f);
+        assert!((before[0] - fc * 0.99).abs() < 1e-9 && (before[1] - fc * 1.01).abs() < 1e-9);
+        // eight refits at 15 +- 0.3 Hz: sample sd of [-3, 3] x 0.1 (in pairs)
+        let offs = [-0.3, 0.3, -0.1, 0.1, -0.2, 0.2, 0.0, 0.0];
+        let boot: Vec<FilterFit> = offs
+            .iter()
+            .map(|d| filter_fit(fc + d, 0.5 - d / 50.0, 0.01))
+            .collect();
+        let sd = (offs.iter().map(|d| d * d).sum::<f64>() / 7.0).sqrt();
+        let t = 2.364_624_251_6 * (1.0 + 1.0 / 8.0f64).sqrt();
+        widen_by_scatter(&mut f, &boot, TAU0);
+        let ci = corner_ci(&f);
+        assert!((ci[0] - (fc - t * sd)).abs() < 1e-6, "{ci:?}");
+        assert!((ci[1] - (fc + t * sd)).abs() < 1e-6, "{ci:?}");
+        let text = format!("95 % {}..{} Hz", fmt_g(ci[0]), fmt_g(ci[1]));
+        assert!(f.added.as_ref().unwrap().explanation.contains(&text));
+        assert!(
+            f.note
+                .contains(&format!("[{}, {}]", fmt_g(ci[0]), fmt_g(ci[1])))
+        );
+        let arw = f.changes.iter().find(|c| c.term == "arw_dpsh").unwrap();
+        let arw_sd = sd / 50.0;
+        assert!(
+            (arw.ci95[1] - (arw.fitted + t * arw_sd)).abs() < 1e-6,
+            "{:?}",
+            arw.ci95
+        );
+        // a tighter scatter never narrows what is there
+        let tight: Vec<FilterFit> = offs
+            .iter()
+            .map(|d| filter_fit(fc + d / 100.0, 0.5, 0.01))
+            .collect();
+        widen_by_scatter(&mut f, &tight, TAU0);
+        assert_eq!(corner_ci(&f), ci);
+    }
+
+    #[test]
+    fn few_refits_or_another_kind_leave_the_finding_alone() {
+        let mut f = a_finding();
+        let before = corner_ci(&f);
+        let three: Vec<FilterFit> = [14.0, 15.0, 16.0]
+            .iter()
+            .map(|&c| filter_fit(c, 0.5, 0.01))
+            .collect();
+        widen_by_scatter(&mut f, &three, TAU0);
+        assert_eq!(corner_ci(&f), before);
+        let mut ma = filter_fit(15.0, 0.5, 0.01);
+        ma.filter = ReadoutFilter::MovingAverage { length: 5 };
+        widen_about_updated(&mut f, &ma, TAU0);
+        assert_eq!(corner_ci(&f), before);
+    }
+
+    #[test]
+    fn the_updated_fit_carries_its_half_widths_about_the_finding() {
+        let mut f = a_finding();
+        // refitted about the updated model at 15.2 Hz, +- 3 %
+        widen_about_updated(&mut f, &filter_fit(15.2, 0.5, 0.03), TAU0);
+        let ci = corner_ci(&f);
+        assert!((ci[0] - (15.0 - 15.2 * 0.03)).abs() < 1e-6, "{ci:?}");
+        assert!((ci[1] - (15.0 + 15.2 * 0.03)).abs() < 1e-6, "{ci:?}");
     }
 }

@@ -13,12 +13,14 @@
 //! worse and not acceptably. An updated model that fits worse than the
 //! original, and not acceptably, is reported but not handed out.
 
+use super::candidates::leave_one_out;
 use super::compare::{self, Family, Point};
 use super::findings::{
     Edit, Finding, UnitConv, fitted_parameters, fmt_g, sqrt_ci, tidy, with_findings,
 };
-use super::locate::{all_points, detect_points, mean_stats};
+use super::locate::{all_points, detect_points, floors, mean_stats};
 use super::lowfreq;
+use super::readout;
 use super::reference::Reference;
 use super::stats::StatSet;
 use super::telegraph::{self, telegraph_alternative};
@@ -134,6 +136,7 @@ pub(crate) fn refine(
         }
     }
     widen_about_updated(r, &basis, &cur, findings);
+    widen_filter_about_updated(r, &basis, &cur, findings);
     let Current {
         model: mut m_new,
         after,
@@ -291,18 +294,36 @@ impl Refit {
             return;
         };
         let before = edit_value(&f.edit);
-        f.edit = self.edit();
+        let mut ci95 = self.ci95;
+        f.edit = match &f.edit {
+            // A readout filter keeps its shape; its white level is refitted
+            // through it, and the interval widened by the corner's trade-off.
+            Edit::ReadoutFilter {
+                params,
+                arw_profile_widen: (wl, wh),
+                ..
+            } => {
+                let v = self.value;
+                ci95 = [v - wl * (v - ci95[0]), v + wh * (ci95[1] - v)];
+                Edit::ReadoutFilter {
+                    params: params.clone(),
+                    arw_dpsh: v,
+                    arw_profile_widen: (*wl, *wh),
+                }
+            }
+            _ => self.edit(),
+        };
         let key = self.key();
         for c in f.changes.iter_mut().filter(|c| c.term == key) {
             c.fitted = self.value;
-            c.ci95 = self.ci95;
+            c.ci95 = ci95;
         }
         if let Some(a) = f.added.as_mut() {
             if let Some(v) = a.params.get_mut(key) {
                 *v = self.value;
             }
             if let Some(ci) = a.ci95.get_mut(key) {
-                *ci = self.ci95;
+                *ci = ci95;
             }
         }
         f.note.push_str(&format!(
@@ -316,7 +337,11 @@ impl Refit {
 fn knob_of(e: &Edit) -> Option<Knob> {
     match e {
         Edit::Quantization(_) => Some(Knob::Quantization),
-        Edit::Arw(_) => Some(Knob::Arw),
+        // The white level refitted with a readout filter: found about the
+        // original model's Monte-Carlo mean less its white share, whose noise
+        // the filter's attenuation of the fine levels amplifies (the ARW of a
+        // 5-sample average scattered 3x its claimed width until refined).
+        Edit::Arw(_) | Edit::ReadoutFilter { .. } => Some(Knob::Arw),
         Edit::BiasInstability(_) => Some(Knob::BiasInstability),
         Edit::Rrw(_) => Some(Knob::Rrw),
         _ => None,
@@ -326,6 +351,7 @@ fn knob_of(e: &Edit) -> Option<Knob> {
 fn edit_value(e: &Edit) -> f64 {
     match e {
         Edit::Quantization(v) | Edit::Arw(v) | Edit::BiasInstability(v) | Edit::Rrw(v) => *v,
+        Edit::ReadoutFilter { arw_dpsh, .. } => *arw_dpsh,
         _ => f64::NAN,
     }
 }
@@ -473,6 +499,40 @@ fn widen_about_updated(r: &Reference, basis: &Basis, cur: &Current, findings: &m
             ];
         }
     }
+}
+
+/// Refit a `readout_filter` finding's filter about the updated model's own
+/// runs (their EDFs) and widen its corner and ARW intervals to that fit's.
+fn widen_filter_about_updated(
+    r: &Reference,
+    basis: &Basis,
+    cur: &Current,
+    findings: &mut [Finding],
+) {
+    let Some(f) = findings
+        .iter_mut()
+        .rev()
+        .find(|f| matches!(f.edit, Edit::ReadoutFilter { .. }))
+    else {
+        return;
+    };
+    let Some(data) = after_data(r, basis, &cur.after, &cur.runs) else {
+        return;
+    };
+    let n2 = units::dpsh_to_arcsec_per_sqrt_s(cur.model.noise.arw_dpsh.unwrap_or(0.0)).powi(2);
+    let current = cur.model.readout_filter();
+    if let Some(about) = readout::fit(&data, basis, n2, current) {
+        readout::widen_about_updated(f, &about, r.tau0_s());
+    }
+    // the fit's sampling scatter, measured: each run judged against the others
+    let fw = floors(&r.layout, &cur.model, &mean_stats(&cur.runs)).0;
+    let boot: Vec<readout::FilterFit> = (0..cur.runs.len())
+        .filter_map(|k| {
+            let d = leave_one_out(&r.layout, &cur.runs, k, &fw, basis.has_lf());
+            readout::fit(&d, basis, n2, current)
+        })
+        .collect();
+    readout::widen_by_scatter(f, &boot, r.tau0_s());
 }
 
 /// A knob's basis shape, current squared amplitude (internal units), lower
