@@ -410,10 +410,10 @@ fn widen_finding(f: &mut Finding, corner: [f64; 2], arw: (f64, f64)) {
             _ => {}
         }
     }
-    if let Some(added) = f.added.as_mut() {
-        if let Some(ci) = added.ci95.get_mut("corner_hz") {
-            *ci = widened_text(*ci, corner, &mut f.note, &mut Some(&mut added.explanation));
-        }
+    if let Some(added) = f.added.as_mut()
+        && let Some(ci) = added.ci95.get_mut("corner_hz")
+    {
+        *ci = widened_text(*ci, corner, &mut f.note, &mut Some(&mut added.explanation));
     }
 }
 
