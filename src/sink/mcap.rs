@@ -505,7 +505,6 @@ impl Recorder {
             }
         }
         let mut channels = BTreeMap::new();
-        let mut names = BTreeMap::new();
         for topic in Topic::ALL {
             let schema = serde_json::to_vec_pretty(&topic.json_schema()).map_err(|source| {
                 RecordError::Serialize {
@@ -527,8 +526,15 @@ impl Recorder {
                 let id = writer
                     .add_channel(schema_id, &name, MESSAGE_ENCODING, &BTreeMap::new())
                     .map_err(|e| mcap_err("adding a channel", e))?;
-                channels.insert((g, topic), id);
-                names.insert((g, topic), name);
+                channels.insert(
+                    (g, topic),
+                    ChannelState {
+                        id,
+                        name,
+                        sequence: 0,
+                        count: 0,
+                    },
+                );
             }
         }
         // Close the first chunk (schemas and channels) at once: from now on the
@@ -540,13 +546,10 @@ impl Recorder {
         let path = Arc::new(path);
         let mut worker = Worker {
             writer,
-            counts: names.values().map(|n| (n.clone(), 0)).collect(),
             channels,
-            names,
             path: Arc::clone(&path),
             bytes: Arc::clone(&bytes),
             flush_interval: config.flush_interval(),
-            sequences: BTreeMap::new(),
             flushes: 1,
             payload: Vec::new(),
         };
@@ -666,17 +669,22 @@ fn create_unique(dir: &Path, name: &str) -> Result<(PathBuf, File), RecordError>
     })
 }
 
+/// One channel of the recording: its id, name, next sequence number and the
+/// messages written (one lookup per message).
+struct ChannelState {
+    id: u16,
+    name: String,
+    sequence: u32,
+    count: u64,
+}
+
 struct Worker {
     writer: ::mcap::Writer<BufWriter<CountingFile>>,
-    /// (gyro index, topic) -> channel id.
-    channels: BTreeMap<(Option<u16>, Topic), u16>,
-    /// (gyro index, topic) -> channel name.
-    names: BTreeMap<(Option<u16>, Topic), String>,
+    /// (gyro index, topic) -> its channel.
+    channels: BTreeMap<(Option<u16>, Topic), ChannelState>,
     path: Arc<PathBuf>,
     bytes: Arc<AtomicU64>,
     flush_interval: Duration,
-    sequences: BTreeMap<(Option<u16>, Topic), u32>,
-    counts: BTreeMap<String, u64>,
     flushes: u64,
     /// Reused JSON buffer of the message being written.
     payload: Vec<u8>,
@@ -766,21 +774,21 @@ impl Worker {
                 topic: topic.name(),
                 source,
             })?;
-        let channel_id = self.channels[&key];
-        let sequence = self.sequences.entry(key).or_insert(0);
+        let ch = self
+            .channels
+            .get_mut(&key)
+            .expect("every (gyro, topic) has a channel");
         let header = ::mcap::records::MessageHeader {
-            channel_id,
-            sequence: *sequence,
+            channel_id: ch.id,
+            sequence: ch.sequence,
             log_time: msg.time_ns(),
             publish_time: msg.time_ns(),
         };
-        *sequence = sequence.wrapping_add(1);
+        ch.sequence = ch.sequence.wrapping_add(1);
+        ch.count += 1;
         let written = self.writer.write_to_known_channel(&header, &data);
         self.payload = data; // the buffer is reused by the next message
         written.map_err(|e| self.mcap_err("writing a message", e))?;
-        if let Some(c) = self.names.get(&key).and_then(|n| self.counts.get_mut(n)) {
-            *c += 1;
-        }
         Ok(())
     }
 
@@ -816,7 +824,11 @@ impl Worker {
             .map_err(|e| io_err(e, "syncing the file after finish"))?;
         Ok(RecordingSummary {
             path: self.path.to_path_buf(),
-            messages_per_topic: self.counts,
+            messages_per_topic: self
+                .channels
+                .into_values()
+                .map(|c| (c.name, c.count))
+                .collect(),
             bytes: counting.len,
             flushes: self.flushes,
         })
