@@ -167,6 +167,28 @@ pub(crate) struct Finding {
 }
 
 impl Finding {
+    /// Multiply every interval's half-widths by `s` about its value (a lower
+    /// end at or above zero stays so): the Birge ratio `sqrt(chi2/dof)` of an
+    /// updated model that does not fit the recording, whose misfit the fit's
+    /// own intervals do not carry.
+    pub fn widen_for_misfit(&mut self, s: f64) {
+        let scale = |ci: &mut [f64; 2], v: f64| {
+            let lo = v - s * (v - ci[0]);
+            ci[0] = if ci[0] >= 0.0 { lo.max(0.0) } else { lo };
+            ci[1] = v + s * (ci[1] - v);
+        };
+        for c in &mut self.changes {
+            scale(&mut c.ci95, c.fitted);
+        }
+        if let Some(a) = self.added.as_mut() {
+            for (k, ci) in a.ci95.iter_mut() {
+                if let Some(&v) = a.params.get(k) {
+                    scale(ci, v);
+                }
+            }
+        }
+    }
+
     /// A one-parameter finding: a change of the model's parameter when the
     /// model `had` the term, else a new term. `keys` = (the change's term, the
     /// added term's name, its parameter's key).
@@ -245,4 +267,40 @@ pub(crate) fn fmt_g(v: f64) -> String {
 /// The interval of an amplitude from that of its square, converted by `f`.
 pub(crate) fn sqrt_ci(ci: (f64, f64), f: impl Fn(f64) -> f64) -> [f64; 2] {
     [f(ci.0.max(0.0).sqrt()), f(ci.1.max(0.0).sqrt())]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn misfit_widens_every_interval_about_its_value() {
+        let mut f = Finding {
+            edit: Edit::Arw(2.5),
+            changes: vec![ParameterChange {
+                term: "arw_dpsh".into(),
+                model: 3.0,
+                fitted: 2.5,
+                ci95: [2.4, 2.7],
+            }],
+            added: Some(AddedTerm {
+                term: "gauss_markov".into(),
+                params: BTreeMap::from([("sigma_dph".to_string(), 10.0)]),
+                kind: None,
+                explanation: String::new(),
+                ci95: BTreeMap::from([("sigma_dph".to_string(), [2.0, 12.0])]),
+            }),
+            n_par: 2,
+            note: String::new(),
+        };
+        f.widen_for_misfit(3.0);
+        let c = f.changes[0].ci95;
+        assert!(
+            (c[0] - 2.2).abs() < 1e-12 && (c[1] - 3.1).abs() < 1e-12,
+            "{c:?}"
+        );
+        // a non-negative lower end stays non-negative
+        let a = f.added.as_ref().unwrap().ci95["sigma_dph"];
+        assert_eq!(a, [0.0, 16.0]);
+    }
 }

@@ -150,6 +150,17 @@ pub(crate) fn refine(
     // An update that fits worse and not acceptably is reported, never handed out
     // as the better model. (A ramp or a thermal sensitivity is found by tests the
     // chi2 points barely see: its chi2/dof may rise a little while staying fine.)
+    if chi2_after > ACCEPTABLE_CHI2_PER_DOF {
+        let s = chi2_after.sqrt();
+        for f in findings.iter_mut() {
+            f.widen_for_misfit(s);
+        }
+        notes.push(format!(
+            "The updated model does not describe the recording (chi2/dof {chi2_after:.2} > \
+             {ACCEPTABLE_CHI2_PER_DOF}): every interval of the findings is widened by sqrt(chi2/dof) = {s:.2} \
+             (the explanations quote the fit's own intervals)."
+        ));
+    }
     let updated = if chi2_after > chi2_before && chi2_after > ACCEPTABLE_CHI2_PER_DOF {
         notes.push(format!(
             "The updated model fits worse than the original (chi2/dof {chi2_before:.2} -> {chi2_after:.2}): \
