@@ -171,19 +171,23 @@ impl Finding {
     /// end at or above zero stays so): the Birge ratio `sqrt(chi2/dof)` of an
     /// updated model that does not fit the recording, whose misfit the fit's
     /// own intervals do not carry.
-    pub fn widen_for_misfit(&mut self, s: f64) {
-        let scale = |ci: &mut [f64; 2], v: f64| {
+    /// A filter corner stays below the Nyquist frequency `nyquist_hz`.
+    pub fn widen_for_misfit(&mut self, s: f64, nyquist_hz: f64) {
+        let scale = |ci: &mut [f64; 2], v: f64, key: &str| {
             let lo = v - s * (v - ci[0]);
             ci[0] = if ci[0] >= 0.0 { lo.max(0.0) } else { lo };
             ci[1] = v + s * (ci[1] - v);
+            if key.ends_with("corner_hz") {
+                ci[1] = ci[1].min(nyquist_hz);
+            }
         };
         for c in &mut self.changes {
-            scale(&mut c.ci95, c.fitted);
+            scale(&mut c.ci95, c.fitted, &c.term);
         }
         if let Some(a) = self.added.as_mut() {
             for (k, ci) in a.ci95.iter_mut() {
                 if let Some(&v) = a.params.get(k) {
-                    scale(ci, v);
+                    scale(ci, v, k);
                 }
             }
         }
@@ -293,7 +297,7 @@ mod tests {
             n_par: 2,
             note: String::new(),
         };
-        f.widen_for_misfit(3.0);
+        f.widen_for_misfit(3.0, 50.0);
         let c = f.changes[0].ci95;
         assert!(
             (c[0] - 2.2).abs() < 1e-12 && (c[1] - 3.1).abs() < 1e-12,
@@ -302,5 +306,12 @@ mod tests {
         // a non-negative lower end stays non-negative
         let a = f.added.as_ref().unwrap().ci95["sigma_dph"];
         assert_eq!(a, [0.0, 16.0]);
+        // a corner interval ends below the Nyquist frequency
+        let mut g = f.clone();
+        g.changes[0].term = "readout_filter.corner_hz".into();
+        g.changes[0].fitted = 49.0;
+        g.changes[0].ci95 = [48.0, 49.9];
+        g.widen_for_misfit(3.0, 50.0);
+        assert_eq!(g.changes[0].ci95, [46.0, 50.0]);
     }
 }

@@ -349,7 +349,10 @@ pub(crate) fn widen_about_updated(f: &mut Finding, about: &FilterFit, tau0_s: f6
     }
     let fc = ours.corner_hz(tau0_s);
     let (c, (a, b)) = (about.filter.corner_cycles(), about.corner_ci_cycles);
-    let corner = [fc - (c - a) / tau0_s, fc + (b - c) / tau0_s];
+    let corner = [
+        fc - (c - a) / tau0_s,
+        (fc + (b - c) / tau0_s).min(0.5 / tau0_s),
+    ];
     let t = about.fit.theta;
     let arw_of = |x: f64| units::arcsec_per_sqrt_s_to_dpsh(x.max(0.0).sqrt());
     let (arw_lo, arw_hi) = (
@@ -394,7 +397,7 @@ pub(crate) fn widen_by_scatter(f: &mut Finding, boot: &[FilterFit], tau0_s: f64)
         .map(|b| units::arcsec_per_sqrt_s_to_dpsh(b.fit.theta.max(0.0).sqrt()))
         .collect());
     let fc = ours.corner_hz(tau0_s);
-    let corner = [fc - t * corner_sd, fc + t * corner_sd];
+    let corner = [fc - t * corner_sd, (fc + t * corner_sd).min(0.5 / tau0_s)];
     widen_finding(f, corner, (t * arw_sd, t * arw_sd));
 }
 

@@ -153,7 +153,7 @@ pub(crate) fn refine(
     if chi2_after > ACCEPTABLE_CHI2_PER_DOF {
         let s = chi2_after.sqrt();
         for f in findings.iter_mut() {
-            f.widen_for_misfit(s);
+            f.widen_for_misfit(s, 0.5 / r.tau0_s());
         }
         notes.push(format!(
             "The updated model does not describe the recording (chi2/dof {chi2_after:.2} > \
