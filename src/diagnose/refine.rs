@@ -147,9 +147,7 @@ pub(crate) fn refine(
     m_new.gyro = user_model.gyro.clone();
     m_new.gyro.sample_rate_hz = r.layout.fs_hz;
     tidy(&mut m_new);
-    // An update that fits worse and not acceptably is reported, never handed out
-    // as the better model. (A ramp or a thermal sensitivity is found by tests the
-    // chi2 points barely see: its chi2/dof may rise a little while staying fine.)
+    // A model that does not fit: the fit's intervals assume one that does.
     if chi2_after > ACCEPTABLE_CHI2_PER_DOF {
         let s = chi2_after.sqrt();
         for f in findings.iter_mut() {
@@ -161,6 +159,9 @@ pub(crate) fn refine(
              (the explanations quote the fit's own intervals)."
         ));
     }
+    // An update that fits worse and not acceptably is reported, never handed out
+    // as the better model. (A ramp or a thermal sensitivity is found by tests the
+    // chi2 points barely see: its chi2/dof may rise a little while staying fine.)
     let updated = if chi2_after > chi2_before && chi2_after > ACCEPTABLE_CHI2_PER_DOF {
         notes.push(format!(
             "The updated model fits worse than the original (chi2/dof {chi2_before:.2} -> {chi2_after:.2}): \
