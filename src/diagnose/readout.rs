@@ -25,6 +25,7 @@ use std::collections::BTreeMap;
 
 use super::findings::{Edit, Finding, fmt_g, sqrt_ci};
 use super::stats::golden_max;
+use super::telegraph::mean_sd;
 use super::wvar_fit::{Basis, CI_DEVIANCE, Fit, LevelData, fit_amplitude};
 use super::{AddedTerm, ParameterChange};
 use crate::model::GyroModel;
@@ -338,15 +339,9 @@ pub(crate) fn finding(ff: &FilterFit, model: &GyroModel, n2_model: f64, regions:
 /// claimed width). Half-widths are carried about the finding's own values;
 /// intervals only grow. Nothing changes when `about` is of another kind.
 pub(crate) fn widen_about_updated(f: &mut Finding, about: &FilterFit, tau0_s: f64) {
-    let Edit::ReadoutFilter { params, .. } = &f.edit else {
+    let Some(ours) = finding_filter(f, tau0_s).filter(|o| o.kind() == about.filter.kind()) else {
         return;
     };
-    let Ok(ours) = params.filter(tau0_s) else {
-        return;
-    };
-    if ours.kind() != about.filter.kind() {
-        return;
-    }
     let fc = ours.corner_hz(tau0_s);
     let (c, (a, b)) = (about.filter.corner_cycles(), about.corner_ci_cycles);
     let corner = [
@@ -371,10 +366,7 @@ pub(crate) fn widen_about_updated(f: &mut Finding, about: &FilterFit, tau0_s: f6
 /// band spans several, and the corner so found scattered 1.6x its claimed
 /// width. Nothing with fewer than 4 refits of the finding's kind.
 pub(crate) fn widen_by_scatter(f: &mut Finding, boot: &[FilterFit], tau0_s: f64) {
-    let Edit::ReadoutFilter { params, .. } = &f.edit else {
-        return;
-    };
-    let Ok(ours) = params.filter(tau0_s) else {
+    let Some(ours) = finding_filter(f, tau0_s) else {
         return;
     };
     let same: Vec<&FilterFit> = boot
@@ -385,10 +377,7 @@ pub(crate) fn widen_by_scatter(f: &mut Finding, boot: &[FilterFit], tau0_s: f64)
     if n < 4 {
         return;
     }
-    let sd = |v: Vec<f64>| {
-        let m = v.iter().sum::<f64>() / n as f64;
-        (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt()
-    };
+    let sd = |v: Vec<f64>| mean_sd(&v).1;
     let t = StudentsT::new(0.0, 1.0, (n - 1) as f64).map_or(1.96, |d| d.inverse_cdf(0.975))
         * (1.0 + 1.0 / n as f64).sqrt();
     let corner_sd = sd(same.iter().map(|b| b.filter.corner_hz(tau0_s)).collect());
@@ -399,6 +388,14 @@ pub(crate) fn widen_by_scatter(f: &mut Finding, boot: &[FilterFit], tau0_s: f64)
     let fc = ours.corner_hz(tau0_s);
     let corner = [fc - t * corner_sd, (fc + t * corner_sd).min(0.5 / tau0_s)];
     widen_finding(f, corner, (t * arw_sd, t * arw_sd));
+}
+
+/// The filter of a `readout_filter` finding.
+fn finding_filter(f: &Finding, tau0_s: f64) -> Option<ReadoutFilter> {
+    match &f.edit {
+        Edit::ReadoutFilter { params, .. } => params.filter(tau0_s).ok(),
+        _ => None,
+    }
 }
 
 /// Widen the finding's corner interval (Hz) to include `corner`, and its ARW
