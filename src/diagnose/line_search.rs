@@ -21,8 +21,11 @@
 //!    reference values (`m = ceil(n/2)`) the tail probability of
 //!    `c = r_k / r_(m)` is exact:
 //!    `P(c > x) = E exp(-x E_(m)) = prod_{j<m} (n - j) / (n - j + x)`.
-//!    A bin is a line when that probability is below `alpha / M` (Bonferroni
-//!    over the `M` bins searched, `alpha` family-wise). Only local maxima are
+//!    A bin is a line when that probability is below `alpha / (O M_o)`: a
+//!    weighted Bonferroni correction, `alpha` family-wise, that shares the
+//!    budget equally among the `O` octaves of frequency searched and within
+//!    octave `o` among its `M_o` bins (a slow line is not charged for the
+//!    bins up to Nyquist). Only local maxima are
 //!    kept, and a weaker peak within the Hann sidelobe reach of a stronger one
 //!    is dropped. A cheap block-median pre-screen picks the candidate bins.
 //! 3. **Measurement** ([`fit_line`]): the frequency maximises the periodogram
@@ -207,7 +210,9 @@ pub struct Detection {
     pub ratio: f64,
     /// Per-bin tail probability.
     pub p: f64,
-    /// Bins searched (the Bonferroni count).
+    /// The Bonferroni count of its bin: the searched octaves times the bins
+    /// in its octave ([`search`]'s budget; `p` is tested against `alpha /
+    /// n_searched`).
     pub n_searched: usize,
 }
 
@@ -218,19 +223,18 @@ pub fn search(spec: &LineSpectrum, params: &SearchParams) -> Vec<Detection> {
     let searched: Vec<usize> = (k_min..last)
         .filter(|&k| spec.usable[k] && spec.white[k].is_finite())
         .collect();
-    let m_total = searched.len();
-    if m_total == 0 {
+    if searched.is_empty() {
         return Vec::new();
     }
-    let ln_crit = (params.alpha / m_total as f64).ln();
+    let budget = OctaveBudget::new(&searched, k_min);
     let level = block_levels(spec, 64);
-    // pre-screen: a quarter of the large-n threshold against the block level
-    let pre = 0.25 * -ln_crit;
     let mut hits: Vec<Detection> = Vec::new();
     for &k in &searched {
-        let w = spec.white[k];
-        let lv = level[k / 64];
-        if !(w > pre * lv) || !is_local_max(&spec.white, k) {
+        let n_eff = budget.effective_bins(k);
+        let ln_crit = (params.alpha / n_eff as f64).ln();
+        // pre-screen: a quarter of the large-n threshold against the block level
+        let (w, lv) = (spec.white[k], level[k / 64]);
+        if !(w > 0.25 * -ln_crit * lv) || !is_local_max(&spec.white, k) {
             continue;
         }
         let Some(r) = spec.reference(k, params.half_width) else {
@@ -239,19 +243,61 @@ pub fn search(spec: &LineSpectrum, params: &SearchParams) -> Vec<Detection> {
         if r.n < params.min_ref || !(r.value > 0.0) {
             continue;
         }
-        let c = w / r.value;
-        let lp = r.ln_tail(c);
+        let lp = r.ln_tail(w / r.value);
         if lp < ln_crit {
             hits.push(Detection {
                 bin: k,
                 f_hz: k as f64 * spec.df(),
                 ratio: w / (r.value / r.mean_order_stat()),
                 p: lp.exp(),
-                n_searched: m_total,
+                n_searched: n_eff,
             });
         }
     }
-    drop_sidelobes(hits, -ln_crit)
+    drop_sidelobes(hits, |k| {
+        -(params.alpha / budget.effective_bins(k) as f64).ln()
+    })
+}
+
+/// The false-alarm budget of [`search`], shared equally by the octaves of
+/// frequency searched (`[k_min 2^o, k_min 2^(o+1))` bins) and within an
+/// octave equally by its bins: a weighted Bonferroni correction whose
+/// family-wise level is still `alpha`. A bin of octave `o` is tested at
+/// `alpha / (O M_o)` (`O` octaves, `M_o` bins in octave `o`), so a line a few
+/// tens of cycles per record long, where the wavelet statistics are blind and
+/// thermal or mechanical periods live, is not charged for the hundreds of
+/// thousands of bins up to Nyquist; a line in the top octave pays at most
+/// `ln O` more than under a flat correction.
+struct OctaveBudget {
+    k_min: usize,
+    /// `O M_o` per octave `o`.
+    effective: Vec<usize>,
+}
+
+impl OctaveBudget {
+    fn new(searched: &[usize], k_min: usize) -> OctaveBudget {
+        let mut counts: Vec<usize> = Vec::new();
+        for &k in searched {
+            let o = octave(k, k_min);
+            if counts.len() <= o {
+                counts.resize(o + 1, 0);
+            }
+            counts[o] += 1;
+        }
+        let n_oct = counts.iter().filter(|&&c| c > 0).count();
+        let effective = counts.iter().map(|&c| c * n_oct).collect();
+        OctaveBudget { k_min, effective }
+    }
+
+    /// `O M_o` of the octave holding bin `k` (a searched bin).
+    fn effective_bins(&self, k: usize) -> usize {
+        self.effective[octave(k, self.k_min)].max(1)
+    }
+}
+
+/// The octave `floor(log2(k / k_min))` of bin `k >= k_min`.
+fn octave(k: usize, k_min: usize) -> usize {
+    (usize::BITS - 1 - (k / k_min).leading_zeros()) as usize
 }
 
 /// Mean-free level per block of `b` bins: the block median of the usable
@@ -295,14 +341,15 @@ fn is_local_max(w: &[f64], k: usize) -> bool {
 
 /// Keep the strongest of the peaks within each other's Hann sidelobe reach:
 /// a line `R` times the continuum leaks `R / (pi o (o^2 - 1))^2` at `o` bins;
-/// a weaker peak closer than where that falls to a tenth of the threshold
-/// (`3 + (10 R / (thr pi^2))^(1/6)` bins) is its leakage, not a line.
-fn drop_sidelobes(mut hits: Vec<Detection>, thr: f64) -> Vec<Detection> {
+/// a weaker peak closer than where that falls to a tenth of its own bin's
+/// threshold `thr(bin)` (`3 + (10 R / (thr pi^2))^(1/6)` bins) is its
+/// leakage, not a line.
+fn drop_sidelobes(mut hits: Vec<Detection>, thr: impl Fn(usize) -> f64) -> Vec<Detection> {
     hits.sort_by(|a, b| b.ratio.total_cmp(&a.ratio));
     let mut kept: Vec<Detection> = Vec::new();
     for h in hits {
         let leak = kept.iter().any(|s| {
-            let reach = 3.0 + (10.0 * s.ratio / (thr * PI * PI)).powf(1.0 / 6.0);
+            let reach = 3.0 + (10.0 * s.ratio / (thr(h.bin) * PI * PI)).powf(1.0 / 6.0);
             (h.bin as f64 - s.bin as f64).abs() <= reach
         });
         if !leak {
@@ -497,5 +544,37 @@ fn mask_interval(usable: &mut [bool], f: f64, hw: f64, df: f64) {
     let k1 = (((f + hw) / df).ceil() as usize).min(usable.len() - 1);
     for u in usable.iter_mut().take(k1 + 1).skip(k0) {
         *u = false;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn octaves_double_from_the_lowest_bin() {
+        assert_eq!(octave(10, 10), 0);
+        assert_eq!(octave(19, 10), 0);
+        assert_eq!(octave(20, 10), 1);
+        assert_eq!(octave(39, 10), 1);
+        assert_eq!(octave(40, 10), 2);
+        assert_eq!(octave(600_000, 10), 15);
+    }
+
+    /// The weights `1 / (O M_o)` of the searched bins sum to one, so the
+    /// family-wise level is `alpha`, with gaps (masked bins) in the list.
+    #[test]
+    fn the_octave_budget_spends_alpha_exactly() {
+        let searched: Vec<usize> = (10..200_000).filter(|k| k % 7 != 3).collect();
+        let b = OctaveBudget::new(&searched, 10);
+        let total: f64 = searched
+            .iter()
+            .map(|&k| 1.0 / b.effective_bins(k) as f64)
+            .sum();
+        assert!((total - 1.0).abs() < 1e-9, "{total}");
+        // 15 octaves: a bin at 30 cycles is charged 15 * 17 (bins 20..40 less
+        // the masked ones), one near the top 15 * (its octave's ~ 2^14 * 10 * 6/7)
+        assert_eq!(b.effective_bins(30), 15 * 17);
+        assert!(b.effective_bins(190_000) > 15 * 30_000);
     }
 }

@@ -234,8 +234,8 @@ fn new_sine(det: &Detection, fit: &LineFit, z: f64) -> Finding {
         period_s: per,
     };
     let expl = format!(
-        "{} Found as a narrow line in the whole record's spectrum at {} Hz ({} cycles; z = {z:.1} after the \
-         Bonferroni correction over {} bins), {:.1} times the local continuum; least-squares fit: amplitude {} \
+        "{} Found as a narrow line in the whole record's spectrum at {} Hz ({} cycles; z = {z:.1}, tested at \
+         the family-wise level over {} bins: the searched octaves times the bins of its octave), {:.1} times the local continuum; least-squares fit: amplitude {} \
          deg/h (95 % {}..{}), period {} s (95 % {}..{}), intervals from the line's Fisher information at the \
          local noise level. Its Allan signature (peak near tau = {} s) lies under the quantization noise.",
         t.explanation(),
