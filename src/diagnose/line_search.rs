@@ -226,12 +226,11 @@ pub fn search(spec: &LineSpectrum, params: &SearchParams) -> Vec<Detection> {
     if searched.is_empty() {
         return Vec::new();
     }
-    let budget = OctaveBudget::new(&searched, k_min);
+    let budget = OctaveBudget::new(&searched, k_min, params.alpha);
     let level = block_levels(spec, 64);
     let mut hits: Vec<Detection> = Vec::new();
     for &k in &searched {
-        let n_eff = budget.effective_bins(k);
-        let ln_crit = (params.alpha / n_eff as f64).ln();
+        let ln_crit = budget.ln_crit(k);
         // pre-screen: a quarter of the large-n threshold against the block level
         let (w, lv) = (spec.white[k], level[k / 64]);
         if !(w > 0.25 * -ln_crit * lv) || !is_local_max(&spec.white, k) {
@@ -250,13 +249,11 @@ pub fn search(spec: &LineSpectrum, params: &SearchParams) -> Vec<Detection> {
                 f_hz: k as f64 * spec.df(),
                 ratio: w / (r.value / r.mean_order_stat()),
                 p: lp.exp(),
-                n_searched: n_eff,
+                n_searched: budget.effective_bins(k),
             });
         }
     }
-    drop_sidelobes(hits, |k| {
-        -(params.alpha / budget.effective_bins(k) as f64).ln()
-    })
+    drop_sidelobes(hits, |k| -budget.ln_crit(k))
 }
 
 /// The false-alarm budget of [`search`], shared equally by the octaves of
@@ -272,10 +269,12 @@ struct OctaveBudget {
     k_min: usize,
     /// `O M_o` per octave `o`.
     effective: Vec<usize>,
+    /// `ln(alpha / (O M_o))` per octave `o`.
+    ln_crit: Vec<f64>,
 }
 
 impl OctaveBudget {
-    fn new(searched: &[usize], k_min: usize) -> OctaveBudget {
+    fn new(searched: &[usize], k_min: usize, alpha: f64) -> OctaveBudget {
         let mut counts: Vec<usize> = Vec::new();
         for &k in searched {
             let o = octave(k, k_min);
@@ -285,13 +284,23 @@ impl OctaveBudget {
             counts[o] += 1;
         }
         let n_oct = counts.iter().filter(|&&c| c > 0).count();
-        let effective = counts.iter().map(|&c| c * n_oct).collect();
-        OctaveBudget { k_min, effective }
+        let effective: Vec<usize> = counts.iter().map(|&c| (c * n_oct).max(1)).collect();
+        let ln_crit = effective.iter().map(|&e| (alpha / e as f64).ln()).collect();
+        OctaveBudget {
+            k_min,
+            effective,
+            ln_crit,
+        }
     }
 
     /// `O M_o` of the octave holding bin `k` (a searched bin).
     fn effective_bins(&self, k: usize) -> usize {
-        self.effective[octave(k, self.k_min)].max(1)
+        self.effective[octave(k, self.k_min)]
+    }
+
+    /// `ln(alpha / (O M_o))`: the log tail probability below which bin `k` is a line.
+    fn ln_crit(&self, k: usize) -> f64 {
+        self.ln_crit[octave(k, self.k_min)]
     }
 }
 
@@ -566,7 +575,7 @@ mod tests {
     #[test]
     fn the_octave_budget_spends_alpha_exactly() {
         let searched: Vec<usize> = (10..200_000).filter(|k| k % 7 != 3).collect();
-        let b = OctaveBudget::new(&searched, 10);
+        let b = OctaveBudget::new(&searched, 10, 0.001);
         let total: f64 = searched
             .iter()
             .map(|&k| 1.0 / b.effective_bins(k) as f64)
@@ -576,5 +585,6 @@ mod tests {
         // the masked ones), one near the top 15 * (its octave's ~ 2^14 * 10 * 6/7)
         assert_eq!(b.effective_bins(30), 15 * 17);
         assert!(b.effective_bins(190_000) > 15 * 30_000);
+        assert_eq!(b.ln_crit(30), (0.001_f64 / 255.0).ln());
     }
 }
