@@ -174,6 +174,22 @@ fn chi2_quantile(p: f64, dof: f64) -> f64 {
         .unwrap_or(f64::INFINITY)
 }
 
+/// The mismatch regions in words, as the findings' explanations quote them.
+pub(crate) fn region_text(regions: &[Region]) -> String {
+    regions
+        .iter()
+        .map(|g| {
+            format!(
+                "{}..{} s (z {:.1})",
+                fmt_g(g.tau_min_s),
+                fmt_g(g.tau_max_s),
+                g.max_z
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 /// The broadband stage: greedy selection of up to three catalog changes.
 /// Returns the findings, each flagged when it is a new Gauss-Markov term
 /// (to be tested against a random telegraph; only the first one is).
@@ -188,18 +204,7 @@ pub(crate) fn fit(
     let mut cur = Current::of(model);
     let mut data = data0.clone();
     let mut out: Vec<(Finding, bool)> = Vec::new();
-    let region_text = regions
-        .iter()
-        .map(|g| {
-            format!(
-                "{}..{} s (z {:.1})",
-                fmt_g(g.tau_min_s),
-                fmt_g(g.tau_max_s),
-                g.max_z
-            )
-        })
-        .collect::<Vec<_>>()
-        .join(", ");
+    let region_text = region_text(regions);
     let tc_grid = wvar_fit::log_grid(4.0 * r.tau0_s(), dur / 3.0, 4);
     // periods beyond the line search's reach (fewer than min_cycles per record)
     let p_grid = wvar_fit::log_grid(dur / SearchParams::default().min_cycles, dur / 2.0, 4);

@@ -363,6 +363,7 @@ pub fn diagnose_with_progress(
         rec,
         model,
         &mut findings,
+        &broadband::region_text(&regions),
         telegraph_pending,
         located.chi2_before,
         opts,
