@@ -72,7 +72,21 @@ fn check_named(truth_filter: &str, kind: &str, corner_hz: f64, seed: u64) {
         r.fit_after.chi2_per_dof
     );
     let m = d.updated_model.expect("an updated model");
-    assert!(m.readout_filter.is_some());
+    // the written model holds the filter and the ARW the report gives (the
+    // finding moved to its refit about the updated model, or kept)
+    let written = m.readout_filter().expect("a written filter");
+    let tau0 = 1.0 / m.gyro.sample_rate_hz;
+    assert!(
+        (written.corner_hz(tau0) - fc).abs() <= 1e-9 * fc,
+        "written corner {} Hz, reported {fc} Hz",
+        written.corner_hz(tau0)
+    );
+    let arw = r
+        .parameter_changes
+        .iter()
+        .find(|c| c.term == "arw_dpsh")
+        .expect("the ARW refitted through the filter");
+    assert_eq!(m.noise.arw_dpsh, Some(arw.fitted));
     let text = m.to_toml().unwrap();
     assert!(text.contains("[readout_filter]"), "{text}");
     // the JSON holds the kind among the params
