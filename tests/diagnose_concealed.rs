@@ -240,6 +240,16 @@ fn run(case: &Case) -> Outcome {
     let t = Instant::now();
     let diag = diagnose::diagnose(&model, &rec, &DiagnoseOptions::default()).unwrap();
     let secs = t.elapsed().as_secs_f64();
+    // none of these effects is narrowband noise (a line is a line)
+    assert!(
+        !diag
+            .notes
+            .iter()
+            .any(|n| n.starts_with("Narrowband excess")),
+        "{}: {:?}",
+        case.name,
+        diag.notes
+    );
     let n_raw = diag
         .before
         .iter()

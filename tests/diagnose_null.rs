@@ -109,6 +109,14 @@ fn null_runs(
         let d = diagnose::diagnose(m, &rec, &opts).unwrap();
         let r = &d.report;
         max_z.push(d.max_abs_z / d.z_crit);
+        // a narrowband excess needs twice the surrounding power at a
+        // Bonferroni z: a matched simulation has none
+        let excess: Vec<&String> = d
+            .notes
+            .iter()
+            .filter(|n| n.starts_with("Narrowband excess"))
+            .collect();
+        assert!(excess.is_empty(), "seed {s}: {excess:?}");
         if r.verdict == Verdict::Mismatch
             || !r.added_terms.is_empty()
             || !r.parameter_changes.is_empty()

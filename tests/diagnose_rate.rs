@@ -59,6 +59,8 @@ fn check_named(truth_filter: &str, kind: &str, corner_hz: f64, seed: u64) {
     let r = &d.report;
     eprintln!("{kind}: notes {:#?}\n added {:#?}", d.notes, r.added_terms);
     assert_eq!(r.verdict, Verdict::Mismatch);
+    // a filter's roll-off is not a peak
+    assert!(!d.notes.iter().any(|n| n.starts_with("Narrowband excess")));
     let (k, fc, ci, _) = named_filter(&d).expect("readout_filter named");
     assert_eq!(k, kind);
     assert!(

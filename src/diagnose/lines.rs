@@ -24,6 +24,7 @@ use statrs::distribution::{ContinuousCDF, Normal};
 use super::compare::{self, LineHit};
 use super::findings::{Edit, Finding, fmt_g};
 use super::line_search::{self as lines, Detection, LineFit};
+use super::narrowband;
 use super::reference::{Reference, counter_lines, model_psd, rate_wander};
 use super::stats::{self, StatLayout};
 use super::{ALPHA_LINES, AddedTerm, ParameterChange, Recording};
@@ -58,7 +59,29 @@ pub(crate) fn find(r: &Reference, rec: &Recording) -> LineFindings {
     let params = search_params();
     let rate = stats::counts_to_rate(&rec.counts, d, fs);
     let scan = scan_lines(&r.model, &rate, fs, d, r.wander(), &params);
-    line_findings(&scan, &r.model, params.half_width)
+    LineFindings {
+        detections: scan.lines.iter().map(|(det, _)| *det).collect(),
+        ..line_findings(&scan, &r.model, params.half_width)
+    }
+}
+
+/// A narrowband excess of the recording's spectrum over `model`'s (the
+/// updated model: what its terms, a readout filter's side lobes included,
+/// explain is not an excess), the bins of the detected `lines` left out.
+pub(crate) fn excess(
+    r: &Reference,
+    rec: &Recording,
+    model: &GyroModel,
+    lines: &[Detection],
+) -> Option<narrowband::Excess> {
+    let (fs, d) = (r.layout.fs_hz, r.layout.pulse_arcsec);
+    let rate = stats::counts_to_rate(&rec.counts, d, fs);
+    let mean_rate = rate.iter().sum::<f64>() / rate.len() as f64;
+    let x = lines::detrend(&rate);
+    let df = fs / rate.len() as f64;
+    let masked = counter_lines(model, mean_rate, r.wander(), fs, d, df);
+    let spectrum = lines::LineSpectrum::new(&x, fs, &model_psd(model), &masked);
+    narrowband::find(&spectrum, lines, ALPHA_LINES)
 }
 
 /// Scan the rate for lines against `model` (simulated at the recording's rate
@@ -125,6 +148,8 @@ pub(crate) struct LineFindings {
     /// `(f Hz, amplitude arcsec/s)` of the line power the model lacks (for the
     /// wavelet-level expectation of the broadband fit).
     pub sines: Vec<(f64, f64)>,
+    /// The lines detected (for [`excess`], which leaves their bins out).
+    pub detections: Vec<Detection>,
 }
 
 /// Turn the scan's lines (and the model's sinusoids) into findings.

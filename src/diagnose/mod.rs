@@ -58,6 +58,7 @@ pub mod lines;
 pub mod locate;
 pub mod lowfreq;
 pub mod mc;
+pub mod narrowband;
 pub mod readout;
 pub mod reference;
 pub mod refine;
@@ -369,6 +370,12 @@ pub fn diagnose_with_progress(
         opts,
         &mut notes,
     )?;
+    // narrowband noise the updated model does not explain either
+    notes.extend(
+        lines::excess(r, rec, &refined.fitted, &lines.detections)
+            .as_ref()
+            .map(narrowband::note),
+    );
     // 7: report
     notes.extend(report::closing_notes(
         &findings,

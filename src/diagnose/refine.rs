@@ -44,6 +44,9 @@ pub(crate) struct Refined {
     pub after: Vec<Point>,
     pub chi2_after: f64,
     pub telegraph_test: Option<TelegraphTest>,
+    /// The reference model with the findings applied (at the recording's
+    /// rate), whether or not it is handed out.
+    pub fitted: GyroModel,
 }
 
 /// The updated model and its runs while it is being refined.
@@ -75,6 +78,7 @@ pub(crate) fn refine(
             after: Vec::new(),
             chi2_after: chi2_before,
             telegraph_test: None,
+            fitted: r.model.clone(),
         });
     }
     let temp = rec.temp_c.as_deref();
@@ -155,6 +159,7 @@ pub(crate) fn refine(
         chi2: chi2_after,
         ..
     } = cur;
+    let fitted = m_new.clone();
     // restore the user's readout in the written model (at the rate it was fitted at)
     m_new.gyro = user_model.gyro.clone();
     m_new.gyro.sample_rate_hz = r.layout.fs_hz;
@@ -188,6 +193,7 @@ pub(crate) fn refine(
         after,
         chi2_after,
         telegraph_test,
+        fitted,
     })
 }
 
