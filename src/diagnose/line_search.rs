@@ -114,6 +114,23 @@ impl LineSpectrum {
         let scale = 2.0 / (fs_hz * 0.375 * n as f64);
         let psd: Vec<f64> = buf[..=half].iter().map(|c| c.norm_sqr() * scale).collect();
         drop(buf);
+        Self::whitened(psd, n, fs_hz, model_psd, masked)
+    }
+
+    /// The same periodogram divided by another model's PSD, with other bins
+    /// masked (no new transform).
+    pub fn rewhitened(self, model_psd: &dyn Fn(f64) -> f64, masked: &[(f64, f64)]) -> LineSpectrum {
+        Self::whitened(self.psd, self.n, self.fs_hz, model_psd, masked)
+    }
+
+    fn whitened(
+        psd: Vec<f64>,
+        n: usize,
+        fs_hz: f64,
+        model_psd: &dyn Fn(f64) -> f64,
+        masked: &[(f64, f64)],
+    ) -> LineSpectrum {
+        let half = n / 2;
         let df = fs_hz / n as f64;
         let model_psd: Vec<f64> = (0..=half).map(|k| model_psd(k as f64 * df)).collect();
         let white = psd

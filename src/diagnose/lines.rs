@@ -42,6 +42,8 @@ pub struct LineScan {
     pub masked: Vec<(f64, f64)>,
     /// The rate (arcsec/s), mean and linear trend removed.
     pub detrended_rate: Vec<f64>,
+    /// The rate's mean (arcsec/s).
+    pub mean_rate: f64,
 }
 
 /// The search parameters of the diagnosis (family-wise [`ALPHA_LINES`]).
@@ -59,29 +61,39 @@ pub(crate) fn find(r: &Reference, rec: &Recording) -> LineFindings {
     let params = search_params();
     let rate = stats::counts_to_rate(&rec.counts, d, fs);
     let scan = scan_lines(&r.model, &rate, fs, d, r.wander(), &params);
+    let found = line_findings(&scan, &r.model, params.half_width);
     LineFindings {
-        detections: scan.lines.iter().map(|(det, _)| *det).collect(),
-        ..line_findings(&scan, &r.model, params.half_width)
+        periodogram: Some(Periodogram {
+            detections: scan.lines.iter().map(|(det, _)| *det).collect(),
+            mean_rate: scan.mean_rate,
+            spectrum: scan.spectrum,
+        }),
+        ..found
     }
+}
+
+/// The line search's periodogram, kept for [`excess`].
+#[derive(Debug)]
+pub(crate) struct Periodogram {
+    spectrum: lines::LineSpectrum,
+    mean_rate: f64,
+    /// The lines detected (their bins are left out).
+    detections: Vec<Detection>,
 }
 
 /// A narrowband excess of the recording's spectrum over `model`'s (the
 /// updated model: what its terms, a readout filter's side lobes included,
-/// explain is not an excess), the bins of the detected `lines` left out.
+/// explain is not an excess), the detected lines' bins left out.
 pub(crate) fn excess(
     r: &Reference,
-    rec: &Recording,
+    p: Periodogram,
     model: &GyroModel,
-    lines: &[Detection],
 ) -> Option<narrowband::Excess> {
     let (fs, d) = (r.layout.fs_hz, r.layout.pulse_arcsec);
-    let rate = stats::counts_to_rate(&rec.counts, d, fs);
-    let mean_rate = rate.iter().sum::<f64>() / rate.len() as f64;
-    let x = lines::detrend(&rate);
-    let df = fs / rate.len() as f64;
-    let masked = counter_lines(model, mean_rate, r.wander(), fs, d, df);
-    let spectrum = lines::LineSpectrum::new(&x, fs, &model_psd(model), &masked);
-    narrowband::find(&spectrum, lines, ALPHA_LINES)
+    let df = p.spectrum.df();
+    let masked = counter_lines(model, p.mean_rate, r.wander(), fs, d, df);
+    let spectrum = p.spectrum.rewhitened(&model_psd(model), &masked);
+    narrowband::find(&spectrum, &p.detections, ALPHA_LINES)
 }
 
 /// Scan the rate for lines against `model` (simulated at the recording's rate
@@ -111,6 +123,7 @@ fn scan_lines(
         lines: found,
         masked,
         detrended_rate: x,
+        mean_rate,
     }
 }
 
@@ -148,8 +161,8 @@ pub(crate) struct LineFindings {
     /// `(f Hz, amplitude arcsec/s)` of the line power the model lacks (for the
     /// wavelet-level expectation of the broadband fit).
     pub sines: Vec<(f64, f64)>,
-    /// The lines detected (for [`excess`], which leaves their bins out).
-    pub detections: Vec<Detection>,
+    /// The periodogram searched (for [`excess`]).
+    pub periodogram: Option<Periodogram>,
 }
 
 /// Turn the scan's lines (and the model's sinusoids) into findings.

@@ -316,8 +316,8 @@ pub fn diagnose_with_progress(
         .into_iter()
         .collect();
     // 3: lines
-    let lines = lines::find(r, rec);
-    let mut findings: Vec<Finding> = lines.findings;
+    let mut lines = lines::find(r, rec);
+    let mut findings: Vec<Finding> = std::mem::take(&mut lines.findings);
     // 4: the broadband residual: candidate tests, distribution, broadband fit
     let basis =
         Basis::new(&r.layout.lo, &r.layout.hi, r.tau0_s(), &r.layout.levels).with_lf(&r.layout.lf);
@@ -371,11 +371,13 @@ pub fn diagnose_with_progress(
         &mut notes,
     )?;
     // narrowband noise the updated model does not explain either
-    notes.extend(
-        lines::excess(r, rec, &refined.fitted, &lines.detections)
-            .as_ref()
-            .map(narrowband::note),
-    );
+    if let Some(p) = lines.periodogram.take() {
+        notes.extend(
+            lines::excess(r, p, &refined.fitted)
+                .as_ref()
+                .map(narrowband::note),
+        );
+    }
     // 7: report
     notes.extend(report::closing_notes(
         &findings,

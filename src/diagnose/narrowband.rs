@@ -109,16 +109,10 @@ fn bands(spec: &LineSpectrum, lines: &[Detection]) -> Vec<Band> {
             (lo / df).ceil() as usize,
             ((hi / df).floor() as usize).min(last),
         );
-        let vals: Vec<f64> = (a..b)
+        let (sum, n) = (a..b)
             .filter(|&k| keep[k] && spec.white[k].is_finite())
-            .map(|k| spec.white[k])
-            .collect();
-        let n = vals.len();
-        let mean = if n > 0 {
-            vals.iter().sum::<f64>() / n as f64
-        } else {
-            f64::NAN
-        };
+            .fold((0.0, 0usize), |(s, n), k| (s + spec.white[k], n + 1));
+        let mean = if n > 0 { sum / n as f64 } else { f64::NAN };
         out.push(Band {
             lo_hz: lo,
             hi_hz: hi,
