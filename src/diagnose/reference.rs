@@ -224,7 +224,8 @@ pub(crate) fn reference_model(model: &GyroModel, rec: &Recording, mean_rate: f64
 
 /// The model's Gaussian terms as spectral shapes with their squared
 /// coefficients (arcsec/s units); sinusoids are deterministic and left out,
-/// a random telegraph enters as its Gauss-Markov twin. The white rate goes
+/// a random telegraph enters as its Gauss-Markov twin, a resonance passes
+/// through the readout filter as the simulator's does. The white rate goes
 /// through the model's readout filter; a rate word's LSB rounding is white
 /// rate noise after it ([`rate_lsb_theta`]).
 pub fn model_spectral_terms(model: &GyroModel) -> (Vec<SpectralTerm>, Vec<f64>) {
@@ -263,6 +264,15 @@ pub fn model_spectral_terms(model: &GyroModel) -> (Vec<SpectralTerm>, Vec<f64>) 
             tau_c_s: 0.5 * r.mean_dwell_s,
         });
         theta.push(r.amplitude_dph * r.amplitude_dph);
+    }
+    let tau0 = model.tau0_s();
+    for r in &n.resonance {
+        terms.push(SpectralTerm::Resonance {
+            centre_nu: r.centre_hz * tau0,
+            width_nu: r.width_hz * tau0,
+            filter: model.readout_filter(),
+        });
+        theta.push(r.sigma_dph * r.sigma_dph);
     }
     (terms, theta)
 }

@@ -152,6 +152,8 @@ pub struct NoiseParams {
     pub sinusoid: Vec<SinusoidParams>,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub random_telegraph: Vec<RandomTelegraphParams>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub resonance: Vec<ResonanceParams>,
 }
 
 /// A first-order Gauss-Markov bias.
@@ -176,6 +178,17 @@ pub struct SinusoidParams {
 pub struct RandomTelegraphParams {
     pub amplitude_dph: f64,
     pub mean_dwell_s: f64,
+}
+
+/// A resonance: narrowband rate noise of standard deviation `sigma_dph`
+/// centred at `centre_hz`, `width_hz` wide at half power (see
+/// [`crate::model::resonance`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ResonanceParams {
+    pub sigma_dph: f64,
+    pub centre_hz: f64,
+    pub width_hz: f64,
 }
 
 /// A slow temperature profile and the bias it causes.
@@ -445,6 +458,26 @@ impl GyroModel {
                 ));
             }
         }
+        for (i, t) in n.resonance.iter().enumerate() {
+            let key = |k: &str| format!("noise.resonance[{i}].{k}");
+            nonneg(&key("sigma_dph"), t.sigma_dph)?;
+            let nyquist = 0.5 * g.sample_rate_hz;
+            if !(t.centre_hz > 0.0 && t.centre_hz < nyquist) {
+                return Err(ModelError::invalid(
+                    key("centre_hz"),
+                    show(t.centre_hz),
+                    format!("must be in (0, {nyquist}) Hz: above 0 and below the Nyquist frequency"),
+                ));
+            }
+            // the pole radius exp(-pi w tau0) must stay below 1 and above 0
+            if !(t.width_hz > 0.0 && t.width_hz <= g.sample_rate_hz) {
+                return Err(ModelError::invalid(
+                    key("width_hz"),
+                    show(t.width_hz),
+                    format!("must be in (0, {}] Hz (the sample rate)", g.sample_rate_hz),
+                ));
+            }
+        }
         if let Some(th) = &self.thermal {
             finite("thermal.temp_c0", th.temp_c0)?;
             finite("thermal.ramp_c_per_h", th.ramp_c_per_h)?;
@@ -522,6 +555,14 @@ impl GyroModel {
             out.push(Term::RandomTelegraph {
                 amplitude_dph: t.amplitude_dph,
                 mean_dwell_s: t.mean_dwell_s,
+            });
+        }
+        for t in &n.resonance {
+            out.push(Term::Resonance {
+                sigma_dph: t.sigma_dph,
+                centre_hz: t.centre_hz,
+                width_hz: t.width_hz,
+                tau0_s: self.tau0_s(),
             });
         }
         if let Some(th) = &self.thermal {

@@ -29,6 +29,7 @@ pub mod config;
 pub mod estimate;
 pub mod filter;
 pub mod fit;
+pub mod resonance;
 pub mod sim;
 pub mod spec;
 pub mod terms;

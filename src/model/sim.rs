@@ -76,6 +76,7 @@ const STREAM_FLICKER: u64 = 1_000;
 const STREAM_GM: u64 = 2_000;
 const STREAM_RTN: u64 = 3_000;
 const STREAM_SINE: u64 = 4_000;
+const STREAM_RESONANCE: u64 = 5_000;
 
 fn rng_for(seed: u64, stream: u64) -> ChaCha8Rng {
     let mut r = ChaCha8Rng::seed_from_u64(seed);
@@ -96,6 +97,37 @@ pub struct Truth {
     pub angle_increment_arcsec: Vec<f64>,
     /// White dither residual added before the counter at the end of each sample, arcsec.
     pub readout_error_arcsec: Vec<f64>,
+}
+
+/// A resonance: the AR(2) rate `x` (arcsec/s) of [`crate::model::resonance`],
+/// its last two values and the innovation's standard deviation.
+#[derive(Debug, Clone)]
+struct Resonance {
+    x1: f64,
+    x2: f64,
+    a1: f64,
+    a2: f64,
+    innov_sd: f64,
+    rng: ChaCha8Rng,
+}
+
+impl Resonance {
+    /// Started in its stationary distribution (`x1`, `x2` of variance
+    /// `sigma^2` and correlation `rho(1)`).
+    fn new(sigma: f64, centre_hz: f64, width_hz: f64, tau0: f64, mut rng: ChaCha8Rng) -> Self {
+        let ar = super::resonance::Ar2::new(centre_hz, width_hz, tau0);
+        let rho = ar.autocorr(1);
+        let x2 = sigma * normal(&mut rng);
+        let x1 = rho * x2 + sigma * (1.0 - rho * rho).max(0.0).sqrt() * normal(&mut rng);
+        Resonance {
+            x1,
+            x2,
+            a1: ar.a1,
+            a2: ar.a2,
+            innov_sd: sigma * ar.innov_var.sqrt(),
+            rng,
+        }
+    }
 }
 
 /// An exactly integrated Ornstein-Uhlenbeck rate.
@@ -206,6 +238,7 @@ pub struct Simulator {
     white_sigma: f64,
     white_rng: ChaCha8Rng,
     ous: Vec<Ou>,
+    resonances: Vec<Resonance>,
     rrw: Option<Rrw>,
     ramp: f64,
     sines: Vec<Sine>,
@@ -323,6 +356,21 @@ impl Simulator {
                 }
             })
             .collect();
+        let resonances = noise
+            .resonance
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| r.sigma_dph > 0.0)
+            .map(|(i, r)| {
+                Resonance::new(
+                    units::dph_to_arcsec_per_s(r.sigma_dph),
+                    r.centre_hz,
+                    r.width_hz,
+                    tau0,
+                    rng_for(seed, STREAM_RESONANCE + i as u64),
+                )
+            })
+            .collect();
         let rtns = noise
             .random_telegraph
             .iter()
@@ -382,6 +430,7 @@ impl Simulator {
             white_sigma: white_var.sqrt(),
             white_rng: rng_for(seed, STREAM_WHITE),
             ous,
+            resonances,
             rrw,
             ramp: units::dphh_to_arcsec_per_s2(noise.rate_ramp_dphh.unwrap_or(0.0)),
             sines,
@@ -579,6 +628,7 @@ impl Simulator {
             buf_dtheta,
             buf_e,
             ous,
+            resonances,
             rrw,
             sines,
             rtns,
@@ -625,6 +675,16 @@ impl Simulator {
                 x = a * x + w1;
             }
             ou.x = x;
+        }
+        for r in resonances.iter_mut() {
+            let (mut x1, mut x2, a1, a2, sd) = (r.x1, r.x2, r.a1, r.a2, r.innov_sd);
+            for v in dth.iter_mut() {
+                let x = a1 * x1 + a2 * x2 + sd * normal(&mut r.rng);
+                *v += x * tau0;
+                x2 = x1;
+                x1 = x;
+            }
+            (r.x1, r.x2) = (x1, x2);
         }
         if let Some(r) = rrw.as_mut() {
             for v in dth.iter_mut() {

@@ -36,6 +36,8 @@ use std::f64::consts::{LN_2, PI};
 
 use rustfft::num_complex::Complex64;
 
+use super::resonance::Ar2;
+
 use super::ModelError;
 use crate::units;
 
@@ -492,6 +494,16 @@ pub enum Term {
     /// with variance `lsb^2 / 12` per sample (an ARW-like term
     /// `N^2 = lsb^2 tau0 / 12`), not the white-angle QN of a pulse counter.
     RateQuantization { lsb_dps: f64, tau0_s: f64 },
+    /// A resonance: narrowband rate noise of standard deviation `sigma_dph`
+    /// (deg/h) centred at `centre_hz` with half-power width `width_hz`, the
+    /// sample-rate AR(2) process of [`crate::model::resonance`] (sample period
+    /// `tau0_s`).
+    Resonance {
+        sigma_dph: f64,
+        centre_hz: f64,
+        width_hz: f64,
+        tau0_s: f64,
+    },
 }
 
 impl Term {
@@ -507,6 +519,7 @@ impl Term {
             Term::Sinusoid { .. } => "sinusoid",
             Term::RandomTelegraph { .. } => "random_telegraph",
             Term::RateQuantization { .. } => "rate_quantization",
+            Term::Resonance { .. } => "resonance",
         }
     }
 
@@ -554,6 +567,13 @@ impl Term {
                  so each sample is rounded; the rounding error is white in rate (variance LSB^2/12), an \
                  angle random walk of its own, not the angle quantization of a pulse counter."
             }
+            Term::Resonance { .. } => {
+                "Resonance: narrowband rate noise around a centre frequency, a damped mode rung by noise \
+                 (a mechanical mode of the proof mass or fibre coil, a structural mode of the mount, a \
+                 pump or fan whose frequency wanders). A hump in the spectrum a few per cent of its \
+                 frequency wide; in the Allan deviation a bump near tau = 0.37/f0 that the quantization \
+                 noise of a pulse counter can hide."
+            }
         }
     }
 
@@ -569,6 +589,7 @@ impl Term {
             Term::Sinusoid { amplitude_dph, .. } => amplitude_dph,
             Term::RandomTelegraph { amplitude_dph, .. } => amplitude_dph,
             Term::RateQuantization { lsb_dps, .. } => lsb_dps,
+            Term::Resonance { sigma_dph, .. } => sigma_dph,
         }
     }
 
@@ -597,6 +618,7 @@ impl Term {
             Term::Sinusoid { amplitude_dph, .. } => *amplitude_dph = c,
             Term::RandomTelegraph { amplitude_dph, .. } => *amplitude_dph = c,
             Term::RateQuantization { lsb_dps, .. } => *lsb_dps = c,
+            Term::Resonance { sigma_dph, .. } => *sigma_dph = c,
         }
         t
     }
@@ -676,6 +698,25 @@ impl Term {
                 nonneg("rate_lsb_dps", lsb_dps)?;
                 positive("tau0_s", tau0_s)
             }
+            Term::Resonance {
+                sigma_dph,
+                centre_hz,
+                width_hz,
+                tau0_s,
+            } => {
+                nonneg("sigma_dph", sigma_dph)?;
+                positive("tau0_s", tau0_s)?;
+                positive("width_hz", width_hz)?;
+                let nyquist = 0.5 / tau0_s;
+                if !(centre_hz.is_finite() && centre_hz > 0.0 && centre_hz < nyquist) {
+                    return Err(ModelError::invalid(
+                        "centre_hz",
+                        centre_hz,
+                        format!("must be in (0, {nyquist}) Hz (below the Nyquist frequency)"),
+                    ));
+                }
+                Ok(())
+            }
         }
     }
 
@@ -743,6 +784,20 @@ impl Term {
                     l * l / 6.0 * tau0_s
                 }
             }
+            Term::Resonance {
+                sigma_dph,
+                centre_hz,
+                width_hz,
+                tau0_s,
+            } => {
+                if f < 0.0 || f > 0.5 / tau0_s {
+                    0.0
+                } else {
+                    let s = units::dph_to_arcsec_per_s(sigma_dph);
+                    let ar = Ar2::new(centre_hz, width_hz, tau0_s);
+                    s * s * ar.psd_cs_cos((2.0 * PI * f * tau0_s).cos()) * tau0_s
+                }
+            }
         }
     }
 
@@ -787,6 +842,12 @@ impl Term {
                 // unit LSB (1 deg/s): N^2 = 3600^2 tau0 / 12, AVAR N^2 / tau
                 units::ARCSEC_PER_DEG * units::ARCSEC_PER_DEG * tau0_s / 12.0 / tau_s
             }
+            Term::Resonance {
+                centre_hz,
+                width_hz,
+                tau0_s,
+                ..
+            } => Ar2::new(centre_hz, width_hz, tau0_s).unit_avar(tau_s / tau0_s),
         }
     }
 

@@ -32,6 +32,7 @@ use std::f64::consts::PI;
 use std::sync::{Arc, Mutex, OnceLock};
 
 use super::filter::ReadoutFilter;
+use super::resonance::Ar2;
 
 /// A noise term whose spectrum is known up to a scale `theta` (its squared
 /// IEEE 952 coefficient in arcsec/s units).
@@ -59,6 +60,15 @@ pub enum SpectralTerm {
     /// theta_c (1 - |H|^2)`, so that `theta_f` stays the whole white level at
     /// low frequency (N^2) whatever share of it passed the filter.
     WhiteRateComplement { filter: ReadoutFilter },
+    /// A resonance of unit variance (`theta` = sigma^2 in (arcsec/s)^2):
+    /// the AR(2) rate of [`crate::model::resonance`] with centre and
+    /// half-power width in cycles per sample, seen through the readout
+    /// filter when there is one.
+    Resonance {
+        centre_nu: f64,
+        width_nu: f64,
+        filter: Option<ReadoutFilter>,
+    },
 }
 
 /// Which signal the DWT analyses: the rate (arcsec/s) or the angle (arcsec,
@@ -108,6 +118,7 @@ impl SpectralTerm {
         match *self {
             SpectralTerm::FilteredWhiteRate { filter }
             | SpectralTerm::WhiteRateComplement { filter } => Some(filter),
+            SpectralTerm::Resonance { filter, .. } => filter,
             _ => None,
         }
     }
@@ -140,6 +151,18 @@ impl SpectralTerm {
             }
             SpectralTerm::WhiteRateComplement { filter } => {
                 2.0 / tau0_s * (1.0 - filter.power_trig(nu, s, c2))
+            }
+            SpectralTerm::Resonance {
+                centre_nu,
+                width_nu,
+                filter,
+            } => {
+                let c = c2();
+                let p = Ar2::from_nu(centre_nu, width_nu).psd_cs_cos(c);
+                match filter {
+                    Some(f) => p * f.power_trig(nu, s, || c),
+                    None => p,
+                }
             }
         }
     }
@@ -226,6 +249,11 @@ impl SpectralTerm {
             };
             panels = panels.max(16 * lobes);
         }
+        if let SpectralTerm::Resonance { width_nu, .. } = *self {
+            // a quarter of the half-power width per panel, over the resolved part
+            let fine = (4.0 * (split - nu_lo).max(0.0) / width_nu).ceil();
+            panels = panels.max(fine.min(200_000.0) as usize);
+        }
         if panels > 0 {
             let h = (split - nu_lo) / panels as f64;
             for p in 0..panels {
@@ -262,7 +290,8 @@ impl SpectralTerm {
             SpectralTerm::WhiteAngle => 2,
             SpectralTerm::WhiteRate
             | SpectralTerm::FilteredWhiteRate { .. }
-            | SpectralTerm::WhiteRateComplement { .. } => 0,
+            | SpectralTerm::WhiteRateComplement { .. }
+            | SpectralTerm::Resonance { .. } => 0,
             SpectralTerm::Flicker { .. } => -1,
             SpectralTerm::RateRandomWalk => -2,
             SpectralTerm::GaussMarkov { tau_c_s } => {
@@ -563,23 +592,50 @@ fn level_key(
 }
 
 /// A term as exact bit patterns: its kind and its parameter.
-fn term_key(t: &SpectralTerm) -> [u64; 2] {
-    let (tag, p) = match *t {
-        SpectralTerm::WhiteAngle => (0, 0.0),
-        SpectralTerm::WhiteRate => (1, 0.0),
-        SpectralTerm::Flicker { f_lo_hz } => (2, f_lo_hz),
-        SpectralTerm::RateRandomWalk => (3, 0.0),
-        SpectralTerm::GaussMarkov { tau_c_s } => (4, tau_c_s),
+fn term_key(t: &SpectralTerm) -> [u64; 4] {
+    let one = |tag: u64, p: f64| [tag, p.to_bits(), 0, 0];
+    match *t {
+        SpectralTerm::WhiteAngle => one(0, 0.0),
+        SpectralTerm::WhiteRate => one(1, 0.0),
+        SpectralTerm::Flicker { f_lo_hz } => one(2, f_lo_hz),
+        SpectralTerm::RateRandomWalk => one(3, 0.0),
+        SpectralTerm::GaussMarkov { tau_c_s } => one(4, tau_c_s),
         SpectralTerm::FilteredWhiteRate { filter } => {
             let (kind, bits) = filter.key();
-            (4 + kind, f64::from_bits(bits))
+            [4 + kind, bits, 0, 0]
         }
         SpectralTerm::WhiteRateComplement { filter } => {
             let (kind, bits) = filter.key();
-            (8 + kind, f64::from_bits(bits))
+            [8 + kind, bits, 0, 0]
         }
-    };
-    [tag, p.to_bits()]
+        SpectralTerm::Resonance {
+            centre_nu,
+            width_nu,
+            filter,
+        } => {
+            let (kind, bits) = filter.map_or((0, 0), |f| f.key());
+            [16 + kind, centre_nu.to_bits(), width_nu.to_bits(), bits]
+        }
+    }
+}
+
+/// Frequencies (cycles/sample) where a term's spectrum has structure the
+/// octave grid does not resolve: a flicker's low corner, a resonance's centre
+/// and its flanks out to eight widths.
+fn term_breaks(t: &SpectralTerm, tau0_s: f64) -> Vec<f64> {
+    match *t {
+        SpectralTerm::Flicker { f_lo_hz } => vec![f_lo_hz * tau0_s],
+        SpectralTerm::Resonance {
+            centre_nu,
+            width_nu,
+            ..
+        } => [-8.0, -4.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 2.0, 4.0, 8.0]
+            .iter()
+            .map(|k| centre_nu + k * width_nu)
+            .filter(|&nu| nu > 0.0 && nu < 0.5)
+            .collect(),
+        _ => Vec::new(),
+    }
 }
 
 /// The spectral quadrature of one level: band integrals of the terms, their
@@ -602,10 +658,7 @@ impl LevelQuadrature {
     ) -> Self {
         let breaks: Vec<f64> = terms
             .iter()
-            .filter_map(|t| match t {
-                SpectralTerm::Flicker { f_lo_hz } => Some(f_lo_hz * tau0_s),
-                _ => None,
-            })
+            .flat_map(|t| term_breaks(t, tau0_s))
             .collect();
         let nodes = memo_level_nodes(lo, hi, j, &breaks);
         // one column per term over the nodes (PSD x |H_j|^2, and x weight),
