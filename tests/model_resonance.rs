@@ -79,10 +79,23 @@ fn simulated_resonance_has_the_model_statistics() {
     // sigma 50 deg/h over 1.44 M samples correlated over about 20 (1/(pi w tau0)):
     // the sample variance's relative sd is below 1 %
     assert!((var / 2500.0 - 1.0).abs() < 0.03, "variance {var}");
-    let r1 = y.windows(2).map(|w| (w[0] - mean) * (w[1] - mean)).sum::<f64>() / (n - 1.0) / var;
+    let r1 = y
+        .windows(2)
+        .map(|w| (w[0] - mean) * (w[1] - mean))
+        .sum::<f64>()
+        / (n - 1.0)
+        / var;
     let ar = sagnac::model::resonance::Ar2::new(19.0, 1.5, 1.0 / FS);
-    assert!((r1 - ar.autocorr(1)).abs() < 0.01, "rho(1) {r1} vs {}", ar.autocorr(1));
-    let t = m.terms().into_iter().find(|t| t.name() == "resonance").unwrap();
+    assert!(
+        (r1 - ar.autocorr(1)).abs() < 0.01,
+        "rho(1) {r1} vs {}",
+        ar.autocorr(1)
+    );
+    let t = m
+        .terms()
+        .into_iter()
+        .find(|t| t.name() == "resonance")
+        .unwrap();
     for mm in [1usize, 2, 3, 5, 10, 50] {
         let got = oavar(&y, mm);
         let want = t.avar(mm as f64 / FS);
@@ -113,12 +126,17 @@ fn bad_resonance_keys_are_named() {
     let e = model("sigma_dph = 1.0\ncentre_hz = 60.0\nwidth_hz = 1.0")
         .unwrap_err()
         .to_string();
-    assert!(e.contains("noise.resonance[0].centre_hz") && e.contains("Nyquist"), "{e}");
+    assert!(
+        e.contains("noise.resonance[0].centre_hz") && e.contains("Nyquist"),
+        "{e}"
+    );
     let e = model("sigma_dph = 1.0\ncentre_hz = 20.0\nwidth_hz = 0.0")
         .unwrap_err()
         .to_string();
     assert!(e.contains("noise.resonance[0].width_hz"), "{e}");
-    let e = model("sigma_dph = 1.0\ncentre_hz = 20.0").unwrap_err().to_string();
+    let e = model("sigma_dph = 1.0\ncentre_hz = 20.0")
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("width_hz"), "{e}");
     // the term validates the same bounds
     assert!(

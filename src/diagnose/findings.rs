@@ -11,7 +11,7 @@ use std::collections::BTreeMap;
 use super::{AddedTerm, ParameterChange};
 use crate::model::GyroModel;
 use crate::model::config::{
-    GaussMarkovParams, RandomTelegraphParams, SinusoidParams, ThermalParams,
+    GaussMarkovParams, RandomTelegraphParams, ResonanceParams, SinusoidParams, ThermalParams,
 };
 use crate::model::filter::ReadoutFilterParams;
 
@@ -58,6 +58,12 @@ pub(crate) enum Edit {
     GaussMarkovToTelegraph(usize, f64, f64),
     /// Replace random_telegraph[i] by a Gauss-Markov term with the same spectrum.
     TelegraphToGaussMarkov(usize),
+    /// A new resonance.
+    Resonance {
+        sigma_dph: f64,
+        centre_hz: f64,
+        width_hz: f64,
+    },
 }
 
 impl Edit {
@@ -127,6 +133,15 @@ impl Edit {
                     mean_dwell_s: *mean_dwell_s,
                 });
             }
+            Edit::Resonance {
+                sigma_dph,
+                centre_hz,
+                width_hz,
+            } => n.resonance.push(ResonanceParams {
+                sigma_dph: *sigma_dph,
+                centre_hz: *centre_hz,
+                width_hz: *width_hz,
+            }),
             Edit::TelegraphToGaussMarkov(i) => {
                 let r = n.random_telegraph[*i].clone();
                 n.random_telegraph[*i].amplitude_dph = 0.0;
@@ -145,6 +160,7 @@ pub(crate) fn tidy(m: &mut GyroModel) {
     n.gauss_markov.retain(|g| g.sigma_dph > 0.0);
     n.random_telegraph.retain(|r| r.amplitude_dph > 0.0);
     n.sinusoid.retain(|s| s.amplitude_dph > 0.0);
+    n.resonance.retain(|r| r.sigma_dph > 0.0);
 }
 
 /// `base` with every finding's edit applied, in order.

@@ -84,16 +84,20 @@ pub(crate) struct Periodogram {
 /// A narrowband excess of the recording's spectrum over `model`'s (the
 /// updated model: what its terms, a readout filter's side lobes included,
 /// explain is not an excess), the detected lines' bins left out.
+/// Returned with the periodogram whitened by `model` (the resonance fit's input).
 pub(crate) fn excess(
     r: &Reference,
-    p: Periodogram,
+    p: &Periodogram,
     model: &GyroModel,
-) -> Option<narrowband::Excess> {
+) -> (Option<narrowband::Excess>, lines::LineSpectrum) {
     let (fs, d) = (r.layout.fs_hz, r.layout.pulse_arcsec);
     let df = p.spectrum.df();
     let masked = counter_lines(model, p.mean_rate, r.wander(), fs, d, df);
-    let spectrum = p.spectrum.rewhitened(&model_psd(model), &masked);
-    narrowband::find(&spectrum, &p.detections, ALPHA_LINES)
+    let spectrum = p.spectrum.clone().rewhitened(&model_psd(model), &masked);
+    (
+        narrowband::find(&spectrum, &p.detections, ALPHA_LINES),
+        spectrum,
+    )
 }
 
 /// Scan the rate for lines against `model` (simulated at the recording's rate

@@ -63,6 +63,7 @@ pub mod readout;
 pub mod reference;
 pub mod refine;
 pub mod report;
+pub mod resonance;
 pub mod slopes;
 pub mod stats;
 pub mod svg;
@@ -317,7 +318,7 @@ pub fn diagnose_with_progress(
         .collect();
     // 3: lines
     let mut lines = lines::find(r, rec);
-    let mut findings: Vec<Finding> = std::mem::take(&mut lines.findings);
+    let findings: Vec<Finding> = std::mem::take(&mut lines.findings);
     // 4: the broadband residual: candidate tests, distribution, broadband fit
     let basis =
         Basis::new(&r.layout.lo, &r.layout.hi, r.tau0_s(), &r.layout.levels).with_lf(&r.layout.lf);
@@ -338,46 +339,62 @@ pub fn diagnose_with_progress(
             located.z_crit,
         ));
     }
-    findings.extend(telegraph::model_terms(r, &located, &basis, data0.as_ref()));
-    let mut telegraph_pending = None;
-    if (!regions.is_empty() || lr_detected)
-        && let Some(d0) = &data0
+    let ctx = Explain {
+        r,
+        rec,
+        model,
+        located: &located,
+        basis: &basis,
+        regions: &regions,
+        lr_detected,
+        opts,
+    };
+    let mut pass = ctx.run(findings.clone(), data0.clone())?;
+    let periodogram = lines.periodogram.take();
+    // 6b: narrowband noise the updated model does not explain: a resonance,
+    // fitted, and phases 4-6 run again with it (kept when it fits better)
+    let mut excess = periodogram
+        .as_ref()
+        .map(|p| lines::excess(r, p, &pass.refined.fitted));
+    // fitted against the model under test (the first run's broadband terms
+    // may be bent to imitate it)
+    if let (Some((Some(ex), _)), Some(p)) = (&excess, &periodogram)
+        && let Some(fit) = resonance::fit(
+            &lines::excess(r, p, &r.model).1,
+            ex,
+            r.model.readout_filter(),
+        )
     {
-        for (f, is_new_gm) in broadband::fit(d0, &basis, r, &regions) {
-            if is_new_gm {
-                telegraph_pending = Some(findings.len());
-            }
-            findings.push(f);
+        let with = ctx.with_resonance(&findings, data0.as_ref(), &fit)?;
+        if with.refined.chi2_after < pass.refined.chi2_after {
+            pass = with;
+            excess = periodogram
+                .as_ref()
+                .map(|p| lines::excess(r, p, &pass.refined.fitted));
+        } else {
+            pass.notes.push(format!(
+                "A resonance fitted at {} Hz did not improve the fit (chi2/dof {} with it against {} \
+                 without): not added.",
+                findings::fmt_g(fit.centre_hz),
+                findings::fmt_g(with.refined.chi2_after),
+                findings::fmt_g(pass.refined.chi2_after)
+            ));
         }
     }
-    // 5: slopes
-    let slopes = slopes::test(r, rec, &findings);
-    findings.extend(slopes.findings.iter().cloned());
+    drop(periodogram);
+    let Pass {
+        findings,
+        slopes,
+        refined,
+        notes: pass_notes,
+    } = pass;
+    notes.extend(pass_notes);
+    notes.extend(excess.and_then(|e| e.0).as_ref().map(narrowband::note));
     let mismatch = !regions.is_empty()
         || lr_detected
         || !lines.hits.is_empty()
         || slopes.significant()
         || !findings.is_empty();
-    // 6: the updated model, simulated again and refined
-    let refined = refine::refine(
-        r,
-        rec,
-        model,
-        &mut findings,
-        &broadband::region_text(&regions),
-        telegraph_pending,
-        located.chi2_before,
-        opts,
-        &mut notes,
-    )?;
-    // narrowband noise the updated model does not explain either
-    if let Some(p) = lines.periodogram.take() {
-        notes.extend(
-            lines::excess(r, p, &refined.fitted)
-                .as_ref()
-                .map(narrowband::note),
-        );
-    }
     // 7: report
     notes.extend(report::closing_notes(
         &findings,
@@ -408,6 +425,119 @@ pub fn diagnose_with_progress(
         mc_input_rate_dph: r.model.gyro.input_rate_dph,
         notes,
     })
+}
+
+/// What phases 4-6 share between their runs (without and with a resonance).
+struct Explain<'a> {
+    r: &'a Reference,
+    rec: &'a Recording,
+    model: &'a GyroModel,
+    located: &'a locate::Located,
+    basis: &'a Basis,
+    regions: &'a [compare::Region],
+    lr_detected: bool,
+    opts: &'a DiagnoseOptions,
+}
+
+/// One run of phases 4-6: the findings, the slope tests, the refined model
+/// and the notes it wrote.
+struct Pass {
+    findings: Vec<Finding>,
+    slopes: slopes::Slopes,
+    refined: refine::Refined,
+    notes: Vec<String>,
+}
+
+impl Explain<'_> {
+    /// Phases 4-6 from the given findings (the lines', and a resonance's) on
+    /// `data0` (the wavelet data with what those findings explain in it).
+    fn run(
+        &self,
+        mut findings: Vec<Finding>,
+        data0: Option<wvar_fit::LevelData>,
+    ) -> Result<Pass, DiagnoseError> {
+        let (r, located) = (self.r, self.located);
+        let mut notes = Vec::new();
+        findings.extend(telegraph::model_terms(
+            r,
+            located,
+            self.basis,
+            data0.as_ref(),
+        ));
+        let mut telegraph_pending = None;
+        if (!self.regions.is_empty() || self.lr_detected)
+            && let Some(d0) = &data0
+        {
+            for (f, is_new_gm) in broadband::fit(d0, self.basis, r, self.regions) {
+                if is_new_gm {
+                    telegraph_pending = Some(findings.len());
+                }
+                findings.push(f);
+            }
+        }
+        // 5: slopes
+        let slopes = slopes::test(r, self.rec, &findings);
+        findings.extend(slopes.findings.iter().cloned());
+        // 6: the updated model, simulated again and refined
+        let refined = refine::refine(
+            r,
+            self.rec,
+            self.model,
+            &mut findings,
+            &broadband::region_text(self.regions),
+            telegraph_pending,
+            located.chi2_before,
+            self.opts,
+            &mut notes,
+        )?;
+        Ok(Pass {
+            findings,
+            slopes,
+            refined,
+            notes,
+        })
+    }
+
+    /// [`Explain::run`] with the resonance `fit` added after `line_findings`
+    /// and its wavelet variances added to the expectation, as a line's are.
+    /// The fit saw the resonance through the model's readout filter; when the
+    /// run names another, it is run again with the ratio of the two filters'
+    /// gains at the centre divided out of sigma (the simulator passes the
+    /// resonance through the model's filter).
+    fn with_resonance(
+        &self,
+        line_findings: &[Finding],
+        data0: Option<&wvar_fit::LevelData>,
+        fit: &resonance::ResonanceFit,
+    ) -> Result<Pass, DiagnoseError> {
+        let data = data0.map(|d| {
+            let mut d = d.clone();
+            let phi =
+                self.basis
+                    .resonance(fit.centre_hz, fit.width_hz, self.r.model.readout_filter());
+            let s2 = fit.sigma_dph * fit.sigma_dph;
+            d.e0.iter_mut().zip(&phi).for_each(|(e, p)| *e += s2 * p);
+            d
+        });
+        let tau0 = self.r.tau0_s();
+        let gain2 = |m: &GyroModel| {
+            m.readout_filter()
+                .map_or(1.0, |f| f.power(fit.centre_hz * tau0))
+        };
+        let with_gain = |g: f64| {
+            let mut findings = line_findings.to_vec();
+            findings.push(resonance::finding(fit, g, tau0));
+            self.run(findings, data.clone())
+        };
+        // the fit saw the resonance through the model's own filter
+        let own = gain2(&self.r.model);
+        let pass = with_gain(1.0)?;
+        let named = gain2(&pass.refined.fitted) / own;
+        if (named - 1.0).abs() < 0.01 {
+            return Ok(pass);
+        }
+        with_gain(named)
+    }
 }
 
 /// The model and the recording must be of the same kind of sensor.

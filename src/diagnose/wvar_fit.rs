@@ -200,6 +200,24 @@ impl Basis {
         self.with_rows(levels, t)
     }
 
+    /// A resonance (centre and width in Hz) through `filter`, per unit
+    /// sigma^2 ((arcsec/s)^2): the level quadrature with breaks about the
+    /// centre ([`wvar::LevelBasis`]).
+    pub fn resonance(
+        &self,
+        centre_hz: f64,
+        width_hz: f64,
+        filter: Option<ReadoutFilter>,
+    ) -> Vec<f64> {
+        let t = SpectralTerm::Resonance {
+            centre_nu: centre_hz * self.tau0_s,
+            width_nu: width_hz * self.tau0_s,
+            filter,
+        };
+        let lb = LevelBasis::new(&self.lo, &self.hi, self.tau0_s, &self.levels, &[t]);
+        self.with_rows(lb.phi.iter().map(|r| r[0]).collect(), t)
+    }
+
     /// A sinusoid of frequency `f_hz`, per unit A^2 ((arcsec/s)^2): power
     /// `A^2/2` through the level's response, with the sample-average gain.
     pub fn sinusoid(&self, f_hz: f64) -> Vec<f64> {

@@ -466,7 +466,9 @@ impl GyroModel {
                 return Err(ModelError::invalid(
                     key("centre_hz"),
                     show(t.centre_hz),
-                    format!("must be in (0, {nyquist}) Hz: above 0 and below the Nyquist frequency"),
+                    format!(
+                        "must be in (0, {nyquist}) Hz: above 0 and below the Nyquist frequency"
+                    ),
                 ));
             }
             // the pole radius exp(-pi w tau0) must stay below 1 and above 0

@@ -56,7 +56,8 @@ impl Ar2 {
     /// One-sided PSD per unit variance, per (cycle/sample), from `c = cos(2 pi nu)`.
     pub fn psd_cs_cos(&self, c: f64) -> f64 {
         let (a1, a2) = (self.a1, self.a2);
-        let d = 1.0 + a1 * a1 + a2 * a2 - 2.0 * a1 * (1.0 - a2) * c - 2.0 * a2 * (2.0 * c * c - 1.0);
+        let d =
+            1.0 + a1 * a1 + a2 * a2 - 2.0 * a1 * (1.0 - a2) * c - 2.0 * a2 * (2.0 * c * c - 1.0);
         2.0 * self.innov_var / d
     }
 
@@ -126,11 +127,17 @@ mod tests {
         let a = ar();
         for m in [1u64, 2, 3, 7, 20, 133] {
             let v = |n: u64| -> f64 {
-                (1..n).map(|k| 2.0 * (n - k) as f64 * a.autocorr(k)).sum::<f64>() + n as f64
+                (1..n)
+                    .map(|k| 2.0 * (n - k) as f64 * a.autocorr(k))
+                    .sum::<f64>()
+                    + n as f64
             };
             let direct = (4.0 * v(m) - v(2 * m)) / (2.0 * (m * m) as f64);
             let closed = a.unit_avar(m as f64);
-            assert!((closed / direct - 1.0).abs() < 1e-9, "m {m}: {closed} vs {direct}");
+            assert!(
+                (closed / direct - 1.0).abs() < 1e-9,
+                "m {m}: {closed} vs {direct}"
+            );
         }
         // one sample: half the mean square of a first difference, 1 - rho(1)
         assert!((a.unit_avar(1.0) - (1.0 - a.autocorr(1))).abs() < 1e-12);

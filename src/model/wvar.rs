@@ -656,10 +656,7 @@ impl LevelQuadrature {
         terms: &[SpectralTerm],
         domain: Domain,
     ) -> Self {
-        let breaks: Vec<f64> = terms
-            .iter()
-            .flat_map(|t| term_breaks(t, tau0_s))
-            .collect();
+        let breaks: Vec<f64> = terms.iter().flat_map(|t| term_breaks(t, tau0_s)).collect();
         let nodes = memo_level_nodes(lo, hi, j, &breaks);
         // one column per term over the nodes (PSD x |H_j|^2, and x weight),
         // then the band integrals and the Gram matrix as dot products of

@@ -38,6 +38,12 @@ pub fn term_of_key(key: &str) -> Option<Term> {
             amplitude_dph: 0.0,
             mean_dwell_s: 1.0,
         },
+        "resonance" => Term::Resonance {
+            sigma_dph: 0.0,
+            centre_hz: 1.0,
+            width_hz: 1.0,
+            tau0_s: 0.1,
+        },
         _ => return None,
     })
 }
