@@ -148,6 +148,22 @@ fn effects() -> Vec<Effect> {
             named: |r| added(r, "rate_ramp_dphh"),
             rate: false,
         },
+        // narrowband noise under the quantization noise of a pulse counter
+        Effect {
+            name: "resonance, 50 Hz, 3 Hz wide",
+            fs: 1000.0,
+            pulse: 1.21,
+            dur_s: 1200.0,
+            model: "",
+            arw: 0.002,
+            truth: |s| {
+                format!("[[noise.resonance]]\nsigma_dph = {s}\ncentre_hz = 50.0\nwidth_hz = 3.0\n")
+            },
+            sizes: [10.0, 20.0, 40.0],
+            unit: "sigma deg/h",
+            named: |r| added(r, "resonance"),
+            rate: false,
+        },
         // a readout detail below the ARW/BI crossover of a MEMS-like rate gyro
         Effect {
             name: "readout filter, first order (rate output)",
