@@ -4,6 +4,10 @@
 //! about 1). The gyro is the ADIS16405's datasheet model with a 19 Hz mode;
 //! a second case passes the mode through the readout filter the model
 //! already has, so the filter's gain must be divided out of the fitted sigma.
+//! A third is a pulse counter like the paper's (1 kHz, 1.21"), whose 50 Hz
+//! mode stands only 10-30 % above the quantization noise in the spectrum and
+//! leaves a white tail that looks like angle random walk: the mode is named,
+//! and the ARW is not changed (or, if changed, its interval holds the truth).
 
 use sagnac::diagnose::{self, DiagnoseOptions, Recording, Verdict};
 use sagnac::model::{GyroModel, Simulator};
@@ -91,4 +95,66 @@ fn a_resonance_behind_the_readout_filter_keeps_its_own_sigma() {
     // a first-order 25 Hz filter passes |H|^2 = 0.63 at 19 Hz
     let filter = "[readout_filter]\nkind = \"first_order\"\ncorner_hz = 25.0\n";
     check(&with_resonance(filter), &model(filter), 21);
+}
+
+/// The paper's pulse counter (1 kHz, 1.21", Q = sqrt(1.21^2/12 + 0.5^2)) with
+/// `extra` in its noise table.
+fn counter(extra: &str) -> GyroModel {
+    let q = (1.21f64 * 1.21 / 12.0 + 0.25).sqrt();
+    let text = format!(
+        "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 1.21\ninput_rate_dph = 10.0\n\
+         [noise]\nquantization_arcsec = {q}\narw_dpsh = 0.002\n{extra}"
+    );
+    GyroModel::from_toml_str(&text, "counter").unwrap()
+}
+
+#[test]
+fn a_resonance_under_the_quantization_noise_is_named_and_the_arw_kept() {
+    let (s, f0, w) = (20.0, 50.0, 3.0);
+    let truth = counter(&format!(
+        "[[noise.resonance]]\nsigma_dph = {s}\ncentre_hz = {f0}\nwidth_hz = {w}\n"
+    ));
+    for seed in [3, 11] {
+        let mut sim = Simulator::new(&truth, seed, Some(1200.0)).unwrap();
+        let mut counts = Vec::new();
+        sim.next_block(usize::MAX >> 1, &mut counts);
+        let rec = Recording {
+            counts,
+            temp_c: None,
+            sample_rate_hz: 1000.0,
+            pulse_arcsec: 1.21,
+            output: Default::default(),
+        };
+        let opts = DiagnoseOptions {
+            seed: seed + 1000,
+            ..DiagnoseOptions::default()
+        };
+        let d = diagnose::diagnose(&counter(""), &rec, &opts).unwrap();
+        let r = &d.report;
+        eprintln!(
+            "notes {:#?}\nadded {:#?}\nchanges {:#?}",
+            d.notes, r.added_terms, r.parameter_changes
+        );
+        let a = r
+            .added_terms
+            .iter()
+            .find(|a| a.term == "resonance")
+            .expect("a resonance named");
+        for (key, truth) in [("sigma_dph", s), ("centre_hz", f0), ("width_hz", w)] {
+            let ci = a.ci95[key];
+            assert!(
+                ci[0] <= truth && truth <= ci[1],
+                "{key}: {truth} outside {ci:?}"
+            );
+        }
+        for c in r.parameter_changes.iter().filter(|c| c.term == "arw_dpsh") {
+            assert!(c.ci95[0] <= 0.002 && 0.002 <= c.ci95[1], "{c:?}");
+        }
+        assert!(
+            r.fit_after.chi2_per_dof < 1.5,
+            "{}",
+            r.fit_after.chi2_per_dof
+        );
+        assert!(!d.notes.iter().any(|n| n.starts_with("Narrowband excess")));
+    }
 }

@@ -76,6 +76,7 @@ use self::reference::Reference;
 use self::wvar_fit::Basis;
 use crate::model::config::OutputKind;
 use crate::model::{GyroModel, ModelError};
+use crate::units;
 
 pub use self::lines::{LineScan, line_scan};
 pub use self::reference::{model_psd, model_spectral_terms};
@@ -207,6 +208,8 @@ pub const ALPHA_LINES: f64 = 0.001;
 pub const ALPHA_SLOPE: f64 = 0.0025;
 /// Smallest recording, samples.
 pub const MIN_SAMPLES: usize = 4096;
+/// Most resonances fitted, one after another where an excess remains.
+pub const MAX_RESONANCES: usize = 3;
 
 /// Errors of the diagnosis.
 #[derive(Debug, thiserror::Error)]
@@ -353,34 +356,20 @@ pub fn diagnose_with_progress(
     let periodogram = lines.periodogram.take();
     // 6b: narrowband noise the updated model does not explain: a resonance,
     // fitted, and phases 4-6 run again with it (kept when it fits better)
-    let mut excess = periodogram
-        .as_ref()
-        .map(|p| lines::excess(r, p, &pass.refined.fitted));
-    // fitted against the model under test (the first run's broadband terms
-    // may be bent to imitate it)
-    if let (Some((Some(ex), _)), Some(p)) = (&excess, &periodogram)
-        && let Some(fit) = resonance::fit(
-            &lines::excess(r, p, &r.model).1,
-            ex,
-            r.model.readout_filter(),
-        )
-    {
-        let with = ctx.with_resonance(&findings, data0.as_ref(), &fit)?;
-        if with.refined.chi2_after < pass.refined.chi2_after {
-            pass = with;
-            excess = periodogram
-                .as_ref()
-                .map(|p| lines::excess(r, p, &pass.refined.fitted));
-        } else {
-            pass.notes.push(format!(
-                "A resonance fitted at {} Hz did not improve the fit (chi2/dof {} with it against {} \
-                 without): not added.",
-                findings::fmt_g(fit.centre_hz),
-                findings::fmt_g(with.refined.chi2_after),
-                findings::fmt_g(pass.refined.chi2_after)
-            ));
+    // (up to MAX_RESONANCES, each where an excess remains with the last)
+    if let Some(p) = &periodogram {
+        let (mut base, mut data) = (findings.clone(), data0.clone());
+        for _ in 0..MAX_RESONANCES {
+            let (next, added) = ctx.with_resonance_if_better(pass, &base, data.as_ref(), p)?;
+            pass = next;
+            let Some((finding, fit)) = added else { break };
+            data = ctx.resonance_data(data.as_ref(), &fit);
+            base.push(finding);
         }
     }
+    let excess = periodogram
+        .as_ref()
+        .map(|p| lines::excess(r, p, &pass.refined.fitted));
     drop(periodogram);
     let Pass {
         findings,
@@ -389,7 +378,13 @@ pub fn diagnose_with_progress(
         notes: pass_notes,
     } = pass;
     notes.extend(pass_notes);
-    notes.extend(excess.and_then(|e| e.0).as_ref().map(narrowband::note));
+    notes.extend(
+        excess
+            .and_then(|e| e.0)
+            .filter(|e| e.ratio >= narrowband::NOTE_RATIO)
+            .as_ref()
+            .map(narrowband::note),
+    );
     let mismatch = !regions.is_empty()
         || lr_detected
         || !lines.hits.is_empty()
@@ -498,6 +493,121 @@ impl Explain<'_> {
         })
     }
 
+    /// Phase 6b: where the narrowband check finds an excess against the
+    /// first explanation `pass`, a resonance fitted to it (fitted against the
+    /// model under test: the first run's broadband terms may be bent to
+    /// imitate it) and phases 4-6 run again with it; the second explanation
+    /// is kept when the resonance's sigma is significant in its own fit and
+    /// the chi2 is lower. When the ARW refitted beside the
+    /// resonance is not significant once the tail's error is carried, the
+    /// resonance whose tail takes the rest of the white level is tried too,
+    /// and kept (the model's ARW with it) when the periodogram does not
+    /// reject it and the wavelet variances fit as well. `line_findings` are
+    /// the lines' (and the resonances kept before), `data0` the wavelet data
+    /// with them; returns the explanation kept, and the resonance it added.
+    fn with_resonance_if_better(
+        &self,
+        pass: Pass,
+        line_findings: &[Finding],
+        data0: Option<&wvar_fit::LevelData>,
+        p: &lines::Periodogram,
+    ) -> Result<(Pass, Option<(Finding, resonance::ResonanceFit)>), DiagnoseError> {
+        let r = self.r;
+        let Some(ex) = lines::excess(r, p, &pass.refined.fitted).0 else {
+            return Ok((pass, None));
+        };
+        // against the model under test with the resonances kept before
+        let spec = lines::excess(r, p, &findings::with_findings(&r.model, line_findings)).1;
+        let adopted = |pass: Pass, fit: resonance::ResonanceFit| {
+            let f = pass.findings.iter().find(|f| {
+                matches!(f.edit, findings::Edit::Resonance { centre_hz, .. } if centre_hz == fit.centre_hz)
+            });
+            let added = f.cloned().map(|f| (f, fit));
+            Ok((pass, added))
+        };
+        let filter = r.model.readout_filter();
+        let budget = resonance::white_budget(&pass.refined.fitted);
+        let Some(fit) = resonance::fit(&spec, &ex, filter, resonance::Tail::AtMost(budget)) else {
+            return Ok((pass, None));
+        };
+        // its power must be significant in its own fit
+        if !(fit.sigma_ci95[0] > 0.0) {
+            let mut pass = pass;
+            pass.notes.push(format!(
+                "A resonance fitted at {} Hz is not significant on the periodogram (sigma {} deg/h, \
+                 its 95 % interval reaching zero): not added.",
+                findings::fmt_g(fit.centre_hz),
+                findings::fmt_g(fit.sigma_dph)
+            ));
+            return Ok((pass, None));
+        }
+        let mut with = self.with_resonance(line_findings, data0, &fit)?;
+        if !(with.refined.chi2_after < pass.refined.chi2_after) {
+            let mut pass = pass;
+            pass.notes.push(format!(
+                "A resonance fitted at {} Hz did not improve the fit (chi2/dof {} with it against {} \
+                 without): not added.",
+                findings::fmt_g(fit.centre_hz),
+                findings::fmt_g(with.refined.chi2_after),
+                findings::fmt_g(pass.refined.chi2_after)
+            ));
+            return Ok((pass, None));
+        }
+        if !resonance::widen_white(&mut with.findings, &fit) {
+            return adopted(with, fit);
+        }
+        let n2 = 2.0
+            * units::dpsh_to_arcsec_per_sqrt_s(self.model.noise.arw_dpsh.unwrap_or(0.0)).powi(2);
+        let Some(alt) = (budget > n2)
+            .then(|| resonance::fit(&spec, &ex, filter, resonance::Tail::Exactly(budget - n2)))
+            .flatten()
+            .filter(|alt| 2.0 * (alt.nll - fit.nll) < resonance::LR_1DOF_95)
+        else {
+            return adopted(with, fit);
+        };
+        let mut kept = self.with_resonance(line_findings, data0, &alt)?;
+        let names_arw = kept
+            .findings
+            .iter()
+            .any(|f| f.changes.iter().any(|c| c.term == "arw_dpsh"));
+        if names_arw
+            || kept.refined.chi2_after
+                > with.refined.chi2_after.max(refine::ACCEPTABLE_CHI2_PER_DOF)
+        {
+            return adopted(with, fit);
+        }
+        kept.notes.push(format!(
+            "The model's angle random walk is kept: the resonance whose white tail takes the rest \
+             of the white level the first explanation measured ({} (deg/h)^2/Hz) fits the \
+             periodogram as well as the free one (likelihood ratio {} < {}), and the wavelet \
+             variances as well (chi2/dof {} against {} with the ARW refitted).",
+            findings::fmt_g(budget - n2),
+            findings::fmt_g(2.0 * (alt.nll - fit.nll)),
+            resonance::LR_1DOF_95,
+            findings::fmt_g(kept.refined.chi2_after),
+            findings::fmt_g(with.refined.chi2_after)
+        ));
+        adopted(kept, alt)
+    }
+
+    /// `data` with the wavelet variances of the resonance `fit` added to the
+    /// expectation, as a line's are.
+    fn resonance_data(
+        &self,
+        data: Option<&wvar_fit::LevelData>,
+        fit: &resonance::ResonanceFit,
+    ) -> Option<wvar_fit::LevelData> {
+        data.map(|d| {
+            let mut d = d.clone();
+            let phi =
+                self.basis
+                    .resonance(fit.centre_hz, fit.width_hz, self.r.model.readout_filter());
+            let s2 = fit.sigma_dph * fit.sigma_dph;
+            d.e0.iter_mut().zip(&phi).for_each(|(e, p)| *e += s2 * p);
+            d
+        })
+    }
+
     /// [`Explain::run`] with the resonance `fit` added after `line_findings`
     /// and its wavelet variances added to the expectation, as a line's are.
     /// The fit saw the resonance through the model's readout filter; when the
@@ -510,15 +620,7 @@ impl Explain<'_> {
         data0: Option<&wvar_fit::LevelData>,
         fit: &resonance::ResonanceFit,
     ) -> Result<Pass, DiagnoseError> {
-        let data = data0.map(|d| {
-            let mut d = d.clone();
-            let phi =
-                self.basis
-                    .resonance(fit.centre_hz, fit.width_hz, self.r.model.readout_filter());
-            let s2 = fit.sigma_dph * fit.sigma_dph;
-            d.e0.iter_mut().zip(&phi).for_each(|(e, p)| *e += s2 * p);
-            d
-        });
+        let data = self.resonance_data(data0, fit);
         let tau0 = self.r.tau0_s();
         let gain2 = |m: &GyroModel| {
             m.readout_filter()

@@ -19,18 +19,19 @@ use std::f64::consts::PI;
 use super::AddedTerm;
 use super::findings::{Edit, Finding, fmt_g};
 use super::line_search::LineSpectrum;
-use super::narrowband::Excess;
-use crate::model::Term;
+use super::narrowband::{BINS_PER_DOF, Excess};
 use crate::model::filter::ReadoutFilter;
 use crate::model::resonance::Ar2;
+use crate::model::wvar::SpectralTerm;
+use crate::model::{GyroModel, Term};
 use std::collections::BTreeMap;
 
-/// Periodogram bins per independent ordinate when adjacent bins of a Hann
-/// periodogram are averaged: the sum of the power correlations over lags,
-/// `1 + 2 (4/9 + 1/36)`.
-const BINS_PER_DOF: f64 = 1.0 + 2.0 * (4.0 / 9.0 + 1.0 / 36.0);
+use crate::units;
+
 /// Groups the fitted window is averaged into (at most).
 const GROUPS: usize = 600;
+/// The 95 % point of chi-square with one degree of freedom.
+pub const LR_1DOF_95: f64 = 3.84;
 
 /// A fitted resonance (sigma before the readout filter it was fitted
 /// through), with 95 % intervals.
@@ -45,6 +46,24 @@ pub struct ResonanceFit {
     pub sigma_ci95: [f64; 2],
     /// The background's level against the model (1 = as the model).
     pub background: f64,
+    /// The resonance's PSD at zero frequency, (deg/h)^2/Hz, and its standard
+    /// error from the fit: an AR(2) mode leaves a white tail below its centre
+    /// (about peak / Q^2) that the wavelet variances cannot tell from angle
+    /// random walk, so a white level refitted beside it carries this error.
+    pub tail_psd: f64,
+    pub tail_psd_sd: f64,
+    /// The Whittle negative log-likelihood at the fit.
+    pub nll: f64,
+}
+
+/// How the fit holds the resonance's white tail (its PSD at zero frequency,
+/// (deg/h)^2/Hz).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Tail {
+    /// At or below the white level the wavelet variances measured.
+    AtMost(f64),
+    /// Exactly this (the white level left when the model's ARW is kept).
+    Exactly(f64),
 }
 
 /// The periodogram averaged over groups of bins: frequency, mean power,
@@ -139,8 +158,9 @@ impl Groups {
     }
 }
 
-fn linear_part(g: &Groups, r: &[f64], start: Linear) -> Linear {
+fn linear_part(g: &Groups, r: &[f64], start: Linear, (s2_lo, s2_hi): (f64, f64)) -> Linear {
     let mut l = start;
+    l.s2 = l.s2.clamp(s2_lo, s2_hi);
     for _ in 0..40 {
         let mut grad = [0.0; 3];
         let mut info = [[0.0; 3]; 3];
@@ -157,6 +177,13 @@ fn linear_part(g: &Groups, r: &[f64], start: Linear) -> Linear {
                 }
             }
         }
+        if s2_hi <= s2_lo {
+            // sigma^2 held: the step in (c, beta) alone
+            grad[2] = 0.0;
+            info[2] = [0.0, 0.0, 1.0];
+            info[0][2] = 0.0;
+            info[1][2] = 0.0;
+        }
         let Some(inv) = invert(&info.map(|r| r.to_vec())) else {
             break;
         };
@@ -166,7 +193,7 @@ fn linear_part(g: &Groups, r: &[f64], start: Linear) -> Linear {
         let next = Linear {
             c: (l.c + step[0]).max(0.1 * l.c),
             beta: (l.beta + step[1]).clamp(-20.0, 20.0),
-            s2: (l.s2 + step[2]).max(0.0),
+            s2: (l.s2 + step[2]).clamp(s2_lo, s2_hi),
         };
         let small = (next.c / l.c - 1.0).abs() < 1e-10
             && (next.beta - l.beta).abs() < 1e-10
@@ -182,13 +209,26 @@ fn linear_part(g: &Groups, r: &[f64], start: Linear) -> Linear {
 /// Fit a resonance to the excess `ex` of `spec` (whitened by the model
 /// under test, whose readout filter is `filter`: the resonance is seen
 /// through it, and its sigma is the one before it); None when the window is
-/// too small or no power is found.
+/// too small or no power is found. The resonance's white tail (its PSD at
+/// zero frequency) is held as `tail` says: at most the white level the
+/// wavelet variances measured ([`white_budget`] of the model fitted without
+/// it), which the tail and the angle random walk share, or exactly what that
+/// level leaves beside the model's ARW.
 pub fn fit(
     spec: &LineSpectrum,
     ex: &Excess,
     filter: Option<ReadoutFilter>,
+    tail: Tail,
 ) -> Option<ResonanceFit> {
     let tau0 = 1.0 / spec.fs_hz;
+    // the sigma^2 whose white tail is as `tail` allows
+    let s2_range = |f0: f64, w: f64| {
+        let unit = Ar2::new(f0, w, tau0).psd_cs_cos(1.0) * tau0;
+        match tail {
+            Tail::AtMost(t) => (0.0, t / unit),
+            Tail::Exactly(t) => (t / unit, t / unit),
+        }
+    };
     let nyquist = 0.5 * spec.fs_hz;
     let (s_lo, s_hi) = ex.span_hz;
     let span = s_hi - s_lo;
@@ -217,14 +257,14 @@ pub fn fit(
     for &f0 in &centres {
         for &w in &widths {
             let r = shape(&g, f0, w, tau0);
-            let l = linear_part(&g, &r, flat);
+            let l = linear_part(&g, &r, flat, s2_range(f0, w));
             let v = nll(&g, &g.model(l, &r));
             if v < best.0 {
                 best = (v, f0, w, l);
             }
         }
     }
-    let (_, f0, w, l) = refine(&g, best, tau0, nyquist);
+    let (nll, f0, w, l) = refine(&g, best, tau0, nyquist, &s2_range);
     let (c, s2) = (l.c, l.s2);
     if !(s2 > 0.0) {
         return None;
@@ -232,6 +272,7 @@ pub fn fit(
     let cov = covariance(&g, [c, s2, f0, w, l.beta], tau0)?;
     let sd = |i: usize| cov[i][i].max(0.0).sqrt();
     let s2_ci = [(s2 - 1.96 * sd(1)).max(0.0), s2 + 1.96 * sd(1)];
+    let (tail_psd, tail_psd_sd) = white_tail(&cov, s2, f0, w, tau0);
     Some(ResonanceFit {
         centre_hz: f0,
         width_hz: w,
@@ -240,7 +281,112 @@ pub fn fit(
         width_ci95: [(w - 1.96 * sd(3)).max(0.0), w + 1.96 * sd(3)],
         sigma_ci95: [s2_ci[0].sqrt(), s2_ci[1].sqrt()],
         background: c,
+        tail_psd,
+        tail_psd_sd,
+        nll,
     })
+}
+
+/// The PSD at zero frequency of a resonance `(s2, f0, w)` and its standard
+/// error by the delta method over `cov` (of `(c, s2, f0, w, beta)`).
+fn white_tail(cov: &[Vec<f64>], s2: f64, f0: f64, w: f64, tau0: f64) -> (f64, f64) {
+    let at = |q: [f64; 3]| q[0] * Ar2::new(q[1], q[2], tau0).psd_cs_cos(1.0) * tau0;
+    let p = [s2, f0, w];
+    let grad: Vec<f64> = (0..3)
+        .map(|k| {
+            let h = 1e-5 * p[k].abs().max(1e-9);
+            let (mut a, mut b) = (p, p);
+            a[k] += h;
+            b[k] -= h;
+            (at(a) - at(b)) / (2.0 * h)
+        })
+        .collect();
+    let var: f64 = (0..3)
+        .flat_map(|i| (0..3).map(move |j| (i, j)))
+        .map(|(i, j)| grad[i] * cov[i + 1][j + 1] * grad[j])
+        .sum();
+    (at(p), var.max(0.0).sqrt())
+}
+
+/// The white-like PSD at zero frequency of `model`'s angle random walk and
+/// Gauss-Markov terms (a telegraph as its twin), (deg/h)^2/Hz: what a
+/// resonance's white tail may take of the model fitted without it. A rate
+/// word's LSB rounding is left out (the sensor's, not the fit's).
+pub(crate) fn white_budget(model: &GyroModel) -> f64 {
+    let tau0 = model.tau0_s();
+    let n = &model.noise;
+    let arw = units::dpsh_to_arcsec_per_sqrt_s(n.arw_dpsh.unwrap_or(0.0));
+    let gm = |tau_c_s: f64, sigma: f64| {
+        SpectralTerm::GaussMarkov { tau_c_s }.psd_cs(0.0, tau0) * tau0 * sigma * sigma
+    };
+    2.0 * arw * arw
+        + n.gauss_markov
+            .iter()
+            .map(|g| gm(g.tau_c_s, g.sigma_dph))
+            .sum::<f64>()
+        + n.random_telegraph
+            .iter()
+            .map(|r| gm(0.5 * r.mean_dwell_s, r.amplitude_dph))
+            .sum::<f64>()
+}
+
+/// Widen the angle random walk's interval in `findings` (refitted beside the
+/// resonance of `fit`, whose finding is among them) by the error of the
+/// resonance's white tail, which the wavelet variances fit as one white level
+/// with it: on `N^2` each half-width becomes `hypot(half-width, 1.96 sd)`,
+/// `sd` the tail's standard error as an ARW-equivalent `N^2` (a white rate
+/// PSD of `2 N^2`). Returns whether an ARW change came to include the
+/// model's value (no longer significant).
+pub(crate) fn widen_white(findings: &mut [Finding], fit: &ResonanceFit) -> bool {
+    // the finding's sigma is the fit's through the ratio of two filters' gains
+    let scale = findings
+        .iter()
+        .find_map(|f| match f.edit {
+            Edit::Resonance { sigma_dph, .. } if fit.sigma_dph > 0.0 => {
+                Some((sigma_dph / fit.sigma_dph).powi(2))
+            }
+            _ => None,
+        })
+        .unwrap_or(1.0);
+    let sd_n2 = 0.5 * scale * fit.tail_psd_sd;
+    if !(sd_n2 > 0.0) {
+        return false;
+    }
+    let to_n2 = |v: f64| units::dpsh_to_arcsec_per_sqrt_s(v).powi(2);
+    let from_n2 = |v: f64| units::arcsec_per_sqrt_s_to_dpsh(v.max(0.0).sqrt());
+    let (mut moved, mut insignificant) = (false, false);
+    for f in findings.iter_mut() {
+        for c in f.changes.iter_mut().filter(|c| c.term == "arw_dpsh") {
+            let n2 = to_n2(c.fitted);
+            let (lo, hi) = (n2 - to_n2(c.ci95[0]), to_n2(c.ci95[1]) - n2);
+            let extra = 1.96 * sd_n2;
+            c.ci95 = [from_n2(n2 - lo.hypot(extra)), from_n2(n2 + hi.hypot(extra))];
+            moved = true;
+            if (c.ci95[0]..=c.ci95[1]).contains(&c.model) {
+                insignificant = true;
+                f.note.push_str(&format!(
+                    " With the error of the resonance's white tail its interval [{}, {}] \
+                     includes the model's {}: the change is not significant.",
+                    fmt_g(c.ci95[0]),
+                    fmt_g(c.ci95[1]),
+                    fmt_g(c.model)
+                ));
+            }
+        }
+    }
+    if moved
+        && let Some(f) = findings
+            .iter_mut()
+            .find(|f| matches!(f.edit, Edit::Resonance { .. }))
+    {
+        f.note.push_str(&format!(
+            " Its white tail below the centre ({} (deg/h)^2/Hz, +- {}) trades off with the \
+             angle random walk refitted beside it: that interval carries its error.",
+            fmt_g(scale * fit.tail_psd),
+            fmt_g(scale * fit.tail_psd_sd)
+        ));
+    }
+    insignificant
 }
 
 /// Coordinate refinement of the grid's best `(nll, f0, w, linear part)`:
@@ -251,10 +397,11 @@ fn refine(
     start: (f64, f64, f64, Linear),
     tau0: f64,
     nyquist: f64,
+    s2_range: &dyn Fn(f64, f64) -> (f64, f64),
 ) -> (f64, f64, f64, Linear) {
     let eval = |f0: f64, w: f64, st: Linear| {
         let r = shape(g, f0, w, tau0);
-        let l = linear_part(g, &r, st);
+        let l = linear_part(g, &r, st, s2_range(f0, w));
         (nll(g, &g.model(l, &r)), f0, w, l)
     };
     let mut best = start;
@@ -415,6 +562,7 @@ pub(crate) fn finding(fit: &ResonanceFit, gain2: f64, tau0_s: f64) -> Finding {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::diagnose::ParameterChange;
 
     /// A spectrum of white level `m0` plus a resonance, with a deterministic
     /// unit-mean pattern standing in for the periodogram's scatter.
@@ -449,7 +597,7 @@ mod tests {
             z: 30.0,
             z_crit: 4.0,
         };
-        let f = fit(&spec, &ex, None).unwrap();
+        let f = fit(&spec, &ex, None, Tail::AtMost(f64::INFINITY)).unwrap();
         assert!((f.centre_hz / 19.3 - 1.0).abs() < 2e-3, "{f:?}");
         assert!((f.width_hz / 1.2 - 1.0).abs() < 0.02, "{f:?}");
         assert!((f.sigma_dph / 30.0 - 1.0).abs() < 0.02, "{f:?}");
@@ -461,5 +609,73 @@ mod tests {
             panic!("{:?}", g.edit)
         };
         assert!((sigma_dph / (2.0 * f.sigma_dph) - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_white_tail_is_the_autocorrelation_sum() {
+        // one-sided PSD at zero frequency = 2 tau0 s2 (1 + 2 sum_k rho(k))
+        let (f0, w, tau0, s2) = (50.0, 3.0, 1e-3, 100.0);
+        let ar = Ar2::new(f0, w, tau0);
+        let sum: f64 = (1..200_000).map(|k| ar.autocorr(k)).sum();
+        let direct = 2.0 * tau0 * s2 * (1.0 + 2.0 * sum);
+        let cov = vec![vec![0.0; 5]; 5];
+        let (t, sd) = white_tail(&cov, s2, f0, w, tau0);
+        assert!((t / direct - 1.0).abs() < 1e-6, "{t} vs {direct}");
+        assert_eq!(sd, 0.0);
+        // about peak / Q^2 below the peak: Q = 50/3
+        let peak = s2 * ar.psd_cs_cos((2.0 * PI * f0 * tau0).cos()) * tau0;
+        let q = f0 / w;
+        assert!(
+            (t * q * q / peak - 1.0).abs() < 0.35,
+            "{}",
+            t * q * q / peak
+        );
+    }
+
+    #[test]
+    fn the_arw_interval_carries_the_tail_error() {
+        let spec = spectrum(1 << 21, 100.0, 2.0, 19.3, 1.2, 900.0);
+        let ex = Excess {
+            f_hz: 19.5,
+            span_hz: (17.5, 21.5),
+            ratio: 10.0,
+            z: 30.0,
+            z_crit: 4.0,
+        };
+        let mut f = fit(&spec, &ex, None, Tail::AtMost(f64::INFINITY)).unwrap();
+        f.tail_psd_sd = 2.0 * units::dpsh_to_arcsec_per_sqrt_s(0.01).powi(2);
+        let arw = |fitted: f64, ci95: [f64; 2]| Finding {
+            edit: Edit::Arw(fitted),
+            changes: vec![ParameterChange {
+                term: "arw_dpsh".into(),
+                model: 0.3,
+                fitted,
+                ci95,
+            }],
+            added: None,
+            n_par: 1,
+            note: String::new(),
+        };
+        let mut findings = vec![finding(&f, 1.0, 0.01), arw(0.1, [0.09, 0.11])];
+        assert!(!widen_white(&mut findings, &f));
+        // N^2 half-widths 0.01^2 * (19, 21) and 1.96 * 0.01^2 in quadrature
+        let ci = findings[1].changes[0].ci95;
+        let want = [
+            (0.01f64 - 19e-4f64.hypot(1.96e-4)).sqrt(),
+            (0.01f64 + 21e-4f64.hypot(1.96e-4)).sqrt(),
+        ];
+        assert!((ci[0] / want[0] - 1.0).abs() < 1e-9, "{ci:?} vs {want:?}");
+        assert!((ci[1] / want[1] - 1.0).abs() < 1e-9, "{ci:?} vs {want:?}");
+        assert!(findings[0].note.contains("white tail"));
+        assert!(!findings[1].note.contains("not significant"));
+        // an interval that comes to include the model's value says so
+        let mut findings = vec![finding(&f, 1.0, 0.01), arw(0.29, [0.285, 0.295])];
+        f.tail_psd_sd = 2.0 * units::dpsh_to_arcsec_per_sqrt_s(0.1).powi(2);
+        assert!(widen_white(&mut findings, &f));
+        assert!(
+            findings[1].note.contains("not significant"),
+            "{}",
+            findings[1].note
+        );
     }
 }
