@@ -23,6 +23,7 @@ use super::line_search::SearchParams;
 use super::locate::Located;
 use super::lowfreq;
 use super::readout;
+use super::readout_angle;
 use super::reference::{BlockRate, Reference};
 use super::stats::StatSet;
 use super::wvar_fit::{self, Basis, Fit, LevelData};
@@ -122,7 +123,9 @@ impl Current {
     /// Take an accepted edit into the current amplitudes.
     fn accept(&mut self, edit: &Edit) {
         match edit {
-            Edit::Quantization(v) => self.q2 = v * v,
+            Edit::Quantization(v) | Edit::QuantizationBesideFilter { q_arcsec: v, .. } => {
+                self.q2 = v * v
+            }
             Edit::Arw(v) => self.n2 = units::dpsh_to_arcsec_per_sqrt_s(*v).powi(2),
             Edit::BiasInstability(v) => self.b2 = v * v,
             Edit::Rrw(v) => self.k2 = units::dphsh_to_arcsec_per_s_sqrt_s(*v).powi(2),
@@ -236,12 +239,20 @@ pub(crate) fn fit(
                 finding,
             });
         }
+        let joint = readout::offered(model)
+            .then(|| filter_with_white_angle(&ctx, model))
+            .flatten()
+            .map(|(cand, q)| {
+                cands.push(cand);
+                (cands.len() - 1, q)
+            });
         let new_gm_index = cands.len();
         let has_new_gm = new_gauss_markov(&ctx).map(|c| cands.push(c)).is_some();
         cands.extend(new_sinusoid(&ctx));
         let Some(pick) = choose(&cands) else {
             break;
         };
+        let with_q = joint.and_then(|(i, q)| (i == pick).then_some(q));
         let c = cands.swap_remove(pick);
         let dev = 2.0 * (c.fit.loglik - l0);
         if !(dev > chi2_quantile(0.99, c.fit.n_par as f64)) {
@@ -255,6 +266,10 @@ pub(crate) fn fit(
         let is_new_gm = (has_new_gm && pick == new_gm_index)
             || matches!(c.finding.edit, Edit::GaussMarkov { index: None, .. });
         out.push((c.finding, is_new_gm));
+        if let Some(q) = with_q {
+            cur.accept(&q.edit);
+            out.push((q, false));
+        }
     }
     // only the first new Gauss-Markov term is tested against a random telegraph
     let mut seen = false;
@@ -267,6 +282,49 @@ pub(crate) fn fit(
         }
     }
     out
+}
+
+/// The readout filter with the white angle noise after it refitted beside it
+/// ([`readout_angle`]): the filter's candidate (three parameters) and the
+/// Q finding accepted with it.
+fn filter_with_white_angle(c: &Ctx, model: &GyroModel) -> Option<(Candidate, Finding)> {
+    let j = readout_angle::fit(c.data, c.basis, c.cur.n2, c.cur.q2, c.d2_12, c.cur.filter)?;
+    let mut m = model.clone();
+    m.readout_filter = c
+        .cur
+        .filter
+        .map(|f| ReadoutFilterParams::from_filter(&f, model.tau0_s()));
+    let mut finding = readout::finding(&j.filter, &m, c.cur.n2, c.regions);
+    finding.n_par = 3;
+    let (q0, q) = (c.cur.q2.sqrt(), j.q2.sqrt());
+    let q_finding = Finding {
+        edit: Edit::QuantizationBesideFilter {
+            q_arcsec: q,
+            profile_widen: j.q_profile_widen,
+        },
+        changes: vec![ParameterChange {
+            term: "quantization_arcsec".into(),
+            model: q0,
+            fitted: q,
+            ci95: sqrt_ci(j.q2_ci, |x| x),
+        }],
+        added: None,
+        n_par: 1,
+        note: format!(
+            "quantization_arcsec: {} -> {} arcsec: white angle noise after the readout filter, fitted \
+             with it (the readout's own error, added after the filter, fills the finest levels back in; \
+             mismatch at {})",
+            fmt_g(q0),
+            fmt_g(q),
+            c.regions
+        ),
+    };
+    let cand = Candidate {
+        fit: j.filter.fit,
+        param_only: c.cur.filter.is_some(),
+        finding,
+    };
+    Some((cand, q_finding))
 }
 
 /// The best parameter-only change and the best new term, by AIC: the

@@ -22,6 +22,14 @@ pub(crate) type UnitConv = fn(f64) -> f64;
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) enum Edit {
     Quantization(f64),
+    /// Q fitted jointly with a readout filter (white angle noise after it):
+    /// `profile_widen` as for the filter's ARW, how much wider (below,
+    /// above) Q's interval is profiled over the filter and the white level
+    /// than at them fixed.
+    QuantizationBesideFilter {
+        q_arcsec: f64,
+        profile_widen: (f64, f64),
+    },
     Arw(f64),
     BiasInstability(f64),
     Rrw(f64),
@@ -70,7 +78,9 @@ impl Edit {
     pub(crate) fn apply(&self, m: &mut GyroModel) {
         let n = &mut m.noise;
         match self {
-            Edit::Quantization(v) => n.quantization_arcsec = Some(*v),
+            Edit::Quantization(v) | Edit::QuantizationBesideFilter { q_arcsec: v, .. } => {
+                n.quantization_arcsec = Some(*v)
+            }
             Edit::Arw(v) => n.arw_dpsh = Some(*v),
             Edit::BiasInstability(v) => n.bias_instability_dph = Some(*v),
             Edit::Rrw(v) => n.rrw_dphsh = Some(*v),

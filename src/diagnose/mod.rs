@@ -60,6 +60,7 @@ pub mod lowfreq;
 pub mod mc;
 pub mod narrowband;
 pub mod readout;
+pub mod readout_angle;
 pub mod reference;
 pub mod refine;
 pub mod report;

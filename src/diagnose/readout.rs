@@ -97,37 +97,7 @@ pub fn fit(
     }
     let phi0 = basis.filtered_white_rate(current);
     let eval = |f: ReadoutFilter| profile(data, basis, n2, &phi0, f);
-    // every candidate: (corner cycles, filter, loglik)
-    let mut cands: Vec<(f64, ReadoutFilter, Fit)> = Vec::new();
-    for l in 2..=MAX_MA {
-        let f = ReadoutFilter::MovingAverage { length: l };
-        cands.push((f.corner_cycles(), f, eval(f)));
-    }
-    let n_fo = ((FO_HI / FO_LO).log2() * FO_PER_OCTAVE as f64).ceil() as usize;
-    let fo_grid: Vec<f64> = (0..=n_fo)
-        .map(|i| FO_LO * (FO_HI / FO_LO).powf(i as f64 / n_fo as f64))
-        .collect();
-    let n_ma = cands.len();
-    for &c in &fo_grid {
-        if let Some(f) = first_order(c) {
-            cands.push((c, f, eval(f)));
-        }
-    }
-    let fo_l = |lc: f64| first_order(lc.exp()).map_or(f64::NEG_INFINITY, |f| eval(f).loglik);
-    // refine the best first-order corner between its grid neighbours
-    let ib = cands[n_ma..]
-        .iter()
-        .enumerate()
-        .max_by(|a, b| a.1.2.loglik.total_cmp(&b.1.2.loglik))
-        .map_or(0, |(i, _)| i);
-    let (a, b) = (
-        fo_grid[ib.saturating_sub(1)].ln(),
-        fo_grid[(ib + 1).min(fo_grid.len() - 1)].ln(),
-    );
-    let lc = golden_max(&fo_l, a, b, 30);
-    if let Some(f) = first_order(lc.exp()) {
-        cands.push((lc.exp(), f, eval(f)));
-    }
+    let (cands, fo_l) = candidates(data, basis, n2, &phi0, 30);
     let best = cands
         .iter()
         .max_by(|x, y| x.2.loglik.total_cmp(&y.2.loglik))?
@@ -217,6 +187,73 @@ pub fn fit(
         length_ci,
         arw_profile_widen,
     })
+}
+
+/// A candidate filter: its corner (cycles per sample), the filter and its fit.
+type Cand = (f64, ReadoutFilter, Fit);
+
+/// Every moving average and first-order corner of the search profiled, the
+/// best first-order corner refined by `golden` golden-section steps; and the
+/// first-order profile log-likelihood as a function of the log corner.
+fn candidates<'a>(
+    data: &'a LevelData,
+    basis: &'a Basis,
+    n2: f64,
+    phi0: &'a [f64],
+    golden: usize,
+) -> (Vec<Cand>, impl Fn(f64) -> f64 + 'a) {
+    let eval = move |f: ReadoutFilter| profile(data, basis, n2, phi0, f);
+    let mut cands: Vec<Cand> = Vec::new();
+    for l in 2..=MAX_MA {
+        let f = ReadoutFilter::MovingAverage { length: l };
+        cands.push((f.corner_cycles(), f, eval(f)));
+    }
+    let n_fo = ((FO_HI / FO_LO).log2() * FO_PER_OCTAVE as f64).ceil() as usize;
+    let fo_grid: Vec<f64> = (0..=n_fo)
+        .map(|i| FO_LO * (FO_HI / FO_LO).powf(i as f64 / n_fo as f64))
+        .collect();
+    let n_ma = cands.len();
+    for &c in &fo_grid {
+        if let Some(f) = first_order(c) {
+            cands.push((c, f, eval(f)));
+        }
+    }
+    let fo_l = move |lc: f64| first_order(lc.exp()).map_or(f64::NEG_INFINITY, |f| eval(f).loglik);
+    // refine the best first-order corner between its grid neighbours
+    let ib = cands[n_ma..]
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.2.loglik.total_cmp(&b.1.2.loglik))
+        .map_or(0, |(i, _)| i);
+    let (a, b) = (
+        fo_grid[ib.saturating_sub(1)].ln(),
+        fo_grid[(ib + 1).min(fo_grid.len() - 1)].ln(),
+    );
+    let lc = golden_max(&fo_l, a, b, golden);
+    if let Some(f) = first_order(lc.exp()) {
+        cands.push((lc.exp(), f, eval(f)));
+    }
+    (cands, fo_l)
+}
+
+/// The log-likelihood of the best filter about `n2` and `current` (the
+/// search of [`fit`] without its intervals, `golden` refinement steps).
+pub(crate) fn best_loglik(
+    data: &LevelData,
+    basis: &Basis,
+    n2: f64,
+    current: Option<ReadoutFilter>,
+    golden: usize,
+) -> f64 {
+    if !(n2 > 0.0) {
+        return f64::NEG_INFINITY;
+    }
+    let phi0 = basis.filtered_white_rate(current);
+    let (cands, _) = candidates(data, basis, n2, &phi0, golden);
+    cands
+        .iter()
+        .map(|c| c.2.loglik)
+        .fold(f64::NEG_INFINITY, f64::max)
 }
 
 /// Whether the candidate is tried: on a rate-output gyro, and on any model

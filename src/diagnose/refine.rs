@@ -361,6 +361,18 @@ impl Refit {
                     arw_profile_widen: (*wl, *wh),
                 }
             }
+            // Q fitted with a filter: likewise widened by their trade-off
+            Edit::QuantizationBesideFilter {
+                profile_widen: (wl, wh),
+                ..
+            } => {
+                let v = self.value;
+                ci95 = [(v - wl * (v - ci95[0])).max(0.0), v + wh * (ci95[1] - v)];
+                Edit::QuantizationBesideFilter {
+                    q_arcsec: v,
+                    profile_widen: (*wl, *wh),
+                }
+            }
             _ => self.edit(),
         };
         let key = self.key();
@@ -386,7 +398,7 @@ impl Refit {
 
 fn knob_of(e: &Edit) -> Option<Knob> {
     match e {
-        Edit::Quantization(_) => Some(Knob::Quantization),
+        Edit::Quantization(_) | Edit::QuantizationBesideFilter { .. } => Some(Knob::Quantization),
         // The white level refitted with a readout filter: found about the
         // original model's Monte-Carlo mean less its white share, whose noise
         // the filter's attenuation of the fine levels amplifies (the ARW of a
@@ -402,6 +414,7 @@ fn edit_value(e: &Edit) -> f64 {
     match e {
         Edit::Quantization(v) | Edit::Arw(v) | Edit::BiasInstability(v) | Edit::Rrw(v) => *v,
         Edit::ReadoutFilter { arw_dpsh, .. } => *arw_dpsh,
+        Edit::QuantizationBesideFilter { q_arcsec, .. } => *q_arcsec,
         _ => f64::NAN,
     }
 }

@@ -19,8 +19,9 @@
 //! ([`fit_shape`]). Which candidates are fitted, and how one is chosen, is
 //! the business of [`super::candidates`] and [`super::broadband`].
 
+use std::collections::HashMap;
 use std::f64::consts::PI;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use super::lowfreq::{LfLayout, LfWindows};
 use crate::model::filter::ReadoutFilter;
@@ -64,6 +65,23 @@ pub struct Basis {
     rrw: Vec<f64>,
     /// The low-frequency periodogram rows after the levels, when present.
     lf: Option<Arc<LfWindows>>,
+    /// [`Basis::filtered_white_rate`] by filter (the readout searches fit the
+    /// same filters again and again; clones share it).
+    filtered: Arc<Mutex<HashMap<FilterKey, Arc<Vec<f64>>>>>,
+}
+
+/// Filters memoised per basis at most (then the memo starts again).
+const FILTER_MEMO: usize = 4096;
+
+/// A readout filter as a memo key (its kind and parameter's bits).
+type FilterKey = (u8, u64);
+
+fn filter_key(f: Option<ReadoutFilter>) -> FilterKey {
+    match f {
+        None => (0, 0),
+        Some(ReadoutFilter::MovingAverage { length }) => (1, u64::from(length)),
+        Some(ReadoutFilter::FirstOrder { pole }) => (2, pole.to_bits()),
+    }
 }
 
 impl Basis {
@@ -95,6 +113,7 @@ impl Basis {
             white_rate: col(1),
             rrw: col(2),
             lf: None,
+            filtered: Arc::default(),
         }
     }
 
@@ -109,6 +128,7 @@ impl Basis {
         self.white_rate.extend(win.term(SpectralTerm::WhiteRate));
         self.rrw.extend(win.term(SpectralTerm::RateRandomWalk));
         self.lf = Some(Arc::new(win));
+        self.filtered = Arc::default();
         self
     }
 
@@ -152,6 +172,26 @@ impl Basis {
     /// [`SpectralTerm::FilteredWhiteRate`]): both sides of a change of
     /// filter computed alike, so an unchanged filter changes nothing.
     pub fn filtered_white_rate(&self, filter: Option<ReadoutFilter>) -> Vec<f64> {
+        let key = filter_key(filter);
+        let memo = |m: &Mutex<HashMap<FilterKey, Arc<Vec<f64>>>>| {
+            m.lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .get(&key)
+                .cloned()
+        };
+        if let Some(v) = memo(&self.filtered) {
+            return v.to_vec();
+        }
+        let v = self.filtered_white_rate_uncached(filter);
+        let mut m = self.filtered.lock().unwrap_or_else(|p| p.into_inner());
+        if m.len() >= FILTER_MEMO {
+            m.clear();
+        }
+        m.insert(key, Arc::new(v.clone()));
+        v
+    }
+
+    fn filtered_white_rate_uncached(&self, filter: Option<ReadoutFilter>) -> Vec<f64> {
         let t = match filter {
             Some(filter) => SpectralTerm::FilteredWhiteRate { filter },
             None => SpectralTerm::WhiteRate,
