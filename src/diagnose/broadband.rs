@@ -193,7 +193,9 @@ pub(crate) fn region_text(regions: &[Region]) -> String {
         .join(", ")
 }
 
-/// The broadband stage: greedy selection of up to three catalog changes.
+/// The broadband stage: greedy selection of up to three catalog changes
+/// (`joint_readout`: the readout filter with the white angle noise after it
+/// among the candidates).
 /// Returns the findings, each flagged when it is a new Gauss-Markov term
 /// (to be tested against a random telegraph; only the first one is).
 pub(crate) fn fit(
@@ -201,6 +203,7 @@ pub(crate) fn fit(
     basis: &Basis,
     r: &Reference,
     regions: &[Region],
+    joint_readout: bool,
 ) -> Vec<(Finding, bool)> {
     let model = &r.model;
     let dur = r.duration_s();
@@ -239,7 +242,7 @@ pub(crate) fn fit(
                 finding,
             });
         }
-        let joint = readout::offered(model)
+        let joint = (joint_readout && readout::offered(model))
             .then(|| filter_with_white_angle(&ctx, model))
             .flatten()
             .map(|(cand, q)| {

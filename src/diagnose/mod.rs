@@ -447,10 +447,44 @@ struct Pass {
 impl Explain<'_> {
     /// Phases 4-6 from the given findings (the lines', and a resonance's) on
     /// `data0` (the wavelet data with what those findings explain in it).
+    /// When the broadband stage took a readout filter with the white angle
+    /// noise after it (a choice made on the wavelet variances alone, about
+    /// the model's long-tau terms), the phases run again without that
+    /// candidate, and the explanation whose updated model fits the recording
+    /// better (chi2/dof over every statistic) is kept.
     fn run(
+        &self,
+        findings: Vec<Finding>,
+        data0: Option<wvar_fit::LevelData>,
+    ) -> Result<Pass, DiagnoseError> {
+        let with = self.run_with(findings.clone(), data0.clone(), true)?;
+        let joint = |p: &Pass| {
+            p.findings
+                .iter()
+                .any(|f| matches!(f.edit, findings::Edit::QuantizationBesideFilter { .. }))
+        };
+        if !joint(&with) {
+            return Ok(with);
+        }
+        let mut without = self.run_with(findings, data0, false)?;
+        if with.refined.chi2_after <= without.refined.chi2_after {
+            return Ok(with);
+        }
+        without.notes.push(format!(
+            "The readout filter fitted with the white angle noise after it fitted the recording worse \
+             (chi2/dof {} against {} with the filter alone): not kept.",
+            findings::fmt_g(with.refined.chi2_after),
+            findings::fmt_g(without.refined.chi2_after)
+        ));
+        Ok(without)
+    }
+
+    /// [`Explain::run`] with or without the filter-with-Q candidate.
+    fn run_with(
         &self,
         mut findings: Vec<Finding>,
         data0: Option<wvar_fit::LevelData>,
+        joint_readout: bool,
     ) -> Result<Pass, DiagnoseError> {
         let (r, located) = (self.r, self.located);
         let mut notes = Vec::new();
@@ -464,7 +498,7 @@ impl Explain<'_> {
         if (!self.regions.is_empty() || self.lr_detected)
             && let Some(d0) = &data0
         {
-            for (f, is_new_gm) in broadband::fit(d0, self.basis, r, self.regions) {
+            for (f, is_new_gm) in broadband::fit(d0, self.basis, r, self.regions, joint_readout) {
                 if is_new_gm {
                     telegraph_pending = Some(findings.len());
                 }
