@@ -555,7 +555,8 @@ fn a_rate_column_is_read_with_column_and_unit_and_its_filter_named() {
 /// The ADIS16405's z gyro carries narrowband noise near 20 Hz (13-20 times the
 /// white PSD, 1-2 Hz wide; `scripts/real-spectrum`), its x gyro none: the
 /// diagnosis fits a resonance on the z axis (not a line, not a filter bent to
-/// imitate it), and the fit improves; on the x axis it adds none.
+/// imitate it), and the fit improves; on the x axis it adds none, and names
+/// the readout (a 2-sample average with white angle noise after it).
 #[test]
 fn the_adis_z_resonance_is_fitted_and_the_fit_improves() {
     let Some(data) = common::shared_data() else {
@@ -604,6 +605,27 @@ fn the_adis_z_resonance_is_fitted_and_the_fit_improves() {
             "axis {axis}: {out}"
         );
         if res.is_empty() {
+            // x: the readout, a 2-sample average with about 5 arcsec of white
+            // angle noise after it, fitted together (docs/diagnose.md), and
+            // an updated model that fits (chi2/dof 512 -> 1.2)
+            let f = j["added_terms"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|a| a["term"] == "readout_filter");
+            let f = f.unwrap_or_else(|| panic!("axis {axis}: no readout_filter: {out}"));
+            assert_eq!(f["params"]["kind"], "moving_average", "{f}");
+            assert_eq!(num(&f["params"]["length"]), 2.0, "{f}");
+            let q = j["parameter_changes"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|c| c["term"] == "quantization_arcsec");
+            let q =
+                num(&q.unwrap_or_else(|| panic!("axis {axis}: Q not refitted: {out}"))["fitted"]);
+            assert!((4.5..5.6).contains(&q), "axis {axis}: Q {q}");
+            let after = j["fit_after"]["chi2_per_dof"].as_f64().unwrap();
+            assert!(after < 2.0, "axis {axis}: chi2/dof after {after}");
             continue;
         }
         // The Welch spectrum of run 1 z peaks at 19.80 Hz, half power over
