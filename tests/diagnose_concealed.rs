@@ -13,11 +13,13 @@
 //! added. `bench_table` (ignored; `scripts/bench-diagnose` runs it) prints the
 //! table of all cases.
 
+mod common;
+
 use std::time::Instant;
 
 use sagnac::diagnose::compare::{Family, bonferroni_z};
-use sagnac::diagnose::{self, DiagnoseOptions, Diagnosis, Recording, Verdict};
-use sagnac::model::{GyroModel, Simulator};
+use sagnac::diagnose::{self, DiagnoseOptions, Diagnosis, Verdict};
+use sagnac::model::GyroModel;
 
 /// What the diagnosis must find.
 #[derive(Debug, Clone, Copy)]
@@ -213,20 +215,6 @@ fn cases() -> Vec<Case> {
     ]
 }
 
-fn simulate(model: &GyroModel, seed: u64, dur_s: f64) -> Recording {
-    let mut sim = Simulator::new(model, seed, Some(dur_s)).unwrap();
-    let mut counts = Vec::new();
-    let mut temp = Vec::new();
-    sim.next_block_with_temp(usize::MAX >> 1, &mut counts, &mut temp);
-    Recording {
-        counts,
-        temp_c: (!temp.is_empty()).then_some(temp),
-        sample_rate_hz: model.gyro.sample_rate_hz,
-        pulse_arcsec: model.gyro.pulse_weight_arcsec,
-        output: Default::default(),
-    }
-}
-
 struct Outcome {
     diag: Diagnosis,
     raw_threshold: f64,
@@ -236,7 +224,7 @@ struct Outcome {
 fn run(case: &Case) -> Outcome {
     let model = GyroModel::from_toml_str(&case.model, case.name).unwrap();
     let truth = GyroModel::from_toml_str(&case.truth, case.name).unwrap();
-    let rec = simulate(&truth, case.seed, case.dur_s);
+    let rec = common::simulated_recording(&truth, case.seed, case.dur_s);
     let t = Instant::now();
     let diag = diagnose::diagnose(&model, &rec, &DiagnoseOptions::default()).unwrap();
     let secs = t.elapsed().as_secs_f64();

@@ -2,9 +2,11 @@
 //! (`diagnose::line_search`): located to the Fisher bound, intervals that
 //! cover, and no lines on matched recordings.
 
+mod common;
+
+use sagnac::diagnose;
 use sagnac::diagnose::line_search::SearchParams;
-use sagnac::diagnose::{self, Recording};
-use sagnac::model::{GyroModel, Simulator};
+use sagnac::model::GyroModel;
 
 /// The issue's gyro: pulse 1.21", dither residual 0.5" (Q = sqrt(d^2/12 + 0.5^2)),
 /// Earth-rate input, ARW 0.002 deg/sqrt(h), BI 0.003 deg/h, plus `extra`.
@@ -19,19 +21,6 @@ fn gyro(fs: f64, extra: &str) -> GyroModel {
 
 fn sine(amp_dph: f64, period_s: f64) -> String {
     format!("[[noise.sinusoid]]\namplitude_dph = {amp_dph}\nperiod_s = {period_s}\n")
-}
-
-fn simulate(m: &GyroModel, seed: u64, dur_s: f64) -> Recording {
-    let mut sim = Simulator::new(m, seed, Some(dur_s)).unwrap();
-    let mut counts = Vec::new();
-    sim.next_block(usize::MAX >> 1, &mut counts);
-    Recording {
-        counts,
-        temp_c: None,
-        sample_rate_hz: m.gyro.sample_rate_hz,
-        pulse_arcsec: m.gyro.pulse_weight_arcsec,
-        output: Default::default(),
-    }
 }
 
 /// The paper's gyro as in `config/paper_gyro.toml` (Q 0.35: the counter's
@@ -64,7 +53,7 @@ fn coverage(
         });
     let (mut cp, mut ca, mut det) = (0, 0, 0);
     for s in 0..seeds {
-        let rec = simulate(&truth, base + s, dur);
+        let rec = common::simulated_recording(&truth, base + s, dur);
         let scan = diagnose::line_scan(model, &rec, &SearchParams::default());
         let Some((_, f)) = scan
             .lines
@@ -90,7 +79,7 @@ fn null_alarms(model: &GyroModel, dur: f64, seeds: u64, base: u64, alpha: f64) -
     };
     (0..seeds)
         .filter(|s| {
-            let rec = simulate(model, base + s, dur);
+            let rec = common::simulated_recording(model, base + s, dur);
             let scan = diagnose::line_scan(model, &rec, &params);
             if let Some((d, _)) = scan.lines.first() {
                 eprintln!(
@@ -161,7 +150,7 @@ fn bench_coverage_and_false_alarms() {
 fn issue_14_forty_second_line_is_located_to_well_under_one_percent() {
     let model = gyro(1000.0, "");
     let truth = gyro(1000.0, &sine(0.03, 40.0));
-    let rec = simulate(&truth, 1, 3600.0);
+    let rec = common::simulated_recording(&truth, 1, 3600.0);
     let d = diagnose::diagnose(&model, &rec, &diagnose::DiagnoseOptions::default()).unwrap();
     let r = &d.report;
     eprintln!("{}", serde_json::to_string_pretty(r).unwrap());
@@ -217,7 +206,7 @@ fn covers(ci: [f64; 2], v: f64) -> bool {
 fn short_period_line_under_quantization_is_found() {
     let model = gyro(1000.0, "");
     let truth = gyro(1000.0, &sine(0.12, 0.5));
-    let rec = simulate(&truth, 3, 1200.0);
+    let rec = common::simulated_recording(&truth, 3, 1200.0);
     let scan = diagnose::line_scan(&model, &rec, &SearchParams::default());
     assert_eq!(scan.lines.len(), 1, "{:?}", scan.lines);
     let f = scan.lines[0].1;

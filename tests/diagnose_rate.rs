@@ -7,6 +7,8 @@
 //! error that says so; a filter with white angle noise after it is named
 //! with both (the filter and Q fitted together).
 
+mod common;
+
 use sagnac::diagnose::{self, DiagnoseError, DiagnoseOptions, Recording, Verdict};
 use sagnac::model::{GyroModel, Simulator};
 
@@ -19,13 +21,6 @@ fn model(filter: &str) -> GyroModel {
          [noise]\narw_dpsh = 0.5\nbias_instability_dph = 5.0\n{filter}"
     );
     GyroModel::from_toml_str(&text, "rate test").unwrap()
-}
-
-fn simulate(m: &GyroModel, seed: u64, dur_s: f64) -> Recording {
-    let mut sim = Simulator::new(m, seed, Some(dur_s)).unwrap();
-    let (mut rates, mut temp) = (Vec::new(), Vec::new());
-    sim.next_block_rates(usize::MAX >> 1, &mut rates, &mut temp);
-    Recording::from_rates(&rates, None, m.gyro.sample_rate_hz, m.gyro.rate_lsb_dps).unwrap()
 }
 
 const DUR_S: f64 = 1200.0;
@@ -54,7 +49,7 @@ fn named_filter(d: &diagnose::Diagnosis) -> Option<(String, f64, [f64; 2], Optio
 
 fn check_named(truth_filter: &str, kind: &str, corner_hz: f64, seed: u64) {
     let truth = model(truth_filter);
-    let rec = simulate(&truth, seed, DUR_S);
+    let rec = common::simulated_recording(&truth, seed, DUR_S);
     assert_eq!(rec.rate_quantum_dps(), 0.01, "the words are the LSB counts");
     let d = diagnose::diagnose(&model(""), &rec, &opts(seed + 100)).unwrap();
     let r = &d.report;
@@ -146,7 +141,7 @@ fn a_filter_with_white_angle_noise_after_it_is_named_with_both() {
     );
     let mut covered = [0usize; 2];
     for seed in [41u64, 42, 43] {
-        let rec = simulate(&truth, seed, DUR_S);
+        let rec = common::simulated_recording(&truth, seed, DUR_S);
         let d = diagnose::diagnose(&model(""), &rec, &opts(seed + 100)).unwrap();
         let r = &d.report;
         eprintln!(
@@ -195,7 +190,7 @@ fn a_matched_rate_output_model_raises_no_alarm() {
     let m = model("[readout_filter]\nkind = \"first_order\"\ncorner_hz = 15.0\n");
     let mut alarms = Vec::new();
     for seed in 0..5u64 {
-        let rec = simulate(&m, 500 + seed, DUR_S);
+        let rec = common::simulated_recording(&m, 500 + seed, DUR_S);
         let d = diagnose::diagnose(&m, &rec, &opts(900 + seed)).unwrap();
         if d.report.verdict != Verdict::Consistent {
             alarms.push((seed, d.notes.clone()));
@@ -225,7 +220,7 @@ fn a_counts_recording_against_a_rate_model_is_refused() {
     assert!(matches!(e, DiagnoseError::OutputMismatch { .. }), "{e}");
     assert!(e.to_string().contains("rate recording"), "{e}");
     // and a rate recording against a counter
-    let rate_rec = simulate(&model(""), 2, 60.0);
+    let rate_rec = common::simulated_recording(&model(""), 2, 60.0);
     let e = diagnose::diagnose(&counts_model, &rate_rec, &opts(1)).unwrap_err();
     assert!(matches!(e, DiagnoseError::OutputMismatch { .. }), "{e}");
 }
@@ -326,7 +321,7 @@ fn bench_corner_coverage() {
         let (mut named, mut right_kind, mut corner_in, mut arw_in) = (0, 0, 0, 0);
         let mut widths = Vec::new();
         for s in 0..seeds {
-            let rec = simulate(&truth, 3000 + 17 * s, dur);
+            let rec = common::simulated_recording(&truth, 3000 + 17 * s, dur);
             let d = diagnose::diagnose(&model, &rec, &opts(5000 + 13 * s)).unwrap();
             let Some((k, _, ci, _)) = named_filter(&d) else {
                 continue;

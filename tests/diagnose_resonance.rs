@@ -9,8 +9,10 @@
 //! leaves a white tail that looks like angle random walk: the mode is named,
 //! and the ARW is not changed (or, if changed, its interval holds the truth).
 
-use sagnac::diagnose::{self, DiagnoseOptions, Recording, Verdict};
-use sagnac::model::{GyroModel, Simulator};
+mod common;
+
+use sagnac::diagnose::{self, DiagnoseOptions, Verdict};
+use sagnac::model::GyroModel;
 
 const RESONANCE: (f64, f64, f64) = (1200.0, 19.0, 1.5);
 
@@ -29,15 +31,8 @@ fn with_resonance(filter: &str) -> GyroModel {
     ))
 }
 
-fn simulate(m: &GyroModel, seed: u64, dur_s: f64) -> Recording {
-    let mut sim = Simulator::new(m, seed, Some(dur_s)).unwrap();
-    let (mut rates, mut temp) = (Vec::new(), Vec::new());
-    sim.next_block_rates(usize::MAX >> 1, &mut rates, &mut temp);
-    Recording::from_rates(&rates, None, m.gyro.sample_rate_hz, m.gyro.rate_lsb_dps).unwrap()
-}
-
 fn check(truth: &GyroModel, under_test: &GyroModel, seed: u64) {
-    let rec = simulate(truth, seed, 3600.0);
+    let rec = common::simulated_recording(truth, seed, 3600.0);
     let opts = DiagnoseOptions {
         seed: seed + 1000,
         ..DiagnoseOptions::default()
@@ -115,16 +110,7 @@ fn a_resonance_under_the_quantization_noise_is_named_and_the_arw_kept() {
         "[[noise.resonance]]\nsigma_dph = {s}\ncentre_hz = {f0}\nwidth_hz = {w}\n"
     ));
     for seed in [3, 11] {
-        let mut sim = Simulator::new(&truth, seed, Some(1200.0)).unwrap();
-        let mut counts = Vec::new();
-        sim.next_block(usize::MAX >> 1, &mut counts);
-        let rec = Recording {
-            counts,
-            temp_c: None,
-            sample_rate_hz: 1000.0,
-            pulse_arcsec: 1.21,
-            output: Default::default(),
-        };
+        let rec = common::simulated_recording(&truth, seed, 1200.0);
         let opts = DiagnoseOptions {
             seed: seed + 1000,
             ..DiagnoseOptions::default()

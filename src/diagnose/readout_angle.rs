@@ -77,14 +77,7 @@ pub fn fit(
         for (d, p) in ff.fit.delta_mu.iter_mut().zip(&phi) {
             *d += (q - q2) * p;
         }
-        ff.fit.loglik = data.loglik(
-            &data
-                .e0
-                .iter()
-                .zip(&ff.fit.delta_mu)
-                .map(|(e, d)| e + d)
-                .collect::<Vec<_>>(),
-        );
+        // the log-likelihood is unchanged: the expectations e0 + delta_mu are the same
         ff.fit.n_par = 3;
         Some(ff)
     };
@@ -108,12 +101,15 @@ pub fn fit(
         grid[ib.saturating_sub(1)].ln(),
         grid[(ib + 1).min(grid.len() - 1)].ln(),
     );
-    let mut best_q = golden_max(&lq, a, b, 20).exp();
-    if ll(best_q) < vals[ib] {
-        best_q = grid[ib];
-    }
+    let golden = golden_max(&lq, a, b, 20).exp();
+    let l_golden = ll(golden);
+    let (best_q, l_best) = if l_golden < vals[ib] {
+        (grid[ib], vals[ib])
+    } else {
+        (golden, l_golden)
+    };
     let best = at(best_q)?;
-    let l_max = ll(best_q).max(best.fit.loglik);
+    let l_max = l_best.max(best.fit.loglik);
     // no better than the current Q^2 (the plain filter candidate) by a nat: not a joint fit
     if !(l_max > ll(q2.max(q2_floor)) + 0.5) {
         return None;
