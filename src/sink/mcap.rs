@@ -32,7 +32,7 @@
 
 use std::collections::BTreeMap;
 use std::fs::{File, OpenOptions};
-use std::io::{self, BufWriter, Seek, SeekFrom, Write};
+use std::io::{self, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -224,33 +224,95 @@ fn civil_from_days(days: u64) -> (u64, u64, u64) {
     (year, month, day)
 }
 
-/// A `File` that publishes its size (the highest position written) to a shared counter.
-struct CountingFile {
+/// The recording file, buffered: a `File` that publishes its size (the highest
+/// position written to the OS) to a shared counter.
+///
+/// Unlike `BufWriter`, asking for the position (`stream_position`, which the
+/// `mcap` writer does around every record it indexes) neither flushes the
+/// buffer nor makes a system call: the position is tracked here. Any other
+/// seek (the writer goes back to each chunk's header to fill it in) and
+/// `flush` write the buffer out first. A closed chunk thus costs two writes and
+/// two seeks instead of one small write per record.
+struct RecordFile {
     file: File,
+    /// Bytes written but not yet handed to the OS; they start at `pos - buf.len()`.
+    buf: Vec<u8>,
+    /// Position of the next byte written (the buffer's end).
     pos: u64,
+    /// Highest position handed to the OS.
     len: u64,
     shared: Arc<AtomicU64>,
 }
 
-impl Write for CountingFile {
-    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        let n = self.file.write(buf)?;
-        self.pos += n as u64;
-        if self.pos > self.len {
-            self.len = self.pos;
-            self.shared.store(self.len, Ordering::Relaxed);
+impl RecordFile {
+    /// Buffer size: larger than a typical compressed chunk, so a chunk reaches
+    /// the OS in one write.
+    const BUFFER: usize = 256 * 1024;
+
+    fn new(file: File, shared: Arc<AtomicU64>) -> RecordFile {
+        RecordFile {
+            file,
+            buf: Vec::with_capacity(Self::BUFFER),
+            pos: 0,
+            len: 0,
+            shared,
         }
-        Ok(n)
+    }
+
+    /// Hand `data`, which ends at position `end`, to the OS.
+    fn write_out(&mut self, data: &[u8], end: u64) -> io::Result<()> {
+        self.file.write_all(data)?;
+        if end > self.len {
+            self.len = end;
+            self.shared.store(end, Ordering::Relaxed);
+        }
+        Ok(())
+    }
+
+    fn flush_buf(&mut self) -> io::Result<()> {
+        if self.buf.is_empty() {
+            return Ok(());
+        }
+        let mut buf = std::mem::take(&mut self.buf);
+        let result = self.write_out(&buf, self.pos);
+        // After an error the recorder stops: what was buffered is dropped either way.
+        buf.clear();
+        self.buf = buf;
+        result
+    }
+}
+
+impl Write for RecordFile {
+    fn write(&mut self, data: &[u8]) -> io::Result<usize> {
+        if self.buf.len() + data.len() > Self::BUFFER {
+            self.flush_buf()?;
+        }
+        if data.len() >= Self::BUFFER {
+            self.write_out(data, self.pos + data.len() as u64)?;
+        } else {
+            self.buf.extend_from_slice(data);
+        }
+        self.pos += data.len() as u64;
+        Ok(data.len())
     }
 
     fn flush(&mut self) -> io::Result<()> {
+        self.flush_buf()?;
         self.file.flush()
     }
 }
 
-impl Seek for CountingFile {
+impl Seek for RecordFile {
     fn seek(&mut self, to: SeekFrom) -> io::Result<u64> {
+        if to == SeekFrom::Current(0) {
+            return Ok(self.pos);
+        }
+        self.flush_buf()?;
         self.pos = self.file.seek(to)?;
+        Ok(self.pos)
+    }
+
+    fn stream_position(&mut self) -> io::Result<u64> {
         Ok(self.pos)
     }
 }
@@ -469,12 +531,7 @@ impl Recorder {
         })?;
         let (path, file) = create_unique(dir, &recording_file_name(start)?)?;
         let bytes = Arc::new(AtomicU64::new(0));
-        let counting = CountingFile {
-            file,
-            pos: 0,
-            len: 0,
-            shared: Arc::clone(&bytes),
-        };
+        let file = RecordFile::new(file, Arc::clone(&bytes));
         let options = ::mcap::WriteOptions::new()
             .compression(Some(::mcap::Compression::Zstd))
             .compression_level(config.zstd_level)
@@ -488,7 +545,7 @@ impl Recorder {
             source,
         };
         let mut writer = options
-            .create(BufWriter::new(counting))
+            .create(file)
             .map_err(|e| mcap_err("writing the header", e))?;
         // The recording's description first, where a reader finds it at once.
         if let Some(meta) = metadata {
@@ -679,7 +736,7 @@ struct ChannelState {
 }
 
 struct Worker {
-    writer: ::mcap::Writer<BufWriter<CountingFile>>,
+    writer: ::mcap::Writer<RecordFile>,
     /// (gyro index, topic) -> its channel.
     channels: BTreeMap<(Option<u16>, Topic), ChannelState>,
     path: Arc<PathBuf>,
@@ -805,7 +862,7 @@ impl Worker {
             .finish()
             .map_err(|e| self.mcap_err("writing the summary (finish)", e))?;
         self.flushes += 1;
-        // finish() leaves the summary and end magic in the BufWriter: push them to
+        // finish() may leave the summary and end magic in the file's buffer: push them to
         // the OS and to the disk, and surface any error here (Drop would swallow it).
         let io_err = |e: io::Error, action| RecordError::Mcap {
             path: self.path.to_path_buf(),
@@ -813,13 +870,10 @@ impl Worker {
             bytes: self.bytes.load(Ordering::Relaxed),
             source: e.into(),
         };
-        let counting = self
-            .writer
-            .into_inner()
-            .into_inner()
-            .map_err(|e| io_err(e.into_error(), "flushing the file after finish"))?;
-        counting
-            .file
+        let mut file = self.writer.into_inner();
+        file.flush()
+            .map_err(|e| io_err(e, "flushing the file after finish"))?;
+        file.file
             .sync_all()
             .map_err(|e| io_err(e, "syncing the file after finish"))?;
         Ok(RecordingSummary {
@@ -829,7 +883,7 @@ impl Worker {
                 .into_values()
                 .map(|c| (c.name, c.count))
                 .collect(),
-            bytes: counting.len,
+            bytes: file.len,
             flushes: self.flushes,
         })
     }
