@@ -11,6 +11,7 @@ use rand_distr::{Distribution, StandardNormal};
 use sagnac::diagnose::compare::{gamma_z, nu_from_log_var, sd_log_chi2, trigamma};
 use sagnac::diagnose::mc::{self, McJob};
 use sagnac::diagnose::stats::{self, StatLayout, Welch};
+use sagnac::diagnose::two_level::TwoLevelProbe;
 use sagnac::diagnose::wvar_fit::Basis;
 use sagnac::model::GyroModel;
 use sagnac::model::wvar::{LevelBasis, SpectralTerm};
@@ -259,6 +260,10 @@ fn monte_carlo_reference_does_not_depend_on_threads() {
         threads: 1,
         full: true,
         sine_probes: &[],
+        two_level: Some(TwoLevelProbe {
+            amp: 0.5,
+            mean_dwell_s: 4.0,
+        }),
         phase: "test runs",
         progress: &progress,
     };
@@ -270,10 +275,9 @@ fn monte_carlo_reference_does_not_depend_on_threads() {
     let three = mc::run(&McJob { threads: 3, ..job }, &seeds).unwrap();
     assert_eq!(one, two);
     assert_eq!(one, three);
-    assert!(
-        one.iter()
-            .all(|s| s.wvar.len() == layout.levels.len() && s.kurtosis.len() == 1)
-    );
+    assert!(one.iter().all(|s| s.wvar.len() == layout.levels.len()
+        && s.kurtosis.len() == 1
+        && s.two_level_llr.is_finite()));
 }
 
 /// The sinusoid's frequency interval (f +- 1.96 f_sd from `refine_sine`) covers

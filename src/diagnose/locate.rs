@@ -131,6 +131,7 @@ pub fn mean_stats(runs: &[StatSet]) -> StatSet {
         kurtosis: avg(&|s| &s.kurtosis),
         sines: Vec::new(),
         lf_psd: avg(&|s| &s.lf_psd),
+        two_level_llr: runs.iter().map(|s| s.two_level_llr).sum::<f64>() / r,
     }
 }
 

@@ -12,6 +12,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
 use super::stats::{self, StatLayout, StatSet};
+use super::two_level::TwoLevelProbe;
 use crate::model::config::OutputKind;
 use crate::model::{GyroModel, ModelError, Simulator};
 use crate::units;
@@ -63,6 +64,8 @@ pub struct McJob<'a> {
     pub full: bool,
     /// Lines to re-estimate in each run: `(f0 Hz, search half-width Hz)`.
     pub sine_probes: &'a [(f64, f64)],
+    /// A term to evaluate the two-level likelihood ratio for, in each run.
+    pub two_level: Option<TwoLevelProbe>,
     /// What the runs are for, and whom to tell of each one done.
     pub phase: &'static str,
     pub progress: &'a Progress,
@@ -134,7 +137,7 @@ fn one_run(job: &McJob, seed: u64) -> Result<StatSet, ModelError> {
     }
     // duration rounding can in principle differ by one sample: pad or cut
     counts.resize(n, counts.last().copied().unwrap_or(0));
-    if job.full {
+    let mut s = if job.full {
         let mut s = stats::compute(job.layout, &counts, job.temp_c, job.lp_cutoffs_hz);
         if !job.sine_probes.is_empty() {
             let x = stats::centred_rate(&counts, job.layout.pulse_arcsec, fs);
@@ -148,18 +151,26 @@ fn one_run(job: &McJob, seed: u64) -> Result<StatSet, ModelError> {
                 })
                 .collect();
         }
-        Ok(s)
+        s
     } else {
         let rate = stats::counts_to_rate(&counts, job.layout.pulse_arcsec, fs);
-        Ok(StatSet {
+        StatSet {
             kurtosis: job
                 .lp_cutoffs_hz
                 .iter()
                 .map(|&fc| stats::lowpass_kurtosis(&rate, 1.0 / fs, fc, &job.layout.lo))
                 .collect(),
             ..StatSet::default()
-        })
-    }
+        }
+    };
+    s.two_level_llr = match job.two_level {
+        Some(p) => {
+            let rate = stats::counts_to_rate(&counts, job.layout.pulse_arcsec, fs);
+            p.llr(&rate, 1.0 / fs, &job.layout.lo)
+        }
+        None => f64::NAN,
+    };
+    Ok(s)
 }
 
 /// `n` rate words of a rate-output simulator in the recording's quantum

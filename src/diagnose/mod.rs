@@ -69,6 +69,7 @@ pub mod slopes;
 pub mod stats;
 pub mod svg;
 pub mod telegraph;
+pub mod two_level;
 pub mod wvar_fit;
 
 use self::compare::{LineHit, Point};
@@ -251,9 +252,9 @@ pub enum DiagnoseError {
 /// The random-telegraph versus Gauss-Markov distribution test.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TelegraphTest {
-    /// Low-pass cut-off, Hz.
-    pub cutoff_hz: f64,
-    /// Excess kurtosis of the recording's low-passed rate.
+    /// Block length of the two-level likelihood ratio, s.
+    pub block_s: f64,
+    /// The recording's two-level log likelihood ratio.
     pub observed: f64,
     /// Mean and sd over the Gauss-Markov model's runs.
     pub gauss_markov: (f64, f64),

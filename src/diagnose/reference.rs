@@ -121,6 +121,7 @@ impl Reference {
             threads,
             full: true,
             sine_probes: &[],
+            two_level: None,
             phase: "simulating the model",
             progress,
         };
@@ -154,6 +155,7 @@ impl Reference {
             threads: self.threads,
             full: true,
             sine_probes: &[],
+            two_level: None,
             phase: "simulating a candidate",
             progress: &self.progress,
         }

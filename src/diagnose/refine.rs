@@ -85,28 +85,24 @@ pub(crate) fn refine(
     let seeds_after: Vec<u64> = (0..opts.runs_after as u64)
         .map(|k| opts.seed.wrapping_add(1_000_003).wrapping_add(k))
         .collect();
-    let mut cutoffs = r.cutoffs_hz.clone();
+    let cutoffs = &r.cutoffs_hz;
     let alt = telegraph_pending
         .and_then(|fi| telegraph_alternative(&r.model, findings, fi).map(|a| (fi, a)));
-    if let Some((_, (_, fc))) = &alt {
-        cutoffs.push(*fc);
-    }
     let mut model = with_findings(&r.model, findings);
     let mut runs = mc::run(
-        &r.job(&model, temp, &cutoffs)
+        &r.job(&model, temp, cutoffs)
             .phase("simulating the updated model"),
         &seeds_after,
     )?;
     let mut telegraph_test = None;
-    if let Some((fi, (alt_model, _))) = &alt {
+    if let Some((fi, (alt_model, probe))) = &alt {
         let out = telegraph::test_new_gauss_markov(
             r,
             rec,
             findings,
             *fi,
-            alt_model,
-            &cutoffs,
-            &runs,
+            (alt_model, *probe),
+            cutoffs,
             &seeds_after,
         )?;
         telegraph_test = Some(out.test);
@@ -133,7 +129,7 @@ pub(crate) fn refine(
             findings,
             round,
             &seeds_after,
-            &cutoffs,
+            cutoffs,
             temp,
             notes,
         )? {
@@ -147,7 +143,7 @@ pub(crate) fn refine(
         findings,
         regions,
         &seeds_after,
-        &cutoffs,
+        cutoffs,
         temp,
         notes,
     )?;
@@ -353,11 +349,10 @@ impl Refit {
                 arw_profile_widen: (wl, wh),
                 ..
             } => {
-                let v = self.value;
-                ci95 = [v - wl * (v - ci95[0]), v + wh * (ci95[1] - v)];
+                ci95 = widened(self.value, ci95, (*wl, *wh));
                 Edit::ReadoutFilter {
                     params: params.clone(),
-                    arw_dpsh: v,
+                    arw_dpsh: self.value,
                     arw_profile_widen: (*wl, *wh),
                 }
             }
@@ -366,10 +361,10 @@ impl Refit {
                 profile_widen: (wl, wh),
                 ..
             } => {
-                let v = self.value;
-                ci95 = [(v - wl * (v - ci95[0])).max(0.0), v + wh * (ci95[1] - v)];
+                ci95 = widened(self.value, ci95, (*wl, *wh));
+                ci95[0] = ci95[0].max(0.0);
                 Edit::QuantizationBesideFilter {
-                    q_arcsec: v,
+                    q_arcsec: self.value,
                     profile_widen: (*wl, *wh),
                 }
             }
@@ -394,6 +389,12 @@ impl Refit {
             fmt_g(self.value)
         ));
     }
+}
+
+/// `ci95` about `v` with each side stretched by its profile-widening factor
+/// (a refitted value whose interval carries a trade-off with another parameter).
+fn widened(v: f64, ci95: [f64; 2], (wl, wh): (f64, f64)) -> [f64; 2] {
+    [v - wl * (v - ci95[0]), v + wh * (ci95[1] - v)]
 }
 
 fn knob_of(e: &Edit) -> Option<Knob> {

@@ -434,6 +434,9 @@ pub struct StatSet {
     pub sines: Vec<(f64, f64)>,
     /// Band means of the low-frequency periodogram, (arcsec/s)^2/Hz.
     pub lf_psd: Vec<f64>,
+    /// Two-level likelihood ratio for the job's probe
+    /// ([`super::two_level::TwoLevelProbe::llr`]); NaN without one.
+    pub two_level_llr: f64,
 }
 
 /// Rate in arcsec/s from pulse increments.
@@ -506,6 +509,7 @@ pub fn compute(
         kurtosis,
         sines: Vec::new(),
         lf_psd: layout.lf.psd(&rate),
+        two_level_llr: f64::NAN,
     }
 }
 

@@ -12,8 +12,10 @@
 //!   twin, refitted on the wavelet variances.
 //! * [`test_new_gauss_markov`] (phase 6, when the updated model is simulated):
 //!   a Gauss-Markov term the broadband fit added is tested against a
-//!   telegraph with the same spectrum, and replaced only when the kurtosis
-//!   rejects the Gaussian term (one-sided, 1 %; [`ALPHA_TELEGRAPH`]).
+//!   telegraph with the same spectrum by the two-level likelihood ratio
+//!   ([`super::two_level`]), the most powerful statistic for that pair, and
+//!   replaced only when it rejects the Gaussian term (one-sided, 1 %;
+//!   [`ALPHA_TELEGRAPH`]).
 
 use std::collections::BTreeMap;
 
@@ -24,9 +26,11 @@ use super::findings::{Edit, Finding, fmt_g, sqrt_ci, with_findings};
 use super::locate::{KTerm, Located};
 use super::reference::Reference;
 use super::stats::{self, StatSet};
+use super::two_level::TwoLevelProbe;
 use super::wvar_fit::{self, Basis, LevelData};
 use super::{AddedTerm, DiagnoseError, ParameterChange, Recording, TelegraphTest, mc};
 use crate::model::{GyroModel, Term};
+use crate::units;
 
 /// Findings from the kurtosis points of the model's Gauss-Markov and telegraph
 /// terms that pass the detection threshold.
@@ -194,7 +198,7 @@ pub(crate) fn telegraph_alternative(
     base: &GyroModel,
     findings: &[Finding],
     fi: usize,
-) -> Option<(GyroModel, f64)> {
+) -> Option<(GyroModel, TwoLevelProbe)> {
     let Edit::GaussMarkov {
         index: None,
         sigma_dph,
@@ -216,7 +220,13 @@ pub(crate) fn telegraph_alternative(
             f.edit.apply(&mut alt);
         }
     }
-    Some((alt, 1.0 / tau_c_s))
+    Some((
+        alt,
+        TwoLevelProbe {
+            amp: units::dph_to_arcsec_per_s(sigma_dph),
+            mean_dwell_s: 2.0 * tau_c_s,
+        },
+    ))
 }
 
 /// The updated model's runs after the two-level test of a new Gauss-Markov term.
@@ -226,45 +236,55 @@ pub(crate) struct TelegraphOutcome {
     pub replaced: Option<(GyroModel, Vec<StatSet>)>,
 }
 
+/// Runs of each model (the updated model with the Gauss-Markov term, and the
+/// telegraph alternative) that reference the two-level statistic: only that
+/// statistic is computed on them, so they are cheap, and with 24 the
+/// Student-t threshold at [`ALPHA_TELEGRAPH`] is 2.5 sd of the Gauss-Markov
+/// runs (3.2 sd with the 8 full runs of the updated model).
+const TWO_LEVEL_RUNS: u64 = 24;
+
 /// Test the new Gauss-Markov term `findings[fi]` against the telegraph
-/// alternative `alt` by the kurtosis at the last of `cutoffs` (its `1/Tc`),
-/// referenced to `runs_after` (the updated model's runs) and to runs of `alt`.
-/// Rewrites `findings[fi]`: a telegraph when chosen, else the explanation says
-/// why the Gauss-Markov shape stays.
-#[allow(clippy::too_many_arguments)] // the reference, the findings and the two sets of runs
+/// alternative `alt` by the two-level likelihood ratio of `probe` (the term's
+/// own level and dwell), referenced to [`TWO_LEVEL_RUNS`] runs of each model.
+/// Rewrites `findings[fi]`: a telegraph when chosen (its updated model then
+/// simulated on `seeds`), else the explanation says why the Gauss-Markov
+/// shape stays.
 pub(crate) fn test_new_gauss_markov(
     r: &Reference,
     rec: &Recording,
     findings: &mut [Finding],
     fi: usize,
-    alt: &GyroModel,
+    (alt, probe): (&GyroModel, TwoLevelProbe),
     cutoffs: &[f64],
-    runs_after: &[StatSet],
     seeds: &[u64],
 ) -> Result<TelegraphOutcome, DiagnoseError> {
     let temp = rec.temp_c.as_deref();
-    // the alternative's kurtosis first (cheap); its full statistics only if chosen
-    let job_alt = mc::McJob {
-        full: false,
-        ..r.job(alt, temp, cutoffs)
-            .phase("simulating a random telegraph")
+    let test_seeds: Vec<u64> = (0..TWO_LEVEL_RUNS)
+        .map(|k| seeds[0].wrapping_add(7_000_003).wrapping_add(k))
+        .collect();
+    let gm_model = with_findings(&r.model, findings);
+    let statistic_runs = |model: &GyroModel, phase: &'static str| {
+        let job = mc::McJob {
+            full: false,
+            two_level: Some(probe),
+            ..r.job(model, temp, &[]).phase(phase)
+        };
+        mc::run(&job, &test_seeds)
     };
-    let runs_alt = mc::run(&job_alt, seeds)?;
-    let kc = cutoffs.len() - 1;
-    let fc = cutoffs[kc];
+    let runs_gm = statistic_runs(&gm_model, "simulating the Gauss-Markov term")?;
+    let runs_alt = statistic_runs(alt, "simulating a random telegraph")?;
     let (fs, d) = (r.layout.fs_hz, r.layout.pulse_arcsec);
-    let obs_k = stats::lowpass_kurtosis(
+    let obs = probe.llr(
         &stats::counts_to_rate(&rec.counts, d, fs),
         r.tau0_s(),
-        fc,
         &r.layout.lo,
     );
-    let gk: Vec<f64> = runs_after.iter().map(|s| s.kurtosis[kc]).collect();
-    let rk: Vec<f64> = runs_alt.iter().map(|s| s.kurtosis[kc]).collect();
-    let (choose, g, rt) = telegraph_decision(obs_k, &gk, &rk);
+    let gl: Vec<f64> = runs_gm.iter().map(|s| s.two_level_llr).collect();
+    let rl: Vec<f64> = runs_alt.iter().map(|s| s.two_level_llr).collect();
+    let (choose, g, rt) = telegraph_decision(obs, &gl, &rl);
     let test = TelegraphTest {
-        cutoff_hz: fc,
-        observed: obs_k,
+        block_s: probe.block_s(r.tau0_s()),
+        observed: obs,
         gauss_markov: g,
         telegraph: rt,
         telegraph_chosen: choose,
@@ -285,10 +305,11 @@ pub(crate) fn test_new_gauss_markov(
         }
     } else if let Some(a) = findings[fi].added.as_mut() {
         a.explanation.push_str(&format!(
-            " The low-passed rate (cut-off {} Hz) looks Gaussian: excess kurtosis {:.2}, against {:.2} +- {:.2} \
-             for this Gauss-Markov term and {:.2} +- {:.2} for a random telegraph with the same spectrum{}.",
-            fmt_g(fc),
-            obs_k,
+            " The rate averaged over {} s blocks is not shown two-level: its two-level log likelihood ratio is \
+             {:.1}, against {:.1} +- {:.1} for this Gauss-Markov term and {:.1} +- {:.1} for a random telegraph \
+             with the same spectrum{}.",
+            fmt_g(test.block_s),
+            obs,
             g.0,
             g.1,
             rt.0,
@@ -328,13 +349,13 @@ fn as_telegraph(old: &Finding, t: &TelegraphTest) -> Option<Finding> {
     let (g, rt) = (t.gauss_markov, t.telegraph);
     let expl = format!(
         "{} The second-order statistics located it like a Gauss-Markov bias (sigma {} deg/h, \
-         Tc {} s); the low-passed rate (cut-off {} Hz) is two-level, not Gaussian: excess \
-         kurtosis {:.2}, against {:.2} +- {:.2} for the Gauss-Markov model and {:.2} +- {:.2} \
-         for a random telegraph.",
+         Tc {} s); the rate averaged over {} s blocks is two-level, not Gaussian: its two-level \
+         log likelihood ratio is {:.1}, against {:.1} +- {:.1} for the Gauss-Markov model and \
+         {:.1} +- {:.1} for a random telegraph.",
         term.explanation(),
         fmt_g(sigma_dph),
         fmt_g(tau_c_s),
-        fmt_g(t.cutoff_hz),
+        fmt_g(t.block_s),
         t.observed,
         g.0,
         g.1,
@@ -383,15 +404,16 @@ pub(crate) fn mean_sd(v: &[f64]) -> (f64, f64) {
 /// One-sided false-telegraph probability of [`telegraph_decision`].
 pub const ALPHA_TELEGRAPH: f64 = 0.01;
 
-/// Excess-kurtosis test of a new Gauss-Markov term against a random telegraph
-/// with the same spectrum. The Gauss-Markov term (Gaussian, the default: no
-/// second-order statistic tells the two apart) stays unless the observed
-/// kurtosis rejects it: beyond the Gauss-Markov runs' mean towards the
+/// Test of a new Gauss-Markov term against a random telegraph with the same
+/// spectrum by a statistic (the two-level likelihood ratio) observed on the
+/// recording and on runs of both. The Gauss-Markov term (Gaussian, the
+/// default: no second-order statistic tells the two apart) stays unless the
+/// observed statistic rejects it: beyond the Gauss-Markov runs' mean towards the
 /// telegraph's by the one-sided Student-t quantile at [`ALPHA_TELEGRAPH`]
 /// (the runs' sd, as a prediction for one new draw), and closer to the
 /// telegraph's runs by likelihood. A Gaussian bias is then called a telegraph
 /// in at most about 1 % of records, whatever the record length; a telegraph
-/// is named where the kurtosis separates them.
+/// is named where the statistic separates them.
 fn telegraph_decision(obs: f64, gm: &[f64], rtn: &[f64]) -> (bool, (f64, f64), (f64, f64)) {
     let g: Vec<f64> = gm.iter().copied().filter(|v| v.is_finite()).collect();
     let r: Vec<f64> = rtn.iter().copied().filter(|v| v.is_finite()).collect();
@@ -422,7 +444,7 @@ mod tests {
     /// ALPHA_TELEGRAPH of them, whatever the separation; a separable telegraph
     /// is named.
     #[test]
-    fn the_telegraph_is_chosen_only_when_the_kurtosis_rejects_the_gaussian_term() {
+    fn the_telegraph_is_chosen_only_when_the_statistic_rejects_the_gaussian_term() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
         let mut draw = |m: f64, s: f64, k: usize| -> Vec<f64> {
             let d = Normal::new(m, s).unwrap();
