@@ -425,8 +425,10 @@ impl Run<'_> {
         }
     }
 
-    /// Hand the queued messages to the recorder in one queue entry: blocking for
-    /// lossless sources; a live source's full queue drops them, counted.
+    /// Hand the queued messages to the recorder (entries of up to
+    /// [`crate::sink::mcap::GROUP_MAX`] messages, one wake of the writer thread
+    /// each): blocking for lossless sources; a live source's full queue drops
+    /// them, counted.
     fn send_outbox(&mut self) {
         let msgs = std::mem::take(&mut self.outbox);
         let Some(rec) = &self.out.recorder else {

@@ -2,8 +2,9 @@
 //!
 //! The `mcap` crate's writer is synchronous (`Write + Seek`), so the [`Recorder`]
 //! owns a std thread that holds the writer and is fed [`SinkMessage`]s through a
-//! bounded std channel; the async daemon only ever calls the non-blocking
-//! [`RecordSender::try_send`] (and counts what a full queue refuses). No tokio here.
+//! std channel bounded in messages (a group of messages is one hand-over); the
+//! async daemon only ever calls the non-blocking [`RecordSender::try_send`] (and
+//! counts what a full queue refuses). No tokio here.
 //!
 //! Flush policy: the thread closes the open chunk (`mcap::Writer::flush`, which also
 //! flushes the file buffer to the OS) once the oldest unflushed message has waited
@@ -36,7 +37,7 @@ use std::io::{self, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::mpsc::{self, Receiver, RecvTimeoutError, SyncSender, TrySendError};
+use std::sync::mpsc::{self, RecvTimeoutError, SyncSender};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant, SystemTime};
 
@@ -44,6 +45,10 @@ use serde::{Deserialize, Serialize};
 
 use crate::sink::messages::{MESSAGE_ENCODING, MessageError, SCHEMA_ENCODING, SinkMessage, Topic};
 use crate::sink::meta::RecordingMeta;
+
+mod queue;
+
+use queue::{QueueReceiver, QueueSender, Refused, Weighed};
 
 /// Errors of the recorder.
 #[derive(Debug, thiserror::Error)]
@@ -107,9 +112,9 @@ pub struct RecorderConfig {
     pub record_dir: PathBuf,
     /// Longest time a recorded message waits before its chunk is closed, s.
     pub flush_interval_s: f64,
-    /// Capacity of the queue between the daemon and the writer thread, messages:
-    /// the queue holds `queue_capacity / GROUP_MAX` entries (at least one), each
-    /// one message or a group of up to [`GROUP_MAX`] (`RecordSender::send_all`).
+    /// Capacity of the queue between the daemon and the writer thread, messages
+    /// (a group queued by `RecordSender::send_all`, one hand-over to the writer
+    /// thread, takes one place per message).
     pub queue_capacity: usize,
     /// Uncompressed chunk size at which a chunk is closed early, bytes.
     pub chunk_size: u64,
@@ -327,8 +332,19 @@ enum Command {
     Finish,
 }
 
-/// Messages per queue entry of [`RecordSender::send_all`] at most.
-pub const GROUP_MAX: usize = 8;
+impl Weighed for Command {
+    fn messages(&self) -> usize {
+        match self {
+            Command::Message(..) => 1,
+            Command::Messages(_, msgs) => msgs.len(),
+            Command::Flush(_) | Command::Finish => 0,
+        }
+    }
+}
+
+/// Messages per queue entry of [`RecordSender::send_all`] at most (and at
+/// most the queue's capacity).
+pub const GROUP_MAX: usize = 128;
 
 /// A message that [`RecordSender::checked`] found recordable.
 #[derive(Debug)]
@@ -337,7 +353,7 @@ pub struct Checked(SinkMessage);
 /// A cloneable handle that queues messages for a [`Recorder`].
 #[derive(Clone)]
 pub struct RecordSender {
-    tx: SyncSender<Command>,
+    tx: QueueSender<Command>,
     /// The gyro whose messages this handle queues (a recording of several gyros).
     gyro: Option<u16>,
     /// The recording's gyro labels (empty or one: today's topics).
@@ -384,9 +400,9 @@ impl RecordSender {
         msg
     }
 
-    /// Queue `msgs` as one entry of the queue, blocking while it is full: one
-    /// hand-over to the writer thread for up to [`GROUP_MAX`] messages (the
-    /// daemon queues what one input batch produced in such groups).
+    /// Queue `msgs` in entries of up to [`GROUP_MAX`] messages, blocking while
+    /// they do not fit: one hand-over to the writer thread per entry (the
+    /// daemon queues what one input batch produced this way).
     pub fn send_all(&self, msgs: Vec<Checked>) -> Result<(), RecordError> {
         for cmd in self.groups(msgs) {
             self.tx.send(cmd.1).map_err(|_| self.stopped())?;
@@ -421,11 +437,11 @@ impl RecordSender {
 
     /// The queue entries of `msgs`, each with its number of messages.
     fn groups(&self, msgs: Vec<Checked>) -> Vec<(u64, Command)> {
-        let mut out = Vec::with_capacity(msgs.len().div_ceil(GROUP_MAX));
+        let size = GROUP_MAX.min(self.capacity).max(1);
+        let mut out = Vec::with_capacity(msgs.len().div_ceil(size));
         let mut it = msgs.into_iter().peekable();
         while it.peek().is_some() {
-            let group: Vec<SinkMessage> =
-                it.by_ref().take(GROUP_MAX).map(|m| self.tag(m.0)).collect();
+            let group: Vec<SinkMessage> = it.by_ref().take(size).map(|m| self.tag(m.0)).collect();
             let n = group.len() as u64;
             let cmd = if n == 1 {
                 Command::Message(self.gyro, group.into_iter().next().expect("one message"))
@@ -441,14 +457,14 @@ impl RecordSender {
     fn offer(&self, cmd: Command, n: u64) -> Result<(), RecordError> {
         match self.tx.try_send(cmd) {
             Ok(()) => Ok(()),
-            Err(TrySendError::Full(_)) => {
+            Err(Refused::Full) => {
                 self.dropped.fetch_add(n, Ordering::Relaxed);
                 Err(RecordError::QueueFull {
                     path: self.path.to_path_buf(),
                     capacity: self.capacity,
                 })
             }
-            Err(TrySendError::Disconnected(_)) => Err(self.stopped()),
+            Err(Refused::Stopped) => Err(self.stopped()),
         }
     }
 
@@ -599,7 +615,7 @@ impl Recorder {
         writer
             .flush()
             .map_err(|e| mcap_err("closing the first chunk", e))?;
-        let (tx, rx) = mpsc::sync_channel((config.queue_capacity / GROUP_MAX).max(1));
+        let (tx, rx) = queue::queue(config.queue_capacity);
         let path = Arc::new(path);
         let mut worker = Worker {
             writer,
@@ -749,12 +765,12 @@ struct Worker {
 
 impl Worker {
     /// Write until told to finish (or every sender is gone). An error stops the thread.
-    fn run(&mut self, rx: &Receiver<Command>) -> Result<(), RecordError> {
+    fn run(&mut self, rx: &QueueReceiver<Command>) -> Result<(), RecordError> {
         // When the oldest message not yet in a closed chunk arrived.
         let mut pending_since: Option<Instant> = None;
         loop {
             let command = match pending_since {
-                None => rx.recv().ok(),
+                None => rx.recv(),
                 Some(since) => {
                     match rx.recv_timeout(self.flush_interval.saturating_sub(since.elapsed())) {
                         Ok(c) => Some(c),
