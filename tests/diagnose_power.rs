@@ -17,13 +17,14 @@
 //! right change reported (the new term, or the change of the model's
 //! parameter). `scripts/bench-diagnose --power [--quick]` runs it.
 
+mod common;
+
 use std::time::Instant;
 
 use sagnac::diagnose::compare::{Family, Point, bonferroni_z};
 use sagnac::diagnose::reference::points_against;
-use sagnac::diagnose::{self, DiagnoseOptions, DiagnosisReport, Recording, Verdict};
-use sagnac::model::config::OutputKind;
-use sagnac::model::{GyroModel, Simulator};
+use sagnac::diagnose::{self, DiagnoseOptions, DiagnosisReport, Verdict};
+use sagnac::model::GyroModel;
 
 struct Effect {
     name: &'static str,
@@ -207,25 +208,6 @@ fn gyro(e: &Effect, arw: f64, extra: &str) -> GyroModel {
     GyroModel::from_toml_str(&text, e.name).unwrap()
 }
 
-fn simulate(m: &GyroModel, seed: u64, dur_s: f64) -> Recording {
-    let mut sim = Simulator::new(m, seed, Some(dur_s)).unwrap();
-    if m.gyro.output == OutputKind::Rate {
-        let (mut rates, mut temp) = (Vec::new(), Vec::new());
-        sim.next_block_rates(usize::MAX >> 1, &mut rates, &mut temp);
-        return Recording::from_rates(&rates, None, m.gyro.sample_rate_hz, m.gyro.rate_lsb_dps)
-            .unwrap();
-    }
-    let mut counts = Vec::new();
-    sim.next_block(usize::MAX >> 1, &mut counts);
-    Recording {
-        counts,
-        temp_c: None,
-        sample_rate_hz: m.gyro.sample_rate_hz,
-        pulse_arcsec: m.gyro.pulse_weight_arcsec,
-        output: Default::default(),
-    }
-}
-
 fn fam<'a>(p: &'a [Point], f: Family) -> Vec<&'a Point> {
     p.iter().filter(|x| x.family == f).collect()
 }
@@ -303,7 +285,7 @@ fn bench_power() {
             let mut tally: std::collections::BTreeMap<String, usize> = Default::default();
             let t = Instant::now();
             for s in 0..seeds {
-                let rec = simulate(&truth, 50_000 + 97 * s, e.dur_s);
+                let rec = common::simulated_recording(&truth, 50_000 + 97 * s, e.dur_s);
                 let opts = DiagnoseOptions {
                     seed: 0x5A6_AC00 + 1_000 * s,
                     ..DiagnoseOptions::default()
