@@ -310,6 +310,7 @@ pub fn fit_levels(basis: &LevelBasis, obs: &[LevelObs], opts: &FitOptions) -> Le
         &n0,
         &|j, theta| basis.edf(j, theta, obs[j].n_coef),
         opts,
+        None, // the levels of an orthonormal DWT
     )
 }
 
@@ -380,15 +381,23 @@ fn ml_with_edf<'a>(
     (prob, theta)
 }
 
+/// The correlation matrix of the observations under a spectrum `theta`, for
+/// [`fit_rows`]; `None`: the observations are independent.
+pub type Correlation<'a> = Option<&'a dyn Fn(&[f64]) -> Vec<Vec<f64>>>;
+
 /// Generic fit: rows `phi[j][k]` (expected value of observation `j` per unit
 /// theta_k), observations `y[j]`, starting EDFs `edf0[j]`, and `edf(j, theta)`
-/// giving the EDF of observation `j` under a spectrum.
+/// giving the EDF of observation `j` under a spectrum. The likelihood takes
+/// the observations as independent; where `corr` says they are not, each
+/// term's profile threshold is widened by its Godambe factor
+/// ([`godambe_factors`]).
 pub fn fit_rows(
     phi: &[Vec<f64>],
     y: &[f64],
     edf0: &[f64],
     edf: &dyn Fn(usize, &[f64]) -> f64,
     opts: &FitOptions,
+    corr: Correlation,
 ) -> LevelFit {
     let k = phi.first().map_or(0, |r| r.len());
     let n = y.len();
@@ -427,7 +436,11 @@ pub fn fit_rows(
         }
     }
     let l_max = prob.loglik(&theta);
-    let terms = profile_terms(&prob, &theta, &active, &lr, opts);
+    let widen = match corr {
+        Some(c) => godambe_factors(&prob, &theta, &active, &c(&theta)),
+        None => vec![1.0; k],
+    };
+    let terms = profile_terms(&prob, &theta, &active, &lr, opts, &widen);
     let fitted: Vec<f64> = (0..n).map(|j| prob.mu(j, &theta)).collect();
     let chi2: f64 = (0..n)
         .map(|j| prob.half_edf[j] * (prob.y[j] / fitted[j] - 1.0).powi(2))
@@ -456,9 +469,10 @@ fn profile_terms(
     active: &[bool],
     lr: &[f64],
     opts: &FitOptions,
+    widen: &[f64],
 ) -> Vec<TermFit> {
     let l_max = prob.loglik(theta);
-    let mut terms = profile_with(prob, theta, active, lr, opts, l_max);
+    let mut terms = profile_with(prob, theta, active, lr, opts, widen, l_max);
     if opts.signed_in_profile == 0 {
         return terms;
     }
@@ -476,7 +490,7 @@ fn profile_terms(
     }
     for (t, w) in terms
         .iter_mut()
-        .zip(profile_with(&signed, theta, active, lr, opts, l_ref))
+        .zip(profile_with(&signed, theta, active, lr, opts, widen, l_ref))
     {
         if let (Some((lo, hi)), Some((wl, wh))) = (t.ci95.as_mut(), w.ci95) {
             *lo = lo.min(wl);
@@ -490,13 +504,14 @@ fn profile_terms(
 }
 
 /// The profile intervals and bounds of [`profile_terms`] for one problem,
-/// deviances measured from `l_ref`.
+/// deviances measured from `l_ref`, term `i`'s thresholds times `widen[i]`.
 fn profile_with(
     prob: &Problem,
     theta: &[f64],
     active: &[bool],
     lr: &[f64],
     opts: &FitOptions,
+    widen: &[f64],
     l_ref: f64,
 ) -> Vec<TermFit> {
     let k = prob.k;
@@ -513,12 +528,13 @@ fn profile_with(
         };
         // a scale for bracketing: Fisher standard error of theta_i
         let se = fisher_se(prob, theta, i);
+        let (ci_lr, upper_lr) = (opts.ci_lr * widen[i], opts.upper_lr * widen[i]);
         if active[i] {
-            let hi = find_crossing(&profile, theta[i], se, opts.ci_lr);
-            let lo = if profile(0.0) <= opts.ci_lr {
+            let hi = find_crossing(&profile, theta[i], se, ci_lr);
+            let lo = if profile(0.0) <= ci_lr {
                 0.0
             } else {
-                bisect(&profile, 0.0, theta[i], opts.ci_lr, true)
+                bisect(&profile, 0.0, theta[i], ci_lr, true)
             };
             terms.push(TermFit {
                 theta: theta[i],
@@ -528,7 +544,7 @@ fn profile_with(
                 lr: lr[i],
             });
         } else {
-            let up = find_crossing(&profile, 0.0, se, opts.upper_lr);
+            let up = find_crossing(&profile, 0.0, se, upper_lr);
             terms.push(TermFit {
                 theta: 0.0,
                 included: false,
@@ -539,6 +555,53 @@ fn profile_with(
         }
     }
     terms
+}
+
+/// Godambe (sandwich) factors of the profile deviance, one per term. The
+/// likelihood counts each observation as independent; when they are
+/// correlated (`corr`, under `theta`) the deviance of term `i` is
+/// asymptotically `c_i chi2_1` with `c_i = (H^-1 J H^-1)_ii / (H^-1)_ii`, `H`
+/// the information of the independent likelihood over the active terms (and
+/// `i`) and `J` the variance of its score under the correlation. At least 1:
+/// intervals are only ever widened.
+fn godambe_factors(prob: &Problem, theta: &[f64], active: &[bool], corr: &[Vec<f64>]) -> Vec<f64> {
+    let n = prob.y.len();
+    let mu: Vec<f64> = (0..n).map(|j| prob.mu(j, theta).max(1e-300)).collect();
+    // score weight of observation j for term c, and the observation's sd
+    let w = |j: usize, c: usize| prob.half_edf[j] * prob.phi[j][c] / (mu[j] * mu[j]);
+    let sd: Vec<f64> = (0..n)
+        .map(|j| mu[j] / prob.half_edf[j].max(1e-300).sqrt())
+        .collect();
+    (0..prob.k)
+        .map(|i| {
+            let set: Vec<usize> = (0..prob.k).filter(|&c| active[c] || c == i).collect();
+            let h: Vec<Vec<f64>> = set
+                .iter()
+                .map(|&a| {
+                    set.iter()
+                        .map(|&b| (0..n).map(|j| w(j, a) * prob.phi[j][b]).sum())
+                        .collect()
+                })
+                .collect();
+            let pos = set.iter().position(|&c| c == i).expect("i is in the set");
+            let mut e = vec![0.0; set.len()];
+            e[pos] = 1.0;
+            let Some(x) = solve(h, e) else { return 1.0 };
+            // x = H^-1 e_i: the score combination of term i
+            let g: Vec<f64> = (0..n)
+                .map(|j| set.iter().zip(&x).map(|(&c, xc)| w(j, c) * xc).sum::<f64>() * sd[j])
+                .collect();
+            let num: f64 = (0..n)
+                .map(|j| g[j] * (0..n).map(|l| corr[j][l] * g[l]).sum::<f64>())
+                .sum();
+            let c = num / x[pos];
+            if c.is_finite() && x[pos] > 0.0 {
+                c.max(1.0)
+            } else {
+                1.0
+            }
+        })
+        .collect()
 }
 
 fn fisher_se(prob: &Problem, theta: &[f64], i: usize) -> f64 {
@@ -734,7 +797,7 @@ mod tests {
                 signed_in_profile: signed,
                 ..FitOptions::default()
             };
-            let f = fit_rows(&phi, &y, &edf, &|j, _| edf[j], &opts);
+            let f = fit_rows(&phi, &y, &edf, &|j, _| edf[j], &opts, None);
             let (lo, hi) = f.terms[0].ci95.unwrap();
             (f.terms[1].theta, lo, hi)
         };
@@ -762,5 +825,28 @@ mod tests {
         let (_, lo2, hi2) = fit(0.5, 0);
         let (_, lo3, hi3) = fit(0.5, 0b10);
         assert_eq!((lo2, hi2), (lo3, hi3));
+    }
+
+    /// Two observations of one level, each with EDF nu, correlated rho: the
+    /// independent likelihood counts 2 nu, the truth is worth 2 nu / (1 +
+    /// rho), so the deviance is (1 + rho) chi2_1. With rho = 0 nothing widens.
+    #[test]
+    fn the_godambe_factor_of_correlated_duplicates_is_one_plus_rho() {
+        let phi = vec![vec![1.0], vec![1.0]];
+        let prob = Problem {
+            phi: &phi,
+            y: vec![2.0, 2.0],
+            half_edf: vec![10.0, 10.0],
+            k: 1,
+            signed: 0,
+        };
+        for rho in [0.0, 0.3, 0.8] {
+            let corr = vec![vec![1.0, rho], vec![rho, 1.0]];
+            let c = godambe_factors(&prob, &[2.0], &[true], &corr);
+            assert!((c[0] - (1.0 + rho)).abs() < 1e-12, "rho {rho}: {}", c[0]);
+        }
+        // negatively correlated observations never narrow an interval
+        let corr = vec![vec![1.0, -0.5], vec![-0.5, 1.0]];
+        assert_eq!(godambe_factors(&prob, &[2.0], &[true], &corr), vec![1.0]);
     }
 }

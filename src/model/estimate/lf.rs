@@ -92,6 +92,73 @@ impl Lf<'_> {
         }
     }
 
+    /// Correlation of the rows (levels `from..`, then the Allan points) under
+    /// `theta`. Overlapping Allan variances of neighbouring octaves share
+    /// most of their band: their correlation is `int S^2 G_a G_b / sqrt(int
+    /// S^2 G_a^2 int S^2 G_b^2)` over the Allan transfer functions `G` and
+    /// the fitted rate spectrum `S` (0.6-0.7 under flicker noise). The
+    /// wavelet levels are uncorrelated with each other (an orthonormal DWT)
+    /// and nearly so with the Allan points, which start an octave beyond the
+    /// deepest level (0.03-0.04 by the same integral): they are left
+    /// independent.
+    pub fn correlation(&self, terms: &[SpectralTerm], from: usize, theta: &[f64]) -> Vec<Vec<f64>> {
+        let nl = self.levels.len() - from;
+        let n = nl + self.allan.len();
+        let mut r: Vec<Vec<f64>> = (0..n)
+            .map(|i| (0..n).map(|j| if i == j { 1.0 } else { 0.0 }).collect())
+            .collect();
+        let Some(m_max) = self.allan.iter().map(|a| a.m).max() else {
+            return r;
+        };
+        // log-spaced nodes from well below the longest tau's band to Nyquist
+        let (lo, per_octave) = ((0.0625 / m_max as f64).ln(), 32.0);
+        let steps = ((0.5f64.ln() - lo) / std::f64::consts::LN_2 * per_octave).ceil() as usize;
+        let dln = (0.5f64.ln() - lo) / steps as f64;
+        let mut s2g: Vec<Vec<f64>> = vec![Vec::with_capacity(steps + 1); self.allan.len()];
+        let mut weights = Vec::with_capacity(steps + 1);
+        for i in 0..=steps {
+            let nu = (lo + i as f64 * dln).exp();
+            let s: f64 = terms
+                .iter()
+                .enumerate()
+                .map(|(k, t)| {
+                    let th = if k == 0 {
+                        self.q2_first.max(0.0)
+                    } else {
+                        theta[k]
+                    };
+                    th * t.psd_cs(nu, self.tau0)
+                })
+                .sum::<f64>()
+                .max(0.0);
+            let end = if i == 0 || i == steps { 0.5 } else { 1.0 };
+            weights.push(end * nu * dln);
+            for (a, out) in self.allan.iter().zip(s2g.iter_mut()) {
+                out.push(s * allan_gain(a.m, nu));
+            }
+        }
+        let dot = |a: &[f64], b: &[f64]| -> f64 {
+            a.iter()
+                .zip(b)
+                .zip(&weights)
+                .map(|((x, y), w)| x * y * w)
+                .sum()
+        };
+        for a in 0..self.allan.len() {
+            for b in a + 1..self.allan.len() {
+                let den = (dot(&s2g[a], &s2g[a]) * dot(&s2g[b], &s2g[b])).sqrt();
+                let rho = if den > 0.0 {
+                    dot(&s2g[a], &s2g[b]) / den
+                } else {
+                    0.0
+                };
+                r[nl + a][nl + b] = rho;
+                r[nl + b][nl + a] = rho;
+            }
+        }
+        r
+    }
+
     /// First level index free of QN. Model-free: every low-frequency term
     /// gives detail variances that are flat (ARW) or fall towards the fine
     /// levels (flicker, RRW, Gauss-Markov, a readout filter), while QN makes
@@ -177,6 +244,18 @@ impl Lf<'_> {
             }
         }
         up
+    }
+}
+
+/// Power gain of the overlapping Allan variance at `m` samples on the rate,
+/// `sin^4(pi nu m) / (pi nu m)^2` up to a constant; past four cycles its
+/// envelope with `sin^4` at its mean 3/8 (the nodes no longer resolve it).
+fn allan_gain(m: u64, nu: f64) -> f64 {
+    let x = std::f64::consts::PI * nu * m as f64;
+    if nu * m as f64 > 4.0 {
+        0.375 / (x * x)
+    } else {
+        x.sin().powi(4) / (x * x)
     }
 }
 

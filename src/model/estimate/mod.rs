@@ -492,12 +492,14 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         o.always_keep |= 1 << filter_search::COMPLEMENT_COL;
         o.signed_in_profile |= 1 << filter_search::COMPLEMENT_COL;
     }
+    let corr = |theta: &[f64]| lf.correlation(&terms, from, theta);
     let fit = fit_rows(
         &rows.phi,
         &rows.y,
         &rows.edf0,
         &lf.edf(&terms, &basis, from, &rows.phi),
         &o,
+        Some(&corr),
     );
     let quality = FitQuality::of(&fit, rows.y.len(), usize::from(choice.is_some()));
     let theta_lf: Vec<f64> = (0..terms.len())
