@@ -197,17 +197,35 @@ struct BlockSums {
 
 const MAX_BLOCKS: usize = 64;
 
+/// `sum v_i^2` in eight independent partial sums (vectorised; a fixed order
+/// for a given slice).
+fn sum_sq(v: &[f64]) -> f64 {
+    let mut acc = [0.0f64; 8];
+    let chunks = v.chunks_exact(8);
+    let tail: f64 = chunks.remainder().iter().map(|x| x * x).sum();
+    for c in chunks {
+        for l in 0..8 {
+            acc[l] += c[l] * c[l];
+        }
+    }
+    ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7])) + tail
+}
+
 impl BlockSums {
-    fn add(&mut self, j: usize, first_index: u64, d: &[f64]) {
+    /// Add level `j+1`'s coefficients `d`, the first of index `first_index`;
+    /// returns their sum of squares (the sum of the per-block parts).
+    fn add(&mut self, j: usize, first_index: u64, d: &[f64]) -> f64 {
         // level j+1 has one coefficient per 2^(j+1) samples
         let shift = self.span_log2.saturating_sub(j as u32 + 1);
         let per_block = 1u64 << shift;
         let mut k = first_index;
         let mut rest = d;
+        let mut total = 0.0;
         while !rest.is_empty() {
             let b = (k >> shift) as usize;
             let take = ((b as u64 + 1) * per_block - k).min(rest.len() as u64) as usize;
-            let s: f64 = rest[..take].iter().map(|v| v * v).sum();
+            let s = sum_sq(&rest[..take]);
+            total += s;
             let level = &mut self.sums[j];
             if level.len() <= b {
                 level.resize(b + 1, (0.0, 0));
@@ -220,6 +238,7 @@ impl BlockSums {
         if self.sums[j].len() > MAX_BLOCKS {
             self.merge();
         }
+        total
     }
 
     fn merge(&mut self) {
@@ -312,15 +331,12 @@ impl LevelAccumulator {
         let start = self.skip.saturating_sub(seen).min(d.len() as u64) as usize;
         self.seen[j] += d.len() as u64;
         if self.mask.is_clear() {
-            if let Some(b) = &mut self.blocks {
-                b.add(j, seen + start as u64, &d[start..]);
-            }
-            self.count[j] += (d.len() - start) as u64;
-            let mut s = 0.0;
-            for &v in &d[start..] {
-                s += v * v;
-            }
-            self.sum_sq[j] += s;
+            let d = &d[start..];
+            self.count[j] += d.len() as u64;
+            self.sum_sq[j] += match &mut self.blocks {
+                Some(b) => b.add(j, seen + start as u64, d),
+                None => sum_sq(d),
+            };
             return;
         }
         self.bad.clear();
@@ -330,13 +346,11 @@ impl LevelAccumulator {
         let first = seen + start as u64;
         let mut s = 0.0;
         for g in good_segments(d.len(), &self.bad) {
-            if let Some(b) = &mut self.blocks {
-                b.add(j, first + g.start as u64, &d[g.clone()]);
-            }
             self.count[j] += g.len() as u64;
-            for &v in &d[g] {
-                s += v * v;
-            }
+            s += match &mut self.blocks {
+                Some(b) => b.add(j, first + g.start as u64, &d[g]),
+                None => sum_sq(&d[g]),
+            };
         }
         self.sum_sq[j] += s;
     }

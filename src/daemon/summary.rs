@@ -9,7 +9,7 @@
 //! [`crate::pipeline::Pipeline::latency`] samples later: a window is published
 //! once its last clean value is out. Naive reference: the window sums written
 //! out over whole arrays (the tests below), which every split of the input into
-//! pushes must reproduce exactly.
+//! pushes must reproduce: the counts and times exactly, the rates to rounding.
 
 use std::collections::VecDeque;
 use std::ops::Range;
@@ -108,10 +108,7 @@ impl SummaryAcc {
                 w.end = n;
             }
             let take = ((w.end - u) as usize).min(counts.len() - i);
-            w.pulses += counts[i..i + take]
-                .iter()
-                .map(|&c| i128::from(c))
-                .sum::<i128>();
+            w.pulses += exact_sum(&counts[i..i + take]);
             w.lost += overlap(filled, i..i + take);
             w.raw_n += take as u64;
             if temp_c.is_some() {
@@ -126,13 +123,20 @@ impl SummaryAcc {
         let mut i = 0usize;
         while i < clean_dph.len() {
             let u = u0 + i as u64;
-            let Some(w) = self.windows.iter_mut().find(|w| w.start <= u && u < w.end) else {
+            // the windows are in time order, and the clean side completes them
+            // from the front: the first that ends after u, almost always the front
+            let Some(w) = self
+                .windows
+                .iter_mut()
+                .find(|w| u < w.end)
+                .filter(|w| w.start <= u)
+            else {
                 // a clean value without its raw sample cannot happen; skip it
                 i += 1;
                 continue;
             };
             let take = ((w.end - u) as usize).min(clean_dph.len() - i);
-            w.clean_sum += clean_dph[i..i + take].iter().sum::<f64>();
+            w.clean_sum += lane_sum(&clean_dph[i..i + take]);
             w.clean_n += take as u64;
             i += take;
             self.drain_complete(out);
@@ -170,6 +174,31 @@ impl SummaryAcc {
             });
         }
     }
+}
+
+/// `sum c_i`, exactly: the high and low 32 bits summed apart (each sum fits
+/// an `i64` for up to 2^31 values), so the loop vectorises.
+fn exact_sum(counts: &[i64]) -> i128 {
+    let (mut hi, mut lo) = (0i64, 0i64);
+    for &c in counts {
+        hi += c >> 32;
+        lo += c & 0xFFFF_FFFF;
+    }
+    (i128::from(hi) << 32) + i128::from(lo)
+}
+
+/// `sum v_i` in four independent partial sums (vectorised; a fixed order for a
+/// given slice).
+fn lane_sum(v: &[f64]) -> f64 {
+    let mut acc = [0.0f64; 4];
+    let chunks = v.chunks_exact(4);
+    let tail: f64 = chunks.remainder().iter().sum();
+    for c in chunks {
+        for l in 0..4 {
+            acc[l] += c[l];
+        }
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
 /// Samples of `range` inside the spans `filled`.
@@ -305,6 +334,15 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn the_split_pulse_sum_is_exact_at_the_extremes() {
+        let v = [i64::MAX, i64::MAX, i64::MIN, -1, 7, i64::MIN];
+        let want: i128 = v.iter().map(|&c| i128::from(c)).sum();
+        assert_eq!(exact_sum(&v), want);
+        assert_eq!(exact_sum(&[]), 0);
+        assert_eq!(lane_sum(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.5]), 21.5);
     }
 
     #[test]
