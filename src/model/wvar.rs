@@ -226,14 +226,16 @@ impl SpectralTerm {
             SpectralTerm::Flicker { f_lo_hz } => f_lo_hz * tau0_s,
             _ => 0.0,
         };
+        // the PSD from the same sin(pi nu) (psd_cs would compute it again)
+        let psd = |nu: f64, s0: f64| self.psd_cs_trig(nu, s0, || (2.0 * PI * nu).cos(), tau0_s);
         let g = |nu: f64| {
             let s1 = (PI * nu * mf).sin();
             let s0 = (PI * nu).sin();
-            self.psd_cs(nu, tau0_s) * 2.0 * s1.powi(4) / (mf * mf * s0 * s0)
+            psd(nu, s0) * 2.0 * s1.powi(4) / (mf * mf * s0 * s0)
         };
         let envelope = |nu: f64| {
             let s0 = (PI * nu).sin();
-            self.psd_cs(nu, tau0_s) * 0.75 / (mf * mf * s0 * s0)
+            psd(nu, s0) * 0.75 / (mf * mf * s0 * s0)
         };
         let split = (64.0 / mf).min(0.5);
         let mut total = 0.0;
@@ -307,9 +309,14 @@ impl SpectralTerm {
 
 /// Power response `|H(nu)|^2` of an FIR filter at `nu` cycles/sample.
 pub fn power_response(h: &[f64], nu: f64) -> f64 {
-    let w = -2.0 * PI * nu;
-    let (sw, cw) = w.sin_cos();
-    // rotate a unit phasor instead of calling sin/cos per tap
+    let (sw, cw) = (-2.0 * PI * nu).sin_cos();
+    power_at(h, sw, cw)
+}
+
+/// `|H|^2` at the angle `w` per sample, from `(sin w, cos w)`: a unit phasor
+/// rotated tap by tap instead of a sine and cosine per tap.
+#[inline]
+fn power_at(h: &[f64], sw: f64, cw: f64) -> f64 {
     let (mut pr, mut pi) = (1.0f64, 0.0f64);
     let (mut re, mut im) = (0.0, 0.0);
     for &c in h {
@@ -324,14 +331,18 @@ pub fn power_response(h: &[f64], nu: f64) -> f64 {
 
 /// Power response of the level-`j` (1-based) detail filter of a decimated DWT:
 /// `|G(2^{j-1} nu)|^2 prod_{i<j-1} |H(2^i nu)|^2`.
+///
+/// One sine and cosine per call: the angle is doubled from stage to stage by
+/// the double-angle formulas (the phase error grows as `2^i eps`, as it does
+/// when `2 pi 2^i nu` is rounded and reduced directly).
 pub fn level_power_response(lo: &[f64], hi: &[f64], level: u32, nu: f64) -> f64 {
-    let mut p = power_response(hi, nu * (1u64 << (level - 1)) as f64);
-    let mut f = nu;
+    let (mut s, mut c) = (-2.0 * PI * nu).sin_cos();
+    let mut p = 1.0;
     for _ in 0..level - 1 {
-        p *= power_response(lo, f);
-        f *= 2.0;
+        p *= power_at(lo, s, c);
+        (s, c) = (2.0 * s * c, (c - s) * (c + s));
     }
-    p
+    p * power_at(hi, s, c)
 }
 
 fn autocorr(h: &[f64]) -> Vec<f64> {
@@ -638,6 +649,96 @@ fn term_breaks(t: &SpectralTerm, tau0_s: f64) -> Vec<f64> {
     }
 }
 
+static BAND_CACHE: Memo<f64> = OnceLock::new();
+/// Most band integrals [`LevelBasis::bands_in`] keeps memoised (a few hundred
+/// bytes of key each).
+const BAND_CACHE_ENTRIES: usize = 8192;
+
+/// The band integral of term `t` at level `j` among `terms` (whose breaks
+/// place the nodes), as [`LevelQuadrature::compute`] sums it: a complement
+/// whose filtered white rate is among the terms is the white rate's column
+/// less the filtered one (both bands are computed, and kept, together).
+#[allow(clippy::too_many_arguments)]
+fn level_band(
+    lo: &[f64],
+    hi: &[f64],
+    tau0_s: f64,
+    j: u32,
+    t: &SpectralTerm,
+    terms: &[SpectralTerm],
+    breaks: &[f64],
+    domain: Domain,
+) -> f64 {
+    let filter = match *t {
+        SpectralTerm::FilteredWhiteRate { filter }
+        | SpectralTerm::WhiteRateComplement { filter } => Some(filter),
+        _ => None,
+    };
+    let at = |u: &SpectralTerm| terms.iter().position(|v| v == u);
+    // a filtered white rate and, after it, its complement: a pair
+    let pair = filter.filter(|&filter| {
+        let f = at(&SpectralTerm::FilteredWhiteRate { filter });
+        let c = at(&SpectralTerm::WhiteRateComplement { filter });
+        matches!((f, c), (Some(f), Some(c)) if f < c)
+    });
+    let key = |u: &SpectralTerm, paired: bool| {
+        let mut k = level_key(lo, hi, tau0_s, j, std::slice::from_ref(u), domain);
+        k.push(u64::from(paired));
+        k.extend(breaks.iter().map(|b| b.to_bits()));
+        k
+    };
+    let paired = pair.is_some();
+    memoised(&BAND_CACHE, BAND_CACHE_ENTRIES, key(t, paired), || {
+        let nodes = memo_level_nodes(lo, hi, j, breaks);
+        let Some(filter) = pair else {
+            return term_column(t, &nodes, tau0_s, domain).1.iter().sum();
+        };
+        // the white rate's column is the memoised one of the full quadrature
+        let white = memoised(
+            &COLUMN_CACHE,
+            COLUMN_CACHE_ENTRIES,
+            column_key(lo, hi, tau0_s, j, &SpectralTerm::WhiteRate, breaks, domain),
+            || {
+                Arc::new(term_column(
+                    &SpectralTerm::WhiteRate,
+                    &nodes,
+                    tau0_s,
+                    domain,
+                ))
+            },
+        );
+        let f = SpectralTerm::FilteredWhiteRate { filter };
+        let fcol = term_column(&f, &nodes, tau0_s, domain);
+        let f_band: f64 = fcol.1.iter().sum();
+        let c_band: f64 = white.1.iter().zip(&fcol.1).map(|(p, q)| p - q).sum();
+        let c = SpectralTerm::WhiteRateComplement { filter };
+        let (mine, other, other_band) = if *t == f {
+            (f_band, c, c_band)
+        } else {
+            (c_band, f, f_band)
+        };
+        memoised(&BAND_CACHE, BAND_CACHE_ENTRIES, key(&other, true), || {
+            other_band
+        });
+        mine
+    })
+}
+
+/// The memo key of a term's column at level `j` with the nodes placed by `breaks`.
+fn column_key(
+    lo: &[f64],
+    hi: &[f64],
+    tau0_s: f64,
+    j: u32,
+    t: &SpectralTerm,
+    breaks: &[f64],
+    domain: Domain,
+) -> Vec<u64> {
+    let mut key = level_key(lo, hi, tau0_s, j, std::slice::from_ref(t), domain);
+    key.extend(breaks.iter().map(|b| b.to_bits()));
+    key
+}
+
 /// The spectral quadrature of one level: band integrals of the terms, their
 /// Gram matrix and the white-noise normalisation of the EDF.
 #[derive(Debug, Clone)]
@@ -663,8 +764,7 @@ impl LevelQuadrature {
         // contiguous columns; a term without a filter has the same column in
         // every candidate of the readout-filter search: memoised
         let column = |t: &SpectralTerm| -> Column {
-            let mut key = level_key(lo, hi, tau0_s, j, std::slice::from_ref(t), domain);
-            key.extend(breaks.iter().map(|b| b.to_bits()));
+            let key = column_key(lo, hi, tau0_s, j, t, &breaks, domain);
             memoised(&COLUMN_CACHE, COLUMN_CACHE_ENTRIES, key, || {
                 Arc::new(term_column(t, &nodes, tau0_s, domain))
             })
@@ -800,6 +900,44 @@ impl LevelBasis {
         }
     }
 
+    /// The rows `phi` of [`LevelBasis::new_in`] alone, bit for bit, without the
+    /// Gram matrices (the readout-filter search compares candidates with the
+    /// EDFs held fixed, so it needs only these). Finite-support terms (a
+    /// moving average's filtered white rate and its complement) take their
+    /// exact variances and no quadrature; every other band integral is a
+    /// scalar memoised per level and term, so a candidate's bands outlive a
+    /// change of the other terms (the flicker's corner as the record grows).
+    pub fn bands_in(
+        lo: &[f64],
+        hi: &[f64],
+        tau0_s: f64,
+        levels: &[u32],
+        terms: &[SpectralTerm],
+        domain: Domain,
+    ) -> Vec<Vec<f64>> {
+        let max_level = levels.iter().copied().max().unwrap_or(1);
+        let finite: Vec<Option<Vec<f64>>> = terms
+            .iter()
+            .map(|t| {
+                t.finite_autocov(tau0_s, domain)
+                    .map(|r0| finite_level_vars(lo, hi, &r0, max_level))
+            })
+            .collect();
+        let breaks: Vec<f64> = terms.iter().flat_map(|t| term_breaks(t, tau0_s)).collect();
+        levels
+            .iter()
+            .map(|&j| {
+                let band =
+                    |t: &SpectralTerm| level_band(lo, hi, tau0_s, j, t, terms, &breaks, domain);
+                terms
+                    .iter()
+                    .zip(&finite)
+                    .map(|(t, f)| f.as_ref().map_or_else(|| band(t), |v| v[j as usize - 1]))
+                    .collect()
+            })
+            .collect()
+    }
+
     /// Expected variance of level index `j` for parameters `theta`.
     pub fn mean(&self, j: usize, theta: &[f64]) -> f64 {
         self.phi[j].iter().zip(theta).map(|(p, t)| p * t).sum()
@@ -829,6 +967,84 @@ impl LevelBasis {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_doubled_angle_level_response_is_the_stage_by_stage_product() {
+        // each stage's phasor from its own sine and cosine, as the definition reads
+        let direct = |j: u32, nu: f64| {
+            let mut p = power_response(&SYM8_HI, nu * (1u64 << (j - 1)) as f64);
+            for i in 0..j - 1 {
+                p *= power_response(&SYM8_LO, nu * (1u64 << i) as f64);
+            }
+            p
+        };
+        for j in [1u32, 2, 5, 12, 20] {
+            let mut worst = 0.0f64;
+            // from the deep stopband to the passband and up to Nyquist
+            for k in 0..4000 {
+                let nu = 0.5 * (k as f64 + 0.5) / 4000.0 * 2f64.powi(-(k % 7));
+                let (a, b) = (
+                    level_power_response(&SYM8_LO, &SYM8_HI, j, nu),
+                    direct(j, nu),
+                );
+                assert!(a >= 0.0);
+                // relative to the value, or to 1e-12 of the level's peak gain
+                // (2^j) in the deep stopband, where both sums cancel
+                let scale = b.max(1e-12 * 2f64.powi(j as i32));
+                worst = worst.max((a - b).abs() / scale);
+            }
+            assert!(worst < 1e-6, "level {j}: relative difference {worst:e}");
+        }
+    }
+
+    #[test]
+    fn the_bands_alone_are_the_basis_rows_bit_for_bit() {
+        let fl = SpectralTerm::Flicker {
+            f_lo_hz: 2f64.powi(-30) * 1000.0,
+        };
+        let ma = ReadoutFilter::moving_average(5).unwrap();
+        let fo = ReadoutFilter::FirstOrder { pole: 0.7 };
+        let sets: Vec<Vec<SpectralTerm>> = vec![
+            vec![
+                SpectralTerm::WhiteAngle,
+                SpectralTerm::WhiteRate,
+                fl,
+                SpectralTerm::RateRandomWalk,
+            ],
+            [ma, fo]
+                .iter()
+                .flat_map(|&filter| {
+                    [
+                        SpectralTerm::WhiteAngle,
+                        SpectralTerm::FilteredWhiteRate { filter },
+                        fl,
+                        SpectralTerm::RateRandomWalk,
+                        SpectralTerm::WhiteRateComplement { filter },
+                    ]
+                })
+                .collect(),
+            // a complement with no filtered white rate before it
+            vec![
+                SpectralTerm::WhiteRateComplement { filter: fo },
+                SpectralTerm::GaussMarkov { tau_c_s: 3.0 },
+            ],
+        ];
+        let levels: Vec<u32> = (1..=14).collect();
+        for terms in &sets {
+            for domain in [Domain::Rate, Domain::Angle] {
+                let b = LevelBasis::new_in(&SYM8_LO, &SYM8_HI, 1e-3, &levels, terms, domain);
+                // twice: computed, then from the memo
+                for _ in 0..2 {
+                    let phi =
+                        LevelBasis::bands_in(&SYM8_LO, &SYM8_HI, 1e-3, &levels, terms, domain);
+                    for (r, q) in phi.iter().zip(&b.phi) {
+                        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                        assert_eq!(bits(r), bits(q), "{terms:?} {domain:?}");
+                    }
+                }
+            }
+        }
+    }
 
     #[test]
     fn memoised_basis_is_the_computed_one_and_keys_tell_terms_apart() {

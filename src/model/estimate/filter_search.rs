@@ -85,7 +85,7 @@ pub(super) fn search(
     let ci_lr = opts.ci_lr;
     let none_terms = standard_terms(n_samples, lf.tau0).to_vec();
     let none_basis = lf.basis(&none_terms);
-    let r0 = lf.rows(&none_terms, &none_basis, from);
+    let r0 = lf.rows(&none_terms, &none_basis.phi, from);
     // the filter adds a column and a shape: leave at least two spare rows
     if r0.y.len() < none_terms.len() + 4 {
         return None;
@@ -99,8 +99,8 @@ pub(super) fn search(
     let l_none = ml_loglik_fixed_edf(&r0.phi, &r0.y, &edf).1;
     let eval = |f: ReadoutFilter| -> Candidate {
         let terms = filtered_terms(n_samples, lf.tau0, f);
-        let basis = lf.basis(&terms);
-        let Rows { phi, y, .. } = lf.rows(&terms, &basis, from);
+        // the EDFs are held fixed: the rows alone, no Gram matrices
+        let Rows { phi, y, .. } = lf.rows(&terms, &lf.bands(&terms), from);
         let (theta, loglik) = ml_loglik_fixed_edf(&phi, &y, &edf);
         Candidate {
             filter: f,

@@ -6,7 +6,7 @@ use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 use super::{AllanObs, CUT_RISE_Z, TRIM_EXCESS_Z};
 use crate::model::fit::{LevelObs, ml_theta};
-use crate::model::wvar::{LevelBasis, SpectralTerm};
+use crate::model::wvar::{Domain, LevelBasis, SpectralTerm};
 
 /// Everything the low-frequency fit reads, for any set of terms.
 pub(super) struct Lf<'a> {
@@ -37,13 +37,27 @@ impl Lf<'_> {
         LevelBasis::new(self.dec_lo, self.dec_hi, self.tau0, &ids, terms)
     }
 
-    /// Rows for levels `from..` then the Allan points; the ramp column (when
+    /// The rows of [`Lf::basis`] alone (no Gram matrices: for fits whose EDFs
+    /// are held fixed).
+    pub fn bands(&self, terms: &[SpectralTerm]) -> Vec<Vec<f64>> {
+        let ids: Vec<u32> = self.levels.iter().map(|l| l.level).collect();
+        LevelBasis::bands_in(
+            self.dec_lo,
+            self.dec_hi,
+            self.tau0,
+            &ids,
+            terms,
+            Domain::Rate,
+        )
+    }
+
+    /// Rows for levels `from..` (of the basis rows `phi`) then the Allan points; the ramp column (when
     /// there are Allan points) comes after the terms. Quantization is measured
     /// in the angle domain: on these levels its white-angle column is a free
     /// nuisance that absorbs what leaks below the QN band, and on the Allan
     /// points the angle-domain Q is subtracted.
-    pub fn rows(&self, terms: &[SpectralTerm], basis: &LevelBasis, from: usize) -> Rows {
-        let mut phi: Vec<Vec<f64>> = basis.phi[from..].to_vec();
+    pub fn rows(&self, terms: &[SpectralTerm], phi: &[Vec<f64>], from: usize) -> Rows {
+        let mut phi: Vec<Vec<f64>> = phi[from..].to_vec();
         if self.ramp_col {
             phi.iter_mut().for_each(|r| r.push(0.0));
         }
@@ -198,7 +212,7 @@ impl Lf<'_> {
             if self.levels.len() - from < 3 {
                 break;
             }
-            let r = self.rows(terms, basis, from + 1);
+            let r = self.rows(terms, &basis.phi, from + 1);
             let mut th = ml_theta(
                 &r.phi,
                 &r.y,

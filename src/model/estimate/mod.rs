@@ -468,7 +468,7 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
     // With no more observations than the nuisance, ARW, flicker and RRW
     // columns, the fit is saturated and its likelihood-ratio tests say
     // nothing: fit ARW (and the nuisance) only, and bound the others.
-    let saturated = lf.rows(&std_terms, &std_basis, from).y.len() <= std_terms.len();
+    let saturated = lf.rows(&std_terms, &std_basis.phi, from).y.len() <= std_terms.len();
     let choice = if too_short || saturated {
         None
     } else {
@@ -479,7 +479,7 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         None => std_terms,
     };
     let basis = lf.basis(&terms);
-    let mut rows = lf.rows(&terms, &basis, from);
+    let mut rows = lf.rows(&terms, &basis.phi, from);
     filter_search::saturate_rows(&mut rows, saturated);
     let mut o = *opts;
     // The white-angle nuisance stays out of model selection, and so does the
