@@ -923,10 +923,77 @@ const DIGIT_PAIRS: &[u8; 200] = b"\
 6061626364656667686970717273747576777879\
 8081828384858687888990919293949596979899";
 
+/// `.ddd` for every fraction 0..1000 (the three decimals of a milli-unit value).
+const FRACTION3: [[u8; 4]; 1000] = {
+    let mut t = [[0u8; 4]; 1000];
+    let mut i = 0;
+    while i < 1000 {
+        t[i] = [
+            b'.',
+            b'0' + (i / 100) as u8,
+            b'0' + (i / 10 % 10) as u8,
+            b'0' + (i % 10) as u8,
+        ];
+        i += 1;
+    }
+    t
+};
+
+/// The decimal digits of every integer 0..1000, left-aligned, their count in
+/// the last byte.
+const INTEGER3: [[u8; 4]; 1000] = {
+    let mut t = [[0u8; 4]; 1000];
+    let mut i = 0;
+    while i < 1000 {
+        t[i] = if i < 10 {
+            [b'0' + i as u8, 0, 0, 1]
+        } else if i < 100 {
+            [b'0' + (i / 10) as u8, b'0' + (i % 10) as u8, 0, 2]
+        } else {
+            [
+                b'0' + (i / 100) as u8,
+                b'0' + (i / 10 % 10) as u8,
+                b'0' + (i % 10) as u8,
+                3,
+            ]
+        };
+        i += 1;
+    }
+    t
+};
+
 /// `n` milli-units as `[-]int.ddd` and a `,` at the start of `slot`
 /// (`|n| < 2^51`: at most 13 integer digits, 19 bytes in all); returns the length.
+/// Below 10^6 in magnitude (a static gyro's rates in deg/h, and a counter's
+/// noise of about one pulse) the integer part takes one or two table entries
+/// and the decimals one.
 #[inline(always)]
 fn put_milli(slot: &mut Slot, n: i64) -> usize {
+    let a = n.unsigned_abs();
+    let (int, f) = (a / 1000, (a % 1000) as usize);
+    if int >= 1_000_000 {
+        return put_milli_long(slot, n);
+    }
+    slot[0] = b'-';
+    let mut k = usize::from(n < 0);
+    let (high, low) = ((int / 1000) as usize, (int % 1000) as usize);
+    let lead = if high > 0 { high } else { low };
+    let digits = INTEGER3[lead];
+    // the count byte lands where the next digits go
+    slot[k..k + 4].copy_from_slice(&digits);
+    k += usize::from(digits[3]);
+    if high > 0 {
+        // the low three digits, zero-padded
+        slot[k..k + 3].copy_from_slice(&FRACTION3[low][1..]);
+        k += 3;
+    }
+    slot[k..k + 4].copy_from_slice(&FRACTION3[f]);
+    slot[k + 4] = b',';
+    k + 5
+}
+
+/// [`put_milli`] for any magnitude, the integer part two digits at a time.
+fn put_milli_long(slot: &mut Slot, n: i64) -> usize {
     let a = n.unsigned_abs();
     let (int, f) = (a / 1000, (a % 1000) as usize);
     let digits = int.checked_ilog10().map_or(1, |d| d as usize + 1);
@@ -1236,4 +1303,34 @@ fn verdict_update_schema() -> Value {
             "coefficients": {"type": "object", "additionalProperties": coefficient, "description": "coefficient name -> verdict"},
         }),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `[-]int.ddd,` written by `format!`, the reference for [`put_milli`].
+    fn reference(n: i64) -> String {
+        let a = n.unsigned_abs();
+        let sign = if n < 0 { "-" } else { "" };
+        format!("{sign}{}.{:03},", a / 1000, a % 1000)
+    }
+
+    #[test]
+    fn milli_units_are_written_as_format_writes_them() {
+        let mut values: Vec<i64> = (-2_000_000..=2_000_000).step_by(7).collect();
+        values.extend([
+            0, 1, -1, 999, -999, 1000, -1000, 999_999, -999_999, 1_000_000,
+        ]);
+        values.extend([-1_000_000, 123_456_789_012, (1 << 51) - 1, -((1 << 51) - 1)]);
+        let mut slot = [0u8; SLOT];
+        for n in values {
+            let len = put_milli(&mut slot, n);
+            assert_eq!(
+                std::str::from_utf8(&slot[..len]).unwrap(),
+                reference(n),
+                "{n}"
+            );
+        }
+    }
 }
