@@ -649,6 +649,26 @@ fn term_breaks(t: &SpectralTerm, tau0_s: f64) -> Vec<f64> {
     }
 }
 
+/// For each term with a finite-support autocovariance, its exact variance at
+/// levels `1..=max(levels)` (those terms need no quadrature); `None` for the others.
+fn finite_terms_level_vars(
+    lo: &[f64],
+    hi: &[f64],
+    tau0_s: f64,
+    levels: &[u32],
+    terms: &[SpectralTerm],
+    domain: Domain,
+) -> Vec<Option<Vec<f64>>> {
+    let max_level = levels.iter().copied().max().unwrap_or(1);
+    terms
+        .iter()
+        .map(|t| {
+            t.finite_autocov(tau0_s, domain)
+                .map(|r0| finite_level_vars(lo, hi, &r0, max_level))
+        })
+        .collect()
+}
+
 static BAND_CACHE: Memo<f64> = OnceLock::new();
 /// Most band integrals [`LevelBasis::bands_in`] keeps memoised (a few hundred
 /// bytes of key each).
@@ -859,15 +879,7 @@ impl LevelBasis {
         terms: &[SpectralTerm],
         domain: Domain,
     ) -> Self {
-        let max_level = levels.iter().copied().max().unwrap_or(1);
-        // exact variances for finite-support terms
-        let finite: Vec<Option<Vec<f64>>> = terms
-            .iter()
-            .map(|t| {
-                t.finite_autocov(tau0_s, domain)
-                    .map(|r0| finite_level_vars(lo, hi, &r0, max_level))
-            })
-            .collect();
+        let finite = finite_terms_level_vars(lo, hi, tau0_s, levels, terms, domain);
         let mut phi = Vec::with_capacity(levels.len());
         let mut gram = Vec::with_capacity(levels.len());
         let mut white_ratio = Vec::with_capacity(levels.len());
@@ -915,14 +927,7 @@ impl LevelBasis {
         terms: &[SpectralTerm],
         domain: Domain,
     ) -> Vec<Vec<f64>> {
-        let max_level = levels.iter().copied().max().unwrap_or(1);
-        let finite: Vec<Option<Vec<f64>>> = terms
-            .iter()
-            .map(|t| {
-                t.finite_autocov(tau0_s, domain)
-                    .map(|r0| finite_level_vars(lo, hi, &r0, max_level))
-            })
-            .collect();
+        let finite = finite_terms_level_vars(lo, hi, tau0_s, levels, terms, domain);
         let breaks: Vec<f64> = terms.iter().flat_map(|t| term_breaks(t, tau0_s)).collect();
         levels
             .iter()
