@@ -702,9 +702,8 @@ fn level_band(
         matches!((f, c), (Some(f), Some(c)) if f < c)
     });
     let key = |u: &SpectralTerm, paired: bool| {
-        let mut k = level_key(lo, hi, tau0_s, j, std::slice::from_ref(u), domain);
+        let mut k = column_key(lo, hi, tau0_s, j, u, breaks, domain);
         k.push(u64::from(paired));
-        k.extend(breaks.iter().map(|b| b.to_bits()));
         k
     };
     let paired = pair.is_some();

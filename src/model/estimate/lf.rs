@@ -51,11 +51,11 @@ impl Lf<'_> {
         )
     }
 
-    /// Rows for levels `from..` (of the basis rows `phi`) then the Allan points; the ramp column (when
-    /// there are Allan points) comes after the terms. Quantization is measured
-    /// in the angle domain: on these levels its white-angle column is a free
-    /// nuisance that absorbs what leaks below the QN band, and on the Allan
-    /// points the angle-domain Q is subtracted.
+    /// Rows for levels `from..` (of the basis rows `phi`) then the Allan
+    /// points; the ramp column (when there are Allan points) comes after the
+    /// terms. Quantization is measured in the angle domain: on these levels its
+    /// white-angle column is a free nuisance that absorbs what leaks below the
+    /// QN band, and on the Allan points the angle-domain Q is subtracted.
     pub fn rows(&self, terms: &[SpectralTerm], phi: &[Vec<f64>], from: usize) -> Rows {
         let mut phi: Vec<Vec<f64>> = phi[from..].to_vec();
         if self.ramp_col {
