@@ -6,18 +6,18 @@
 //!
 //! Gaps (lost frames) are filled the same way everywhere: the pulses of the
 //! gap, which the cumulative counter kept, are spread over the missing
-//! samples as integers ([`crate::source::frame::FilledSeries`]), so the
+//! samples as integers ([`crate::input::frame::FilledSeries`]), so the
 //! series stays uniformly sampled and no angle is lost; the made-up samples
 //! are marked, and the pipeline's statistics leave them out.
 
 use std::path::{Path, PathBuf};
 
 use crate::pipeline::{Pipeline, PipelineConfig, PipelineError, PipelineOutput};
-use crate::sink::meta::{AGREE_REL, Contradiction, GyroOutput, check_flag};
-use crate::sink::reader::{RawReader, ReadError, first_raw_period_ns};
-use crate::source::capture::{CaptureError, CaptureReader};
-use crate::source::frame::FilledSeries;
-use crate::source::input::{InputError, InputFormat, SampleReader};
+use crate::recording::meta::{AGREE_REL, Contradiction, GyroOutput, check_flag};
+use crate::recording::reader::{RawReader, ReadError, first_raw_period_ns};
+use crate::input::capture::{CaptureError, CaptureReader};
+use crate::input::frame::FilledSeries;
+use crate::input::plain::{InputError, InputFormat, SampleReader};
 use crate::units;
 
 /// Unit of a CSV rate column.
@@ -328,7 +328,7 @@ pub fn run_capture(
     path: &Path,
     cfg: &PipelineConfig,
     progress: Progress,
-) -> Result<(Pipeline, crate::source::frame::DecoderStats), OfflineError> {
+) -> Result<(Pipeline, crate::input::frame::DecoderStats), OfflineError> {
     run_capture_tapped(path, cfg, progress, None)
 }
 
@@ -339,7 +339,7 @@ pub fn run_capture_tapped(
     cfg: &PipelineConfig,
     progress: Progress,
     mut tap: Option<Tap>,
-) -> Result<(Pipeline, crate::source::frame::DecoderStats), OfflineError> {
+) -> Result<(Pipeline, crate::input::frame::DecoderStats), OfflineError> {
     let mut reader = CaptureReader::open(path)?;
     let hint = std::fs::metadata(path).ok().map(|m| m.len() / 16);
     let mut pipe = Pipeline::new(cfg)?;
@@ -426,7 +426,7 @@ pub fn recording_gyro(
     pulse_flag: Option<f64>,
 ) -> Result<RecordingGyro, OfflineError> {
     let gyro = select_gyro(path, gyro)?;
-    let (rate, pulse) = match crate::sink::reader::read_metadata_of(path, gyro.as_deref())? {
+    let (rate, pulse) = match crate::recording::reader::read_metadata_of(path, gyro.as_deref())? {
         Some(meta) => {
             if meta.output == GyroOutput::Rate {
                 return Err(OfflineError::RateOutput {
@@ -493,7 +493,7 @@ pub fn recording_gyro(
 /// error naming the labels when a recording of several gyros is read without
 /// `--gyro`, or `--gyro` names a gyro it does not have.
 pub fn select_gyro(path: &Path, gyro: Option<&str>) -> Result<Option<String>, OfflineError> {
-    let labels = crate::sink::reader::recording_gyro_labels(path)?;
+    let labels = crate::recording::reader::recording_gyro_labels(path)?;
     match gyro {
         None if labels.is_empty() => Ok(None),
         None => Err(OfflineError::ChooseGyro {
@@ -519,7 +519,7 @@ pub fn run_recording(
     gyro: Option<&str>,
     cfg: &PipelineConfig,
     progress: Progress,
-) -> Result<(Pipeline, Option<crate::sink::reader::Break>), OfflineError> {
+) -> Result<(Pipeline, Option<crate::recording::reader::Break>), OfflineError> {
     run_recording_tapped(path, gyro, cfg, progress, None)
 }
 
@@ -531,7 +531,7 @@ pub fn run_recording_tapped(
     cfg: &PipelineConfig,
     progress: Progress,
     mut tap: Option<Tap>,
-) -> Result<(Pipeline, Option<crate::sink::reader::Break>), OfflineError> {
+) -> Result<(Pipeline, Option<crate::recording::reader::Break>), OfflineError> {
     let gyro = select_gyro(path, gyro)?;
     let mut pipe = Pipeline::new(cfg)?;
     let (mut rates, mut temps) = (Vec::new(), Vec::new());

@@ -518,7 +518,7 @@ impl Pipeline {
 
     /// Push pulse increments of which the spans `filled` (indices into
     /// `counts`, sorted, disjoint) were made up by the gap fill
-    /// ([`crate::source::frame::fill`]). They go into the outputs and keep the
+    /// ([`crate::input::frame::fill`]). They go into the outputs and keep the
     /// angle continuous, but the statistics leave out every wavelet
     /// coefficient whose support touches one of them and every Allan second
     /// difference with one of its three phase points inside a gap (a filled
@@ -528,7 +528,7 @@ impl Pipeline {
     /// than a gap keeps its coefficients ([`crate::dsp::gaps::GAP_SCALE`]); so
     /// that this does not depend on how the pushes split a gap, a span that
     /// runs on past the end of `counts` is given whole (its end beyond
-    /// `counts.len()`), as [`crate::source::frame::FilledSeries::filled_in`] does.
+    /// `counts.len()`), as [`crate::input::frame::FilledSeries::filled_in`] does.
     pub fn push_counts_filled(
         &mut self,
         counts: &[i64],

@@ -20,7 +20,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use sagnac::allan::{self, AllanOptions, DataKind, NoiseIdMethod, Phase, Stat};
-use sagnac::source::input::{InputFormat, read_all};
+use sagnac::input::plain::{InputFormat, read_all};
 
 const CONF: f64 = 0.683; // Stable32's confidence factor
 

@@ -311,8 +311,8 @@ fn json_to_a_failing_stdout_is_an_error_not_a_panic() {
 
 #[test]
 fn damaged_inputs_are_reported_not_silently_dropped() {
-    use sagnac::sink::mcap::{Recorder, RecorderConfig};
-    use sagnac::sink::messages::{Gap, RawBatch, SinkMessage};
+    use sagnac::recording::writer::{Recorder, RecorderConfig};
+    use sagnac::recording::messages::{Gap, RawBatch, SinkMessage};
     let dir = tempfile::tempdir().unwrap();
     let bin = env!("CARGO_BIN_EXE_sagnac");
     let analyze = |args: &[&str]| {
@@ -626,7 +626,7 @@ fn issue_13_an_mcap_recording_carries_its_rate_and_pulse_weight() {
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     // the metadata record, as the library reads it
-    let meta = sagnac::sink::reader::read_metadata(&mcap)
+    let meta = sagnac::recording::reader::read_metadata(&mcap)
         .unwrap()
         .expect("a sagnac metadata record");
     assert_eq!((meta.sample_rate_hz, meta.pulse_arcsec), (400.0, Some(0.9)));
@@ -712,8 +712,8 @@ fn issue_13_an_mcap_recording_carries_its_rate_and_pulse_weight() {
 /// existed) gives its rate by its sample period; the pulse weight must be given.
 #[test]
 fn issue_13_an_mcap_recording_without_metadata_needs_the_pulse_flag() {
-    use sagnac::sink::mcap::{Recorder, RecorderConfig};
-    use sagnac::sink::messages::{RawBatch, SinkMessage};
+    use sagnac::recording::writer::{Recorder, RecorderConfig};
+    use sagnac::recording::messages::{RawBatch, SinkMessage};
     let dir = tempfile::tempdir().unwrap();
     let rec = Recorder::start(&RecorderConfig {
         record_dir: dir.path().to_path_buf(),
@@ -734,7 +734,7 @@ fn issue_13_an_mcap_recording_without_metadata_needs_the_pulse_flag() {
     }
     let path = rec.finish().unwrap().path;
     let p = path.to_str().unwrap();
-    assert_eq!(sagnac::sink::reader::read_metadata(&path).unwrap(), None);
+    assert_eq!(sagnac::recording::reader::read_metadata(&path).unwrap(), None);
     let o = sagnac(&["analyze", "--format", "mcap", "--input", p, "--json", "-"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");

@@ -190,7 +190,7 @@ fn mcap_output_only_replaces_a_regular_file_in_an_existing_directory() {
 /// three, are errors.
 #[test]
 fn triad_frames_carry_each_axis_csv_stream() {
-    use sagnac::source::frame::{Decoded, DecoderConfig, FrameDecoder, Triad};
+    use sagnac::input::frame::{Decoded, DecoderConfig, FrameDecoder, Triad};
     let dir = tempfile::tempdir().unwrap();
     let mut models = Vec::new();
     for (k, arw) in [0.001, 0.003, 0.0005].iter().enumerate() {

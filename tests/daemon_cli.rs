@@ -418,7 +418,7 @@ fn sigterm_during_startup_is_a_clean_shutdown() {
             d.log_text()
         );
         if rec.exists() {
-            let r = sagnac::sink::reader::read_recording(&only_recording(&rec));
+            let r = sagnac::recording::reader::read_recording(&only_recording(&rec));
             assert!(r.is_ok(), "after {delay_ms} ms: {r:?}");
         }
     }
@@ -662,7 +662,7 @@ fn issue_13_a_replayed_recording_supplies_its_rate_and_pulse_weight() {
         .map(|e| e.unwrap().path())
         .collect();
     assert_eq!(made.len(), 1, "{made:?}");
-    let meta = sagnac::sink::reader::read_metadata(&made[0])
+    let meta = sagnac::recording::reader::read_metadata(&made[0])
         .unwrap()
         .expect("the daemon writes a metadata record");
     assert_eq!((meta.sample_rate_hz, meta.pulse_arcsec), (500.0, Some(0.9)));

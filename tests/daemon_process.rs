@@ -25,10 +25,10 @@ use sagnac::daemon::telemetry::Telemetry;
 use sagnac::model::estimate::Coefficient;
 use sagnac::model::{GyroModel, Simulator};
 use sagnac::pipeline::{Pipeline, PipelineConfig, PipelineOutput};
-use sagnac::sink::mcap::{Recorder, RecorderConfig};
-use sagnac::sink::messages::{Gap, SinkMessage};
-use sagnac::sink::reader::read_recording;
-use sagnac::source::frame::spread_increment;
+use sagnac::recording::writer::{Recorder, RecorderConfig};
+use sagnac::recording::messages::{Gap, SinkMessage};
+use sagnac::recording::reader::read_recording;
+use sagnac::input::frame::spread_increment;
 
 const N: usize = 60_000;
 
@@ -146,7 +146,7 @@ fn the_stage_is_chunking_invariant_keeps_gaps_and_matches_the_pipeline() {
 
     // The batch reference: one push of the whole gap-filled series, with the
     // filled samples marked (issue 13).
-    let mut series = sagnac::source::frame::FilledSeries::default();
+    let mut series = sagnac::input::frame::FilledSeries::default();
     for &(c, l) in &decoded {
         series.push(c, l);
     }
@@ -191,7 +191,7 @@ fn the_stage_is_chunking_invariant_keeps_gaps_and_matches_the_pipeline() {
     let m1 = read_recording(&p1).unwrap().messages;
     let m2 = read_recording(&p2).unwrap().messages;
     // per channel (the interleaving of channels follows the batching)
-    let by_topic = |ms: &[sagnac::sink::reader::RecordedMessage]| {
+    let by_topic = |ms: &[sagnac::recording::reader::RecordedMessage]| {
         let mut t: BTreeMap<&'static str, Vec<SinkMessage>> = BTreeMap::new();
         for m in ms {
             if !matches!(m.message, SinkMessage::Event(_)) {

@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 
 use daemon_common::*;
 use sagnac::daemon::bench::BenchEmulator;
-use sagnac::source::frame::inject::{FaultPlan, InjectorConfig};
+use sagnac::input::frame::inject::{FaultPlan, InjectorConfig};
 
 fn run_replay(input: &Path, rec_dir: &Path, log: &Path, extra: &[&str]) -> Duration {
     let start = Instant::now();

@@ -15,7 +15,7 @@ use std::time::Duration;
 
 use daemon_common::*;
 use sagnac::daemon::bench::{BenchEmulator, write_paced};
-use sagnac::source::frame::inject::{FaultPlan, FrameAction, Ledger};
+use sagnac::input::frame::inject::{FaultPlan, FrameAction, Ledger};
 
 /// Frame rate of the emulated gyro, Hz, and the emulator's speed-up over real time.
 const RATE_HZ: f64 = 1000.0;

@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use sagnac::source::frame::{DecodeEvent, Decoded, DecoderConfig, FrameDecoder};
+use sagnac::input::frame::{DecodeEvent, Decoded, DecoderConfig, FrameDecoder};
 
 fn paper() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("config/paper_gyro.toml")
@@ -87,10 +87,10 @@ fn mcap_carries_exactly_the_csv_stream() {
     let out = dir.path().join("sim.mcap");
     simulate(&out, "mcap", "2.5");
     // Rust reader: /gyro/raw batches of 1000 samples, contiguous seq0 and t0 from 0.
-    let rec = sagnac::sink::reader::read_recording(&out).unwrap();
+    let rec = sagnac::recording::reader::read_recording(&out).unwrap();
     let mut got = Vec::new();
     for (i, m) in rec.messages.iter().enumerate() {
-        let sagnac::sink::messages::SinkMessage::Raw(r) = &m.message else {
+        let sagnac::recording::messages::SinkMessage::Raw(r) = &m.message else {
             panic!("unexpected message {m:?}")
         };
         assert_eq!(r.seq0, 1000 * i as u64);

@@ -4,9 +4,9 @@
 
 use std::io::{self, Read};
 
-use sagnac::source::capture::{CaptureError, CaptureReader};
-use sagnac::source::frame::inject::{FaultPlan, InjectorConfig, inject};
-use sagnac::source::frame::{
+use sagnac::input::capture::{CaptureError, CaptureReader};
+use sagnac::input::frame::inject::{FaultPlan, InjectorConfig, inject};
+use sagnac::input::frame::{
     Decoded, DecoderConfig, FrameDecoder, FrameEncoder, encode_increments,
 };
 
@@ -27,7 +27,7 @@ fn corrupted_stream(seed: u64) -> (Vec<u8>, i64) {
 
 /// Rebuild the decoder's item sequence from the summary's samples and
 /// positioned events.
-fn interleave(sum: &sagnac::source::capture::CaptureSummary) -> Vec<Decoded> {
+fn interleave(sum: &sagnac::input::capture::CaptureSummary) -> Vec<Decoded> {
     let mut out = Vec::new();
     let mut ev = sum.events.iter().peekable();
     for (i, s) in sum.samples.iter().enumerate() {
@@ -53,7 +53,7 @@ fn blocks_reproduce_one_shot_decoding_for_any_chunking() {
             .with_read_chunk(chunk)
             .with_block_samples(block);
         let mut n_blocks = 0;
-        let mut sum = sagnac::source::capture::CaptureSummary::default();
+        let mut sum = sagnac::input::capture::CaptureSummary::default();
         while let Some(b) = rd.next_block().unwrap() {
             assert!(b.samples.len() <= block, "block size bound");
             assert!(!b.is_empty());

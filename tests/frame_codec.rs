@@ -5,9 +5,9 @@
 use std::time::Duration;
 
 use futures_util::StreamExt;
-use sagnac::source::frame::codec::FrameCodec;
-use sagnac::source::frame::inject::{FaultPlan, InjectorConfig, inject};
-use sagnac::source::frame::{
+use sagnac::input::frame::codec::FrameCodec;
+use sagnac::input::frame::inject::{FaultPlan, InjectorConfig, inject};
+use sagnac::input::frame::{
     DecodeEvent, Decoded, DecoderConfig, FrameDecoder, FrameEncoder, encode_increments,
 };
 use tokio::io::{AsyncRead, AsyncWriteExt};
@@ -120,9 +120,9 @@ async fn framed_read_over_a_pseudo_terminal_pair() {
 /// chunked pipe yields exactly what the synchronous triad decoder yields.
 #[tokio::test]
 async fn triad_framed_read_over_a_chunked_pipe_matches_the_sync_decoder() {
-    use sagnac::source::frame::inject::inject_wire;
-    use sagnac::source::frame::triad::encode_triad_increments;
-    use sagnac::source::frame::{Triad, TriadEncoder};
+    use sagnac::input::frame::inject::inject_wire;
+    use sagnac::input::frame::triad::encode_triad_increments;
+    use sagnac::input::frame::{Triad, TriadEncoder};
     let incs: Vec<[i64; 3]> = (0..2000)
         .map(|k| [(k * 37 % 11) - 5, k % 3, -(k % 7)])
         .collect();

@@ -2,8 +2,8 @@
 //! counts for hand-placed corruption, sequence anomalies and end of stream.
 
 use bytes::BytesMut;
-use sagnac::source::frame::inject::{FaultPlan, FrameAction, inject};
-use sagnac::source::frame::{
+use sagnac::input::frame::inject::{FaultPlan, FrameAction, inject};
+use sagnac::input::frame::{
     DecodeEvent, Decoded, DecoderConfig, DecoderStats, FRAME_LEN, FrameDecoder, FrameEncoder,
     Sample, encode_frame, encode_increments,
 };
@@ -480,7 +480,7 @@ fn exact_counts_after_known_corruption() {
 fn reserved_field_nonzero_is_accepted_and_counted() {
     let mut f = encode_frame(1, 10, 0, 7);
     f[12] = 0x01;
-    let crc = sagnac::source::frame::crc16(&f[..14]);
+    let crc = sagnac::input::frame::crc16(&f[..14]);
     f[14..].copy_from_slice(&crc.to_le_bytes());
     let g = encode_frame(2, 11, 0, 7);
     let (items, st) = decode(&concat(&[f, g]));
@@ -493,7 +493,7 @@ fn reserved_field_nonzero_is_accepted_and_counted() {
 /// sample of every run and the same counts as decoding frame by frame.
 #[test]
 fn bulk_runs_decode_exactly_like_frame_by_frame() {
-    use sagnac::source::frame::inject::InjectorConfig;
+    use sagnac::input::frame::inject::InjectorConfig;
     // temperature and status vary (a status change ends a run), the counter wraps
     let mut frames = Vec::new();
     let mut counter = 0xFFFF_F000u32;

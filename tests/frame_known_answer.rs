@@ -1,7 +1,7 @@
 //! Known-answer tests of the gyro frame format (issue 5): CRC, field layout,
 //! counter-wrap increments, encoder output.
 
-use sagnac::source::frame::{
+use sagnac::input::frame::{
     self, FRAME_LEN, FrameEncoder, FrameError, NotAFrame, RawFrame, STATUS_ALL_OK, check, crc16,
     crc16_frame, encode_frame, increment_between, parse,
 };

@@ -12,8 +12,8 @@
 
 use bytes::BytesMut;
 use proptest::prelude::*;
-use sagnac::source::frame::inject::{FaultPlan, InjectorConfig, inject};
-use sagnac::source::frame::{
+use sagnac::input::frame::inject::{FaultPlan, InjectorConfig, inject};
+use sagnac::input::frame::{
     DecodeEvent, Decoded, DecoderConfig, DecoderStats, FRAME_LEN, FrameDecoder, FrameEncoder,
     GapFiller, Sample, encode_frame, encode_increments, fill_gap, spread_increment,
 };

@@ -13,9 +13,9 @@
 
 use bytes::BytesMut;
 use proptest::prelude::*;
-use sagnac::source::frame::inject::{FaultPlan, InjectorConfig, inject_wire};
-use sagnac::source::frame::triad::encode_triad_increments;
-use sagnac::source::frame::{
+use sagnac::input::frame::inject::{FaultPlan, InjectorConfig, inject_wire};
+use sagnac::input::frame::triad::encode_triad_increments;
+use sagnac::input::frame::{
     DecodeEvent, Decoded, DecoderConfig, DecoderStats, FrameDecoder, TRIAD_FRAME_LEN, Triad,
     TriadEncoder, WireDecoded, encode_frame, encode_triad_frame,
 };
@@ -326,8 +326,8 @@ fn known_stream_exact_counts() {
     )
     .unwrap();
     let mut plan = FaultPlan::none();
-    plan.set_action(10, sagnac::source::frame::inject::FrameAction::Drop);
-    plan.set_action(20, sagnac::source::frame::inject::FrameAction::FlipBit(100));
+    plan.set_action(10, sagnac::input::frame::inject::FrameAction::Drop);
+    plan.set_action(20, sagnac::input::frame::inject::FrameAction::FlipBit(100));
     plan.add_garbage_before(30, &[0x00, 0xA5, 0x5B, 1, 2, 3]);
     let inj = inject_wire::<Triad>(&frames, &plan);
     let (items, st) = FrameDecoder::<Triad>::decode_all_wire(&inj.bytes, DecoderConfig::default());

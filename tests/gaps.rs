@@ -14,7 +14,7 @@ use sagnac::model::estimate::Coefficient;
 use sagnac::model::fit::LevelObs;
 use sagnac::model::sim::Simulator;
 use sagnac::pipeline::{Analysis, Pipeline, PipelineConfig, PipelineOutput};
-use sagnac::source::frame::FilledSeries;
+use sagnac::input::frame::FilledSeries;
 
 struct Rng(u64);
 impl Rng {

@@ -12,11 +12,11 @@ use std::time::{Duration, Instant, SystemTime};
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use sagnac::sink::mcap::{
+use sagnac::recording::writer::{
     RecordError, Recorder, RecorderConfig, format_utc_compact, recording_file_name,
 };
-use sagnac::sink::messages::{RateBatch, SinkMessage, Topic};
-use sagnac::sink::reader::{
+use sagnac::recording::messages::{RateBatch, SinkMessage, Topic};
+use sagnac::recording::reader::{
     ReadError, read_recording, read_recording_bytes, recover_recording, recover_recording_bytes,
     scan_recording,
 };
@@ -658,7 +658,7 @@ fn issue_13_python_reads_the_metadata_record() {
     assert_eq!(m["model"], text);
     assert_eq!(m["sagnac_version"], env!("CARGO_PKG_VERSION"));
     assert_eq!(j["raw_samples"], 1200);
-    let meta = sagnac::sink::reader::read_metadata(&mcap).unwrap().unwrap();
+    let meta = sagnac::recording::reader::read_metadata(&mcap).unwrap().unwrap();
     assert_eq!(
         meta.to_record().metadata,
         serde_json::from_value(m.clone()).unwrap()

@@ -8,7 +8,7 @@ mod sink_common;
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use sagnac::sink::messages::{
+use sagnac::recording::messages::{
     AllanCurve, AllanUpdate, Event, EventKind, Gap, MessageError, RateBatch, RawBatch, SinkMessage,
     Topic, quantize_rate,
 };

@@ -1,4 +1,4 @@
-//! The one recording reader ([`sagnac::sink::reader`]) and its pull API:
+//! The one recording reader ([`sagnac::recording::reader`]) and its pull API:
 //! * one gyro's raw batches come out the same whatever the recording's chunk
 //!   boundaries and however the file arrives (reads of 1 to 97 bytes), equal to
 //!   the `/gyro/raw` messages of a full decode, the other channels counted and
@@ -21,12 +21,12 @@ use sagnac::daemon::queue::QueueBound;
 use sagnac::daemon::replay::ReplayConfig;
 use sagnac::daemon::telemetry::Telemetry;
 use sagnac::pipeline::PipelineConfig;
-use sagnac::sink::mcap::{Recorder, RecorderConfig};
-use sagnac::sink::messages::{Gap, RawBatch, SinkMessage};
-use sagnac::sink::reader::{
+use sagnac::recording::writer::{Recorder, RecorderConfig};
+use sagnac::recording::messages::{Gap, RawBatch, SinkMessage};
+use sagnac::recording::reader::{
     RawReader, RecordingReader, Selection, read_recording, recover_recording,
 };
-use sagnac::source::frame::{DecoderConfig, FilledSeries, Single};
+use sagnac::input::frame::{DecoderConfig, FilledSeries, Single};
 
 const DT_NS: u64 = 1_000_000;
 

@@ -15,7 +15,7 @@ use rand_distr::{Distribution, StandardNormal};
 use daemon_common::{DaemonProc, only_recording, promtool, repo};
 use sagnac::model::estimate::{Coefficient, NoiseEstimates};
 use sagnac::model::spec::{SequentialSpec, Spec, SpecCoefficient, Verdict};
-use sagnac::sink::messages::SinkMessage;
+use sagnac::recording::messages::SinkMessage;
 use sagnac::sink::metrics::{GyroInfo, Metrics};
 
 fn sagnac(args: &[&str]) -> std::process::Output {
@@ -500,7 +500,7 @@ fn run_stops_when_decided_with_a_finished_recording_holding_the_verdicts() {
     );
     assert!(text.contains("spec verdict"), "{text}");
     let file = only_recording(&rec);
-    let r = sagnac::sink::reader::read_recording(&file).unwrap();
+    let r = sagnac::recording::reader::read_recording(&file).unwrap();
     let verdicts: Vec<_> = r
         .messages
         .iter()

@@ -5,7 +5,7 @@
 
 use bytes::BytesMut;
 use libfuzzer_sys::fuzz_target;
-use sagnac::source::frame::{DecodeEvent, Decoded, DecoderConfig, FRAME_LEN, FrameDecoder};
+use sagnac::input::frame::{DecodeEvent, Decoded, DecoderConfig, FRAME_LEN, FrameDecoder};
 
 fuzz_target!(|input: &[u8]| {
     let Some((&knob, data)) = input.split_first() else {

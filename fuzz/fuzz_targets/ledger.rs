@@ -4,8 +4,8 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use sagnac::source::frame::inject::{FaultPlan, FrameAction, inject};
-use sagnac::source::frame::{Decoded, DecoderConfig, FrameDecoder, FrameEncoder, encode_increments};
+use sagnac::input::frame::inject::{FaultPlan, FrameAction, inject};
+use sagnac::input::frame::{Decoded, DecoderConfig, FrameDecoder, FrameEncoder, encode_increments};
 
 fuzz_target!(|input: &[u8]| {
     // Layout: 2 bytes start seq, 4 bytes start counter, then 4-byte records

@@ -6,9 +6,9 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use sagnac::source::frame::inject::{FaultPlan, FrameAction, inject_wire};
-use sagnac::source::frame::triad::encode_triad_increments;
-use sagnac::source::frame::{Decoded, DecoderConfig, FrameDecoder, Triad, TriadEncoder};
+use sagnac::input::frame::inject::{FaultPlan, FrameAction, inject_wire};
+use sagnac::input::frame::triad::encode_triad_increments;
+use sagnac::input::frame::{Decoded, DecoderConfig, FrameDecoder, Triad, TriadEncoder};
 
 fuzz_target!(|input: &[u8]| {
     let (_, st) = FrameDecoder::<Triad>::decode_all_wire(input, DecoderConfig::default());

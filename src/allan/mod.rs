@@ -2,7 +2,7 @@
 //! with equivalent degrees of freedom and chi-square confidence intervals, and
 //! the streaming octave-spaced accumulators used by the daemon.
 //!
-//! Role in the whole: `source::input` (or the daemon) delivers samples; this
+//! Role in the whole: `input::plain` (or the daemon) delivers samples; this
 //! module turns them into a [`Phase`] series (integrated angle, or time error
 //! for clocks) and computes deviations at averaging factors `m` (tau = m *
 //! tau0). The results ([`AllanResult`]) feed `model` (noise-term estimation)

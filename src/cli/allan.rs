@@ -1,7 +1,7 @@
 //! `sagnac allan`: Allan-family deviations of a recorded file, with confidence
 //! intervals, as JSON (`--json OUT`) or an aligned table on stdout.
 //!
-//! Thin: reading is `source::input`, the numerics are `allan`. A run longer
+//! Thin: reading is `input::plain`, the numerics are `allan`. A run longer
 //! than a moment shows its phase (reading, computing) or, with the streaming
 //! engine, the samples read, on stderr at a terminal.
 
@@ -12,7 +12,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 
 use crate::allan::{self, AllanOptions, AllanResult, DataKind, Phase, Stat, TauSet};
-use crate::source::input::{InputFormat, SampleReader};
+use crate::input::plain::{InputFormat, SampleReader};
 
 /// Arguments of `sagnac allan`.
 #[derive(Debug, Args)]

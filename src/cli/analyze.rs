@@ -9,7 +9,7 @@
 //! No silent defaults: a CSV file and a frame capture carry no sample rate and
 //! no pulse weight, so `--rate-hz` (and `--pulse-arcsec` for pulse counts) are
 //! required; an MCAP recording carries both in its `sagnac` metadata record
-//! ([`crate::sink::meta`]), and a flag that contradicts it is an error.
+//! ([`crate::recording::meta`]), and a flag that contradicts it is an error.
 //!
 //! The JSON (`--json`) also says how it was made ([`crate::sink::provenance`]):
 //! `sagnac_version`, `input` (file, format, column and unit, sample rate and
@@ -26,7 +26,7 @@ use crate::model::spec::{Spec, SpecReport};
 use crate::offline::{self, OfflineError, RateUnit};
 use crate::pipeline::{Analysis, PipelineConfig};
 use crate::sink::provenance::{InputSettings, Provenance, analysis_units};
-use crate::source::input::InputFormat;
+use crate::input::plain::InputFormat;
 
 /// Arguments of `sagnac analyze`.
 #[derive(Debug, Args)]

@@ -7,7 +7,7 @@
 //! --unit dps|dph|rad_s` reads its rate column, the units as `analyze` reads them), a raw frame capture (`frames`) or an MCAP
 //! recording (`mcap`, topic `/gyro/raw`). The sample rate and pulse weight come
 //! from the model's `[gyro]`, except that an MCAP recording's own values
-//! override them: those of its `sagnac` metadata record ([`crate::sink::meta`]),
+//! override them: those of its `sagnac` metadata record ([`crate::recording::meta`]),
 //! or for an older recording without one its sample period (`dt_ns`). Outputs: the JSON verdict (`--json`), an SVG
 //! report (`--report`; at least one of the two) and the updated model (`--write-model`).
 //!
@@ -28,11 +28,11 @@ use crate::diagnose::{self, DiagnoseOptions, Recording};
 use crate::model::GyroModel;
 use crate::model::config::OutputKind;
 use crate::offline::RateUnit;
-use crate::sink::meta::GyroOutput;
+use crate::recording::meta::GyroOutput;
 use crate::sink::provenance::{InputSettings, Provenance};
-use crate::source::capture::CaptureReader;
-use crate::source::frame::FilledSeries;
-use crate::source::input::{InputError, InputFormat, SampleReader};
+use crate::input::capture::CaptureReader;
+use crate::input::frame::FilledSeries;
+use crate::input::plain::{InputError, InputFormat, SampleReader};
 use crate::units;
 
 /// Recording format.
@@ -430,7 +430,7 @@ fn read_frames(path: &Path, model: &GyroModel) -> anyhow::Result<Recording> {
 fn read_mcap(path: &Path, gyro: Option<&str>, model: &GyroModel) -> anyhow::Result<Recording> {
     let gyro = crate::offline::select_gyro(path, gyro)?;
     // strict: a damaged or cut recording is an error (with the offset where it breaks)
-    let mut reader = crate::sink::reader::RawReader::open(path, gyro.as_deref(), true)
+    let mut reader = crate::recording::reader::RawReader::open(path, gyro.as_deref(), true)
         .with_context(|| format!("reading the MCAP recording {}", path.display()))?;
     let mut series = FilledSeries::default();
     let mut temps: Vec<f64> = Vec::new();
@@ -482,7 +482,7 @@ fn read_mcap(path: &Path, gyro: Option<&str>, model: &GyroModel) -> anyhow::Resu
     }
     // the recording's own rate and pulse weight (its metadata record), if it says them
     let meta = match &gyro {
-        Some(g) => crate::sink::reader::read_metadata_of(path, Some(g))?,
+        Some(g) => crate::recording::reader::read_metadata_of(path, Some(g))?,
         None => reader.report().metadata.clone(),
     };
     if let Some(m) = &meta

@@ -21,7 +21,7 @@ use crate::model::GyroModel;
 use crate::offline::{self, OfflineError, RateUnit, TapBlock};
 use crate::pipeline::{Pipeline, PipelineConfig};
 use crate::sink::report::{self, Collector, DiagnosisPart, Metadata};
-use crate::source::input::InputFormat;
+use crate::input::plain::InputFormat;
 
 /// Arguments of `sagnac report`.
 #[derive(Debug, Args)]

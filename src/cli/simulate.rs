@@ -1,6 +1,6 @@
 //! `sagnac simulate`: run the gyro simulator on a model file and write the pulse
 //! stream as CSV, as a raw frame capture (`--format frames`: the 16-byte gyro
-//! frames of [`crate::source::frame`], what a serial capture holds), or as an
+//! frames of [`crate::input::frame`], what a serial capture holds), or as an
 //! MCAP recording holding `/gyro/raw` (`--format mcap`, the channel `sagnac run`
 //! records and replays, with the `sagnac` metadata record: rate, pulse weight and
 //! the model's text, so that `analyze` and `diagnose` need no flags for it).
@@ -13,7 +13,7 @@
 //! messages.
 //!
 //! `--format triad-frames` writes a triad capture (the 24-byte frames of
-//! [`crate::source::frame::triad`]) from three models given as
+//! [`crate::input::frame::triad`]) from three models given as
 //! `--model X.toml,Y.toml,Z.toml`: axis x runs with `--seed S`, y with S + 1, z
 //! with S + 2; the three must have the same sample rate and count pulses; the
 //! temperature field is axis x's. It starts at the same `seq` and the same counter
@@ -32,10 +32,10 @@ use super::progress::{DelayedBar, LineCounter};
 use crate::daemon::bench::{SIM_START_COUNTER, SIM_START_SEQ};
 use crate::model::config::OutputKind;
 use crate::model::{GyroModel, Simulator, sim};
-use crate::sink::mcap::{Recorder, RecorderConfig};
-use crate::sink::messages::{RawBatch, SinkMessage};
-use crate::sink::meta::RecordingMeta;
-use crate::source::frame::{FrameEncoder, FrameWriter, STATUS_ALL_OK, TriadEncoder};
+use crate::recording::writer::{Recorder, RecorderConfig};
+use crate::recording::messages::{RawBatch, SinkMessage};
+use crate::recording::meta::RecordingMeta;
+use crate::input::frame::{FrameEncoder, FrameWriter, STATUS_ALL_OK, TriadEncoder};
 
 /// Output format of `sagnac simulate`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]

@@ -13,12 +13,12 @@
 //! new segment, re-anchored on the host clock.
 //!
 //! # Gaps
-//! As in the decoder ([`crate::source::frame`]): a sample that follows `lost`
+//! As in the decoder ([`crate::input::frame`]): a sample that follows `lost`
 //! missing samples carries the WHOLE counter difference over the `lost + 1`
 //! periods, and the batch records `Gap { index, lost }` before it (the
 //! representation of `/gyro/raw`). The sum of the counts is therefore the true
 //! number of pulses, whatever was lost. The pipeline thread spreads such an
-//! increment over the missing periods ([`crate::source::frame::spread_increment`]).
+//! increment over the missing periods ([`crate::input::frame::spread_increment`]).
 //!
 //! # Delivery
 //! [`Delivery::Lossless`] (replays, the simulated bench) waits for room in a
@@ -35,9 +35,9 @@ use crate::daemon::queue::{self, BatchReceiver, QueueBound, QueueTx};
 use crate::daemon::telemetry::{
     ANOMALY_DISCONTINUITY, ANOMALY_DUPLICATE, ANOMALY_OUT_OF_SEQUENCE, Telemetry,
 };
-use crate::sink::messages::{Event, EventKind, Gap};
+use crate::recording::messages::{Event, EventKind, Gap};
 use crate::sink::metrics::FrameErrorKind;
-use crate::source::frame::{DecodeEvent, Decoded, DecoderStats, RunEnd};
+use crate::input::frame::{DecodeEvent, Decoded, DecoderStats, RunEnd};
 
 /// Nanoseconds since the Unix epoch, host clock (0 if the clock is before 1970).
 pub fn wall_ns() -> u64 {
@@ -252,7 +252,7 @@ impl Assembler {
         })
     }
 
-    /// A run of contiguous samples from [`FrameDecoder::decode_run`](crate::source::frame::FrameDecoder::decode_run):
+    /// A run of contiguous samples from [`FrameDecoder::decode_run`](crate::input::frame::FrameDecoder::decode_run):
     /// the same as [`push`](Self::push)ing each as a sample with no loss before it.
     /// The run must fit in [`room`](Self::room) (the caller bounds the decoder by it).
     pub fn push_run(&mut self, increments: &[i64], end: &RunEnd, now_ns: u64) {
@@ -650,7 +650,7 @@ fn fold_into(batch: &mut SourceBatch, held: Dropped) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::source::frame::{
+    use crate::input::frame::{
         DecoderConfig, FrameDecoder, FrameEncoder, encode_increments, inject,
     };
 

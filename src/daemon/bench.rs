@@ -13,7 +13,7 @@
 //!   lossless delivery (backpressure slows the simulation down).
 //! * [`BenchEmulator`] simulates a whole run up front and keeps the truth (the
 //!   increments, hence the total pulses): tests corrupt its frames with
-//!   [`crate::source::frame::inject`] (which returns the exact ledger of what a
+//!   [`crate::input::frame::inject`] (which returns the exact ledger of what a
 //!   decoder must report) and write them with [`write_paced`].
 
 use std::io::{self, Write};
@@ -26,8 +26,8 @@ use crate::daemon::lanes::Lanes;
 use crate::daemon::shutdown::Shutdown;
 use crate::daemon::telemetry::Telemetry;
 use crate::model::{GyroModel, ModelError, Simulator};
-use crate::source::frame::inject::{FaultPlan, Injected, inject};
-use crate::source::frame::{
+use crate::input::frame::inject::{FaultPlan, Injected, inject};
+use crate::input::frame::{
     Axes, DecoderConfig, FRAME_LEN, FrameEncoder, FrameError, Single, Triad, TriadEncoder,
 };
 
@@ -357,7 +357,7 @@ mod tests {
     use crate::daemon::batch;
     use crate::daemon::queue::QueueBound;
     use crate::daemon::shutdown;
-    use crate::source::frame::inject::FrameAction;
+    use crate::input::frame::inject::FrameAction;
 
     const PAPER: &str = include_str!("../../config/paper_gyro.toml");
 

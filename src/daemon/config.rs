@@ -71,7 +71,7 @@ impl FrameKind {
     }
 }
 
-use crate::source::frame::triad::AXES;
+use crate::input::frame::triad::AXES;
 
 /// One of several labelled inputs: `LABEL=PATH` (a serial device or a capture).
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -86,7 +86,7 @@ impl LabelledInput {
     /// Parse `LABEL=PATH`; the error says what is wrong.
     pub fn parse(text: &str) -> Result<LabelledInput, &'static str> {
         let (label, path) = text.split_once('=').ok_or("must be LABEL=PATH")?;
-        if !crate::sink::messages::valid_gyro_label(label) {
+        if !crate::recording::messages::valid_gyro_label(label) {
             return Err("LABEL must be 1-32 ASCII letters, digits, _ or -");
         }
         if path.is_empty() {

@@ -13,8 +13,8 @@ use bytes::BytesMut;
 
 use crate::daemon::batch::{Assembler, BatchSender, PipelineClosed, SourceReport};
 use crate::daemon::telemetry::Telemetry;
-use crate::sink::messages::EventKind;
-use crate::source::frame::{Axes, DecoderConfig, DecoderStats, FrameDecoder, WireDecoded};
+use crate::recording::messages::EventKind;
+use crate::input::frame::{Axes, DecoderConfig, DecoderStats, FrameDecoder, WireDecoded};
 
 /// One gyro of a stream: where its samples are assembled and sent.
 #[derive(Debug)]

@@ -20,7 +20,7 @@
 //!   an MCAP recording), [`bench`] (the simulated bench), each feeding one
 //!   [`lanes::Lanes`] per frame stream (one gyro, or a triad's three).
 //!
-//! The sans-IO frame decoding they use lives in [`crate::source`].
+//! The sans-IO frame decoding they use lives in [`crate::input`].
 
 pub mod batch;
 pub mod bench;

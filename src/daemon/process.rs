@@ -57,13 +57,13 @@ use crate::daemon::summary::{Place, SummaryAcc};
 use crate::daemon::telemetry::Telemetry;
 use crate::model::estimate::Coefficient;
 use crate::pipeline::{Analysis, Pipeline, PipelineConfig, PipelineError, PipelineOutput};
-use crate::sink::mcap::{Checked, RecordError, RecordSender};
-use crate::sink::messages::{
+use crate::recording::writer::{Checked, RecordError, RecordSender};
+use crate::recording::messages::{
     AllanCurve, AllanUpdate, EstimateUpdate, Event, EventKind, Gap, RateBatch, RawBatch,
     SinkMessage, SummaryUpdate, VerdictUpdate,
 };
 use crate::sink::metrics::{AllanChannel, Bounds95};
-use crate::source::frame::FilledSeries;
+use crate::input::frame::FilledSeries;
 
 /// Errors building the numeric stage.
 #[derive(Debug, thiserror::Error)]
@@ -426,7 +426,7 @@ impl Run<'_> {
     }
 
     /// Hand the queued messages to the recorder (entries of up to
-    /// [`crate::sink::mcap::GROUP_MAX`] messages, one wake of the writer thread
+    /// [`crate::recording::writer::GROUP_MAX`] messages, one wake of the writer thread
     /// each): blocking for lossless sources; a live source's full queue drops
     /// them, counted.
     fn send_outbox(&mut self) {

@@ -22,7 +22,7 @@ use tokio::sync::{OwnedSemaphorePermit, Semaphore, mpsc};
 
 use crate::daemon::batch::{PipelineClosed, SourceBatch};
 use crate::daemon::telemetry::Telemetry;
-use crate::sink::messages::{Event, Gap};
+use crate::recording::messages::{Event, Gap};
 
 /// Bytes in a MiB.
 pub const MIB: f64 = 1024.0 * 1024.0;

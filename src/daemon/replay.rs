@@ -7,7 +7,7 @@
 //!   (so the frame counters and events come out as they did live);
 //! * an MCAP recording made by `sagnac run`: the `/gyro/raw` messages (counts,
 //!   gaps, sequence numbers and sample times as recorded), pulled from the shared
-//!   recording reader ([`crate::sink::reader::RawReader`], the one `analyze` and
+//!   recording reader ([`crate::recording::reader::RawReader`], the one `analyze` and
 //!   `diagnose` read), are fed back; the other channels are skipped without being
 //!   decoded. A recording cut by a crash is replayed up to its last complete
 //!   chunk (with a warning). Gap events are re-emitted from the recorded gaps;
@@ -30,9 +30,9 @@ use crate::daemon::batch::{BatchSender, PipelineClosed, SourceBatch, SourceRepor
 use crate::daemon::lanes::Lanes;
 use crate::daemon::shutdown::Shutdown;
 use crate::daemon::telemetry::Telemetry;
-use crate::sink::messages::{Event, EventKind, RawBatch};
-use crate::sink::reader::RawReader;
-use crate::source::frame::{Axes, DecoderConfig};
+use crate::recording::messages::{Event, EventKind, RawBatch};
+use crate::recording::reader::RawReader;
+use crate::input::frame::{Axes, DecoderConfig};
 
 /// Errors of the replay source; each names the file.
 #[derive(Debug, thiserror::Error)]
@@ -77,7 +77,7 @@ pub enum ReplayError {
     NoSamples { path: PathBuf, bytes_read: u64 },
     /// The recording cannot be read.
     #[error(transparent)]
-    Recording(#[from] crate::sink::reader::ReadError),
+    Recording(#[from] crate::recording::reader::ReadError),
     /// The pipeline stopped during the replay.
     #[error("replay of {}: {source}", path.display())]
     Pipeline {
@@ -122,37 +122,37 @@ pub struct RecordedGyro {
     /// Where the values come from (for messages).
     pub origin: &'static str,
     /// Relative tolerance of an explicit rate against `rate_hz`
-    /// (see [`crate::sink::meta::check_flag`]).
+    /// (see [`crate::recording::meta::check_flag`]).
     pub rate_rel_tol: f64,
 }
 
 /// The gyros of an MCAP recording, in order: for a recording of one gyro
 /// (label `None`), its `sagnac` metadata record
-/// ([`crate::sink::reader::read_metadata`]), or for an older recording without
+/// ([`crate::recording::reader::read_metadata`]), or for an older recording without
 /// one the sample period of its first `/gyro/raw` message (no pulse weight);
 /// for a recording of several, each gyro's `sagnac/<label>` record.
 pub fn probe_mcap_gyros(path: &Path) -> Result<Vec<(Option<String>, RecordedGyro)>, ReplayError> {
-    let from_meta = |meta: crate::sink::meta::RecordingMeta| RecordedGyro {
+    let from_meta = |meta: crate::recording::meta::RecordingMeta| RecordedGyro {
         rate_hz: Some(meta.sample_rate_hz),
         pulse_arcsec: meta.pulse_arcsec,
         origin: "in its sagnac metadata record",
-        rate_rel_tol: crate::sink::meta::AGREE_REL,
+        rate_rel_tol: crate::recording::meta::AGREE_REL,
     };
-    let labels = crate::sink::reader::recording_gyro_labels(path)?;
+    let labels = crate::recording::reader::recording_gyro_labels(path)?;
     if !labels.is_empty() {
         let mut gyros = Vec::new();
         for label in labels {
             // the labels are those of the gyros' metadata records
-            if let Some(meta) = crate::sink::reader::read_metadata_of(path, Some(&label))? {
+            if let Some(meta) = crate::recording::reader::read_metadata_of(path, Some(&label))? {
                 gyros.push((Some(label), from_meta(meta)));
             }
         }
         return Ok(gyros);
     }
-    if let Some(meta) = crate::sink::reader::read_metadata(path)? {
+    if let Some(meta) = crate::recording::reader::read_metadata(path)? {
         return Ok(vec![(None, from_meta(meta))]);
     }
-    let dt = crate::sink::reader::first_raw_period_ns(path, None)?;
+    let dt = crate::recording::reader::first_raw_period_ns(path, None)?;
     Ok(vec![(
         None,
         RecordedGyro {
@@ -201,7 +201,7 @@ impl ReplayConfig {
         }
         let kind = probe(&self.path)?;
         let gyros = match kind {
-            CaptureKind::Mcap => crate::sink::reader::recording_gyro_labels(&self.path)?,
+            CaptureKind::Mcap => crate::recording::reader::recording_gyro_labels(&self.path)?,
             CaptureKind::Frames => Vec::new(),
         };
         Ok(ReplaySource {
@@ -563,7 +563,7 @@ fn truncate_periods(raw: &mut RawBatch, periods: u64) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sink::messages::Gap;
+    use crate::recording::messages::Gap;
 
     #[test]
     fn truncation_keeps_whole_samples() {

@@ -43,10 +43,10 @@ use crate::daemon::status::LiveStatus;
 use crate::daemon::telemetry::Telemetry;
 use crate::model::{GyroModel, ModelError};
 use crate::pipeline::PipelineConfig;
-use crate::sink::mcap::{RecordError, Recorder, RecorderConfig, RecordingSummary};
-use crate::sink::meta::{AGREE_REL, Contradiction, RecordingMeta, check_flag};
+use crate::recording::writer::{RecordError, Recorder, RecorderConfig, RecordingSummary};
+use crate::recording::meta::{AGREE_REL, Contradiction, RecordingMeta, check_flag};
 use crate::sink::metrics::{Metrics, MetricsError};
-use crate::source::frame::{DecoderConfig, Single, Triad};
+use crate::input::frame::{DecoderConfig, Single, Triad};
 
 /// The built-in gyro model of the simulated bench (the founding paper's RLG).
 pub const PAPER_GYRO_TOML: &str = include_str!("../../config/paper_gyro.toml");
@@ -365,7 +365,7 @@ impl Daemon {
             // validate() checked that it parses
             config.metrics.addr.parse().ok()
         };
-        // What the recording says about itself (see crate::sink::meta).
+        // What the recording says about itself (see crate::recording::meta).
         let mut recording_meta =
             RecordingMeta::counts(config.gyro.rate_hz, config.gyro.pulse_arcsec);
         recording_meta.config = toml::to_string(&config).ok();

@@ -48,8 +48,8 @@ use crate::daemon::batch::{BatchSender, PipelineClosed, SourceReport, wall_ns};
 use crate::daemon::lanes::Lanes;
 use crate::daemon::shutdown::Shutdown;
 use crate::daemon::telemetry::Telemetry;
-use crate::sink::messages::EventKind;
-use crate::source::frame::{Axes, DecoderConfig};
+use crate::recording::messages::EventKind;
+use crate::input::frame::{Axes, DecoderConfig};
 
 /// Errors of the serial source.
 #[derive(Debug, thiserror::Error)]

@@ -14,7 +14,7 @@
 use std::collections::VecDeque;
 use std::ops::Range;
 
-use crate::sink::messages::{SummaryUpdate, Timestamp, summary_window_samples};
+use crate::recording::messages::{SummaryUpdate, Timestamp, summary_window_samples};
 
 /// Where a new window starting at uniform index `u` lies: the start of its
 /// time segment, the start of the next segment (if one is known), and the time

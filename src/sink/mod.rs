@@ -14,10 +14,6 @@
 //! - [`export`]: files for other tools (Kalibr's `imu.yaml`, Allan curves as CSV).
 
 pub mod export;
-pub mod mcap;
-pub mod messages;
-pub mod meta;
 pub mod metrics;
 pub mod provenance;
-pub mod reader;
 pub mod report;

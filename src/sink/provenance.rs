@@ -14,7 +14,7 @@
 //! ```
 //!
 //! The keys are those of a recording's `sagnac` metadata record
-//! ([`crate::sink::meta`]: `sample_rate_hz`, `pulse_arcsec`, `rate_lsb_dps`,
+//! ([`crate::recording::meta`]: `sample_rate_hz`, `pulse_arcsec`, `rate_lsb_dps`,
 //! `sagnac_version`), so a number means the same thing in every output.
 
 use std::collections::BTreeMap;

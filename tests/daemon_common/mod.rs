@@ -10,8 +10,8 @@ use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
 use sagnac::model::estimate::Coefficient;
-use sagnac::sink::messages::{EstimateUpdate, RawBatch, SinkMessage};
-use sagnac::sink::reader::read_recording;
+use sagnac::recording::messages::{EstimateUpdate, RawBatch, SinkMessage};
+use sagnac::recording::reader::read_recording;
 
 pub fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -25,8 +25,8 @@ pub fn paper_model() -> sagnac::model::GyroModel {
 /// frames): drops, bit flips, duplicates and garbage with false syncs, at
 /// 0.4 % of frames each (duplicates 0.1 %), sparing the first and last frame
 /// (the baseline and the final counter).
-pub fn serial_faults() -> sagnac::source::frame::inject::InjectorConfig {
-    sagnac::source::frame::inject::InjectorConfig {
+pub fn serial_faults() -> sagnac::input::frame::inject::InjectorConfig {
+    sagnac::input::frame::inject::InjectorConfig {
         drop_prob: 0.004,
         flip_prob: 0.004,
         duplicate_prob: 0.001,

@@ -7,7 +7,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sagnac::model::estimate::{Coefficient, NoiseEstimates};
 use sagnac::model::spec::{CoefficientVerdict, Verdict};
-use sagnac::sink::messages::{
+use sagnac::recording::messages::{
     AllanCurve, AllanUpdate, EstimateUpdate, Event, EventKind, Gap, RateBatch, RawBatch,
     SinkMessage, SummaryUpdate, Timestamp, VerdictUpdate,
 };

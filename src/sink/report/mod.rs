@@ -31,7 +31,7 @@ use plotters::prelude::*;
 
 use crate::diagnose::Diagnosis;
 use crate::pipeline::Analysis;
-use crate::source::frame::DecoderStats;
+use crate::input::frame::DecoderStats;
 
 pub use collect::Collector;
 

@@ -130,7 +130,7 @@ impl Axes for Triad {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::source::frame::{DecoderConfig, FrameDecoder, TriadEncoder};
+    use crate::input::frame::{DecoderConfig, FrameDecoder, TriadEncoder};
     use bytes::BytesMut;
 
     #[test]

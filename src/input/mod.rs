@@ -6,4 +6,4 @@
 
 pub mod capture;
 pub mod frame;
-pub mod input;
+pub mod plain;

@@ -3,9 +3,9 @@
 //!
 //! The policies (resync, CRC error vs false sync, gaps, duplicates,
 //! out-of-sequence frames, discontinuities) are documented on the parent module
-//! [`crate::source::frame`]. No tokio here: the daemon wraps this in
+//! [`crate::input::frame`]. No tokio here: the daemon wraps this in
 //! [`super::codec::FrameCodec`], the offline reader in
-//! [`crate::source::capture`].
+//! [`crate::input::capture`].
 
 use std::collections::VecDeque;
 

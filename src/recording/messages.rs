@@ -4,8 +4,8 @@
 //! Every channel is JSON-encoded (MCAP message encoding `json`) and carries a
 //! hand-written JSON Schema (schema encoding `jsonschema`), so Foxglove and any
 //! other MCAP tool can open a recording without our code. The recorder
-//! ([`crate::sink::mcap`]) writes [`SinkMessage`]s; the reader
-//! ([`crate::sink::reader`]) gives them back, equal field for field except for the
+//! ([`crate::recording::writer`]) writes [`SinkMessage`]s; the reader
+//! ([`crate::recording::reader`]) gives them back, equal field for field except for the
 //! fixed resolution of the rate values (see below).
 //!
 //! | topic | message | log time |

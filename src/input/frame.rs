@@ -2,7 +2,7 @@
 //! and a corruption injector.
 //!
 //! This is the first stage of the acquisition chain: raw bytes from the serial
-//! port (daemon), from a replayed `.bin` capture ([`crate::source::capture`]) or
+//! port (daemon), from a replayed `.bin` capture ([`crate::input::capture`]) or
 //! from the emulator go in; uniformly numbered pulse increments
 //! ([`Sample`]) and diagnostic [`DecodeEvent`]s come out and feed `dsp`/`allan`.
 //!

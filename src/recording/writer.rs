@@ -12,11 +12,11 @@
 //! reaches `chunk_size` bytes. A crash (even `kill -9`) therefore loses at most the
 //! last `flush_interval_s` of recorded messages plus what was still queued; the
 //! truncated file is readable up to its last complete chunk with
-//! [`crate::sink::reader::recover_recording`]. The data is not `fsync`ed: a power
+//! [`crate::recording::reader::recover_recording`]. The data is not `fsync`ed: a power
 //! loss may lose what the OS had not yet written.
 //!
 //! A recording started with [`Recorder::start_with_metadata`] holds, right after
-//! the header, the `sagnac` Metadata record ([`crate::sink::meta`]: sample rate,
+//! the header, the `sagnac` Metadata record ([`crate::recording::meta`]: sample rate,
 //! pulse weight, config or model, version). The schemas and channels go into a first chunk that is closed before
 //! [`Recorder::start`] returns, so every recording is readable from its start.
 //! (`start` does that small amount of file I/O on the calling thread; from async
@@ -43,8 +43,8 @@ use std::time::{Duration, Instant, SystemTime};
 
 use serde::{Deserialize, Serialize};
 
-use crate::sink::messages::{MESSAGE_ENCODING, MessageError, SCHEMA_ENCODING, SinkMessage, Topic};
-use crate::sink::meta::RecordingMeta;
+use crate::recording::messages::{MESSAGE_ENCODING, MessageError, SCHEMA_ENCODING, SinkMessage, Topic};
+use crate::recording::meta::RecordingMeta;
 
 mod queue;
 
@@ -518,7 +518,7 @@ impl Recorder {
     }
 
     /// Start a recording named by `start` whose first record after the header is
-    /// `metadata` (the `sagnac` Metadata record of [`crate::sink::meta`]).
+    /// `metadata` (the `sagnac` Metadata record of [`crate::recording::meta`]).
     pub fn start_with_metadata(
         config: &RecorderConfig,
         start: SystemTime,

@@ -6,7 +6,7 @@
 //! events come out in blocks of bounded size (for `sagnac analyze --format
 //! frames` and for replaying a capture through the pipeline). Corruption in the
 //! capture is never an error (it is skipped and counted, see
-//! [`crate::source::frame`]); errors are I/O failures, naming the file and the
+//! [`crate::input::frame`]); errors are I/O failures, naming the file and the
 //! byte offset, and a file that holds no valid frame at all.
 
 use std::fs::File;
@@ -83,7 +83,7 @@ impl CaptureBlock {
     }
 
     /// The samples' increments (gaps NOT filled: see
-    /// [`crate::source::frame::fill_gap`]).
+    /// [`crate::input::frame::fill_gap`]).
     pub fn increments(&self) -> impl Iterator<Item = i64> + '_ {
         self.samples.iter().map(|s| s.increment)
     }

@@ -16,7 +16,7 @@
 //!
 //! Numbers are written with Rust's shortest round-trip formatting, so they read
 //! back bit for bit. Unknown keys are ignored (a newer writer may add some).
-//! Reading is [`crate::sink::reader::read_metadata`] (and the `metadata` of a
+//! Reading is [`crate::recording::reader::read_metadata`] (and the `metadata` of a
 //! full scan); this module only turns the record into [`RecordingMeta`] and back.
 //! [`check_flag`] is the one rule for a flag that meets a recorded value.
 

@@ -137,13 +137,13 @@ pub enum InputError {
 /// Streaming reader of samples from a file.
 ///
 /// ```no_run
-/// use sagnac::source::input::{InputFormat, SampleReader};
+/// use sagnac::input::plain::{InputFormat, SampleReader};
 /// let mut r = SampleReader::open("run.f64".as_ref(), InputFormat::F64le, None)?;
 /// let mut block = Vec::new();
 /// while r.next_block(&mut block, 65536)? > 0 {
 ///     // process `block`
 /// }
-/// # Ok::<(), sagnac::source::input::InputError>(())
+/// # Ok::<(), sagnac::input::plain::InputError>(())
 /// ```
 pub struct SampleReader {
     path: PathBuf,

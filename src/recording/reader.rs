@@ -17,7 +17,7 @@
 //! breaks. [`read_recording`] and [`recover_recording`] collect a whole file with
 //! them; channels of other topics are skipped and counted.
 //!
-//! The recording's `sagnac` Metadata record ([`crate::sink::meta`]: sample rate,
+//! The recording's `sagnac` Metadata record ([`crate::recording::meta`]: sample rate,
 //! pulse weight, model, config) is read here too, and only here: every reader
 //! reports it, and [`read_metadata`] reads just the start of a file for it (the
 //! writers put it before any chunk), for the commands that must know the rate
@@ -32,8 +32,8 @@ use ::mcap::McapError;
 use ::mcap::records::Record;
 use ::mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
 
-use crate::sink::messages::{MESSAGE_ENCODING, MessageError, RawBatch, SinkMessage, Topic};
-use crate::sink::meta::{METADATA_NAME, MetaError, RecordingMeta};
+use crate::recording::messages::{MESSAGE_ENCODING, MessageError, RawBatch, SinkMessage, Topic};
+use crate::recording::meta::{METADATA_NAME, MetaError, RecordingMeta};
 
 /// Errors of the reader; each names the file and a byte offset.
 #[derive(Debug, thiserror::Error)]
@@ -584,7 +584,7 @@ pub fn read_metadata_of(
 ) -> Result<Option<RecordingMeta>, ReadError> {
     let wanted = gyro.map_or_else(
         || METADATA_NAME.to_string(),
-        crate::sink::meta::gyro_metadata_name,
+        crate::recording::meta::gyro_metadata_name,
     );
     for (offset, m) in metadata_records(path)? {
         if m.name == wanted {
