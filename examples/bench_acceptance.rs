@@ -111,7 +111,7 @@ fn model_toml(f: &Family, truth: f64, i: usize) -> (String, f64, f64) {
         ),
     };
     let toml = format!(
-        "[gyro]\nsample_rate_hz = {rate}\npulse_weight_arcsec = {pulse}\ninput_rate_dph = 12.3\n\
+        "[gyro]\nsample_rate_hz = {rate}\npulse_arcsec = {pulse}\ninput_rate_dph = 12.3\n\
          [noise]\nquantization_arcsec = {q}\narw_dpsh = {n}\nbias_instability_dph = {b}\n\
          rrw_dphsh = {k}\nrate_ramp_dphh = {r}\n"
     );

@@ -86,7 +86,7 @@ fn main() -> Result<(), String> {
         let r = if i % 2 == 0 { ramp } else { -ramp };
         let q = 0.4 * pulse;
         let toml = format!(
-            "[gyro]\nsample_rate_hz = {rate}\npulse_weight_arcsec = {pulse}\ninput_rate_dph = 12.3\n\
+            "[gyro]\nsample_rate_hz = {rate}\npulse_arcsec = {pulse}\ninput_rate_dph = 12.3\n\
              [noise]\nquantization_arcsec = {q}\narw_dpsh = {N_DPSH}\nbias_instability_dph = {B_DPH}\n\
              rrw_dphsh = 0.0\nrate_ramp_dphh = {r}\n"
         );

@@ -20,7 +20,8 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use sagnac::allan::{self, AllanOptions, DataKind, NoiseIdMethod, Phase, Stat};
-use sagnac::input::plain::{InputFormat, read_all};
+use sagnac::input::Format;
+use sagnac::input::plain::read_all;
 
 const CONF: f64 = 0.683; // Stable32's confidence factor
 
@@ -93,7 +94,7 @@ impl Dataset {
         let dir = root.join("allantools").join(sub);
         let path = dir.join(file);
         // our own reader: gz, CRLF, comment lines, `+2.7E-007` numbers
-        let mut v = read_all(&path, InputFormat::Text, None).unwrap_or_else(|e| panic!("{e}"));
+        let mut v = read_all(&path, Format::Text, None).unwrap_or_else(|e| panic!("{e}"));
         if hz_to_fractional {
             v.iter_mut().for_each(|f| *f = (*f - 1.0e7) / 1.0e7);
         }
@@ -561,7 +562,7 @@ fn nbs14_reference_values() {
     let a = root.join("allantools");
     let text = std::fs::read_to_string(a.join("nbs14/nbs14_reference_values.txt")).unwrap();
     let load = |p: &str, kind: DataKind| {
-        let v = read_all(&a.join(p), InputFormat::Text, None).unwrap();
+        let v = read_all(&a.join(p), Format::Text, None).unwrap();
         Phase::from_samples(&v, kind, 1.0).unwrap()
     };
     let sets: BTreeMap<&str, Vec<Phase>> = BTreeMap::from([

@@ -381,7 +381,7 @@ fn bad_inputs_exit_2_naming_file_and_line() {
             "--tau0",
             "1",
         ],
-        &["--column applies to CSV input only"],
+        &["--column does not apply", "no columns"],
     );
     // finite but huge: its square would overflow the variances
     let huge = write(d, "huge.txt", b"1\n2\n3\n1e300\n");

@@ -16,7 +16,7 @@ fn simulate(dir: &Path, seconds: &str) -> std::path::PathBuf {
     let model = dir.join("m.toml");
     std::fs::write(
         &model,
-        "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 1.21\ninput_rate_dph = 12.3\n\
+        "[gyro]\nsample_rate_hz = 1000.0\npulse_arcsec = 1.21\ninput_rate_dph = 12.3\n\
          [noise]\nquantization_arcsec = 0.35\narw_dpsh = 0.0015\n",
     )
     .unwrap();
@@ -64,7 +64,7 @@ fn json_contract_and_values_on_a_simulated_run() {
         "analyze",
         "--input",
         csv.to_str().unwrap(),
-        "--rate-hz",
+        "--sample-rate-hz",
         "1000",
         "--pulse-arcsec",
         "1.21",
@@ -113,7 +113,7 @@ fn json_contract_and_values_on_a_simulated_run() {
         "analyze",
         "--input",
         csv.to_str().unwrap(),
-        "--rate-hz",
+        "--sample-rate-hz",
         "1000",
         "--pulse-arcsec",
         "1.21",
@@ -153,7 +153,7 @@ fn rate_columns_in_every_unit_give_the_same_estimates() {
             "analyze",
             "--input",
             csv.to_str().unwrap(),
-            "--rate-hz",
+            "--sample-rate-hz",
             "100",
             "--column",
             col,
@@ -187,7 +187,7 @@ fn bad_inputs_exit_2_with_a_clear_message() {
             vec![
                 "--column",
                 "rate",
-                "--rate-hz",
+                "--sample-rate-hz",
                 "1000",
                 "--pulse-arcsec",
                 "1.21",
@@ -195,11 +195,12 @@ fn bad_inputs_exit_2_with_a_clear_message() {
             "no CSV column named \"rate\"",
         ),
         (
+            // the old flag name is an alias of --sample-rate-hz
             vec!["--rate-hz", "-5", "--pulse-arcsec", "1.21"],
-            "--rate-hz",
+            "--sample-rate-hz must be a positive number",
         ),
         (
-            vec!["--rate-hz", "1000", "--pulse-arcsec", "0"],
+            vec!["--sample-rate-hz", "1000", "--pulse-arcsec", "0"],
             "--pulse-arcsec",
         ),
     ];
@@ -217,7 +218,7 @@ fn bad_inputs_exit_2_with_a_clear_message() {
         "analyze",
         "--input",
         bad.to_str().unwrap(),
-        "--rate-hz",
+        "--sample-rate-hz",
         "1000",
         "--pulse-arcsec",
         "1.21",
@@ -272,7 +273,7 @@ fn json_to_a_failing_stdout_is_an_error_not_a_panic() {
             "analyze",
             "--input",
             csv.to_str().unwrap(),
-            "--rate-hz",
+            "--sample-rate-hz",
             "1000",
             "--pulse-arcsec",
             "1.21",
@@ -311,8 +312,8 @@ fn json_to_a_failing_stdout_is_an_error_not_a_panic() {
 
 #[test]
 fn damaged_inputs_are_reported_not_silently_dropped() {
-    use sagnac::recording::writer::{Recorder, RecorderConfig};
     use sagnac::recording::messages::{Gap, RawBatch, SinkMessage};
+    use sagnac::recording::writer::{Recorder, RecorderConfig};
     let dir = tempfile::tempdir().unwrap();
     let bin = env!("CARGO_BIN_EXE_sagnac");
     let analyze = |args: &[&str]| {
@@ -394,14 +395,7 @@ fn damaged_inputs_are_reported_not_silently_dropped() {
     let model = concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml");
     let r = Command::new(bin)
         .args([
-            "diagnose",
-            "--model",
-            model,
-            "--format",
-            "mcap",
-            "--json",
-            "-",
-            "--recording",
+            "diagnose", "--model", model, "--format", "mcap", "--json", "-", "--input",
         ])
         .arg(&huge)
         .output()
@@ -439,7 +433,7 @@ fn damaged_inputs_are_reported_not_silently_dropped() {
     let r = analyze(&[
         "--format",
         "frames",
-        "--rate-hz",
+        "--sample-rate-hz",
         "1000",
         "--pulse-arcsec",
         "1.21",
@@ -467,7 +461,7 @@ fn a_constant_recording_finds_nothing_and_says_why() {
         "analyze",
         "--input",
         csv.to_str().unwrap(),
-        "--rate-hz",
+        "--sample-rate-hz",
         "1000",
         "--pulse-arcsec",
         "1.21",
@@ -516,7 +510,7 @@ fn column_is_refused_for_frame_and_mcap_input() {
         assert_eq!(out.status.code(), Some(2), "{format}");
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(
-            err.contains("--column applies to CSV input only"),
+            err.contains("--column does not apply") && err.contains("pulse counts"),
             "{format}: {err}"
         );
     }
@@ -550,19 +544,22 @@ fn issue_13_csv_and_frames_need_the_rate_and_pulse_flags() {
     let cases: Vec<(Vec<&str>, String)> = vec![
         (
             vec!["--input", c, "--pulse-arcsec", "1.21"],
-            format!("--rate-hz is required: {c} carries no sample rate"),
+            format!("--sample-rate-hz is required: {c} carries no sample rate"),
         ),
         (
-            vec!["--input", c, "--rate-hz", "1000"],
+            vec!["--input", c, "--sample-rate-hz", "1000"],
             format!("--pulse-arcsec is required: {c} carries no pulse weight"),
         ),
-        (vec!["--input", c], "--rate-hz is required".to_string()),
         (
-            vec!["--format", "frames", "--input", b, "--pulse-arcsec", "1.21"],
-            format!("--rate-hz is required: {b} carries no sample rate"),
+            vec!["--input", c],
+            "--sample-rate-hz is required".to_string(),
         ),
         (
-            vec!["--format", "frames", "--input", b, "--rate-hz", "1000"],
+            vec!["--input", b, "--pulse-arcsec", "1.21"],
+            format!("--sample-rate-hz is required: {b} carries no sample rate"),
+        ),
+        (
+            vec!["--input", b, "--sample-rate-hz", "1000"],
             format!("--pulse-arcsec is required: {b} carries no pulse weight"),
         ),
     ];
@@ -585,7 +582,7 @@ fn issue_13_csv_and_frames_need_the_rate_and_pulse_flags() {
         "analyze",
         "--input",
         c,
-        "--rate-hz",
+        "--sample-rate-hz",
         "1000",
         "--unit",
         "dph",
@@ -605,7 +602,7 @@ fn issue_13_an_mcap_recording_carries_its_rate_and_pulse_weight() {
     let model = dir.path().join("m.toml");
     std::fs::write(
         &model,
-        "[gyro]\nsample_rate_hz = 400.0\npulse_weight_arcsec = 0.9\ninput_rate_dph = 12.3\n\
+        "[gyro]\nsample_rate_hz = 400.0\npulse_arcsec = 0.9\ninput_rate_dph = 12.3\n\
          [noise]\nquantization_arcsec = 0.26\narw_dpsh = 0.002\n",
     )
     .unwrap();
@@ -660,7 +657,7 @@ fn issue_13_an_mcap_recording_carries_its_rate_and_pulse_weight() {
         "mcap",
         "--input",
         m,
-        "--rate-hz",
+        "--sample-rate-hz",
         "400",
         "--pulse-arcsec",
         "0.9",
@@ -693,7 +690,7 @@ fn issue_13_an_mcap_recording_carries_its_rate_and_pulse_weight() {
     assert_eq!(b, f, "the metadata's values are the flags' values");
 
     for (flag, value, recorded) in [
-        ("--rate-hz", "1000", "400"),
+        ("--sample-rate-hz", "1000", "400"),
         ("--pulse-arcsec", "1.21", "0.9"),
     ] {
         let o = sagnac(&[
@@ -712,8 +709,8 @@ fn issue_13_an_mcap_recording_carries_its_rate_and_pulse_weight() {
 /// existed) gives its rate by its sample period; the pulse weight must be given.
 #[test]
 fn issue_13_an_mcap_recording_without_metadata_needs_the_pulse_flag() {
-    use sagnac::recording::writer::{Recorder, RecorderConfig};
     use sagnac::recording::messages::{RawBatch, SinkMessage};
+    use sagnac::recording::writer::{Recorder, RecorderConfig};
     let dir = tempfile::tempdir().unwrap();
     let rec = Recorder::start(&RecorderConfig {
         record_dir: dir.path().to_path_buf(),
@@ -734,7 +731,10 @@ fn issue_13_an_mcap_recording_without_metadata_needs_the_pulse_flag() {
     }
     let path = rec.finish().unwrap().path;
     let p = path.to_str().unwrap();
-    assert_eq!(sagnac::recording::reader::read_metadata(&path).unwrap(), None);
+    assert_eq!(
+        sagnac::recording::reader::read_metadata(&path).unwrap(),
+        None
+    );
     let o = sagnac(&["analyze", "--format", "mcap", "--input", p, "--json", "-"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
@@ -770,7 +770,7 @@ fn issue_13_an_mcap_recording_without_metadata_needs_the_pulse_flag() {
         p,
         "--pulse-arcsec",
         "1.21",
-        "--rate-hz",
+        "--sample-rate-hz",
         "1000",
         "--json",
         "-",
@@ -778,7 +778,7 @@ fn issue_13_an_mcap_recording_without_metadata_needs_the_pulse_flag() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(
-        err.contains("--rate-hz 1000 contradicts")
+        err.contains("--sample-rate-hz 1000 contradicts")
             && err.contains("says 200 as the sample period of /gyro/raw"),
         "{err}"
     );
@@ -795,7 +795,7 @@ fn a_collapsed_low_frequency_fit_bounds_nothing_tightly() {
     let model = dir.path().join("m.toml");
     std::fs::write(
         &model,
-        "[gyro]\nsample_rate_hz = 100\npulse_weight_arcsec = 1.21\ninput_rate_dph = 12.3\n\
+        "[gyro]\nsample_rate_hz = 100\npulse_arcsec = 1.21\ninput_rate_dph = 12.3\n\
          [noise]\nquantization_arcsec = 0.484\narw_dpsh = 0.0005\nbias_instability_dph = 0.002\n\
          rate_ramp_dphh = 0.0455\n",
     )
@@ -823,7 +823,7 @@ fn a_collapsed_low_frequency_fit_bounds_nothing_tightly() {
         "analyze",
         "--input",
         csv.to_str().unwrap(),
-        "--rate-hz",
+        "--sample-rate-hz",
         "100",
         "--pulse-arcsec",
         "1.21",
@@ -854,4 +854,98 @@ fn a_collapsed_low_frequency_fit_bounds_nothing_tightly() {
         q[0].as_f64().unwrap() < 0.484 && 0.484 < q[1].as_f64().unwrap(),
         "{q:?}"
     );
+}
+
+/// `analyze` of `path` with the given extra flags; the JSON, or the stderr.
+fn analyze_json(path: &Path, extra: &[&str]) -> Result<Value, String> {
+    let mut args = vec!["analyze", "--input", path.to_str().unwrap(), "--json", "-"];
+    args.extend_from_slice(extra);
+    let o = sagnac(&args);
+    if o.status.success() {
+        Ok(serde_json::from_slice(&o.stdout).unwrap())
+    } else {
+        assert_eq!(o.status.code(), Some(2));
+        Err(String::from_utf8_lossy(&o.stderr).into_owned())
+    }
+}
+
+#[test]
+fn the_format_is_found_by_content_and_a_contradicting_format_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let csv = simulate(d, "60");
+    let model = d.join("m.toml");
+    let sim = |format: &str, out: &Path, models: &str| {
+        let o = sagnac(&[
+            "simulate",
+            "--model",
+            models,
+            "--duration-s",
+            "60",
+            "--seed",
+            "9",
+            "--format",
+            format,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    };
+    // names that say nothing: the content decides
+    let (frames, mcap, triad) = (
+        d.join("capture.dat"),
+        d.join("rec.dat"),
+        d.join("triad.dat"),
+    );
+    let m = model.to_str().unwrap();
+    sim("frames", &frames, m);
+    sim("mcap", &mcap, m);
+    sim("triad-frames", &triad, &format!("{m},{m},{m}"));
+    let flags = ["--sample-rate-hz", "1000", "--pulse-arcsec", "1.21"];
+    let csv_j = analyze_json(&csv, &flags).unwrap();
+    assert_eq!(csv_j["input"]["format"], "csv");
+    let fr = analyze_json(&frames, &flags).unwrap();
+    assert_eq!(fr["input"]["format"], "frames");
+    let mc = analyze_json(&mcap, &[]).unwrap();
+    assert_eq!(mc["input"]["format"], "mcap");
+    assert_eq!(mc["input"]["sample_rate_hz"], 1000.0);
+    // a capture that starts in the middle of a frame
+    let bytes = std::fs::read(&frames).unwrap();
+    let cut = d.join("cut.dat");
+    std::fs::write(&cut, &bytes[5..]).unwrap();
+    let cj = analyze_json(&cut, &flags).unwrap();
+    assert_eq!(cj["input"]["format"], "frames");
+    // the cut first frame is lost, so the second sets the baseline
+    assert_eq!(
+        cj["samples"].as_u64().unwrap() + 1,
+        fr["samples"].as_u64().unwrap()
+    );
+    // a triad capture: one of its gyros, by label
+    let e = analyze_json(&triad, &flags).unwrap_err();
+    assert!(e.contains("several gyros") && e.contains("x, y, z"), "{e}");
+    let tj = analyze_json(&triad, &[&flags[..], &["--gyro", "y"]].concat()).unwrap();
+    assert_eq!(tj["input"]["format"], "triad-frames");
+    assert_eq!(tj["input"]["gyro"], "y");
+    assert!(tj["samples"].as_u64().unwrap() > 59_000);
+    // --format overrides only what agrees with the content
+    let e = analyze_json(&mcap, &["--format", "csv"]).unwrap_err();
+    assert!(
+        e.contains("--format csv contradicts") && e.contains("MCAP"),
+        "{e}"
+    );
+    assert!(analyze_json(&frames, &[&flags[..], &["--format", "frames"]].concat()).is_ok());
+    // raw f64 has no signature: it needs --format (or a .f64 name)
+    let values: Vec<u8> = (0..5000)
+        .flat_map(|i| (10.0 + ((i * 7919) % 13) as f64).to_le_bytes())
+        .collect();
+    let raw = d.join("rates.bin");
+    std::fs::write(&raw, &values).unwrap();
+    let rate_flags = ["--sample-rate-hz", "100", "--unit", "dph"];
+    let e = analyze_json(&raw, &rate_flags).unwrap_err();
+    assert!(e.contains("--format f64le"), "{e}");
+    let rj = analyze_json(&raw, &[&rate_flags[..], &["--format", "f64le"]].concat()).unwrap();
+    assert_eq!(rj["input"]["format"], "f64le");
+    let named = d.join("rates.f64");
+    std::fs::copy(&raw, &named).unwrap();
+    assert_eq!(analyze_json(&named, &rate_flags).unwrap()["samples"], 5000);
 }

@@ -14,11 +14,11 @@ fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_sagnac"))
 }
 
-const MODEL: &str = "[gyro]\nsample_rate_hz = 500.0\npulse_weight_arcsec = 1.21\ninput_rate_dph = 12.3\n\
+const MODEL: &str = "[gyro]\nsample_rate_hz = 500.0\npulse_arcsec = 1.21\ninput_rate_dph = 12.3\n\
 [noise]\nquantization_arcsec = 0.35\narw_dpsh = 0.001\n";
 
 /// The model plus a short-correlation Gauss-Markov term the model lacks.
-const TRUTH: &str = "[gyro]\nsample_rate_hz = 500.0\npulse_weight_arcsec = 1.21\ninput_rate_dph = 12.3\n\
+const TRUTH: &str = "[gyro]\nsample_rate_hz = 500.0\npulse_arcsec = 1.21\ninput_rate_dph = 12.3\n\
 [noise]\nquantization_arcsec = 0.35\narw_dpsh = 0.001\n\
 [[noise.gauss_markov]]\nsigma_dph = 0.06\ntau_c_s = 0.5\n";
 
@@ -186,7 +186,7 @@ fn matched_mcap_and_frame_recordings_are_consistent_and_json_goes_to_stdout() {
         let out = bin()
             .args(["diagnose", "--model"])
             .arg(p.join("model.toml"))
-            .arg("--recording")
+            .arg("--input")
             .arg(p.join(file))
             .args(["--format", format, "--json", "-"])
             .output()
@@ -234,7 +234,7 @@ fn bad_inputs_give_clear_errors() {
         vec![
             "--model".into(),
             v[0].into(),
-            "--recording".into(),
+            "--input".into(),
             v[1].into(),
             "--json".into(),
             v[2].into(),
@@ -270,7 +270,7 @@ fn a_model_is_written_only_when_it_fits_better() {
     let model = dir.path().join("g.toml");
     std::fs::write(
         &model,
-        "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 1.21\n",
+        "[gyro]\nsample_rate_hz = 1000.0\npulse_arcsec = 1.21\n",
     )
     .unwrap();
     let (json, new) = (dir.path().join("out.json"), dir.path().join("new.toml"));
@@ -278,7 +278,7 @@ fn a_model_is_written_only_when_it_fits_better() {
         .arg("diagnose")
         .arg("--model")
         .arg(&model)
-        .arg("--recording")
+        .arg("--input")
         .arg(&csv)
         .arg("--json")
         .arg(&json)
@@ -323,7 +323,7 @@ fn a_constant_recording_is_refused_not_called_consistent() {
             "diagnose",
             "--model",
             concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml"),
-            "--recording",
+            "--input",
         ])
         .arg(&csv)
         .args(["--json", "-"])
@@ -386,7 +386,7 @@ fn the_report_alone_suffices_and_the_figure_states_verdict_and_findings() {
     let out = bin()
         .args(["diagnose", "--model"])
         .arg(p.join("model.toml"))
-        .arg("--recording")
+        .arg("--input")
         .arg(p.join("rec.csv"))
         .arg("--report")
         .arg(p.join("out.svg"))
@@ -446,7 +446,7 @@ fn the_report_alone_suffices_and_the_figure_states_verdict_and_findings() {
         &[
             "--model".as_ref(),
             p.join("model.toml").as_os_str(),
-            "--recording".as_ref(),
+            "--input".as_ref(),
             p.join("rec.csv").as_os_str(),
         ],
         "nothing to write",
@@ -516,7 +516,7 @@ fn a_rate_column_is_read_with_column_and_unit_and_its_filter_named() {
         &[
             "--model".as_ref(),
             model.as_os_str(),
-            "--recording".as_ref(),
+            "--input".as_ref(),
             rec.as_os_str(),
             "--json".as_ref(),
             out.as_os_str(),
@@ -529,7 +529,7 @@ fn a_rate_column_is_read_with_column_and_unit_and_its_filter_named() {
         &[
             "--model".as_ref(),
             counts_model.as_os_str(),
-            "--recording".as_ref(),
+            "--input".as_ref(),
             rec.as_os_str(),
             "--column".as_ref(),
             "gyro_x_dps".as_ref(),
@@ -570,7 +570,7 @@ fn the_adis_z_resonance_is_fitted_and_the_fit_improves() {
         let o = bin()
             .args(["diagnose", "--model"])
             .arg(&model)
-            .arg("--recording")
+            .arg("--input")
             .arg(&rec)
             .args([
                 "--column",

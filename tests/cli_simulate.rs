@@ -108,7 +108,7 @@ fn thermal_model_adds_a_temperature_column() {
 fn bad_model_exits_2_naming_the_key() {
     let dir = tempfile::tempdir().unwrap();
     let model = dir.path().join("bad.toml");
-    std::fs::write(&model, "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 1.21\n\n[noise]\nbias_instabilty_dph = 0.002\n").unwrap();
+    std::fs::write(&model, "[gyro]\nsample_rate_hz = 1000.0\npulse_arcsec = 1.21\n\n[noise]\nbias_instabilty_dph = 0.002\n").unwrap();
     let r = simulate(&model, "1", "1", &dir.path().join("x.csv"), &[]);
     assert_eq!(r.status.code(), Some(2));
     let err = String::from_utf8_lossy(&r.stderr);
@@ -117,7 +117,7 @@ fn bad_model_exits_2_naming_the_key() {
         "{err}"
     );
 
-    std::fs::write(&model, "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 1.21\n\n[[noise.sinusoid]]\namplitude_dph = 0.1\nperiod_s = 0\n").unwrap();
+    std::fs::write(&model, "[gyro]\nsample_rate_hz = 1000.0\npulse_arcsec = 1.21\n\n[[noise.sinusoid]]\namplitude_dph = 0.1\nperiod_s = 0\n").unwrap();
     let r = simulate(&model, "1", "1", &dir.path().join("x.csv"), &[]);
     assert_eq!(r.status.code(), Some(2));
     let err = String::from_utf8_lossy(&r.stderr);
@@ -195,7 +195,7 @@ fn triad_frames_carry_each_axis_csv_stream() {
     let mut models = Vec::new();
     for (k, arw) in [0.001, 0.003, 0.0005].iter().enumerate() {
         let m = dir.path().join(format!("m{k}.toml"));
-        std::fs::write(&m, format!("[gyro]\nsample_rate_hz = 500.0\npulse_weight_arcsec = 1.21\ninput_rate_dph = {}\n[noise]\narw_dpsh = {arw}\n", 10.0 * k as f64)).unwrap();
+        std::fs::write(&m, format!("[gyro]\nsample_rate_hz = 500.0\npulse_arcsec = 1.21\ninput_rate_dph = {}\n[noise]\narw_dpsh = {arw}\n", 10.0 * k as f64)).unwrap();
         models.push(m);
     }
     let list = models
@@ -276,7 +276,7 @@ fn triad_frames_carry_each_axis_csv_stream() {
     );
     std::fs::write(
         &models[2],
-        "[gyro]\nsample_rate_hz = 400.0\npulse_weight_arcsec = 1.21\n",
+        "[gyro]\nsample_rate_hz = 400.0\npulse_arcsec = 1.21\n",
     )
     .unwrap();
     let r = bin()

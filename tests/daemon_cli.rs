@@ -28,15 +28,15 @@ fn bad_values_exit_2_naming_the_key_and_the_flag() {
     let model = dir.path().join("m.toml");
     std::fs::write(
         &model,
-        "[gyro]\nsample_rate_hz = 500.0\npulse_weight_arcsec = 1.21\n",
+        "[gyro]\nsample_rate_hz = 500.0\npulse_arcsec = 1.21\n",
     )
     .unwrap();
     let bad_cfg = dir.path().join("bad.toml");
     std::fs::write(&bad_cfg, "[estimator]\ninterval = 5\n").unwrap();
     let cases: Vec<(Vec<&str>, Vec<&str>)> = vec![
         (
-            vec!["--rate-hz", "-1"],
-            vec!["gyro.rate_hz", "--rate-hz", "-1"],
+            vec!["--sample-rate-hz", "-1"],
+            vec!["gyro.sample_rate_hz", "--sample-rate-hz", "-1"],
         ),
         (
             vec!["--pulse-arcsec", "0"],
@@ -74,7 +74,7 @@ fn bad_values_exit_2_naming_the_key_and_the_flag() {
             vec![
                 "--serial",
                 "/nonexistent/ttyUSB9",
-                "--rate-hz",
+                "--sample-rate-hz",
                 "1000",
                 "--pulse-arcsec",
                 "1.21",
@@ -83,8 +83,13 @@ fn bad_values_exit_2_naming_the_key_and_the_flag() {
         ),
         // an explicit rate that contradicts the simulated model
         (
-            vec!["--simulate", model.to_str().unwrap(), "--rate-hz", "1000"],
-            vec!["gyro.rate_hz", "sample_rate_hz"],
+            vec![
+                "--simulate",
+                model.to_str().unwrap(),
+                "--sample-rate-hz",
+                "1000",
+            ],
+            vec!["gyro.sample_rate_hz", "sample_rate_hz"],
         ),
         (
             vec!["--config", bad_cfg.to_str().unwrap()],
@@ -132,7 +137,7 @@ fn bad_values_exit_2_naming_the_key_and_the_flag() {
     let r = run(&[
         "--replay",
         garbage.to_str().unwrap(),
-        "--rate-hz",
+        "--sample-rate-hz",
         "1000",
         "--pulse-arcsec",
         "1.21",
@@ -158,14 +163,16 @@ fn bad_values_exit_2_naming_the_key_and_the_flag() {
     let err = String::from_utf8_lossy(&r.stderr);
     assert_eq!(r.status.code(), Some(2), "{err}");
     assert!(
-        err.contains("bad value in") && err.contains("rate.toml") && err.contains("gyro.rate_hz"),
+        err.contains("bad value in")
+            && err.contains("rate.toml")
+            && err.contains("gyro.sample_rate_hz"),
         "{err}"
     );
-    assert!(!err.contains("--rate-hz"), "{err}");
+    assert!(!err.contains("--sample-rate-hz"), "{err}");
     let r = run(&[
         "--config",
         cfg,
-        "--rate-hz",
+        "--sample-rate-hz",
         "-4",
         "--record-dir",
         rec,
@@ -175,7 +182,7 @@ fn bad_values_exit_2_naming_the_key_and_the_flag() {
     let err = String::from_utf8_lossy(&r.stderr);
     assert_eq!(r.status.code(), Some(2), "{err}");
     assert!(
-        err.contains("bad value for --rate-hz") && err.contains("got -4"),
+        err.contains("bad value for --sample-rate-hz") && err.contains("got -4"),
         "{err}"
     );
 }
@@ -210,9 +217,9 @@ fn raw_sources_need_the_rate_and_pulse_weight_given() {
     );
     let b = bin.to_str().unwrap();
     let both = [
-        "--rate-hz",
+        "--sample-rate-hz",
         "--pulse-arcsec",
-        "gyro.rate_hz",
+        "gyro.sample_rate_hz",
         "gyro.pulse_arcsec",
     ];
     let cases: Vec<(Vec<&str>, Vec<&str>)> = vec![
@@ -225,12 +232,12 @@ fn raw_sources_need_the_rate_and_pulse_weight_given() {
             [&["raw frame capture", "cap.bin"][..], &both].concat(),
         ),
         (
-            vec!["--replay", b, "--rate-hz", "1000"],
+            vec!["--replay", b, "--sample-rate-hz", "1000"],
             vec!["pulse weight", "--pulse-arcsec", "gyro.pulse_arcsec"],
         ),
         (
             vec!["--replay", b, "--pulse-arcsec", "1.21"],
-            vec!["sample rate", "--rate-hz", "gyro.rate_hz"],
+            vec!["sample rate", "--sample-rate-hz", "gyro.sample_rate_hz"],
         ),
     ];
     for (args, needles) in cases {
@@ -243,7 +250,8 @@ fn raw_sources_need_the_rate_and_pulse_weight_given() {
             assert!(err.contains(n), "{args:?}: expected {n:?} in:\n{err}");
         }
     }
-    // given in the config file (by presence, at the default values): runs
+    // given in the config file (by presence, at the default values): runs;
+    // `rate_hz`, the key's old name, still loads, with a warning naming the new one
     let cfg = dir.path().join("gyro.toml");
     std::fs::write(&cfg, "[gyro]\nrate_hz = 1000.0\npulse_arcsec = 1.21\n").unwrap();
     let r = run(&[
@@ -259,7 +267,11 @@ fn raw_sources_need_the_rate_and_pulse_weight_given() {
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(r.status.success(), "{err}");
     assert!(
-        err.contains("rate_hz=1000") && err.contains("pulse_arcsec=1.21"),
+        err.contains("sample_rate_hz=1000") && err.contains("pulse_arcsec=1.21"),
+        "{err}"
+    );
+    assert!(
+        err.contains("`gyro.rate_hz` is now `gyro.sample_rate_hz`"),
         "{err}"
     );
     // one key in the file, the other as a flag
@@ -320,7 +332,7 @@ fn short_and_cut_captures_end_cleanly() {
         let r = run(&[
             "--replay",
             p,
-            "--rate-hz",
+            "--sample-rate-hz",
             "1000",
             "--pulse-arcsec",
             "1.21",
@@ -353,7 +365,7 @@ fn short_and_cut_captures_end_cleanly() {
                     "analyze",
                     "--format",
                     "frames",
-                    "--rate-hz",
+                    "--sample-rate-hz",
                     "1000",
                     "--pulse-arcsec",
                     "1.21",
@@ -594,7 +606,7 @@ fn duration_limit_ends_the_run_and_logs_are_json() {
 fn issue_13_a_replayed_recording_supplies_its_rate_and_pulse_weight() {
     let dir = tempfile::tempdir().unwrap();
     let model = dir.path().join("m.toml");
-    std::fs::write(&model, "[gyro]\nsample_rate_hz = 500.0\npulse_weight_arcsec = 0.9\ninput_rate_dph = 12.3\n[noise]\narw_dpsh = 0.002\n").unwrap();
+    std::fs::write(&model, "[gyro]\nsample_rate_hz = 500.0\npulse_arcsec = 0.9\ninput_rate_dph = 12.3\n[noise]\narw_dpsh = 0.002\n").unwrap();
     let mcap = dir.path().join("sim.mcap");
     let sim = Command::new(env!("CARGO_BIN_EXE_sagnac"))
         .args(["simulate", "--model"])
@@ -618,7 +630,7 @@ fn issue_13_a_replayed_recording_supplies_its_rate_and_pulse_weight() {
     );
     let m = mcap.to_str().unwrap();
     for (flag, value, recorded) in [
-        ("--rate-hz", "1000", "500"),
+        ("--sample-rate-hz", "1000", "500"),
         ("--pulse-arcsec", "1.21", "0.9"),
     ] {
         let r = run(&[
@@ -644,7 +656,7 @@ fn issue_13_a_replayed_recording_supplies_its_rate_and_pulse_weight() {
     let r = run(&[
         "--replay",
         m,
-        "--rate-hz",
+        "--sample-rate-hz",
         "500",
         "--record-dir",
         rec.to_str().unwrap(),
@@ -654,7 +666,7 @@ fn issue_13_a_replayed_recording_supplies_its_rate_and_pulse_weight() {
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(r.status.success(), "{err}");
     assert!(
-        err.contains("rate_hz=500") && err.contains("pulse_arcsec=0.9"),
+        err.contains("sample_rate_hz=500") && err.contains("pulse_arcsec=0.9"),
         "{err}"
     );
     let made: Vec<_> = std::fs::read_dir(&rec)
@@ -668,7 +680,7 @@ fn issue_13_a_replayed_recording_supplies_its_rate_and_pulse_weight() {
     assert_eq!((meta.sample_rate_hz, meta.pulse_arcsec), (500.0, Some(0.9)));
     let config = meta.config.expect("the daemon's config");
     assert!(
-        config.contains("rate_hz = 500") && config.contains("replay_path"),
+        config.contains("sample_rate_hz = 500") && config.contains("replay_path"),
         "{config}"
     );
     assert_eq!(meta.model, None);

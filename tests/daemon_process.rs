@@ -22,13 +22,13 @@ use sagnac::daemon::batch::{Delivery, SourceBatch};
 use sagnac::daemon::process::{Outputs, ProcessConfig, ProcessReport};
 use sagnac::daemon::queue::QueueBound;
 use sagnac::daemon::telemetry::Telemetry;
+use sagnac::input::frame::spread_increment;
 use sagnac::model::estimate::Coefficient;
 use sagnac::model::{GyroModel, Simulator};
 use sagnac::pipeline::{Pipeline, PipelineConfig, PipelineOutput};
-use sagnac::recording::writer::{Recorder, RecorderConfig};
 use sagnac::recording::messages::{Gap, SinkMessage};
 use sagnac::recording::reader::read_recording;
-use sagnac::input::frame::spread_increment;
+use sagnac::recording::writer::{Recorder, RecorderConfig};
 
 const N: usize = 60_000;
 

@@ -33,7 +33,7 @@ fn run_replay(input: &Path, rec_dir: &Path, log: &Path, extra: &[&str]) -> Durat
     ];
     // raw frames do not carry the rate or pulse weight (an MCAP recording does)
     if input.extension().is_some_and(|e| e == "bin") {
-        args.extend_from_slice(&["--rate-hz", "1000", "--pulse-arcsec", "1.21"]);
+        args.extend_from_slice(&["--sample-rate-hz", "1000", "--pulse-arcsec", "1.21"]);
     }
     args.extend_from_slice(extra);
     let mut d = DaemonProc::start(&args, log);

@@ -12,10 +12,10 @@ use std::time::Duration;
 
 use daemon_common::*;
 use sagnac::daemon::bench::write_paced;
-use sagnac::model::{GyroModel, Simulator};
-use sagnac::recording::reader::RawReader;
 use sagnac::input::frame::inject::{FaultPlan, FrameAction, inject_wire};
 use sagnac::input::frame::{Triad, TriadEncoder, triad::encode_triad_increments};
+use sagnac::model::{GyroModel, Simulator};
+use sagnac::recording::reader::RawReader;
 
 const RATE_HZ: f64 = 1000.0;
 const SPEEDUP: f64 = 20.0;

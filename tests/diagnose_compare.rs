@@ -13,7 +13,7 @@ use sagnac::model::{GyroModel, Simulator};
 fn paper(extra: &str) -> GyroModel {
     let q = (1.21f64.powi(2) / 12.0 + 0.25).sqrt();
     let text = format!(
-        "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 1.21\ninput_rate_dph = 10.0\n\
+        "[gyro]\nsample_rate_hz = 1000.0\npulse_arcsec = 1.21\ninput_rate_dph = 10.0\n\
          [noise]\nquantization_arcsec = {q}\narw_dpsh = 0.002\nbias_instability_dph = 0.003\n{extra}"
     );
     GyroModel::from_toml_str(&text, "paper").unwrap()
@@ -25,9 +25,10 @@ fn simulate(m: &GyroModel, seed: u64, dur_s: f64) -> Recording {
     sim.next_block(usize::MAX >> 1, &mut counts);
     Recording {
         counts,
+        filled: Vec::new(),
         temp_c: None,
         sample_rate_hz: m.gyro.sample_rate_hz,
-        pulse_arcsec: m.gyro.pulse_weight_arcsec,
+        pulse_arcsec: m.gyro.pulse_arcsec,
         output: Default::default(),
     }
 }

@@ -48,7 +48,7 @@ struct Case {
 
 fn gyro(fs: f64, input_dph: f64, q: f64, n: f64, extra: &str) -> String {
     format!(
-        "[gyro]\nsample_rate_hz = {fs}\npulse_weight_arcsec = 1.21\ninput_rate_dph = {input_dph}\n\
+        "[gyro]\nsample_rate_hz = {fs}\npulse_arcsec = 1.21\ninput_rate_dph = {input_dph}\n\
          [noise]\nquantization_arcsec = {q}\narw_dpsh = {n}\n{extra}"
     )
 }

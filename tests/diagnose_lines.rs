@@ -13,7 +13,7 @@ use sagnac::model::GyroModel;
 fn gyro(fs: f64, extra: &str) -> GyroModel {
     let q = (1.21f64 * 1.21 / 12.0 + 0.25).sqrt();
     let text = format!(
-        "[gyro]\nsample_rate_hz = {fs}\npulse_weight_arcsec = 1.21\ninput_rate_dph = 12.3\n\
+        "[gyro]\nsample_rate_hz = {fs}\npulse_arcsec = 1.21\ninput_rate_dph = 12.3\n\
          [noise]\nquantization_arcsec = {q}\narw_dpsh = 0.002\nbias_instability_dph = 0.003\n{extra}"
     );
     GyroModel::from_toml_str(&text, "lines").unwrap()
@@ -27,7 +27,7 @@ fn sine(amp_dph: f64, period_s: f64) -> String {
 /// sawtooth is not white), ARW 0.001, BI 0.002.
 fn paper_gyro(fs: f64, extra: &str) -> GyroModel {
     let text = format!(
-        "[gyro]\nsample_rate_hz = {fs}\npulse_weight_arcsec = 1.21\ninput_rate_dph = 12.3\n\
+        "[gyro]\nsample_rate_hz = {fs}\npulse_arcsec = 1.21\ninput_rate_dph = 12.3\n\
          [noise]\nquantization_arcsec = 0.35\narw_dpsh = 0.001\nbias_instability_dph = 0.002\n{extra}"
     );
     GyroModel::from_toml_str(&text, "lines").unwrap()

@@ -16,7 +16,7 @@ use sagnac::model::GyroModel;
 
 fn model(fs: f64, input_dph: f64, q: f64, n: f64, extra: &str) -> GyroModel {
     let text = format!(
-        "[gyro]\nsample_rate_hz = {fs}\npulse_weight_arcsec = 1.21\ninput_rate_dph = {input_dph}\n\
+        "[gyro]\nsample_rate_hz = {fs}\npulse_arcsec = 1.21\ninput_rate_dph = {input_dph}\n\
          [noise]\nquantization_arcsec = {q}\narw_dpsh = {n}\n{extra}"
     );
     GyroModel::from_toml_str(&text, "null").unwrap()
@@ -249,9 +249,9 @@ fn a_misnamed_bias_instability_does_not_bring_a_spurious_ramp() {
 }
 
 /// A rate-output model (FOG or MEMS rate word): `[gyro] output = "rate"`.
-fn rate_model(fs: f64, lsb_dps: f64, n: f64, extra: &str) -> GyroModel {
+fn rate_model(fs: f64, rate_lsb_dps: f64, n: f64, extra: &str) -> GyroModel {
     let text = format!(
-        "[gyro]\nsample_rate_hz = {fs}\noutput = \"rate\"\nrate_lsb_dps = {lsb_dps}\ninput_rate_dph = 10.0\n\
+        "[gyro]\nsample_rate_hz = {fs}\noutput = \"rate\"\nrate_lsb_dps = {rate_lsb_dps}\ninput_rate_dph = 10.0\n\
          [noise]\narw_dpsh = {n}\n{extra}"
     );
     GyroModel::from_toml_str(&text, "rate null").unwrap()

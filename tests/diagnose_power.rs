@@ -200,7 +200,7 @@ fn gyro(e: &Effect, arw: f64, extra: &str) -> GyroModel {
         )
     } else {
         format!(
-            "[gyro]\nsample_rate_hz = {}\npulse_weight_arcsec = {}\ninput_rate_dph = 10.0\n\
+            "[gyro]\nsample_rate_hz = {}\npulse_arcsec = {}\ninput_rate_dph = 10.0\n\
              [noise]\nquantization_arcsec = {q}\narw_dpsh = {arw}\n{base}{extra}",
             e.fs, e.pulse
         )

@@ -202,7 +202,7 @@ fn a_matched_rate_output_model_raises_no_alarm() {
 #[test]
 fn a_counts_recording_against_a_rate_model_is_refused() {
     let counts_model = GyroModel::from_toml_str(
-        "[gyro]\nsample_rate_hz = 200.0\npulse_weight_arcsec = 1.21\n[noise]\narw_dpsh = 0.01\n",
+        "[gyro]\nsample_rate_hz = 200.0\npulse_arcsec = 1.21\n[noise]\narw_dpsh = 0.01\n",
         "counts",
     )
     .unwrap();
@@ -211,6 +211,7 @@ fn a_counts_recording_against_a_rate_model_is_refused() {
     sim.next_block(usize::MAX >> 1, &mut counts);
     let rec = Recording {
         counts,
+        filled: Vec::new(),
         temp_c: None,
         sample_rate_hz: 200.0,
         pulse_arcsec: 1.21,

@@ -97,7 +97,7 @@ fn a_resonance_behind_the_readout_filter_keeps_its_own_sigma() {
 fn counter(extra: &str) -> GyroModel {
     let q = (1.21f64 * 1.21 / 12.0 + 0.25).sqrt();
     let text = format!(
-        "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 1.21\ninput_rate_dph = 10.0\n\
+        "[gyro]\nsample_rate_hz = 1000.0\npulse_arcsec = 1.21\ninput_rate_dph = 10.0\n\
          [noise]\nquantization_arcsec = {q}\narw_dpsh = 0.002\n{extra}"
     );
     GyroModel::from_toml_str(&text, "counter").unwrap()

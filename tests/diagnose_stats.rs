@@ -239,7 +239,7 @@ fn chi_square_calibrated_z_and_trigamma() {
 #[test]
 fn monte_carlo_reference_does_not_depend_on_threads() {
     let model = GyroModel::from_toml_str(
-        "[gyro]\nsample_rate_hz = 200.0\npulse_weight_arcsec = 1.21\ninput_rate_dph = 9.0\n\
+        "[gyro]\nsample_rate_hz = 200.0\npulse_arcsec = 1.21\ninput_rate_dph = 9.0\n\
          [noise]\nquantization_arcsec = 0.4\narw_dpsh = 0.002\n[[noise.gauss_markov]]\nsigma_dph = 0.05\ntau_c_s = 3.0\n",
         "t",
     )

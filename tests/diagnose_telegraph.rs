@@ -14,7 +14,7 @@ use sagnac::diagnose::report::AddedTerm;
 use sagnac::diagnose::{self, DiagnoseOptions, Verdict};
 use sagnac::model::GyroModel;
 
-const BASE: &str = "[gyro]\nsample_rate_hz = 200.0\npulse_weight_arcsec = 1.0\ninput_rate_dph = 10.0\n\
+const BASE: &str = "[gyro]\nsample_rate_hz = 200.0\npulse_arcsec = 1.0\ninput_rate_dph = 10.0\n\
                     [noise]\nquantization_arcsec = 0.5773502691896257\narw_dpsh = 0.002\n";
 
 fn model(extra: &str) -> GyroModel {

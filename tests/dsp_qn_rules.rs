@@ -122,7 +122,7 @@ fn default_rule_is_the_best_measured() {
                     .map(|r| format!("{r:.3}"))
                     .collect::<Vec<_>>()
                     .join(" | "),
-                sd / g.q_arcsec
+                sd / g.quantization_arcsec
             );
         }
     }

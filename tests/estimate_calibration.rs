@@ -13,7 +13,7 @@ fn run(model: &str, seed: u64, duration_s: f64) -> Analysis {
     let mut sim = Simulator::new(&m, seed, Some(duration_s)).unwrap();
     let mut p = Pipeline::new(&PipelineConfig::counts(
         m.gyro.sample_rate_hz,
-        m.gyro.pulse_weight_arcsec,
+        m.gyro.pulse_arcsec,
     ))
     .unwrap();
     let mut out = PipelineOutput::default();
@@ -48,7 +48,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 fn intervals_cover_the_truth_over_40_seeds() {
     let (q, n, b) = (0.35, 0.0015, 0.0025);
     let model = format!(
-        "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 1.21\ninput_rate_dph = 12.3\n\
+        "[gyro]\nsample_rate_hz = 1000.0\npulse_arcsec = 1.21\ninput_rate_dph = 12.3\n\
          [noise]\nquantization_arcsec = {q}\narw_dpsh = {n}\nbias_instability_dph = {b}\n"
     );
     let seeds = 40;
@@ -83,7 +83,7 @@ fn white_qn_from_a_dithered_counter_is_estimated_too() {
     // a dither residual of about d/2 randomises the counter phase: QN is white
     let (q, n) = (0.5, 0.002);
     let model = format!(
-        "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 1.21\ninput_rate_dph = 12.3\n\
+        "[gyro]\nsample_rate_hz = 1000.0\npulse_arcsec = 1.21\ninput_rate_dph = 12.3\n\
          [noise]\nquantization_arcsec = {q}\narw_dpsh = {n}\n"
     );
     let a = run(&model, 7, 1800.0);
@@ -101,7 +101,7 @@ fn white_qn_from_a_dithered_counter_is_estimated_too() {
 #[test]
 fn absent_terms_are_not_reported() {
     // no flicker, no RRW, no ramp in the truth: each must come back as an upper bound
-    let model = "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 1.21\ninput_rate_dph = 12.3\n\
+    let model = "[gyro]\nsample_rate_hz = 1000.0\npulse_arcsec = 1.21\ninput_rate_dph = 12.3\n\
                  [noise]\nquantization_arcsec = 0.4\narw_dpsh = 0.0015\n";
     let a = run(model, 11, 1200.0);
     let e = &a.estimates;
@@ -119,7 +119,7 @@ fn absent_terms_are_not_reported() {
 
 #[test]
 fn a_rate_ramp_is_found_with_its_sign() {
-    let model = "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 1.21\ninput_rate_dph = 12.3\n\
+    let model = "[gyro]\nsample_rate_hz = 1000.0\npulse_arcsec = 1.21\ninput_rate_dph = 12.3\n\
                  [noise]\nquantization_arcsec = 0.4\narw_dpsh = 0.0015\nrate_ramp_dphh = -0.5\n";
     let a = run(model, 3, 1800.0);
     let r = a.estimates.rate_ramp_dphh;
@@ -135,7 +135,7 @@ fn a_rate_ramp_is_found_with_its_sign() {
 /// times; with the column, 7 and 2.
 #[test]
 fn a_moderate_ramp_is_a_ramp_not_rate_random_walk() {
-    let model = "[gyro]\nsample_rate_hz = 200.0\npulse_weight_arcsec = 1.21\ninput_rate_dph = 12.3\n\
+    let model = "[gyro]\nsample_rate_hz = 200.0\npulse_arcsec = 1.21\ninput_rate_dph = 12.3\n\
                  [noise]\nquantization_arcsec = 0.35\narw_dpsh = 0.001\nrate_ramp_dphh = 0.02\n";
     let (mut ramps, mut covered, mut false_k) = (0, 0, 0);
     let seeds = 100..108u64;
@@ -169,7 +169,7 @@ fn qn_interval_covers_a_slow_dithered_counter() {
     // variance must make up for it.
     let q = 0.3;
     let model = format!(
-        "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 0.5\ninput_rate_dph = 0.0\n\
+        "[gyro]\nsample_rate_hz = 1000.0\npulse_arcsec = 0.5\ninput_rate_dph = 0.0\n\
          [noise]\nquantization_arcsec = {q}\narw_dpsh = 0.0005\nrrw_dphsh = 0.002\n"
     );
     let seeds = 30;
@@ -204,7 +204,7 @@ fn a_record_shorter_than_the_qn_band_gives_honest_bounds() {
     // bounds that hold (they used to collapse to ~1e-122), and QN itself.
     let (q, n, b) = (0.35, 0.001, 0.002);
     let model = format!(
-        "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 1.21\ninput_rate_dph = 12.3\n\
+        "[gyro]\nsample_rate_hz = 1000.0\npulse_arcsec = 1.21\ninput_rate_dph = 12.3\n\
          [noise]\nquantization_arcsec = {q}\narw_dpsh = {n}\nbias_instability_dph = {b}\n"
     );
     for seed in 0..5 {
@@ -229,7 +229,7 @@ fn two_minute_records_keep_their_intervals_calibrated() {
     // once read as a spurious bias instability (covered 2 of 20).
     let (q, n, b) = (0.35, 0.001, 0.002);
     let model = format!(
-        "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 1.21\ninput_rate_dph = 12.3\n\
+        "[gyro]\nsample_rate_hz = 1000.0\npulse_arcsec = 1.21\ninput_rate_dph = 12.3\n\
          [noise]\nquantization_arcsec = {q}\narw_dpsh = {n}\nbias_instability_dph = {b}\n"
     );
     let seeds = 20;

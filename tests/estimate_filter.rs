@@ -321,11 +321,11 @@ fn rate_output_model_keys_are_checked() {
         assert!(e.contains(key), "{e} should name {key}");
     };
     bad(
-        "[gyro]\nsample_rate_hz = 100.0\noutput = \"rate\"\npulse_weight_arcsec = 1.0\n",
-        "gyro.pulse_weight_arcsec",
+        "[gyro]\nsample_rate_hz = 100.0\noutput = \"rate\"\npulse_arcsec = 1.0\n",
+        "gyro.pulse_arcsec",
     );
     bad(
-        "[gyro]\nsample_rate_hz = 100.0\npulse_weight_arcsec = 1.0\nrate_lsb_dps = 0.05\n",
+        "[gyro]\nsample_rate_hz = 100.0\npulse_arcsec = 1.0\nrate_lsb_dps = 0.05\n",
         "gyro.rate_lsb_dps",
     );
     bad(

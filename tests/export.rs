@@ -194,7 +194,7 @@ fn simulate(dir: &Path) -> std::path::PathBuf {
     let model = dir.join("m.toml");
     std::fs::write(
         &model,
-        "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 1.21\ninput_rate_dph = 12.3\n\
+        "[gyro]\nsample_rate_hz = 1000.0\npulse_arcsec = 1.21\ninput_rate_dph = 12.3\n\
          [noise]\nquantization_arcsec = 0.35\narw_dpsh = 0.0015\n",
     )
     .unwrap();
@@ -238,7 +238,7 @@ fn analyze_writes_kalibr_and_the_three_allan_channels() {
         "analyze",
         "--input",
         csv.to_str().unwrap(),
-        "--rate-hz",
+        "--sample-rate-hz",
         "1000",
         "--pulse-arcsec",
         "1.21",
@@ -303,7 +303,7 @@ fn analyze_writes_kalibr_and_the_three_allan_channels() {
         "analyze",
         "--input",
         csv.to_str().unwrap(),
-        "--rate-hz",
+        "--sample-rate-hz",
         "1000",
         "--pulse-arcsec",
         "1.21",

@@ -6,9 +6,7 @@ use std::io::{self, Read};
 
 use sagnac::input::capture::{CaptureError, CaptureReader};
 use sagnac::input::frame::inject::{FaultPlan, InjectorConfig, inject};
-use sagnac::input::frame::{
-    Decoded, DecoderConfig, FrameDecoder, FrameEncoder, encode_increments,
-};
+use sagnac::input::frame::{Decoded, DecoderConfig, FrameDecoder, FrameEncoder, encode_increments};
 
 fn corrupted_stream(seed: u64) -> (Vec<u8>, i64) {
     let incs: Vec<i64> = (0..5000).map(|k| ((k * 7919) % 23) - 11).collect();

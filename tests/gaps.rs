@@ -9,12 +9,12 @@ use sagnac::allan::streaming::{OctaveAllan, StreamConfig, StreamPoint};
 use sagnac::dsp::dwt::{Mode, dwt};
 use sagnac::dsp::gaps::{GAP_SCALE, SHORT_GAP};
 use sagnac::dsp::wavelet::Wavelet;
+use sagnac::input::frame::FilledSeries;
 use sagnac::model::config::GyroModel;
 use sagnac::model::estimate::Coefficient;
 use sagnac::model::fit::LevelObs;
 use sagnac::model::sim::Simulator;
 use sagnac::pipeline::{Analysis, Pipeline, PipelineConfig, PipelineOutput};
-use sagnac::input::frame::FilledSeries;
 
 struct Rng(u64);
 impl Rng {
@@ -202,7 +202,7 @@ fn sim_counts(model: &str, seed: u64, duration_s: f64) -> (GyroModel, Vec<i64>) 
     (m, c)
 }
 
-const CAL_MODEL: &str = "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 1.21\ninput_rate_dph = 12.3\n\
+const CAL_MODEL: &str = "[gyro]\nsample_rate_hz = 1000.0\npulse_arcsec = 1.21\ninput_rate_dph = 12.3\n\
      [noise]\nquantization_arcsec = 0.35\narw_dpsh = 0.0015\nbias_instability_dph = 0.0025\n";
 
 // ---------------------------------------------------------------- streaming == batch
@@ -214,14 +214,14 @@ fn pipeline_levels_equal_the_batch_gap_aware_reference() {
     let filled = filled_mask(&f);
     let lost = filled.iter().filter(|&&b| b).count() as f64 / f.len() as f64;
     assert!((lost - 0.25).abs() < 1e-6, "lost fraction {lost}");
-    let cfg = PipelineConfig::counts(m.gyro.sample_rate_hz, m.gyro.pulse_weight_arcsec);
+    let cfg = PipelineConfig::counts(m.gyro.sample_rate_hz, m.gyro.pulse_arcsec);
     let p = run_pipeline(&f, &cfg, &[65_536]);
     assert_eq!(
         p.filled_samples(),
         filled.iter().filter(|&&b| b).count() as u64
     );
     let w = Wavelet::by_name("sym8").unwrap();
-    let (d, tau0) = (m.gyro.pulse_weight_arcsec, 1.0 / m.gyro.sample_rate_hz);
+    let (d, tau0) = (m.gyro.pulse_arcsec, 1.0 / m.gyro.sample_rate_hz);
     let k = d / tau0;
     let rate: Vec<f64> = f.counts.iter().map(|&c| c as f64 * k).collect();
     let mut angle = Vec::with_capacity(rate.len());
@@ -350,7 +350,7 @@ fn allan_equals_the_batch_gap_aware_reference_and_ignores_chunking() {
 fn pipeline_results_ignore_chunking_with_gaps() {
     let (m, counts) = sim_counts(CAL_MODEL, 5, 300.0);
     let f = lose_bursts(&counts, 0.2, 4000, &mut Rng(0x5EED_0003));
-    let cfg = PipelineConfig::counts(m.gyro.sample_rate_hz, m.gyro.pulse_weight_arcsec);
+    let cfg = PipelineConfig::counts(m.gyro.sample_rate_hz, m.gyro.pulse_arcsec);
     let a = run_pipeline(&f, &cfg, &[1 << 16]);
     let mut rng = Rng(99);
     let splits: Vec<usize> = (0..500).map(|_| 1 + rng.below(9_000) as usize).collect();
@@ -378,7 +378,7 @@ fn pipeline_results_ignore_chunking_with_gaps() {
 #[test]
 fn all_measured_push_equals_the_unmasked_push() {
     let (m, counts) = sim_counts(CAL_MODEL, 6, 100.0);
-    let cfg = PipelineConfig::counts(m.gyro.sample_rate_hz, m.gyro.pulse_weight_arcsec);
+    let cfg = PipelineConfig::counts(m.gyro.sample_rate_hz, m.gyro.pulse_arcsec);
     let mut a = Pipeline::new(&cfg).unwrap();
     let mut b = Pipeline::new(&cfg).unwrap();
     let mut out = PipelineOutput::default();
@@ -410,7 +410,7 @@ fn estimates_cover_the_truth_with_burst_loss() {
         let (m, counts) = sim_counts(CAL_MODEL, 2000 + seed, 1200.0);
         let frac = 0.2 + 0.1 * seed as f64 / (seeds - 1) as f64;
         let f = lose_bursts(&counts, frac, 4000, &mut Rng(0xB005 + seed));
-        let cfg = PipelineConfig::counts(m.gyro.sample_rate_hz, m.gyro.pulse_weight_arcsec);
+        let cfg = PipelineConfig::counts(m.gyro.sample_rate_hz, m.gyro.pulse_arcsec);
         let a = run_pipeline(&f, &cfg, &[1 << 16]).analysis();
         let e = &a.estimates;
         eprintln!(
@@ -466,7 +466,7 @@ fn issue_13_sixty_bursts_keep_qn_within_its_interval() {
     let f = decode(&counts, &lost_at);
     assert_eq!(f.filled.iter().map(|r| r.len()).sum::<usize>(), 120_000);
     assert_eq!(f.filled.len(), 60);
-    let cfg = PipelineConfig::counts(m.gyro.sample_rate_hz, m.gyro.pulse_weight_arcsec);
+    let cfg = PipelineConfig::counts(m.gyro.sample_rate_hz, m.gyro.pulse_arcsec);
     let e = run_pipeline(&f, &cfg, &[1 << 16]).analysis().estimates;
     let full = run_pipeline(&decode(&counts, &vec![false; n]), &cfg, &[1 << 16])
         .analysis()
@@ -497,7 +497,7 @@ fn sparse_single_frame_losses_cost_only_the_fine_levels() {
         .map(|i| i > 0 && i + 1 < counts.len() && rng.below(100) == 0)
         .collect();
     let f = decode(&counts, &lost);
-    let cfg = PipelineConfig::counts(m.gyro.sample_rate_hz, m.gyro.pulse_weight_arcsec);
+    let cfg = PipelineConfig::counts(m.gyro.sample_rate_hz, m.gyro.pulse_arcsec);
     let a = run_pipeline(&f, &cfg, &[65_536]).analysis();
     let clean = run_pipeline(
         &decode(&counts, &vec![false; counts.len()]),

@@ -13,7 +13,7 @@ fn paper_path() -> std::path::PathBuf {
 const BASE: &str = r#"
 [gyro]
 sample_rate_hz = 1000.0
-pulse_weight_arcsec = 1.21
+pulse_arcsec = 1.21
 input_rate_dph = 12.3
 
 [noise]
@@ -45,7 +45,7 @@ fn err_of(text: &str) -> String {
 fn paper_gyro_parses_with_the_papers_numbers() {
     let m = GyroModel::load(&paper_path()).unwrap();
     assert_eq!(m.gyro.sample_rate_hz, 1000.0);
-    assert_eq!(m.gyro.pulse_weight_arcsec, 1.21);
+    assert_eq!(m.gyro.pulse_arcsec, 1.21);
     assert_eq!(m.gyro.input_rate_dph, 12.3);
     assert_eq!(m.noise.quantization_arcsec, Some(0.35));
     assert_eq!(m.noise.arw_dpsh, Some(0.001));
@@ -78,7 +78,7 @@ fn paper_gyro_parses_with_the_papers_numbers() {
     assert_eq!(
         m.terms()[2],
         Term::BiasInstability {
-            b_dph: 0.002,
+            bias_instability_dph: 0.002,
             f_lo_hz: 1e-7,
             f_hi_hz: f64::INFINITY
         }
@@ -160,16 +160,16 @@ fn out_of_range_values_name_key_and_value() {
             "gyro.sample_rate_hz = 0",
         ),
         (
-            "pulse_weight_arcsec = 1.21",
-            "pulse_weight_arcsec = -1.21",
-            "gyro.pulse_weight_arcsec = -1.21",
+            "pulse_arcsec = 1.21",
+            "pulse_arcsec = -1.21",
+            "gyro.pulse_arcsec = -1.21",
         ),
         ("temp_c0 = 25.0", "temp_c0 = -inf", "thermal.temp_c0 = -inf"),
         // finite but absurd values that would overflow or never finish
         (
-            "pulse_weight_arcsec = 1.21",
-            "pulse_weight_arcsec = 1e300",
-            "gyro.pulse_weight_arcsec = 1e300: must be in",
+            "pulse_arcsec = 1.21",
+            "pulse_arcsec = 1e300",
+            "gyro.pulse_arcsec = 1e300: must be in",
         ),
         (
             "sample_rate_hz = 1000.0",
@@ -249,11 +249,8 @@ fn model_round_trips_through_toml() {
 
 #[test]
 fn minimal_model_defaults_and_missing_file() {
-    let m = GyroModel::from_toml_str(
-        "[gyro]\nsample_rate_hz = 100\npulse_weight_arcsec = 2.0\n",
-        "min",
-    )
-    .unwrap();
+    let m = GyroModel::from_toml_str("[gyro]\nsample_rate_hz = 100\npulse_arcsec = 2.0\n", "min")
+        .unwrap();
     assert_eq!(m.gyro.input_rate_dph, 0.0);
     assert_eq!(m.quantization_q_arcsec(), 2.0 / 12f64.sqrt());
     assert_eq!(m.dither_sigma_arcsec(), 0.0);
@@ -272,10 +269,52 @@ fn thermal_terms_are_a_ramp_and_a_sinusoid() {
     let terms = m.terms();
     // model ramp + thermal ramp (0.001 dph/C * 0.5 C/h), added linearly
     assert!(terms.contains(&Term::RateRamp {
-        r_dphh: 0.01 + 0.0005
+        rate_ramp_dphh: 0.01 + 0.0005
     }));
     assert!(terms.contains(&Term::Sinusoid {
         amplitude_dph: 0.0002,
         period_s: 3600.0
     }));
+}
+
+/// `pulse_weight_arcsec`, the old name of `[gyro] pulse_arcsec`, still loads
+/// (to the same model), `to_toml` writes the new name, and the command line
+/// warns once per file.
+#[test]
+fn the_old_pulse_key_loads_and_the_new_one_is_written() {
+    let new = "[gyro]\nsample_rate_hz = 1000.0\npulse_arcsec = 1.21\n[noise]\narw_dpsh = 0.001\n";
+    let old = new.replace("pulse_arcsec", "pulse_weight_arcsec");
+    let a = GyroModel::from_toml_str(new, "new").unwrap();
+    let b = GyroModel::from_toml_str(&old, "old").unwrap();
+    assert_eq!(a, b);
+    let written = b.to_toml().unwrap();
+    assert!(
+        written.contains("pulse_arcsec = 1.21") && !written.contains("pulse_weight"),
+        "{written}"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("old.toml");
+    std::fs::write(&path, &old).unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_sagnac"))
+        .args([
+            "simulate",
+            "--model",
+            path.to_str().unwrap(),
+            "--duration-s",
+            "1",
+            "--seed",
+            "1",
+            "--out",
+        ])
+        .arg(dir.path().join("x.csv"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert_eq!(
+        err.matches("`gyro.pulse_weight_arcsec` is now `gyro.pulse_arcsec`")
+            .count(),
+        1,
+        "{err}"
+    );
 }

@@ -25,7 +25,7 @@ const N_1H: usize = 3_600_000;
 
 fn model(fs: f64, d: f64, input_dph: f64, noise: &str) -> GyroModel {
     let text = format!(
-        "[gyro]\nsample_rate_hz = {fs:?}\npulse_weight_arcsec = {d:?}\ninput_rate_dph = {input_dph:?}\n\n[noise]\n{noise}\n"
+        "[gyro]\nsample_rate_hz = {fs:?}\npulse_arcsec = {d:?}\ninput_rate_dph = {input_dph:?}\n\n[noise]\n{noise}\n"
     );
     GyroModel::from_toml_str(&text, "test model").unwrap()
 }
@@ -190,7 +190,7 @@ fn truth_phases(m: &GyroModel, seeds: std::ops::Range<u64>, n: usize) -> Vec<Vec
 fn arw_alone_matches_n2_over_tau() {
     let m = model(1000.0, 1.21, 0.0, "arw_dpsh = 0.5");
     let phases = truth_phases(&m, 1..5, N_1H);
-    let t = Term::AngleRandomWalk { n_dpsh: 0.5 };
+    let t = Term::AngleRandomWalk { arw_dpsh: 0.5 };
     check_edf(
         "ARW",
         &phases,
@@ -205,7 +205,7 @@ fn arw_alone_matches_n2_over_tau() {
 fn rrw_alone_matches_k2_tau_over_3() {
     let m = model(1000.0, 1.21, 0.0, "rrw_dphsh = 2.0");
     let phases = truth_phases(&m, 1..5, N_1H);
-    let t = Term::RateRandomWalk { k_dphsh: 2.0 };
+    let t = Term::RateRandomWalk { rrw_dphsh: 2.0 };
     check_edf(
         "RRW",
         &phases,
@@ -353,7 +353,9 @@ fn sinusoid_alone_matches_closed_form_within_the_exact_averaging_bound() {
 fn rate_ramp_alone_is_exact() {
     let m = model(1000.0, 1.21, 0.0, "rate_ramp_dphh = 36.0");
     let x = phase_from_increments(&run(&m, 3, N_1H).1.angle_increment_arcsec);
-    let t = Term::RateRamp { r_dphh: 36.0 };
+    let t = Term::RateRamp {
+        rate_ramp_dphh: 36.0,
+    };
     for mm in [100, 1000, 10_000, 100_000, 1_000_000] {
         let tau = mm as f64 * TAU0;
         let sim = oavar(&x, mm, TAU0);
@@ -487,8 +489,8 @@ fn pure_quantization_is_d2_over_12_when_the_angle_phase_is_randomised() {
     // exp(-2 pi^2) = 3e-9), so the counter error is white: AVAR = N^2/tau + 3 (d^2/12)/tau^2.
     let d = 1.0;
     let n_arcsec = d / TAU0.sqrt(); // per-sample angle step = d
-    let n_dpsh = n_arcsec / 60.0;
-    let m = model(1000.0, d, 12.3, &format!("arw_dpsh = {n_dpsh:?}"));
+    let arw_dpsh = n_arcsec / 60.0;
+    let m = model(1000.0, d, 12.3, &format!("arw_dpsh = {arw_dpsh:?}"));
     let x = phase_from_counts(&run(&m, 21, N_1H).0, d);
     // the QN share is 50 % at tau0, 33 % at 2 tau0, 20 % at 4 tau0
     check_edf(
@@ -563,7 +565,7 @@ fn composite_model_through_the_counter_is_the_sum_of_the_terms() {
         &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/paper_gyro.toml"),
     )
     .unwrap();
-    m.gyro.pulse_weight_arcsec = 0.5;
+    m.gyro.pulse_arcsec = 0.5;
     m.validate().unwrap();
     let bank = Simulator::new(&m, 0, None)
         .unwrap()

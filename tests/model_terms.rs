@@ -184,8 +184,8 @@ fn flicker_plateau_is_ieee_952() {
 fn every_term_avar_equals_its_psd_through_the_allan_transfer() {
     let tau0 = 1e-3;
     let terms = [
-        Term::AngleRandomWalk { n_dpsh: 0.01 },
-        Term::RateRandomWalk { k_dphsh: 0.3 },
+        Term::AngleRandomWalk { arw_dpsh: 0.01 },
+        Term::RateRandomWalk { rrw_dphsh: 0.3 },
         Term::GaussMarkov {
             sigma_dph: 0.008,
             tau_c_s: 90.0,
@@ -199,17 +199,17 @@ fn every_term_avar_equals_its_psd_through_the_allan_transfer() {
             mean_dwell_s: 300.0,
         },
         Term::BiasInstability {
-            b_dph: 0.002,
+            bias_instability_dph: 0.002,
             f_lo_hz: 1e-4,
             f_hi_hz: f64::INFINITY,
         },
         Term::BiasInstability {
-            b_dph: 0.002,
+            bias_instability_dph: 0.002,
             f_lo_hz: 1e-3,
             f_hi_hz: 500.0,
         },
         Term::BiasInstability {
-            b_dph: 0.002,
+            bias_instability_dph: 0.002,
             f_lo_hz: 0.0,
             f_hi_hz: 20.0,
         },
@@ -239,7 +239,9 @@ fn quantization_psd_through_the_discrete_allan_transfer_gives_3q2_over_tau2() {
     // White angle noise seen as a sampled rate: its PSD lives on [0, 1/(2 tau0)] and the
     // Allan transfer of an m-sample average is 2 sin^4(pi f m tau0)/(m sin(pi f tau0))^2.
     let (q, tau0) = (0.35, 1e-3);
-    let t = Term::Quantization { q_arcsec: q };
+    let t = Term::Quantization {
+        quantization_arcsec: q,
+    };
     for m in [1usize, 2, 3, 10, 100] {
         let tau = m as f64 * tau0;
         let g = |f: f64| {
@@ -333,11 +335,25 @@ fn random_telegraph_is_gauss_markov_with_half_the_dwell() {
 fn ramp_rrw_arw_quantization_closed_forms_and_units() {
     // unit conversions via units.rs: 1 deg/sqrt(h) = 60 arcsec/sqrt(s), 1 deg/h/sqrt(h) = 1/60, 1 deg/h/h = 1/3600
     let tau = 7.0;
-    assert!((Term::AngleRandomWalk { n_dpsh: 1.0 }.avar(tau) - 3600.0 / tau).abs() < 1e-9);
-    assert!((Term::RateRandomWalk { k_dphsh: 60.0 }.avar(tau) - tau / 3.0).abs() < 1e-12);
-    assert!((Term::RateRamp { r_dphh: -3600.0 }.avar(tau) - tau * tau / 2.0).abs() < 1e-9);
+    assert!((Term::AngleRandomWalk { arw_dpsh: 1.0 }.avar(tau) - 3600.0 / tau).abs() < 1e-9);
+    assert!((Term::RateRandomWalk { rrw_dphsh: 60.0 }.avar(tau) - tau / 3.0).abs() < 1e-12);
     assert!(
-        (Term::Quantization { q_arcsec: 0.35 }.avar(tau) - 3.0 * 0.35 * 0.35 / 49.0).abs() < 1e-15
+        (Term::RateRamp {
+            rate_ramp_dphh: -3600.0
+        }
+        .avar(tau)
+            - tau * tau / 2.0)
+            .abs()
+            < 1e-9
+    );
+    assert!(
+        (Term::Quantization {
+            quantization_arcsec: 0.35
+        }
+        .avar(tau)
+            - 3.0 * 0.35 * 0.35 / 49.0)
+            .abs()
+            < 1e-15
     );
     // avar = coefficient^2 * unit_avar, and the grid versions agree with the scalar one
     let t = Term::GaussMarkov {
@@ -351,7 +367,7 @@ fn ramp_rrw_arw_quantization_closed_forms_and_units() {
         assert_eq!(out[i], t.avar(tau));
         assert!((t.avar(tau) - 0.008f64.powi(2) * t.unit_avar(tau)).abs() <= 1e-18);
     }
-    let both = [t, Term::AngleRandomWalk { n_dpsh: 0.001 }];
+    let both = [t, Term::AngleRandomWalk { arw_dpsh: 0.001 }];
     terms::total_avar_into(&both, &taus, &mut out);
     for (i, &tau) in taus.iter().enumerate() {
         assert!((out[i] - both[0].avar(tau) - both[1].avar(tau)).abs() < 1e-18);

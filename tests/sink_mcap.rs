@@ -12,13 +12,13 @@ use std::time::{Duration, Instant, SystemTime};
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use sagnac::recording::writer::{
-    RecordError, Recorder, RecorderConfig, format_utc_compact, recording_file_name,
-};
 use sagnac::recording::messages::{RateBatch, SinkMessage, Topic};
 use sagnac::recording::reader::{
     ReadError, read_recording, read_recording_bytes, recover_recording, recover_recording_bytes,
     scan_recording,
+};
+use sagnac::recording::writer::{
+    RecordError, Recorder, RecorderConfig, format_utc_compact, recording_file_name,
 };
 
 fn config(dir: &Path) -> RecorderConfig {
@@ -614,8 +614,7 @@ fn python_mcap_reader_agrees() {
 fn issue_13_python_reads_the_metadata_record() {
     let dir = tempfile::tempdir().unwrap();
     let model = dir.path().join("m.toml");
-    let text =
-        "[gyro]\nsample_rate_hz = 400.0\npulse_weight_arcsec = 0.9\n[noise]\narw_dpsh = 0.002\n";
+    let text = "[gyro]\nsample_rate_hz = 400.0\npulse_arcsec = 0.9\n[noise]\narw_dpsh = 0.002\n";
     std::fs::write(&model, text).unwrap();
     let mcap = dir.path().join("sim.mcap");
     let sim = Command::new(env!("CARGO_BIN_EXE_sagnac"))
@@ -658,7 +657,9 @@ fn issue_13_python_reads_the_metadata_record() {
     assert_eq!(m["model"], text);
     assert_eq!(m["sagnac_version"], env!("CARGO_PKG_VERSION"));
     assert_eq!(j["raw_samples"], 1200);
-    let meta = sagnac::recording::reader::read_metadata(&mcap).unwrap().unwrap();
+    let meta = sagnac::recording::reader::read_metadata(&mcap)
+        .unwrap()
+        .unwrap();
     assert_eq!(
         meta.to_record().metadata,
         serde_json::from_value(m.clone()).unwrap()

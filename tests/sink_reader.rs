@@ -20,13 +20,13 @@ use sagnac::daemon::batch::SourceBatch;
 use sagnac::daemon::queue::QueueBound;
 use sagnac::daemon::replay::ReplayConfig;
 use sagnac::daemon::telemetry::Telemetry;
+use sagnac::input::frame::{DecoderConfig, FilledSeries, Single};
 use sagnac::pipeline::PipelineConfig;
-use sagnac::recording::writer::{Recorder, RecorderConfig};
 use sagnac::recording::messages::{Gap, RawBatch, SinkMessage};
 use sagnac::recording::reader::{
     RawReader, RecordingReader, Selection, read_recording, recover_recording,
 };
-use sagnac::input::frame::{DecoderConfig, FilledSeries, Single};
+use sagnac::recording::writer::{Recorder, RecorderConfig};
 
 const DT_NS: u64 = 1_000_000;
 
@@ -241,7 +241,7 @@ fn replay_and_analyze_read_identical_samples() {
     let source = ReplayConfig {
         path: path.clone(),
         speed: 0.0,
-        rate_hz: 1000.0,
+        sample_rate_hz: 1000.0,
         limit_periods: None,
         decoder: DecoderConfig::default(),
     }
@@ -270,19 +270,20 @@ fn replay_and_analyze_read_identical_samples() {
 
     // analyze: the counts pushed into its pipeline, through the tap
     let mut analyzed: Vec<i64> = Vec::new();
-    let mut tap = |t: &sagnac::offline::TapBlock<'_>| {
+    let mut tap = |t: &sagnac::pipeline::feed::TapBlock<'_>| {
         // (the final flush carries no counts)
         analyzed.extend_from_slice(t.counts.unwrap_or_default());
     };
-    let (pipe, cut) = sagnac::offline::run_recording_tapped(
-        &path,
-        None,
+    let input = sagnac::input::Input::open(&path, &Default::default()).unwrap();
+    let fed = sagnac::pipeline::feed::run(
+        &input,
         &PipelineConfig::counts(1000.0, 1.21),
         &mut |_, _| {},
         Some(&mut tap),
     )
     .unwrap();
-    assert!(cut.is_none());
+    assert!(fed.report.break_at.is_none());
+    let pipe = fed.pipeline;
     let replay_filled = filled(replayed.into_iter().map(|b| (b.counts, b.gaps)));
     let lost: u64 = recorded.iter().flat_map(|b| &b.gaps).map(|g| g.lost).sum();
     assert!(lost > 100, "{lost}");

@@ -296,7 +296,7 @@ fn optional_stopping_on_the_simulated_gyro_with_a_handful_of_seeds() {
         (4, 0.55, Verdict::Fail),
     ] {
         let toml = format!(
-            "[gyro]\nsample_rate_hz = 1000.0\npulse_weight_arcsec = 0.6\ninput_rate_dph = 12.3\n\
+            "[gyro]\nsample_rate_hz = 1000.0\npulse_arcsec = 0.6\ninput_rate_dph = 12.3\n\
              [noise]\nquantization_arcsec = {truth}\narw_dpsh = 0.001\nbias_instability_dph = 0.002\n"
         );
         let model = GyroModel::from_toml_str(&toml, "test").unwrap();
@@ -361,7 +361,7 @@ fn analyze_spec_json_contract() {
             "analyze",
             "--input",
             csv.to_str().unwrap(),
-            "--rate-hz",
+            "--sample-rate-hz",
             "1000",
             "--pulse-arcsec",
             "1.21",

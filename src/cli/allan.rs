@@ -11,13 +11,15 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 
+use super::input_args::FormatArg;
 use crate::allan::{self, AllanOptions, AllanResult, DataKind, Phase, Stat, TauSet};
-use crate::input::plain::{InputFormat, SampleReader};
+use crate::input::{Block, Format, Input, Request};
 
 /// Arguments of `sagnac allan`.
 #[derive(Debug, Args)]
 pub struct AllanArgs {
-    /// Input file (text, csv or f64le; .gz content is detected and decompressed).
+    /// Input file: text, CSV, f64le (each plain or .gz), a frame capture or an
+    /// MCAP recording (their pulse counts); the format is found by content.
     #[arg(long, value_name = "FILE")]
     pub input: PathBuf,
     /// What the samples are: phase/angle, frequency/rate, or integer pulse-count increments.
@@ -35,12 +37,16 @@ pub struct AllanArgs {
     /// Engine: whole-file batch estimators, or the streaming octave accumulators.
     #[arg(long, value_enum, default_value = "batch")]
     pub engine: EngineArg,
-    /// Input format.
-    #[arg(long, value_enum, default_value = "text")]
-    pub format: FormatArg,
+    /// Read the file as this format (needed for raw f64le, which has no
+    /// signature; an error when the content says otherwise).
+    #[arg(long, value_enum)]
+    pub format: Option<FormatArg>,
     /// CSV column to read.
     #[arg(long, value_name = "NAME")]
     pub column: Option<String>,
+    /// Which gyro of an MCAP recording of several gyros or of a triad capture.
+    #[arg(long, value_name = "LABEL")]
+    pub gyro: Option<String>,
     /// Write the result as JSON to this file ("-" for stdout) instead of printing a table.
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
@@ -102,13 +108,6 @@ pub enum EngineArg {
     Streaming,
 }
 
-#[derive(Debug, Clone, Copy, ValueEnum)]
-pub enum FormatArg {
-    Text,
-    Csv,
-    F64le,
-}
-
 impl From<DataArg> for DataKind {
     fn from(d: DataArg) -> DataKind {
         match d {
@@ -142,20 +141,62 @@ impl From<TausArg> for TauSet {
     }
 }
 
-impl From<FormatArg> for InputFormat {
-    fn from(f: FormatArg) -> InputFormat {
-        match f {
-            FormatArg::Text => InputFormat::Text,
-            FormatArg::Csv => InputFormat::Csv,
-            FormatArg::F64le => InputFormat::F64le,
-        }
-    }
-}
-
 impl AllanArgs {
     fn stat_name(&self) -> String {
         Stat::from(self.stat).to_string()
     }
+
+    /// Open the input: numbers as they are, except that `--data counts` needs
+    /// whole numbers.
+    fn open(&self, kind: DataKind) -> Result<Input> {
+        let req = Request {
+            format: self.format.map(Format::from),
+            column: self.column.clone(),
+            gyro: self.gyro.clone(),
+            values_only: kind != DataKind::Counts,
+            ..Request::default()
+        };
+        let input = Input::open(&self.input, &req)
+            .with_context(|| format!("cannot read samples from {}", self.input.display()))?;
+        if kind == DataKind::Counts && !input.meta().integral {
+            // read once more, for the line or byte offset of the first fraction
+            let m = input.meta();
+            let e = crate::input::plain::SampleReader::open(
+                input.path(),
+                m.format,
+                m.column.as_deref(),
+            )
+            .and_then(|r| r.require_integers(true).read_to_end())
+            .err();
+            match e {
+                Some(e) => return Err(e).context("--data counts needs integer pulse counts"),
+                None => bail!(
+                    "{}: --data counts needs integer pulse counts",
+                    self.input.display()
+                ),
+            }
+        }
+        Ok(input)
+    }
+}
+
+/// The next block's samples as numbers (`buf`), and as integers when the
+/// input streams counts (`ints`); `false` at the end.
+fn next_values(
+    stream: &mut crate::input::Stream,
+    block: &mut Block,
+    buf: &mut Vec<f64>,
+) -> Result<bool> {
+    if !stream.next_block(block)? {
+        return Ok(false);
+    }
+    buf.clear();
+    if block.counts.is_empty() {
+        std::mem::swap(buf, &mut block.values);
+    } else {
+        buf.extend(block.counts.iter().map(|&c| c as f64));
+    }
+    Ok(true)
 }
 
 /// Run `sagnac allan`.
@@ -163,9 +204,6 @@ pub fn run(args: AllanArgs) -> Result<()> {
     allan::check_tau0(args.tau0).context("invalid --tau0")?;
     if !(args.confidence > 0.0 && args.confidence < 1.0) {
         bail!("--confidence must be in (0, 1) (got {})", args.confidence);
-    }
-    if args.column.is_some() && !matches!(args.format, FormatArg::Csv) {
-        bail!("--column applies to CSV input only (use --format csv)");
     }
     let kind = DataKind::from(args.data);
     if let Some(p) = &args.csv {
@@ -178,9 +216,15 @@ pub fn run(args: AllanArgs) -> Result<()> {
         return run_streaming(&args, kind);
     }
     let spinner = super::progress::Spinner::start(format!("reading {}", args.input.display()));
-    let samples = SampleReader::open(&args.input, args.format.into(), args.column.as_deref())
-        .and_then(|r| r.require_integers(kind == DataKind::Counts).read_to_end())
+    let input = args.open(kind)?;
+    let (all, _) = input
+        .read_all()
         .with_context(|| format!("cannot read samples from {}", args.input.display()))?;
+    let samples = if all.counts.is_empty() {
+        all.values
+    } else {
+        all.counts.iter().map(|&c| c as f64).collect()
+    };
     spinner.set_message(format!(
         "computing {} of {} samples",
         args.stat_name(),
@@ -220,9 +264,11 @@ fn run_streaming(args: &AllanArgs, kind: DataKind) -> Result<()> {
     if !matches!(args.stat, StatArg::Oadev) || !matches!(args.taus, TausArg::Octave) {
         bail!("--engine streaming computes --stat oadev at --taus octave only");
     }
-    let mut reader = SampleReader::open(&args.input, args.format.into(), args.column.as_deref())
-        .with_context(|| format!("cannot read samples from {}", args.input.display()))?
-        .require_integers(kind == DataKind::Counts);
+    let input = args.open(kind)?;
+    let mut stream = input
+        .stream()
+        .with_context(|| format!("cannot read samples from {}", args.input.display()))?;
+    let mut block = Block::default();
     let cfg = StreamConfig::with_tau0(args.tau0);
     enum Acc {
         F(OctaveAllan),
@@ -236,13 +282,10 @@ fn run_streaming(args: &AllanArgs, kind: DataKind) -> Result<()> {
     let mut buf = Vec::with_capacity(1 << 17);
     let mut ints: Vec<i64> = Vec::with_capacity(1 << 17);
     let mut bar = super::progress::DelayedBar::new("streaming OADEV", "samples");
-    loop {
-        let n = reader
-            .next_block(&mut buf, 1 << 17)
-            .with_context(|| format!("cannot read samples from {}", args.input.display()))?;
-        if n == 0 {
-            break;
-        }
+    while next_values(&mut stream, &mut block, &mut buf)
+        .with_context(|| format!("cannot read samples from {}", args.input.display()))?
+    {
+        let n = buf.len();
         match &mut acc {
             Acc::F(a) => a
                 .push_block(&buf)

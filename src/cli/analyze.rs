@@ -1,13 +1,14 @@
 //! `sagnac analyze`: automatic estimation of the IEEE 952 coefficients (QN,
-//! ARW, bias instability, RRW, rate ramp) with 95 % intervals, from a CSV
-//! file, a raw frame capture or an MCAP recording.
+//! ARW, bias instability, RRW, rate ramp) with 95 % intervals, from any input
+//! [`crate::input::Input::open`] reads (CSV or text, a frame capture, an MCAP
+//! recording; the format is found by content).
 //!
-//! Thin: reading is `offline`, the numerics are `pipeline` (the same chain the
-//! daemon runs live). `--spec SPEC.toml` adds the acceptance test's verdicts
+//! Thin: reading is `input`, the numerics are `pipeline` (the same chain the
+//! daemon runs live, driven by [`crate::pipeline::feed`]). `--spec SPEC.toml` adds the acceptance test's verdicts
 //! (`spec` in the JSON, [`crate::model::spec`]): one look at the whole record.
 //!
 //! No silent defaults: a CSV file and a frame capture carry no sample rate and
-//! no pulse weight, so `--rate-hz` (and `--pulse-arcsec` for pulse counts) are
+//! no pulse weight, so `--sample-rate-hz` (and `--pulse-arcsec` for pulse counts) are
 //! required; an MCAP recording carries both in its `sagnac` metadata record
 //! ([`crate::recording::meta`]), and a flag that contradicts it is an error.
 //!
@@ -16,45 +17,23 @@
 //! pulse weight, where they came from) and `units`.
 
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use clap::{Args, ValueEnum};
+use clap::Args;
 
+use super::input_args::{self, InputArgs};
+use crate::input::{Format, Input, StreamReport};
 use crate::model::estimate::Coefficient;
 use crate::model::spec::{Spec, SpecReport};
-use crate::offline::{self, OfflineError, RateUnit};
-use crate::pipeline::{Analysis, PipelineConfig};
-use crate::sink::provenance::{InputSettings, Provenance, analysis_units};
-use crate::input::plain::InputFormat;
+use crate::pipeline::{Analysis, feed};
+use crate::sink::provenance::{Provenance, analysis_units};
 
 /// Arguments of `sagnac analyze`.
 #[derive(Debug, Args)]
 pub struct AnalyzeArgs {
-    /// Input: CSV (plain or .gz; header row), a raw frame capture, or an MCAP recording.
-    #[arg(long, value_name = "FILE")]
-    pub input: PathBuf,
-    /// Input format.
-    #[arg(long, value_enum, default_value = "csv")]
-    pub format: AnalyzeFormat,
-    /// Sample rate, Hz: required for CSV and frame captures; an MCAP recording
-    /// carries its own (the flag must then agree with it).
-    #[arg(long, value_name = "F", allow_negative_numbers = true)]
-    pub rate_hz: Option<f64>,
-    /// Angle of one counter pulse, arcsec: required for pulse counts in CSV and
-    /// frame captures; an MCAP recording carries its own (the flag must then agree).
-    #[arg(long, value_name = "D", allow_negative_numbers = true)]
-    pub pulse_arcsec: Option<f64>,
-    /// Which gyro of an MCAP recording of several gyros (its label, e.g. `x`):
-    /// required for such a recording, refused for a recording of one gyro.
-    #[arg(long, value_name = "LABEL")]
-    pub gyro: Option<String>,
-    /// CSV column to analyse (default `counts`).
-    #[arg(long, value_name = "NAME")]
-    pub column: Option<String>,
-    /// Unit of the column: pulse counts per sample, deg/h, deg/s or rad/s.
-    #[arg(long, value_enum, default_value = "counts")]
-    pub unit: RateUnit,
+    #[command(flatten)]
+    pub input: InputArgs,
     /// Write the result as JSON here ("-" for stdout) instead of printing a table.
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
@@ -72,48 +51,8 @@ pub struct AnalyzeArgs {
     pub spec: Option<PathBuf>,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum AnalyzeFormat {
-    Csv,
-    Frames,
-    Mcap,
-}
-
-/// The value of `flag`, or the error naming it: `input` (a CSV file or a frame
-/// capture) carries no `what`.
-fn required(
-    flag: &'static str,
-    value: Option<f64>,
-    input: &std::path::Path,
-    what: &'static str,
-) -> Result<f64> {
-    value.ok_or_else(|| {
-        OfflineError::FlagRequired {
-            flag,
-            path: input.to_path_buf(),
-            what,
-        }
-        .into()
-    })
-}
-
-pub fn run(args: AnalyzeArgs) -> Result<()> {
-    if let Some(r) = args.rate_hz
-        && !(r.is_finite() && r > 0.0)
-    {
-        bail!("--rate-hz must be a positive number of Hz (got {r})");
-    }
-    if let Some(d) = args.pulse_arcsec
-        && !(d.is_finite() && d > 0.0)
-    {
-        bail!("--pulse-arcsec must be a positive number of arcsec (got {d})");
-    }
-    if args.column.is_some() && args.format != AnalyzeFormat::Csv {
-        bail!(
-            "--column applies to CSV input only (frame captures and MCAP recordings hold pulse counts)"
-        );
-    }
-    // the export paths are checked before the analysis
+/// The export paths must name files in existing directories (checked before the analysis).
+fn check_exports(args: &AnalyzeArgs) -> Result<()> {
     for (flag, p) in [("--kalibr", &args.kalibr), ("--allan-csv", &args.allan_csv)] {
         if let Some(p) = p {
             if p.is_dir() {
@@ -122,200 +61,155 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
             super::output_dir(p).with_context(|| format!("bad {flag}"))?;
         }
     }
-    // a bad spec file fails before the (long) analysis
-    let spec = match &args.spec {
-        Some(p) => Some(Spec::load(p)?),
-        None => None,
-    };
-    // a bar on stderr once the job is visibly long (hidden when stderr is not a terminal)
+    Ok(())
+}
+
+/// What the pass over the input met that the user should know, each with
+/// its kind (`note`, `warning`): a frame capture's corruption and gaps, a
+/// recording's break.
+pub(crate) fn stream_notes(r: &StreamReport) -> Vec<(&'static str, String)> {
+    let mut notes = Vec::new();
+    if let Some(st) = &r.frames
+        && st.lost_samples + st.bytes_skipped + st.crc_errors + st.duplicates + st.out_of_sequence
+            > 0
+    {
+        notes.push(("note", format!(
+            "{} frames decoded; {} samples lost in {} gaps (filled, the angle kept); \
+             {} CRC errors, {} false syncs, {} bytes skipped; {} duplicate and {} out-of-sequence frames",
+            st.frames_decoded,
+            st.lost_samples,
+            st.gaps,
+            st.crc_errors,
+            st.false_syncs,
+            st.bytes_skipped,
+            st.duplicates,
+            st.out_of_sequence
+        )));
+    }
+    if let Some(b) = &r.break_at {
+        notes.push((
+            "warning",
+            format!(
+                "unreadable from byte {} ({}); analysed the {} samples before it",
+                b.offset, b.reason, r.samples
+            ),
+        ));
+    }
+    notes
+}
+
+/// Run the input through the pipeline (a bar on stderr once the job is
+/// visibly long; hidden when stderr is not a terminal).
+pub(crate) fn feed_input(input: &Input, tap: Option<feed::Tap>) -> Result<feed::Fed> {
+    let cfg = feed::config_for(input)?;
     let mut bar = super::progress::DelayedBar::new("analysing", "samples");
     let mut progress = |done: u64, total: Option<u64>| bar.update(done, total);
-    let input = &args.input;
-    let given = "given on the command line";
-    let settings: InputSettings;
-    if args.gyro.is_some() && args.format != AnalyzeFormat::Mcap {
-        anyhow::bail!(
-            "--gyro selects a gyro of an MCAP recording; --format {:?} has one gyro",
-            args.format
-        );
-    }
-    let pipe = match args.format {
-        AnalyzeFormat::Csv => {
-            let rate = required("--rate-hz", args.rate_hz, input, "sample rate")?;
-            let cfg = match args.unit {
-                RateUnit::Counts => PipelineConfig::counts(
-                    rate,
-                    required(
-                        "--pulse-arcsec",
-                        args.pulse_arcsec,
-                        input,
-                        "pulse weight (--unit counts)",
-                    )?,
-                ),
-                _ => PipelineConfig::rates(rate),
-            };
-            let column = args.column.as_deref().unwrap_or("counts");
-            let mut s = InputSettings::new(input, "csv", cfg.rate_hz, cfg.pulse_arcsec);
-            (s.column, s.unit, s.origin) = (
-                Some(column.into()),
-                Some(unit_key(args.unit)),
-                Some(given.into()),
-            );
-            settings = s;
-            offline::run_file(
-                input,
-                InputFormat::Csv,
-                Some(column),
-                args.unit,
-                &cfg,
-                &mut progress,
-            )
-            .with_context(|| format!("analysing {}", input.display()))?
-        }
-        AnalyzeFormat::Frames => {
-            let rate = required(
-                "--rate-hz",
-                args.rate_hz,
-                input,
-                "sample rate (a frame capture)",
-            )?;
-            let pulse = required(
-                "--pulse-arcsec",
-                args.pulse_arcsec,
-                input,
-                "pulse weight (a frame capture)",
-            )?;
-            let cfg = PipelineConfig::counts(rate, pulse);
-            let mut s = InputSettings::new(input, "frames", rate, Some(pulse));
-            s.origin = Some(given.into());
-            settings = s;
-            let (pipe, stats) = offline::run_capture(input, &cfg, &mut progress)
-                .with_context(|| format!("analysing frame capture {}", input.display()))?;
-            if stats.lost_samples
-                + stats.bytes_skipped
-                + stats.crc_errors
-                + stats.duplicates
-                + stats.out_of_sequence
-                > 0
-            {
-                eprintln!(
-                    "note: {}: {} frames decoded; {} samples lost in {} gaps (filled, the angle kept); \
-                     {} CRC errors, {} false syncs, {} bytes skipped; {} duplicate and {} out-of-sequence frames",
-                    input.display(),
-                    stats.frames_decoded,
-                    stats.lost_samples,
-                    stats.gaps,
-                    stats.crc_errors,
-                    stats.false_syncs,
-                    stats.bytes_skipped,
-                    stats.duplicates,
-                    stats.out_of_sequence
-                );
-            }
-            pipe
-        }
-        AnalyzeFormat::Mcap => {
-            // the recording's metadata record supplies what the flags leave out
-            let gyro = offline::recording_gyro(
-                input,
-                args.gyro.as_deref(),
-                args.rate_hz,
-                args.pulse_arcsec,
-            )?;
-            let cfg = PipelineConfig::counts(gyro.rate_hz, gyro.pulse_arcsec);
-            let mut s = InputSettings::new(input, "mcap", gyro.rate_hz, Some(gyro.pulse_arcsec));
-            s.gyro = args.gyro.clone();
-            s.origin = Some(
-                match (args.rate_hz, args.pulse_arcsec) {
-                    (None, None) => "from the recording",
-                    (Some(_), Some(_)) => {
-                        "given on the command line (checked against the recording)"
-                    }
-                    _ => "from the recording and the command line",
-                }
-                .into(),
-            );
-            settings = s;
-            let (pipe, broken) =
-                offline::run_recording(input, args.gyro.as_deref(), &cfg, &mut progress)
-                    .with_context(|| format!("analysing recording {}", input.display()))?;
-            if let Some(b) = broken {
-                eprintln!(
-                    "warning: {}: unreadable from byte {} ({}); analysed the {} samples before it",
-                    input.display(),
-                    b.offset,
-                    b.reason,
-                    pipe.samples()
-                );
-            }
-            pipe
-        }
-    };
+    let fed = feed::run(input, &cfg, &mut progress, tap)
+        .with_context(|| format!("analysing {}", describe(input)))?;
     bar.finish();
-    let analysis = pipe.analysis();
-    if !analysis.allan.raw.is_empty() && analysis.allan.raw.iter().all(|p| p.dev == 0.0) {
-        eprintln!(
-            "warning: {}: the raw Allan deviation is 0 at every tau (every increment equal: a stuck counter \
-             or a dead gyro?); nothing can be estimated",
-            input.display()
-        );
+    Ok(fed)
+}
+
+/// The input, as an error's context names it.
+fn describe(input: &Input) -> String {
+    let what = match input.meta().format {
+        Format::Frames | Format::TriadFrames => "frame capture ",
+        Format::Mcap => "recording ",
+        _ => "",
+    };
+    format!("{what}{}", input.path().display())
+}
+
+pub fn run(args: AnalyzeArgs) -> Result<()> {
+    check_exports(&args)?;
+    // a bad spec file fails before the (long) analysis
+    let spec = args.spec.as_deref().map(Spec::load).transpose()?;
+    let input = args.input.open()?;
+    let path = input.path().to_path_buf();
+    let fed = feed_input(&input, None)?;
+    for (kind, note) in stream_notes(&fed.report) {
+        eprintln!("{kind}: {}: {note}", path.display());
     }
-    if !analysis.fit.ok {
-        eprintln!(
-            "warning: {}: {}",
-            input.display(),
-            misfit_message(&analysis)
-        );
-    }
-    if let Some(path) = &args.kalibr {
-        crate::sink::export::kalibr::write(
-            path,
-            &analysis.estimates,
-            pipe.config().rate_hz,
-            &input.display().to_string(),
-        )
-        .context("writing the Kalibr file")?;
-    }
-    if let Some(path) = &args.allan_csv {
-        crate::sink::export::allan_csv::write_channels(path, &analysis.allan)
-            .context("writing the Allan CSV")?;
-    }
+    let analysis = fed.pipeline.analysis();
+    warn_about(&analysis, &path);
+    write_exports(
+        &args,
+        &analysis,
+        fed.pipeline.config().sample_rate_hz,
+        &path,
+    )?;
     let verdict = spec
         .as_ref()
         .map(|s| s.evaluate_fixed(&analysis.estimates, analysis.duration_s));
     match &args.json {
-        Some(path) => {
-            let mut value = serde_json::to_value(&analysis).context("serialising the analysis")?;
-            if let (Some(v), Some(obj)) = (&verdict, value.as_object_mut()) {
-                obj.insert(
-                    "spec".into(),
-                    serde_json::to_value(v).context("serialising the verdict")?,
-                );
-            }
-            Provenance::new(settings, analysis_units()).insert_into(&mut value);
-            let text = serde_json::to_string_pretty(&value).context("serialising the analysis")?;
-            if path.as_os_str() == "-" {
-                super::write_stdout(&text)?;
-            } else {
-                std::fs::write(path, text + "\n")
-                    .with_context(|| format!("writing {}", path.display()))?;
-            }
-        }
+        Some(out) => write_json(out, &analysis, verdict.as_ref(), &input, &args.input.input),
         None => {
             print_table(&analysis)?;
             if let Some(v) = &verdict {
                 print_verdict(v)?;
             }
+            Ok(())
         }
+    }
+}
+
+fn warn_about(analysis: &Analysis, path: &Path) {
+    if !analysis.allan.raw.is_empty() && analysis.allan.raw.iter().all(|p| p.dev == 0.0) {
+        eprintln!(
+            "warning: {}: the raw Allan deviation is 0 at every tau (every increment equal: a stuck counter \
+             or a dead gyro?); nothing can be estimated",
+            path.display()
+        );
+    }
+    if !analysis.fit.ok {
+        eprintln!("warning: {}: {}", path.display(), misfit_message(analysis));
+    }
+}
+
+fn write_exports(
+    args: &AnalyzeArgs,
+    analysis: &Analysis,
+    sample_rate_hz: f64,
+    path: &Path,
+) -> Result<()> {
+    if let Some(out) = &args.kalibr {
+        crate::sink::export::kalibr::write(
+            out,
+            &analysis.estimates,
+            sample_rate_hz,
+            &path.display().to_string(),
+        )
+        .context("writing the Kalibr file")?;
+    }
+    if let Some(out) = &args.allan_csv {
+        crate::sink::export::allan_csv::write_channels(out, &analysis.allan)
+            .context("writing the Allan CSV")?;
     }
     Ok(())
 }
 
-/// The `--unit` value as the flag spells it.
-pub(crate) fn unit_key(u: RateUnit) -> String {
-    use clap::ValueEnum;
-    u.to_possible_value()
-        .map_or_else(|| format!("{u:?}"), |v| v.get_name().to_string())
+fn write_json(
+    out: &Path,
+    analysis: &Analysis,
+    verdict: Option<&SpecReport>,
+    input: &Input,
+    given_path: &Path,
+) -> Result<()> {
+    let mut value = serde_json::to_value(analysis).context("serialising the analysis")?;
+    if let (Some(v), Some(obj)) = (verdict, value.as_object_mut()) {
+        obj.insert(
+            "spec".into(),
+            serde_json::to_value(v).context("serialising the verdict")?,
+        );
+    }
+    Provenance::new(input_args::settings(input, given_path), analysis_units())
+        .insert_into(&mut value);
+    let text = serde_json::to_string_pretty(&value).context("serialising the analysis")?;
+    if out.as_os_str() == "-" {
+        super::write_stdout(&text)
+    } else {
+        std::fs::write(out, text + "\n").with_context(|| format!("writing {}", out.display()))
+    }
 }
 
 fn print_verdict(r: &SpecReport) -> Result<()> {

@@ -8,6 +8,7 @@ pub mod allan;
 pub mod analyze;
 pub mod completions;
 pub mod diagnose;
+pub mod input_args;
 pub mod progress;
 pub mod report;
 pub mod run;
@@ -79,6 +80,22 @@ pub(crate) fn write_stdout(text: &str) -> anyhow::Result<()> {
         .and_then(|()| out.write_all(b"\n"))
         .and_then(|()| out.flush())
         .map_err(|e| anyhow::anyhow!("writing to standard output: {e}"))
+}
+
+/// Load a gyro model file, saying on stderr which of its keys have new names.
+pub(crate) fn load_model(path: &std::path::Path) -> anyhow::Result<crate::model::GyroModel> {
+    use anyhow::Context;
+    let model = crate::model::GyroModel::load(path)
+        .with_context(|| format!("loading the gyro model {}", path.display()))?;
+    if let Ok(text) = std::fs::read_to_string(path) {
+        for (old, new) in crate::keys::renamed_in(&text, crate::keys::MODEL_RENAMES) {
+            eprintln!(
+                "warning: {}",
+                crate::keys::rename_warning(&path.display().to_string(), old, new)
+            );
+        }
+    }
+    Ok(model)
 }
 
 /// The directory an output file goes into (`.` for a bare name); an error

@@ -4,52 +4,30 @@
 //! temperature, the coefficient table, the recording's metadata and, with
 //! `--model`, the diagnosis; plus `DIR/allan.png` and `DIR/noise_integral.png`.
 //!
-//! Thin: the input flags are `analyze`'s (same rules: `--rate-hz` and, for
-//! counts, `--pulse-arcsec` are required for CSV and frame captures; an MCAP
-//! recording carries them), reading is `offline`'s tapped readers, the page
-//! is [`crate::sink::report`].
+//! Thin: the input flags are `analyze`'s (same rules: `--sample-rate-hz` and,
+//! for counts, `--pulse-arcsec` are required for CSV and frame captures; an
+//! MCAP recording carries them), the pipeline runs with a tap
+//! ([`crate::pipeline::feed`]) that keeps the time series, and the page is
+//! [`crate::sink::report`]. A diagnosis (`--model`) reads the input a second time.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use super::progress::{DelayedBar, RunsBar};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 
-use super::analyze::AnalyzeFormat;
+use super::input_args::InputArgs;
+use super::progress::RunsBar;
 use crate::diagnose::{self, DiagnoseOptions, Recording};
+use crate::input::{Format, Input};
 use crate::model::GyroModel;
-use crate::offline::{self, OfflineError, RateUnit, TapBlock};
-use crate::pipeline::{Pipeline, PipelineConfig};
+use crate::pipeline::feed::TapBlock;
 use crate::sink::report::{self, Collector, DiagnosisPart, Metadata};
-use crate::input::plain::InputFormat;
 
 /// Arguments of `sagnac report`.
 #[derive(Debug, Args)]
 pub struct ReportArgs {
-    /// Input: CSV (plain or .gz; header row), a raw frame capture, or an MCAP recording.
-    #[arg(long, value_name = "FILE")]
-    pub input: PathBuf,
-    /// Input format.
-    #[arg(long, value_enum, default_value = "csv")]
-    pub format: AnalyzeFormat,
-    /// Sample rate, Hz: required for CSV and frame captures; an MCAP recording
-    /// carries its own (the flag must then agree with it).
-    #[arg(long, value_name = "F", allow_negative_numbers = true)]
-    pub rate_hz: Option<f64>,
-    /// Angle of one counter pulse, arcsec: required for pulse counts in CSV and
-    /// frame captures; an MCAP recording carries its own (the flag must then agree).
-    #[arg(long, value_name = "D", allow_negative_numbers = true)]
-    pub pulse_arcsec: Option<f64>,
-    /// Which gyro of an MCAP recording of several gyros (its label, e.g. `x`):
-    /// required for such a recording, refused for a recording of one gyro.
-    #[arg(long, value_name = "LABEL")]
-    pub gyro: Option<String>,
-    /// CSV column to analyse (default `counts`).
-    #[arg(long, value_name = "NAME")]
-    pub column: Option<String>,
-    /// Unit of the column: pulse counts per sample, deg/h, deg/s or rad/s.
-    #[arg(long, value_enum, default_value = "counts")]
-    pub unit: RateUnit,
+    #[command(flatten)]
+    pub input: InputArgs,
     /// Output directory (created if missing): index.html, allan.png, noise_integral.png.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
@@ -61,39 +39,8 @@ pub struct ReportArgs {
     pub spec: Option<PathBuf>,
 }
 
-fn required(
-    flag: &'static str,
-    value: Option<f64>,
-    input: &Path,
-    what: &'static str,
-) -> Result<f64> {
-    value.ok_or_else(|| {
-        OfflineError::FlagRequired {
-            flag,
-            path: input.to_path_buf(),
-            what,
-        }
-        .into()
-    })
-}
-
 /// Run `sagnac report`.
 pub fn run(args: ReportArgs) -> Result<()> {
-    for (flag, v) in [
-        ("--rate-hz", args.rate_hz),
-        ("--pulse-arcsec", args.pulse_arcsec),
-    ] {
-        if let Some(x) = v
-            && !(x.is_finite() && x > 0.0)
-        {
-            bail!("{flag} must be a positive number (got {x})");
-        }
-    }
-    if args.column.is_some() && args.format != AnalyzeFormat::Csv {
-        bail!(
-            "--column applies to CSV input only (frame captures and MCAP recordings hold pulse counts)"
-        );
-    }
     if args.out.exists() && !args.out.is_dir() {
         bail!(
             "--out {}: exists and is not a directory",
@@ -101,146 +48,32 @@ pub fn run(args: ReportArgs) -> Result<()> {
         );
     }
     // the model is read before a pass that may take minutes
-    let model = match &args.model {
-        Some(p) => Some(
-            GyroModel::load(p)
-                .with_context(|| format!("loading the gyro model {}", p.display()))?,
-        ),
-        None => None,
-    };
+    let model = args.model.as_deref().map(super::load_model).transpose()?;
     let spec = match &args.spec {
         Some(p) => Some(crate::model::spec::Spec::load(p)?),
         None => None,
     };
-    if model.is_some() && args.format == AnalyzeFormat::Csv && args.unit != RateUnit::Counts {
-        bail!(
-            "--model diagnoses pulse counts: it needs --unit counts (the input is a rate in {:?})",
-            args.unit
-        );
+    let input = args.input.open()?;
+    if let Some(m) = &model {
+        // a diagnosis of the wrong kind of sensor fails before the analysis
+        diagnose::read::check_kind(m, input.meta().unit).context("--model")?;
     }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
-
-    // a bar on stderr once the job is visibly long (hidden when stderr is not a terminal)
-    let mut bar = DelayedBar::new("analysing", "samples");
-    let mut progress = |done: u64, total: Option<u64>| bar.update(done, total);
-    let input = &args.input;
-    let mut meta = Metadata {
-        input: input.display().to_string(),
-        ..Metadata::default()
-    };
-    if args.gyro.is_some() && args.format != AnalyzeFormat::Mcap {
-        anyhow::bail!(
-            "--gyro selects a gyro of an MCAP recording; --format {:?} has one gyro",
-            args.format
-        );
-    }
-    let (pipe, collector) = match args.format {
-        AnalyzeFormat::Csv => {
-            let rate = required("--rate-hz", args.rate_hz, input, "sample rate")?;
-            let cfg = match args.unit {
-                RateUnit::Counts => PipelineConfig::counts(
-                    rate,
-                    required(
-                        "--pulse-arcsec",
-                        args.pulse_arcsec,
-                        input,
-                        "pulse weight (--unit counts)",
-                    )?,
-                ),
-                _ => PipelineConfig::rates(rate),
-            };
-            let column = args.column.as_deref().unwrap_or("counts");
-            meta.format = format!("CSV, column {column}, unit {}", unit_name(args.unit));
-            meta.origin = "given on the command line".into();
-            let mut col = collector_for(&cfg, model.is_some());
-            let mut tap = |b: &TapBlock<'_>| col.tap(b);
-            let pipe = offline::run_file_tapped(
-                input,
-                InputFormat::Csv,
-                Some(column),
-                args.unit,
-                &cfg,
-                &mut progress,
-                Some(&mut tap),
-            )
-            .with_context(|| format!("analysing {}", input.display()))?;
-            (finish(pipe, &mut meta, &cfg), col)
-        }
-        AnalyzeFormat::Frames => {
-            let rate = required(
-                "--rate-hz",
-                args.rate_hz,
-                input,
-                "sample rate (a frame capture)",
-            )?;
-            let pulse = required(
-                "--pulse-arcsec",
-                args.pulse_arcsec,
-                input,
-                "pulse weight (a frame capture)",
-            )?;
-            let cfg = PipelineConfig::counts(rate, pulse);
-            meta.format = "raw frame capture".into();
-            meta.origin = "given on the command line".into();
-            let mut col = collector_for(&cfg, model.is_some());
-            let mut tap = |b: &TapBlock<'_>| col.tap(b);
-            let (pipe, stats) =
-                offline::run_capture_tapped(input, &cfg, &mut progress, Some(&mut tap))
-                    .with_context(|| format!("analysing frame capture {}", input.display()))?;
-            meta.gaps = Some((stats.gaps, stats.lost_samples));
-            meta.frame_stats = Some(stats);
-            (finish(pipe, &mut meta, &cfg), col)
-        }
-        AnalyzeFormat::Mcap => {
-            let gyro = offline::recording_gyro(
-                input,
-                args.gyro.as_deref(),
-                args.rate_hz,
-                args.pulse_arcsec,
-            )?;
-            let cfg = PipelineConfig::counts(gyro.rate_hz, gyro.pulse_arcsec);
-            meta.format = "MCAP recording (/gyro/raw)".into();
-            meta.origin = "from the recording".into();
-            let mut col = collector_for(&cfg, model.is_some());
-            let mut tap = |b: &TapBlock<'_>| col.tap(b);
-            let (pipe, broken) = offline::run_recording_tapped(
-                input,
-                args.gyro.as_deref(),
-                &cfg,
-                &mut progress,
-                Some(&mut tap),
-            )
-            .with_context(|| format!("analysing recording {}", input.display()))?;
-            if let Some(b) = broken {
-                let note = format!(
-                    "unreadable from byte {} ({}); analysed the {} samples before it",
-                    b.offset,
-                    b.reason,
-                    pipe.samples()
-                );
-                eprintln!("warning: {}: {note}", input.display());
-                meta.notes.push(note);
-            }
-            meta.gaps = Some((col.gaps, col.lost_samples));
-            (finish(pipe, &mut meta, &cfg), col)
-        }
-    };
-    bar.finish();
-    let analysis = pipe.analysis();
+    let mut collector = Collector::new(input.sample_rate_hz()?);
+    let mut tap = |b: &TapBlock<'_>| collector.tap(b);
+    let fed = super::analyze::feed_input(&input, Some(&mut tap))?;
+    let meta = metadata(&input, &fed, &collector);
+    let analysis = fed.pipeline.analysis();
     if !analysis.fit.ok {
         eprintln!(
             "warning: {}: the noise model does not describe this recording (fit chi2/dof {:.2}); see the report",
-            input.display(),
+            input.path().display(),
             analysis.fit.chi2_per_dof
         );
     }
-
     let diagnosis = match (&model, &args.model) {
-        (Some(m), Some(path)) => Some((
-            run_diagnosis(m, &collector, &meta, input)?,
-            path.display().to_string(),
-        )),
+        (Some(m), Some(path)) => Some((run_diagnosis(m, &input)?, path.display().to_string())),
         _ => None,
     };
     let verdict = spec
@@ -266,65 +99,60 @@ pub fn run(args: ReportArgs) -> Result<()> {
     Ok(())
 }
 
-fn unit_name(u: RateUnit) -> &'static str {
-    match u {
-        RateUnit::Counts => "pulse counts per sample",
-        RateUnit::Dph => "deg/h",
-        RateUnit::Dps => "deg/s",
-        RateUnit::RadS => "rad/s",
-    }
-}
-
-fn collector_for(cfg: &PipelineConfig, keep: bool) -> Collector {
-    let c = Collector::new(cfg.rate_hz);
-    if keep { c.keeping_samples() } else { c }
-}
-
-fn finish(pipe: Pipeline, meta: &mut Metadata, cfg: &PipelineConfig) -> Pipeline {
-    meta.rate_hz = cfg.rate_hz;
-    meta.pulse_arcsec = cfg.pulse_arcsec;
-    pipe
-}
-
-/// Diagnose the collected counts against `model` (a bar of the Monte-Carlo
-/// runs at a terminal).
-fn run_diagnosis(
-    model: &GyroModel,
-    c: &Collector,
-    meta: &Metadata,
-    input: &Path,
-) -> Result<diagnose::Diagnosis> {
-    let Some(counts) = c.all_counts() else {
-        bail!(
-            "{}: --model needs the pulse counts, and this input did not give them as integers",
-            input.display()
-        );
+/// What the report's metadata table says about the input.
+fn metadata(input: &Input, fed: &crate::pipeline::feed::Fed, c: &Collector) -> Metadata {
+    let m = input.meta();
+    let format = match m.format {
+        Format::Csv | Format::Text => format!(
+            "{}, column {}, unit {}",
+            if m.format == Format::Csv {
+                "CSV"
+            } else {
+                "text"
+            },
+            m.column.as_deref().unwrap_or("(the only one)"),
+            m.unit.describe()
+        ),
+        Format::F64le => format!("raw f64le, unit {}", m.unit.describe()),
+        Format::Frames => "raw frame capture".into(),
+        Format::TriadFrames => format!(
+            "raw triad frame capture, gyro {}",
+            m.gyro.as_deref().unwrap_or("?")
+        ),
+        Format::Mcap => "MCAP recording (/gyro/raw)".into(),
     };
-    if let Some(&c0) = counts.first()
-        && counts.iter().all(|&v| v == c0)
-    {
-        bail!(
-            "{}: all {} increments are {c0}: no noise to compare with the model",
-            input.display(),
-            counts.len()
-        );
-    }
-    // a constant temperature carries no information
-    let temp_c = c
-        .all_temps()
-        .filter(|t| t.iter().any(|v| *v != t[0]))
-        .map(|t| t.to_vec());
-    let rec = Recording {
-        counts: counts.to_vec(),
-        temp_c,
-        sample_rate_hz: meta.rate_hz,
-        pulse_arcsec: meta.pulse_arcsec.unwrap_or(f64::NAN),
-        output: Default::default(),
+    let mut meta = Metadata {
+        input: input.path().display().to_string(),
+        format,
+        origin: m.origin.clone(),
+        sample_rate_hz: fed.pipeline.config().sample_rate_hz,
+        pulse_arcsec: (m.unit == crate::input::Unit::Counts)
+            .then_some(m.pulse_arcsec)
+            .flatten(),
+        frame_stats: fed.report.frames,
+        ..Metadata::default()
     };
+    if m.format.holds_counts() {
+        meta.gaps = Some((c.gaps, c.lost_samples));
+    }
+    for (kind, note) in super::analyze::stream_notes(&fed.report) {
+        if kind == "warning" {
+            eprintln!("warning: {}: {note}", input.path().display());
+            meta.notes.push(note);
+        }
+    }
+    meta
+}
+
+/// Diagnose the input (a second pass over it) against `model` (a bar of the
+/// Monte-Carlo runs at a terminal).
+fn run_diagnosis(model: &GyroModel, input: &Input) -> Result<diagnose::Diagnosis> {
+    let rec = Recording::read(input, model)?;
+    super::diagnose::check_not_constant(&rec, input.path())?;
     let bar = RunsBar::start();
     let d =
         diagnose::diagnose_with_progress(model, &rec, &DiagnoseOptions::default(), &bar.progress())
-            .with_context(|| format!("diagnosing {} against the model", input.display()));
+            .with_context(|| format!("diagnosing {} against the model", input.path().display()));
     bar.finish();
     d
 }

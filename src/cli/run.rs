@@ -3,7 +3,7 @@
 //! ```text
 //! sagnac run [--config FILE] [--serial [LABEL=]PATH ... --baud N [--queue-budget-mib M] | --replay [LABEL=]FILE ... [--speed X]
 //!            | --simulate MODEL.toml | --simulate-triad X.toml,Y.toml,Z.toml] [--frame single|triad]
-//!            [--rate-hz F] [--pulse-arcsec D] [--metrics-addr ADDR] [--record-dir DIR]
+//!            [--sample-rate-hz F] [--pulse-arcsec D] [--metrics-addr ADDR] [--record-dir DIR]
 //!            [--wavelet sym8] [--duration-s S] [--spec SPEC.toml [--stop-when-decided]]
 //! ```
 //!
@@ -76,9 +76,14 @@ pub struct RunArgs {
     /// Memory budget of the serial source's pipeline queue, MiB (default 16).
     #[arg(long, value_name = "MIB", allow_negative_numbers = true)]
     pub queue_budget_mib: Option<f64>,
-    /// Gyro sample (frame) rate, Hz.
-    #[arg(long, value_name = "F", allow_negative_numbers = true)]
-    pub rate_hz: Option<f64>,
+    /// Gyro sample (frame) rate, Hz (`--rate-hz` is an alias).
+    #[arg(
+        long,
+        value_name = "F",
+        alias = "rate-hz",
+        allow_negative_numbers = true
+    )]
+    pub sample_rate_hz: Option<f64>,
     /// Angle of one counter pulse, arcsec.
     #[arg(long, value_name = "D", allow_negative_numbers = true)]
     pub pulse_arcsec: Option<f64>,
@@ -123,7 +128,7 @@ fn flag_of(args: &RunArgs, key: &str) -> Option<(&'static str, bool)> {
         "source.speed" => ("--speed", args.speed.is_some()),
         "source.model" => ("--simulate", args.simulate.is_some()),
         "source.queue_budget_mib" => ("--queue-budget-mib", args.queue_budget_mib.is_some()),
-        "gyro.rate_hz" => ("--rate-hz", args.rate_hz.is_some()),
+        "gyro.sample_rate_hz" => ("--sample-rate-hz", args.sample_rate_hz.is_some()),
         "gyro.pulse_arcsec" => ("--pulse-arcsec", args.pulse_arcsec.is_some()),
         "metrics.addr" => ("--metrics-addr", args.metrics_addr.is_some()),
         "record.dir" => ("--record-dir", args.record_dir.is_some()),
@@ -169,13 +174,25 @@ fn set_inputs(cfg: &mut Config, values: &[String], serial: bool) -> Result<(), C
 /// which gyro settings were given explicitly.
 pub fn resolve(args: &RunArgs) -> Result<(Config, Explicit), ConfigError> {
     let (mut cfg, keys) = match &args.config {
-        Some(p) => Config::load_with_keys(p)?,
+        Some(p) => {
+            let loaded = Config::load_with_keys(p)?;
+            if let Ok(text) = std::fs::read_to_string(p) {
+                for (old, new) in crate::keys::renamed_in(&text, crate::keys::DAEMON_RENAMES) {
+                    eprintln!(
+                        "warning: {}",
+                        crate::keys::rename_warning(&p.display().to_string(), old, new)
+                    );
+                }
+            }
+            loaded
+        }
         None => (Config::default(), KeysPresent::default()),
     };
     // Given = the flag, or the key present in the file (whatever its value).
     let explicit = Explicit {
-        rate_hz: args.rate_hz.is_some() || keys.contains("gyro.rate_hz"),
+        sample_rate_hz: args.sample_rate_hz.is_some() || keys.contains("gyro.sample_rate_hz"),
         pulse_arcsec: args.pulse_arcsec.is_some() || keys.contains("gyro.pulse_arcsec"),
+        frame: args.frame.is_some() || keys.contains("source.frame"),
     };
     if !args.serial.is_empty() {
         cfg.source.kind = SourceKind::Serial;
@@ -220,8 +237,8 @@ pub fn resolve(args: &RunArgs) -> Result<(Config, Explicit), ConfigError> {
     if let Some(v) = args.queue_budget_mib {
         cfg.source.queue_budget_mib = v;
     }
-    if let Some(v) = args.rate_hz {
-        cfg.gyro.rate_hz = v;
+    if let Some(v) = args.sample_rate_hz {
+        cfg.gyro.sample_rate_hz = v;
     }
     if let Some(v) = args.pulse_arcsec {
         cfg.gyro.pulse_arcsec = v;

@@ -30,12 +30,12 @@ use clap::{Args, ValueEnum};
 
 use super::progress::{DelayedBar, LineCounter};
 use crate::daemon::bench::{SIM_START_COUNTER, SIM_START_SEQ};
+use crate::input::frame::{FrameEncoder, FrameWriter, STATUS_ALL_OK, TriadEncoder};
 use crate::model::config::OutputKind;
-use crate::model::{GyroModel, Simulator, sim};
-use crate::recording::writer::{Recorder, RecorderConfig};
+use crate::model::{Simulator, sim};
 use crate::recording::messages::{RawBatch, SinkMessage};
 use crate::recording::meta::RecordingMeta;
-use crate::input::frame::{FrameEncoder, FrameWriter, STATUS_ALL_OK, TriadEncoder};
+use crate::recording::writer::{Recorder, RecorderConfig};
 
 /// Output format of `sagnac simulate`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -87,7 +87,7 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
             args.model.len()
         );
     };
-    let model = GyroModel::load(model_path).context("loading the gyro model")?;
+    let model = super::load_model(model_path)?;
     let mut simulator = Simulator::new(&model, args.seed, Some(args.duration_s))
         .with_context(|| format!("setting up the simulator for {}", model_path.display()))?;
     if simulator.output() == OutputKind::Rate && args.format != SimFormat::Csv {
@@ -119,7 +119,7 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
             let text = std::fs::read_to_string(model_path)
                 .with_context(|| format!("reading {}", model_path.display()))?;
             let mut meta =
-                RecordingMeta::counts(simulator.sample_rate_hz(), simulator.pulse_weight_arcsec());
+                RecordingMeta::counts(simulator.sample_rate_hz(), simulator.pulse_arcsec());
             meta.model = Some(text);
             let messages = write_mcap(&mut simulator, &meta, &args.out, &mut bar)
                 .with_context(|| format!("writing MCAP recording {}", args.out.display()))?;
@@ -168,8 +168,7 @@ fn run_triad(args: &SimulateArgs, to_stdout: bool) -> anyhow::Result<()> {
     };
     let mut sims = Vec::with_capacity(3);
     for (k, path) in args.model.iter().enumerate() {
-        let model = GyroModel::load(path)
-            .with_context(|| format!("loading the gyro model {}", path.display()))?;
+        let model = super::load_model(path)?;
         let sim = Simulator::new(
             &model,
             args.seed.wrapping_add(k as u64),

@@ -35,9 +35,9 @@ use crate::daemon::queue::{self, BatchReceiver, QueueBound, QueueTx};
 use crate::daemon::telemetry::{
     ANOMALY_DISCONTINUITY, ANOMALY_DUPLICATE, ANOMALY_OUT_OF_SEQUENCE, Telemetry,
 };
+use crate::input::frame::{DecodeEvent, Decoded, DecoderStats, RunEnd};
 use crate::recording::messages::{Event, EventKind, Gap};
 use crate::sink::metrics::FrameErrorKind;
-use crate::input::frame::{DecodeEvent, Decoded, DecoderStats, RunEnd};
 
 /// Nanoseconds since the Unix epoch, host clock (0 if the clock is before 1970).
 pub fn wall_ns() -> u64 {
@@ -119,10 +119,10 @@ pub struct Assembler {
 }
 
 impl Assembler {
-    /// For a gyro sampled at `rate_hz`; stop after `limit_periods` sample periods.
-    pub fn new(rate_hz: f64, limit_periods: Option<u64>, telemetry: Telemetry) -> Self {
+    /// For a gyro sampled at `sample_rate_hz`; stop after `limit_periods` sample periods.
+    pub fn new(sample_rate_hz: f64, limit_periods: Option<u64>, telemetry: Telemetry) -> Self {
         Assembler {
-            period_ns: 1e9 / rate_hz,
+            period_ns: 1e9 / sample_rate_hz,
             limit_periods,
             next_seq: None,
             periods: 0,

@@ -25,11 +25,11 @@ use crate::daemon::batch::{BatchSender, PipelineClosed, SourceReport, wall_ns};
 use crate::daemon::lanes::Lanes;
 use crate::daemon::shutdown::Shutdown;
 use crate::daemon::telemetry::Telemetry;
-use crate::model::{GyroModel, ModelError, Simulator};
 use crate::input::frame::inject::{FaultPlan, Injected, inject};
 use crate::input::frame::{
     Axes, DecoderConfig, FRAME_LEN, FrameEncoder, FrameError, Single, Triad, TriadEncoder,
 };
+use crate::model::{GyroModel, ModelError, Simulator};
 
 /// Errors of the simulated bench.
 #[derive(Debug, thiserror::Error)]
@@ -77,7 +77,7 @@ pub struct SimBenchConfig {
 pub struct SimBench {
     sims: Vec<Simulator>,
     speed: f64,
-    rate_hz: f64,
+    sample_rate_hz: f64,
 }
 
 impl SimBenchConfig {
@@ -99,8 +99,8 @@ impl SimBenchConfig {
             .zip(self.seed..)
             .map(|(m, seed)| Simulator::new(m, seed, self.duration_s))
             .collect::<Result<Vec<_>, _>>()?;
-        let rate_hz = sims[0].sample_rate_hz();
-        if sims.iter().any(|s| s.sample_rate_hz() != rate_hz) {
+        let sample_rate_hz = sims[0].sample_rate_hz();
+        if sims.iter().any(|s| s.sample_rate_hz() != sample_rate_hz) {
             return Err(BenchError::Config {
                 key: "gyro.sample_rate_hz",
                 value: sims
@@ -112,7 +112,7 @@ impl SimBenchConfig {
             });
         }
         Ok(SimBench {
-            rate_hz,
+            sample_rate_hz,
             sims,
             speed: self.speed,
         })
@@ -166,8 +166,8 @@ impl BenchEncoder {
 
 impl SimBench {
     /// Sample rate of the simulated gyros, Hz.
-    pub fn rate_hz(&self) -> f64 {
-        self.rate_hz
+    pub fn sample_rate_hz(&self) -> f64 {
+        self.sample_rate_hz
     }
 
     /// Gyros simulated: 1, or 3 for a triad.
@@ -197,7 +197,7 @@ impl SimBench {
         shutdown: Shutdown,
     ) -> Result<SourceReport, BenchError> {
         let s_per_sample = if self.speed > 0.0 {
-            1.0 / (self.rate_hz * self.speed)
+            1.0 / (self.sample_rate_hz * self.speed)
         } else {
             0.0
         };
@@ -215,7 +215,7 @@ impl SimBench {
         if let Some(t) = self.sims[0].temperature_at(0.0) {
             enc.set_temp_c(t);
         }
-        let mut lanes = Lanes::<W>::new(DecoderConfig::default(), self.rate_hz, None, outs);
+        let mut lanes = Lanes::<W>::new(DecoderConfig::default(), self.sample_rate_hz, None, outs);
         let mut bytes = BytesMut::with_capacity((block + 1) * W::LEN);
         enc.current_frame(&mut bytes);
         let mut counts = vec![Vec::with_capacity(block); self.sims.len()];

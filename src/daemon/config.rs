@@ -181,7 +181,8 @@ impl SourceConfig {
 #[serde(deny_unknown_fields, default)]
 pub struct GyroConfig {
     /// Sample (frame) rate, Hz.
-    pub rate_hz: f64,
+    #[serde(alias = "rate_hz")]
+    pub sample_rate_hz: f64,
     /// Angle per counter pulse, arcsec.
     pub pulse_arcsec: f64,
     /// Serial number of the unit on this bench (the `serial_number` label of
@@ -194,7 +195,7 @@ pub struct GyroConfig {
 impl Default for GyroConfig {
     fn default() -> Self {
         GyroConfig {
-            rate_hz: 1000.0,
+            sample_rate_hz: 1000.0,
             pulse_arcsec: 1.21,
             serial_number: String::new(),
             model_name: String::new(),
@@ -398,21 +399,15 @@ pub struct KeysPresent {
 }
 
 impl KeysPresent {
-    /// The dotted keys (`gyro.rate_hz`) of TOML text that parsed as a [`Config`].
+    /// The dotted keys (`gyro.sample_rate_hz`) of TOML text that parsed as a [`Config`].
+    /// Renamed keys count under their new names ([`crate::keys::DAEMON_RENAMES`]).
     pub fn of_toml(text: &str) -> KeysPresent {
-        let mut keys = std::collections::BTreeSet::new();
-        if let Ok(table) = text.parse::<toml::Table>() {
-            for (section, value) in &table {
-                keys.insert(section.clone());
-                if let Some(t) = value.as_table() {
-                    keys.extend(t.keys().map(|k| format!("{section}.{k}")));
-                }
-            }
+        KeysPresent {
+            keys: crate::keys::dotted_keys(text, crate::keys::DAEMON_RENAMES),
         }
-        KeysPresent { keys }
     }
 
-    /// Whether the file sets `key` (dotted: `gyro.rate_hz`).
+    /// Whether the file sets `key` (dotted: `gyro.sample_rate_hz`).
     pub fn contains(&self, key: &str) -> bool {
         self.keys.contains(key)
     }
@@ -518,7 +513,7 @@ impl Config {
 
     /// Check every value; the first problem is reported with its key.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        positive("gyro.rate_hz", self.gyro.rate_hz)?;
+        positive("gyro.sample_rate_hz", self.gyro.sample_rate_hz)?;
         positive("gyro.pulse_arcsec", self.gyro.pulse_arcsec)?;
         label_value("gyro.serial_number", &self.gyro.serial_number)?;
         label_value("gyro.model_name", &self.gyro.model_name)?;
@@ -662,7 +657,9 @@ mod tests {
     #[test]
     fn keys_present_are_found_by_presence_not_value() {
         let k = KeysPresent::of_toml("[gyro]\nrate_hz = 1000.0\n[source]\nkind = \"serial\"\n");
-        assert!(k.contains("gyro.rate_hz") && k.contains("source.kind") && k.contains("gyro"));
+        assert!(
+            k.contains("gyro.sample_rate_hz") && k.contains("source.kind") && k.contains("gyro")
+        );
         assert!(!k.contains("gyro.pulse_arcsec"));
         assert_eq!(KeysPresent::of_toml(""), KeysPresent::default());
     }
@@ -685,7 +682,7 @@ mod tests {
     #[test]
     fn bad_values_name_their_key() {
         let cases = [
-            ("[gyro]\nrate_hz = -1.0", "gyro.rate_hz"),
+            ("[gyro]\nrate_hz = -1.0", "gyro.sample_rate_hz"),
             ("[gyro]\npulse_arcsec = 0.0", "gyro.pulse_arcsec"),
             ("[source]\nkind = \"serial\"", "source.serial_path"),
             ("[source]\nkind = \"replay\"", "source.replay_path"),

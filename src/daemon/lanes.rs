@@ -13,8 +13,8 @@ use bytes::BytesMut;
 
 use crate::daemon::batch::{Assembler, BatchSender, PipelineClosed, SourceReport};
 use crate::daemon::telemetry::Telemetry;
-use crate::recording::messages::EventKind;
 use crate::input::frame::{Axes, DecoderConfig, DecoderStats, FrameDecoder, WireDecoded};
+use crate::recording::messages::EventKind;
 
 /// One gyro of a stream: where its samples are assembled and sent.
 #[derive(Debug)]
@@ -33,12 +33,12 @@ pub struct Lanes<W: Axes> {
 }
 
 impl<W: Axes> Lanes<W> {
-    /// A stream of gyros sampled at `rate_hz`, stopping after `limit_periods`
+    /// A stream of gyros sampled at `sample_rate_hz`, stopping after `limit_periods`
     /// periods; `outs` holds each gyro's telemetry and sender, in frame order
     /// (exactly [`Axes::GYROS`] of them).
     pub fn new(
         decoder: DecoderConfig,
-        rate_hz: f64,
+        sample_rate_hz: f64,
         limit_periods: Option<u64>,
         outs: Vec<(Telemetry, BatchSender)>,
     ) -> Self {
@@ -47,7 +47,7 @@ impl<W: Axes> Lanes<W> {
             .into_iter()
             .enumerate()
             .map(|(i, (telemetry, out))| {
-                let mut asm = Assembler::new(rate_hz, limit_periods, telemetry);
+                let mut asm = Assembler::new(sample_rate_hz, limit_periods, telemetry);
                 asm.count_bytes(i == 0);
                 Lane { asm, out }
             })

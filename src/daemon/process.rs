@@ -55,15 +55,15 @@ use crate::daemon::queue::BatchReceiver;
 use crate::daemon::status::{LiveStatus, StatusEstimate, format_coefficient};
 use crate::daemon::summary::{Place, SummaryAcc};
 use crate::daemon::telemetry::Telemetry;
+use crate::input::frame::FilledSeries;
 use crate::model::estimate::Coefficient;
 use crate::pipeline::{Analysis, Pipeline, PipelineConfig, PipelineError, PipelineOutput};
-use crate::recording::writer::{Checked, RecordError, RecordSender};
 use crate::recording::messages::{
     AllanCurve, AllanUpdate, EstimateUpdate, Event, EventKind, Gap, RateBatch, RawBatch,
     SinkMessage, SummaryUpdate, VerdictUpdate,
 };
+use crate::recording::writer::{Checked, RecordError, RecordSender};
 use crate::sink::metrics::{AllanChannel, Bounds95};
-use crate::input::frame::FilledSeries;
 
 /// Errors building the numeric stage.
 #[derive(Debug, thiserror::Error)]
@@ -136,7 +136,7 @@ impl ProcessConfig {
             return Err(bad("update_budget", b.to_string(), "must be in (0, 1]"));
         }
         let pipeline = Pipeline::new(&self.pipeline)?;
-        let rate: f64 = self.pipeline.rate_hz;
+        let rate: f64 = self.pipeline.sample_rate_hz;
         let interval_samples = (self.interval_s * rate).round().max(1.0) as u64;
         Ok(Processor {
             period_ns: 1e9 / rate,
@@ -293,7 +293,7 @@ impl Processor {
     pub fn run(mut self, input: BatchReceiver, mut outputs: Outputs) -> ProcessReport {
         let first_update = self.interval_samples;
         let summary = SummaryAcc::new(
-            self.cfg.pipeline.rate_hz,
+            self.cfg.pipeline.sample_rate_hz,
             self.cfg.pipeline.pulse_arcsec.unwrap_or(1.0),
         );
         let mut run = Run {

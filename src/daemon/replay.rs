@@ -30,9 +30,10 @@ use crate::daemon::batch::{BatchSender, PipelineClosed, SourceBatch, SourceRepor
 use crate::daemon::lanes::Lanes;
 use crate::daemon::shutdown::Shutdown;
 use crate::daemon::telemetry::Telemetry;
+use crate::input::Format;
+use crate::input::frame::{Axes, DecoderConfig};
 use crate::recording::messages::{Event, EventKind, RawBatch};
 use crate::recording::reader::RawReader;
-use crate::input::frame::{Axes, DecoderConfig};
 
 /// Errors of the replay source; each names the file.
 #[derive(Debug, thiserror::Error)]
@@ -60,13 +61,13 @@ pub enum ReplayError {
     },
     /// The recording's sample period disagrees with the configured rate.
     #[error(
-        "{}: /gyro/raw has a sample period of {dt_ns} ns but the gyro rate is {rate_hz} Hz \
-         (set --rate-hz to {recorded_hz})", path.display()
+        "{}: /gyro/raw has a sample period of {dt_ns} ns but the gyro rate is {sample_rate_hz} Hz \
+         (set --sample-rate-hz to {recorded_hz})", path.display()
     )]
     RateMismatch {
         path: PathBuf,
         dt_ns: u64,
-        rate_hz: f64,
+        sample_rate_hz: f64,
         recorded_hz: f64,
     },
     /// The capture holds no sample at all (no valid frame, or no `/gyro/raw`).
@@ -78,6 +79,9 @@ pub enum ReplayError {
     /// The recording cannot be read.
     #[error(transparent)]
     Recording(#[from] crate::recording::reader::ReadError),
+    /// The recording's gyros cannot be read.
+    #[error(transparent)]
+    Input(#[from] crate::input::InputError),
     /// The pipeline stopped during the replay.
     #[error("replay of {}: {source}", path.display())]
     Pipeline {
@@ -89,80 +93,30 @@ pub enum ReplayError {
 /// What kind of capture a file is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CaptureKind {
-    /// Raw frame bytes.
+    /// Raw single frames.
     Frames,
+    /// Raw triad frames.
+    TriadFrames,
+    /// Bytes in which no frame was found at the start: replayed as the
+    /// configured frame (a capture may begin with a long stretch of noise).
+    Unknown,
     /// An MCAP recording.
     Mcap,
 }
 
-/// Look at the first bytes of `path`: MCAP magic or raw frames.
+/// What `path` is, by its content ([`crate::input::detect`]).
 pub fn probe(path: &Path) -> Result<CaptureKind, ReplayError> {
-    let mut head = Vec::with_capacity(8);
-    File::open(path)
-        .and_then(|f| f.take(8).read_to_end(&mut head))
-        .map_err(|source| ReplayError::Io {
-            path: path.to_path_buf(),
-            offset: 0,
-            source,
-        })?;
-    Ok(if head[..] == ::mcap::MAGIC[..] {
-        CaptureKind::Mcap
-    } else {
-        CaptureKind::Frames
+    let d = crate::input::detect::detect(path).map_err(|source| ReplayError::Io {
+        path: path.to_path_buf(),
+        offset: 0,
+        source,
+    })?;
+    Ok(match d.format {
+        Some(Format::Mcap) => CaptureKind::Mcap,
+        Some(Format::Frames) if !d.gzip => CaptureKind::Frames,
+        Some(Format::TriadFrames) if !d.gzip => CaptureKind::TriadFrames,
+        _ => CaptureKind::Unknown,
     })
-}
-
-/// What an MCAP recording says about its gyro.
-#[derive(Debug, Clone, PartialEq)]
-pub struct RecordedGyro {
-    /// Sample rate, Hz, if known.
-    pub rate_hz: Option<f64>,
-    /// Angle of one pulse, arcsec, if known (only a metadata record says it).
-    pub pulse_arcsec: Option<f64>,
-    /// Where the values come from (for messages).
-    pub origin: &'static str,
-    /// Relative tolerance of an explicit rate against `rate_hz`
-    /// (see [`crate::recording::meta::check_flag`]).
-    pub rate_rel_tol: f64,
-}
-
-/// The gyros of an MCAP recording, in order: for a recording of one gyro
-/// (label `None`), its `sagnac` metadata record
-/// ([`crate::recording::reader::read_metadata`]), or for an older recording without
-/// one the sample period of its first `/gyro/raw` message (no pulse weight);
-/// for a recording of several, each gyro's `sagnac/<label>` record.
-pub fn probe_mcap_gyros(path: &Path) -> Result<Vec<(Option<String>, RecordedGyro)>, ReplayError> {
-    let from_meta = |meta: crate::recording::meta::RecordingMeta| RecordedGyro {
-        rate_hz: Some(meta.sample_rate_hz),
-        pulse_arcsec: meta.pulse_arcsec,
-        origin: "in its sagnac metadata record",
-        rate_rel_tol: crate::recording::meta::AGREE_REL,
-    };
-    let labels = crate::recording::reader::recording_gyro_labels(path)?;
-    if !labels.is_empty() {
-        let mut gyros = Vec::new();
-        for label in labels {
-            // the labels are those of the gyros' metadata records
-            if let Some(meta) = crate::recording::reader::read_metadata_of(path, Some(&label))? {
-                gyros.push((Some(label), from_meta(meta)));
-            }
-        }
-        return Ok(gyros);
-    }
-    if let Some(meta) = crate::recording::reader::read_metadata(path)? {
-        return Ok(vec![(None, from_meta(meta))]);
-    }
-    let dt = crate::recording::reader::first_raw_period_ns(path, None)?;
-    Ok(vec![(
-        None,
-        RecordedGyro {
-            rate_hz: dt.map(|dt| 1e9 / dt as f64),
-            pulse_arcsec: None,
-            origin: "as the sample period of /gyro/raw",
-            // 1 ns in the period
-            rate_rel_tol: dt.map_or(0.0, |dt| 1.0 / dt as f64),
-        },
-    )])
 }
 
 /// Settings of the replay source.
@@ -173,7 +127,7 @@ pub struct ReplayConfig {
     /// Pace in multiples of real time; 0 = as fast as possible.
     pub speed: f64,
     /// Gyro sample rate, Hz.
-    pub rate_hz: f64,
+    pub sample_rate_hz: f64,
     /// Stop after this many sample periods.
     pub limit_periods: Option<u64>,
     /// Frame decoder settings (raw captures).
@@ -196,13 +150,17 @@ impl ReplayConfig {
         if !(self.speed.is_finite() && self.speed >= 0.0) {
             return Err(bad("speed", self.speed.to_string(), "must be >= 0"));
         }
-        if !(self.rate_hz.is_finite() && self.rate_hz > 0.0) {
-            return Err(bad("rate_hz", self.rate_hz.to_string(), "must be > 0"));
+        if !(self.sample_rate_hz.is_finite() && self.sample_rate_hz > 0.0) {
+            return Err(bad(
+                "sample_rate_hz",
+                self.sample_rate_hz.to_string(),
+                "must be > 0",
+            ));
         }
         let kind = probe(&self.path)?;
         let gyros = match kind {
             CaptureKind::Mcap => crate::recording::reader::recording_gyro_labels(&self.path)?,
-            CaptureKind::Frames => Vec::new(),
+            _ => Vec::new(),
         };
         Ok(ReplaySource {
             config: self,
@@ -229,11 +187,11 @@ struct Pacer {
 }
 
 impl Pacer {
-    fn new(rate_hz: f64, speed: f64) -> Self {
+    fn new(sample_rate_hz: f64, speed: f64) -> Self {
         Pacer {
             start: Instant::now(),
             s_per_period: if speed > 0.0 {
-                1.0 / (rate_hz * speed)
+                1.0 / (sample_rate_hz * speed)
             } else {
                 0.0
             },
@@ -290,8 +248,8 @@ impl ReplaySource {
     ) -> Result<SourceReport, ReplayError> {
         let path = self.config.path.clone();
         let report = match self.kind {
-            CaptureKind::Frames => self.replay_frames::<W>(outs, &shutdown),
             CaptureKind::Mcap => self.replay_mcap(outs, &shutdown),
+            _ => self.replay_frames::<W>(outs, &shutdown),
         }?;
         if report.samples == 0 && !shutdown.is_requested() {
             return Err(ReplayError::NoSamples {
@@ -327,9 +285,9 @@ impl ReplaySource {
             source,
         };
         let mut file = File::open(&cfg.path).map_err(|e| io_err(0, e))?;
-        let pacer = Pacer::new(cfg.rate_hz, cfg.speed);
+        let pacer = Pacer::new(cfg.sample_rate_hz, cfg.speed);
         let per_batch = pacer.batch_samples();
-        let mut lanes = Lanes::<W>::new(cfg.decoder, cfg.rate_hz, cfg.limit_periods, outs);
+        let mut lanes = Lanes::<W>::new(cfg.decoder, cfg.sample_rate_hz, cfg.limit_periods, outs);
         let mut buf = BytesMut::with_capacity(2 * READ_CHUNK);
         let mut in_batch = 0usize;
         let mut eof = false;
@@ -391,7 +349,7 @@ impl ReplaySource {
         shutdown: &Shutdown,
     ) -> Result<SourceReport, ReplayError> {
         let cfg = &self.config;
-        let pacer = Pacer::new(cfg.rate_hz, cfg.speed);
+        let pacer = Pacer::new(cfg.sample_rate_hz, cfg.speed);
         // Up to the last complete chunk of a cut recording (the shared reader's
         // recovery), the other channels skipped undecoded.
         let mut reader = if self.gyros.is_empty() {
@@ -482,12 +440,12 @@ impl McapLane {
         mut raw: RawBatch,
         cfg: &ReplayConfig,
     ) -> Result<Option<SourceBatch>, ReplayError> {
-        let period_ns = 1e9 / cfg.rate_hz;
+        let period_ns = 1e9 / cfg.sample_rate_hz;
         if !raw.counts.is_empty() && (raw.dt_ns as f64 - period_ns).abs() > 1.0 {
             return Err(ReplayError::RateMismatch {
                 path: cfg.path.clone(),
                 dt_ns: raw.dt_ns,
-                rate_hz: cfg.rate_hz,
+                sample_rate_hz: cfg.sample_rate_hz,
                 recorded_hz: 1e9 / raw.dt_ns as f64,
             });
         }

@@ -41,12 +41,12 @@ use crate::daemon::serial::{SerialConfig, SerialError, SerialSource};
 use crate::daemon::shutdown::{self, ShutdownTrigger};
 use crate::daemon::status::LiveStatus;
 use crate::daemon::telemetry::Telemetry;
+use crate::input::frame::{DecoderConfig, Single, Triad};
 use crate::model::{GyroModel, ModelError};
 use crate::pipeline::PipelineConfig;
-use crate::recording::writer::{RecordError, Recorder, RecorderConfig, RecordingSummary};
 use crate::recording::meta::{AGREE_REL, Contradiction, RecordingMeta, check_flag};
+use crate::recording::writer::{RecordError, Recorder, RecorderConfig, RecordingSummary};
 use crate::sink::metrics::{Metrics, MetricsError};
-use crate::input::frame::{DecoderConfig, Single, Triad};
 
 /// The built-in gyro model of the simulated bench (the founding paper's RLG).
 pub const PAPER_GYRO_TOML: &str = include_str!("../../config/paper_gyro.toml");
@@ -117,8 +117,10 @@ pub enum DaemonError {
 /// Serial input and raw frame captures carry neither, so both must be given.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Explicit {
-    pub rate_hz: bool,
+    pub sample_rate_hz: bool,
     pub pulse_arcsec: bool,
+    /// `source.frame` (`--frame`) was given: a raw capture's frames must be of it.
+    pub frame: bool,
 }
 
 enum Source {
@@ -173,16 +175,48 @@ pub struct RunReport {
 /// The gyros of an MCAP recording: (label, rate in Hz, pulse weight in arcsec).
 type RecordedGyros = Vec<(Option<String>, f64, f64)>;
 
+/// A source as built, before its gyros' pipelines: its frame, and each gyro's
+/// label and (rate, pulse weight, model TOML).
+struct BuiltSource {
+    source: Source,
+    frame: FrameKind,
+    labels: Vec<String>,
+    gyros: Vec<(f64, f64, Option<String>)>,
+}
+
+/// Two gyros with one label would share metrics and topics.
+fn check_labels_unique(inputs: &[Input]) -> Result<(), DaemonError> {
+    let labels: Vec<&str> = inputs
+        .iter()
+        .flat_map(|i| i.gyros.iter().map(|g| g.label.as_str()))
+        .collect();
+    match labels
+        .iter()
+        .enumerate()
+        .find(|(k, l)| labels[..*k].contains(l))
+    {
+        Some((_, dup)) => Err(DaemonError::Config(ConfigError::Invalid {
+            key: "source.inputs",
+            value: dup.to_string(),
+            message: "two gyros have this label: give the inputs distinct labels",
+        })),
+        None => Ok(()),
+    }
+}
+
 /// Serial input and raw frame captures do not carry the rate or pulse weight:
 /// both must be given explicitly.
 fn require_explicit(explicit: Explicit, input: String) -> Result<(), DaemonError> {
-    let (missing, how) = match (explicit.rate_hz, explicit.pulse_arcsec) {
+    let (missing, how) = match (explicit.sample_rate_hz, explicit.pulse_arcsec) {
         (true, true) => return Ok(()),
         (false, false) => (
             "sample rate and pulse weight",
-            "--rate-hz and --pulse-arcsec (config keys `gyro.rate_hz`, `gyro.pulse_arcsec`)",
+            "--sample-rate-hz and --pulse-arcsec (config keys `gyro.sample_rate_hz`, `gyro.pulse_arcsec`)",
         ),
-        (false, true) => ("sample rate", "--rate-hz (config key `gyro.rate_hz`)"),
+        (false, true) => (
+            "sample rate",
+            "--sample-rate-hz (config key `gyro.sample_rate_hz`)",
+        ),
         (true, false) => (
             "pulse weight",
             "--pulse-arcsec (config key `gyro.pulse_arcsec`)",
@@ -210,6 +244,11 @@ fn load_model(path: &str) -> Result<(GyroModel, String), DaemonError> {
         (GyroModel::from_toml_str(PAPER_GYRO_TOML, &origin), origin)
     } else {
         let p = PathBuf::from(path);
+        if let Ok(text) = std::fs::read_to_string(&p) {
+            for (old, new) in crate::keys::renamed_in(&text, crate::keys::MODEL_RENAMES) {
+                tracing::warn!("{}", crate::keys::rename_warning(path, old, new));
+            }
+        }
         (GyroModel::load(&p), p.display().to_string())
     };
     let model = model.map_err(|source| DaemonError::Model {
@@ -249,34 +288,78 @@ impl Daemon {
     /// they must agree). The recording made carries them in its metadata record.
     pub fn build(mut config: Config, explicit: Explicit) -> Result<Daemon, DaemonError> {
         config.validate()?;
+        let (built, model_toml) = Daemon::sources(&mut config, explicit)?;
+        let spec = Daemon::spec(&config)?;
+        let live = config.source.kind == SourceKind::Serial;
+        let mut inputs = Vec::new();
+        for b in built {
+            let mut gyros = Vec::new();
+            for (label, (sample_rate_hz, pulse_arcsec, model)) in b.labels.into_iter().zip(b.gyros)
+            {
+                let mut processor = Daemon::processor(&config, sample_rate_hz, pulse_arcsec, live)?;
+                if let Some(spec) = &spec {
+                    // the stop trigger is attached in run()
+                    processor.set_spec(spec.clone(), None);
+                }
+                let mut meta = RecordingMeta::counts(sample_rate_hz, pulse_arcsec);
+                meta.model = model;
+                gyros.push(Gyro {
+                    label,
+                    processor,
+                    meta,
+                });
+            }
+            inputs.push(Input {
+                source: b.source,
+                frame: b.frame,
+                gyros,
+            });
+        }
+        check_labels_unique(&inputs)?;
+        // validate() checked that it parses
+        let metrics_addr = config.metrics.addr.parse().ok();
+        // What the recording says about itself (see crate::recording::meta).
+        let mut recording_meta =
+            RecordingMeta::counts(config.gyro.sample_rate_hz, config.gyro.pulse_arcsec);
+        recording_meta.config = toml::to_string(&config).ok();
+        recording_meta.model = model_toml;
+        Ok(Daemon {
+            config,
+            inputs,
+            metrics_addr,
+            recording_meta,
+            status: None,
+        })
+    }
+
+    /// Every source of the configuration, with its gyros' labels and
+    /// settings; and the simulated bench's model TOML.
+    fn sources(
+        config: &mut Config,
+        explicit: Explicit,
+    ) -> Result<(Vec<BuiltSource>, Option<String>), DaemonError> {
+        let mut built = Vec::new();
         let mut model_toml = None;
-        // (source, frame, labels, per-gyro (rate, pulse, model TOML))
-        let mut built: Vec<(
-            Source,
-            FrameKind,
-            Vec<String>,
-            Vec<(f64, f64, Option<String>)>,
-        )> = Vec::new();
         match config.source.kind {
             SourceKind::Simulate => {
-                let (bench, gyros) = Daemon::simulated(&mut config, explicit)?;
+                let (bench, gyros) = Daemon::simulated(config, explicit)?;
                 model_toml = gyros[0].2.clone();
                 let frame = if gyros.len() == 3 {
                     FrameKind::Triad
                 } else {
                     FrameKind::Single
                 };
-                built.push((
-                    Source::Bench(Box::new(bench)),
+                built.push(BuiltSource {
+                    source: Source::Bench(Box::new(bench)),
                     frame,
-                    frame.labels(None),
+                    labels: frame.labels(None),
                     gyros,
-                ));
+                });
             }
             SourceKind::Replay => {
-                for (label, path) in labelled_inputs(&config, &config.source.replay_path.clone()) {
+                for (label, path) in labelled_inputs(config, &config.source.replay_path.clone()) {
                     let (source, frame, several) =
-                        Daemon::replay(&mut config, explicit, PathBuf::from(path))?;
+                        Daemon::replay(config, explicit, PathBuf::from(path))?;
                     let (labels, gyros) = match several {
                         // a recording of several gyros: its labels (after the input's)
                         Some(recorded) => recorded
@@ -288,95 +371,47 @@ impl Daemon {
                             })
                             .unzip(),
                         None => {
-                            let g = (config.gyro.rate_hz, config.gyro.pulse_arcsec, None);
+                            let g = (config.gyro.sample_rate_hz, config.gyro.pulse_arcsec, None);
                             (frame.labels(label.as_deref()), vec![g; frame.gyros()])
                         }
                     };
-                    built.push((source, frame, labels, gyros));
+                    built.push(BuiltSource {
+                        source,
+                        frame,
+                        labels,
+                        gyros,
+                    });
                 }
             }
             SourceKind::Serial => {
-                for (label, path) in labelled_inputs(&config, &config.source.serial_path.clone()) {
-                    let source = Daemon::serial(&config, explicit, PathBuf::from(path))?;
+                for (label, path) in labelled_inputs(config, &config.source.serial_path.clone()) {
+                    let source = Daemon::serial(config, explicit, PathBuf::from(path))?;
                     let frame = config.source.frame;
-                    let g = (config.gyro.rate_hz, config.gyro.pulse_arcsec, None);
-                    built.push((
+                    let g = (config.gyro.sample_rate_hz, config.gyro.pulse_arcsec, None);
+                    built.push(BuiltSource {
                         source,
                         frame,
-                        frame.labels(label.as_deref()),
-                        vec![g; frame.gyros()],
-                    ));
+                        labels: frame.labels(label.as_deref()),
+                        gyros: vec![g; frame.gyros()],
+                    });
                 }
             }
         }
-        let live = config.source.kind == SourceKind::Serial;
-        let spec = if config.spec.path.is_empty() {
-            None
-        } else {
-            let spec = crate::model::spec::Spec::load(std::path::Path::new(&config.spec.path))?;
-            tracing::info!(
-                path = config.spec.path,
-                confidence = spec.confidence,
-                "acceptance test"
-            );
-            Some(spec)
-        };
-        let mut inputs = Vec::new();
-        for (source, frame, labels, gyros) in built {
-            let mut list = Vec::new();
-            for (label, (rate_hz, pulse_arcsec, model)) in labels.into_iter().zip(gyros) {
-                let mut processor = Daemon::processor(&config, rate_hz, pulse_arcsec, live)?;
-                if let Some(spec) = &spec {
-                    // the stop trigger is attached in run()
-                    processor.set_spec(spec.clone(), None);
-                }
-                let mut meta = RecordingMeta::counts(rate_hz, pulse_arcsec);
-                meta.model = model;
-                list.push(Gyro {
-                    label,
-                    processor,
-                    meta,
-                });
-            }
-            inputs.push(Input {
-                source,
-                frame,
-                gyros: list,
-            });
+        Ok((built, model_toml))
+    }
+
+    /// The acceptance test's spec, when configured.
+    fn spec(config: &Config) -> Result<Option<crate::model::spec::Spec>, DaemonError> {
+        if config.spec.path.is_empty() {
+            return Ok(None);
         }
-        let labels: Vec<&str> = inputs
-            .iter()
-            .flat_map(|i| i.gyros.iter().map(|g| g.label.as_str()))
-            .collect();
-        if let Some(dup) = labels
-            .iter()
-            .enumerate()
-            .find(|(k, l)| labels[..*k].contains(l))
-        {
-            return Err(DaemonError::Config(ConfigError::Invalid {
-                key: "source.inputs",
-                value: dup.1.to_string(),
-                message: "two gyros have this label: give the inputs distinct labels",
-            }));
-        }
-        let metrics_addr = if config.metrics.addr.is_empty() {
-            None
-        } else {
-            // validate() checked that it parses
-            config.metrics.addr.parse().ok()
-        };
-        // What the recording says about itself (see crate::recording::meta).
-        let mut recording_meta =
-            RecordingMeta::counts(config.gyro.rate_hz, config.gyro.pulse_arcsec);
-        recording_meta.config = toml::to_string(&config).ok();
-        recording_meta.model = model_toml;
-        Ok(Daemon {
-            config,
-            inputs,
-            metrics_addr,
-            recording_meta,
-            status: None,
-        })
+        let spec = crate::model::spec::Spec::load(std::path::Path::new(&config.spec.path))?;
+        tracing::info!(
+            path = config.spec.path,
+            confidence = spec.confidence,
+            "acceptance test"
+        );
+        Ok(Some(spec))
     }
 
     /// The simulated bench (one gyro, or a triad), and each gyro's rate, pulse
@@ -394,11 +429,11 @@ impl Daemon {
         let mut gyros = Vec::new();
         for path in &paths {
             let (model, origin) = load_model(path)?;
-            let (rate, pulse) = (model.gyro.sample_rate_hz, model.gyro.pulse_weight_arcsec);
-            if explicit.rate_hz && config.gyro.rate_hz != rate {
+            let (rate, pulse) = (model.gyro.sample_rate_hz, model.gyro.pulse_arcsec);
+            if explicit.sample_rate_hz && config.gyro.sample_rate_hz != rate {
                 return Err(mismatch(
-                    "gyro.rate_hz",
-                    config.gyro.rate_hz,
+                    "gyro.sample_rate_hz",
+                    config.gyro.sample_rate_hz,
                     "differs from the simulated model's gyro.sample_rate_hz (leave it out to use the model's)",
                 ));
             }
@@ -406,7 +441,7 @@ impl Daemon {
                 return Err(mismatch(
                     "gyro.pulse_arcsec",
                     config.gyro.pulse_arcsec,
-                    "differs from the simulated model's gyro.pulse_weight_arcsec (leave it out to use the model's)",
+                    "differs from the simulated model's gyro.pulse_arcsec (leave it out to use the model's)",
                 ));
             }
             tracing::info!(
@@ -417,7 +452,7 @@ impl Daemon {
             gyros.push((rate, pulse, model.to_toml().ok()));
             models.push(model);
         }
-        config.gyro.rate_hz = gyros[0].0;
+        config.gyro.sample_rate_hz = gyros[0].0;
         config.gyro.pulse_arcsec = gyros[0].1;
         let model = models.remove(0);
         let triad = match <[GyroModel; 2]>::try_from(models) {
@@ -435,10 +470,10 @@ impl Daemon {
         Ok((bench, gyros))
     }
 
-    /// Sample periods of `config.run.duration_s` at `rate_hz`, if limited.
-    fn limit(config: &Config, rate_hz: f64) -> Option<u64> {
+    /// Sample periods of `config.run.duration_s` at `sample_rate_hz`, if limited.
+    fn limit(config: &Config, sample_rate_hz: f64) -> Option<u64> {
         (config.run.duration_s > 0.0)
-            .then(|| (config.run.duration_s * rate_hz).round().max(1.0) as u64)
+            .then(|| (config.run.duration_s * sample_rate_hz).round().max(1.0) as u64)
     }
 
     /// A replay of `path`, its frame, and for an MCAP recording of several
@@ -452,7 +487,8 @@ impl Daemon {
     ) -> Result<(Source, FrameKind, Option<RecordedGyros>), DaemonError> {
         let mut frame = config.source.frame;
         let mut several = None;
-        if replay::probe(&path)? == CaptureKind::Mcap {
+        let kind = replay::probe(&path)?;
+        if kind == CaptureKind::Mcap {
             if frame == FrameKind::Triad {
                 return Err(DaemonError::Config(ConfigError::Invalid {
                     key: "source.frame",
@@ -461,7 +497,7 @@ impl Daemon {
                 }));
             }
             let recorded = Daemon::recorded_gyros(config, explicit, &path)?;
-            (config.gyro.rate_hz, config.gyro.pulse_arcsec) = (recorded[0].1, recorded[0].2);
+            (config.gyro.sample_rate_hz, config.gyro.pulse_arcsec) = (recorded[0].1, recorded[0].2);
             if recorded.iter().any(|g| g.1 != recorded[0].1) {
                 return Err(DaemonError::Config(ConfigError::Invalid {
                     key: "source.replay_path",
@@ -476,6 +512,7 @@ impl Daemon {
             frame = FrameKind::Single;
         } else {
             require_explicit(explicit, format!("raw frame capture {}", path.display()))?;
+            frame = Daemon::capture_frame(frame, explicit.frame, kind, &path)?;
         }
         let speed = config.source.effective_speed();
         tracing::info!(path = %path.display(), speed, frame = ?frame, "source: replay");
@@ -483,8 +520,8 @@ impl Daemon {
             ReplayConfig {
                 path,
                 speed,
-                rate_hz: config.gyro.rate_hz,
-                limit_periods: Daemon::limit(config, config.gyro.rate_hz),
+                sample_rate_hz: config.gyro.sample_rate_hz,
+                limit_periods: Daemon::limit(config, config.gyro.sample_rate_hz),
                 decoder: DecoderConfig::default(),
             }
             .build()?,
@@ -492,9 +529,40 @@ impl Daemon {
         Ok((source, frame, several))
     }
 
+    /// The frame of a raw capture: the one its content shows, which an
+    /// explicit `source.frame` must name; the configured one when the content
+    /// does not tell.
+    fn capture_frame(
+        configured: FrameKind,
+        explicit: bool,
+        kind: CaptureKind,
+        path: &std::path::Path,
+    ) -> Result<FrameKind, DaemonError> {
+        let found = match kind {
+            CaptureKind::Frames => FrameKind::Single,
+            CaptureKind::TriadFrames => FrameKind::Triad,
+            CaptureKind::Unknown | CaptureKind::Mcap => return Ok(configured),
+        };
+        if explicit && found != configured {
+            return Err(DaemonError::Config(ConfigError::Invalid {
+                key: "source.frame",
+                value: format!("{configured:?}").to_lowercase(),
+                message: if found == FrameKind::Triad {
+                    "the capture holds triad frames (24 bytes, sync A5 5B): leave --frame out"
+                } else {
+                    "the capture holds single frames (16 bytes, sync A5 5A): leave --frame out"
+                },
+            }));
+        }
+        if found != configured {
+            tracing::info!(path = %path.display(), frame = ?found, "the capture's frames, found by content");
+        }
+        Ok(found)
+    }
+
     /// Each gyro of the MCAP recording `path`: (label, rate, pulse weight), from
     /// its metadata record (else the sample period of `/gyro/raw`); an explicit
-    /// `gyro.rate_hz` / `gyro.pulse_arcsec` must agree, and supplies what the
+    /// `gyro.sample_rate_hz` / `gyro.pulse_arcsec` must agree, and supplies what the
     /// recording does not say.
     fn recorded_gyros(
         config: &Config,
@@ -503,16 +571,17 @@ impl Daemon {
     ) -> Result<RecordedGyros, DaemonError> {
         let given = |on: bool, v: f64| on.then_some(v);
         let mut out = Vec::new();
-        for (label, recorded) in replay::probe_mcap_gyros(path)? {
+        for recorded in crate::input::recorded_gyros(path).map_err(ReplayError::from)? {
+            let label = recorded.label.clone();
             let rate = check_flag(
-                "gyro.rate_hz",
-                given(explicit.rate_hz, config.gyro.rate_hz),
-                recorded.rate_hz,
+                "gyro.sample_rate_hz",
+                given(explicit.sample_rate_hz, config.gyro.sample_rate_hz),
+                recorded.sample_rate_hz,
                 path,
                 recorded.origin,
                 recorded.rate_rel_tol,
             )?
-            .unwrap_or(config.gyro.rate_hz);
+            .unwrap_or(config.gyro.sample_rate_hz);
             let pulse = check_flag(
                 "gyro.pulse_arcsec",
                 given(explicit.pulse_arcsec, config.gyro.pulse_arcsec),
@@ -537,8 +606,8 @@ impl Daemon {
                 baud: config.source.baud,
                 reconnect_initial: Duration::from_secs_f64(config.source.reconnect_initial_s),
                 reconnect_max: Duration::from_secs_f64(config.source.reconnect_max_s),
-                rate_hz: config.gyro.rate_hz,
-                limit_periods: Daemon::limit(config, config.gyro.rate_hz),
+                sample_rate_hz: config.gyro.sample_rate_hz,
+                limit_periods: Daemon::limit(config, config.gyro.sample_rate_hz),
                 decoder: DecoderConfig::default(),
             }
             .build()?,
@@ -548,13 +617,13 @@ impl Daemon {
     /// One gyro's numeric stage.
     fn processor(
         config: &Config,
-        rate_hz: f64,
+        sample_rate_hz: f64,
         pulse_arcsec: f64,
         live: bool,
     ) -> Result<Processor, DaemonError> {
         Ok(ProcessConfig {
             pipeline: PipelineConfig {
-                rate_hz,
+                sample_rate_hz,
                 pulse_arcsec: Some(pulse_arcsec),
                 wavelet: config.dsp.wavelet.clone(),
                 levels: (config.dsp.levels > 0).then_some(config.dsp.levels),
@@ -593,7 +662,10 @@ impl Daemon {
             .collect()
     }
 
-    /// Run until the source ends or `trigger` fires, then drain everything.
+    /// Run until the source ends or `trigger` fires, then drain everything:
+    /// start the metrics server and the recorder, spawn each gyro's pipeline
+    /// and each source, join the sources, then drain the pipelines, the
+    /// recorder and the server, in that order.
     pub async fn run(self, trigger: ShutdownTrigger) -> Result<RunReport, DaemonError> {
         let Daemon {
             config,
@@ -602,169 +674,40 @@ impl Daemon {
             recording_meta,
             status,
         } = self;
-        let n_gyros: usize = inputs.iter().map(|i| i.gyros.len()).sum();
-        if config.spec.stop_when_decided {
-            // --stop-when-decided: the ordinary shutdown once every gyro's coefficients are decided
-            let stops = all_decided(&trigger, n_gyros);
-            for (g, stop) in inputs
-                .iter_mut()
-                .flat_map(|i| i.gyros.iter_mut())
-                .zip(stops)
-            {
-                g.processor.attach_spec_stop(stop);
-            }
-        }
-        // A serial port that cannot be opened fails the run before anything starts.
-        for input in &mut inputs {
-            if let Source::Serial(s) = &mut input.source {
-                s.open()?;
-            }
-        }
-        let first_label = inputs[0].gyros[0].label.clone();
-        let base = Telemetry::new(Arc::new(Metrics::new()?), &config.gyro.info(&first_label))?;
-        if let (Some(st), Source::Replay(_)) = (&status, &inputs[0].source)
-            && let Ok(m) = std::fs::metadata(
-                labelled_inputs(&config, &config.source.replay_path)[0]
-                    .1
-                    .as_str(),
-            )
-        {
-            st.set_replay(m.len(), Arc::clone(&base.metrics));
-        }
+        prepare_inputs(&config, &mut inputs, &trigger)?;
+        let base = base_telemetry(&config, &inputs, status.as_ref())?;
         let (drain_guard, drained) = shutdown::drain_channel();
-
-        // The metrics server stops last, after the final estimates are in.
-        let (http_trigger, http_shutdown) = shutdown::channel();
-        let mut served = None;
-        let http_task = match metrics_addr {
-            Some(addr) => {
-                let (bound, server) =
-                    http::bind(addr, Arc::clone(&base.metrics), http_shutdown.watch()).await?;
-                tracing::info!("metrics on http://{bound}/metrics");
-                served = Some(bound);
-                let guard = drain_guard.clone();
-                Some(tokio::spawn(async move {
-                    server.await;
-                    drop(guard);
-                }))
-            }
-            None => None,
-        };
-
+        let server = MetricsServer::start(metrics_addr, &base, &drain_guard).await?;
         let recorder = if config.record.dir.is_empty() {
             None
         } else {
             Some(start_recorder(&config, recording_meta, &inputs).await?)
         };
-
-        tracing::info!(
-            rate_hz = config.gyro.rate_hz,
-            pulse_arcsec = config.gyro.pulse_arcsec,
-            wavelet = config.dsp.wavelet,
-            gyros = n_gyros,
-            latency_samples = inputs[0].gyros[0].processor.pipeline().latency(),
-            estimator_interval_s = config.estimator.interval_s,
-            "pipeline ready"
+        log_ready(&config, &inputs);
+        let tasks = spawn_gyros(
+            &config,
+            inputs,
+            &base,
+            recorder.as_ref(),
+            &trigger,
+            &drain_guard,
+            status,
         );
-
-        let live = config.source.kind == SourceKind::Serial;
-        let bound = if live {
-            // the budget is shared by the gyros' queues
-            QueueBound::Bytes(config.source.queue_budget_bytes() / n_gyros as u64)
-        } else {
-            QueueBound::Batches(config.run.channel_capacity)
-        };
-        let mut process_tasks = Vec::new();
-        let mut source_tasks = Vec::new();
-        let mut status = status;
-        for input in inputs {
-            let mut outs = Vec::new();
-            for g in input.gyros {
-                let telemetry = base.for_gyro(&config.gyro.info(&g.label));
-                let (sender, rx) = batch::channel(bound, &telemetry);
-                let outputs = Outputs {
-                    recorder: recorder.as_ref().map(|r| r.sender().for_gyro(&g.label)),
-                    telemetry: telemetry.clone(),
-                    stop: Some(trigger.subscribe()),
-                    status: status.take(),
-                };
-                let guard = drain_guard.clone();
-                let processor = g.processor;
-                let label = g.label;
-                process_tasks.push(tokio::task::spawn_blocking(move || {
-                    let report = processor.run(rx, outputs);
-                    drop(guard);
-                    (label, report)
-                }));
-                outs.push((telemetry, sender));
-            }
-            source_tasks.push(spawn_source(
-                input.source,
-                input.frame,
-                outs,
-                trigger.subscribe(),
-            ));
-        }
-        let mut source_result: Result<SourceReport, DaemonError> = Ok(SourceReport::default());
-        for task in source_tasks {
-            let r = task
-                .await
-                .map_err(|e| join_err("source", e))
-                .and_then(|r| r);
-            match (r, &mut source_result) {
-                (Ok(r), Ok(total)) => {
-                    total.bytes_read += r.bytes_read;
-                    total.samples += r.samples;
-                    total.periods += r.periods;
-                    total.disconnects += r.disconnects;
-                }
-                (Err(e), Ok(_)) => {
-                    tracing::error!(error = %e, "source failed; draining the pipeline");
-                    // the other sources stop too
-                    trigger.trigger();
-                    source_result = Err(e);
-                }
-                (Err(e), Err(_)) => tracing::error!(error = %e, "source failed"),
-                (Ok(_), Err(_)) => {}
-            }
-        }
+        let source = join_sources(tasks.sources, &trigger).await;
         if trigger.is_triggered() {
             tracing::info!("shutdown requested: draining the pipeline");
         }
         // The sources dropped their senders: the pipelines drain and return.
-        let mut gyros = Vec::new();
-        for t in process_tasks {
-            gyros.push(t.await.map_err(|e| join_err("pipeline", e))?);
-        }
+        let gyros = join_pipelines(tasks.pipelines).await?;
         let recording = match recorder {
-            Some(r) => match finish_recorder(r, &base).await {
-                Ok(s) => Some(s),
-                Err(e) => {
-                    http_trigger.trigger();
-                    return Err(e);
-                }
-            },
-            None => None,
+            Some(r) => finish_recorder(r, &base).await.map(Some),
+            None => Ok(None),
         };
-        http_trigger.trigger();
-        if let Some(t) = http_task {
-            let _ = t.await;
-        }
+        let served = server.stop().await;
         drop(drain_guard);
         drained.wait().await;
-        let source = source_result?;
-        for (label, p) in &gyros {
-            tracing::info!(
-                gyro = label,
-                samples = p.samples,
-                periods = p.periods,
-                lost = p.lost,
-                updates = p.updates,
-                max_estimate_latency_s = p.max_estimate_latency_s,
-                recorder_dropped = p.recorder_dropped,
-                "run finished"
-            );
-        }
+        let (recording, source) = (recording?, source?);
+        log_finished(&gyros);
         Ok(RunReport {
             source,
             process: gyros[0].1.clone(),
@@ -772,6 +715,225 @@ impl Daemon {
             recording,
             metrics_addr: served,
         })
+    }
+}
+
+/// Before anything starts: the stop triggers of `--stop-when-decided` (the
+/// ordinary shutdown once every gyro's coefficients are decided), and the
+/// serial ports, which fail the run now when they cannot be opened.
+fn prepare_inputs(
+    config: &Config,
+    inputs: &mut [Input],
+    trigger: &ShutdownTrigger,
+) -> Result<(), DaemonError> {
+    if config.spec.stop_when_decided {
+        let n_gyros = inputs.iter().map(|i| i.gyros.len()).sum();
+        let stops = all_decided(trigger, n_gyros);
+        for (g, stop) in inputs
+            .iter_mut()
+            .flat_map(|i| i.gyros.iter_mut())
+            .zip(stops)
+        {
+            g.processor.attach_spec_stop(stop);
+        }
+    }
+    for input in inputs {
+        if let Source::Serial(s) = &mut input.source {
+            s.open()?;
+        }
+    }
+    Ok(())
+}
+
+/// The metrics every gyro shares, and a replay's progress for the status line.
+fn base_telemetry(
+    config: &Config,
+    inputs: &[Input],
+    status: Option<&Arc<LiveStatus>>,
+) -> Result<Telemetry, DaemonError> {
+    let first_label = &inputs[0].gyros[0].label;
+    let base = Telemetry::new(Arc::new(Metrics::new()?), &config.gyro.info(first_label))?;
+    if let (Some(st), Source::Replay(_)) = (status, &inputs[0].source)
+        && let Ok(m) = std::fs::metadata(
+            labelled_inputs(config, &config.source.replay_path)[0]
+                .1
+                .as_str(),
+        )
+    {
+        st.set_replay(m.len(), Arc::clone(&base.metrics));
+    }
+    Ok(base)
+}
+
+/// The `/metrics` server task; it stops last, after the final estimates are in.
+struct MetricsServer {
+    trigger: ShutdownTrigger,
+    task: Option<tokio::task::JoinHandle<()>>,
+    bound: Option<SocketAddr>,
+}
+
+impl MetricsServer {
+    async fn start(
+        addr: Option<SocketAddr>,
+        base: &Telemetry,
+        drain_guard: &shutdown::DrainGuard,
+    ) -> Result<MetricsServer, DaemonError> {
+        let (trigger, shutdown) = shutdown::channel();
+        let Some(addr) = addr else {
+            return Ok(MetricsServer {
+                trigger,
+                task: None,
+                bound: None,
+            });
+        };
+        let (bound, server) = http::bind(addr, Arc::clone(&base.metrics), shutdown.watch()).await?;
+        tracing::info!("metrics on http://{bound}/metrics");
+        let guard = drain_guard.clone();
+        let task = tokio::spawn(async move {
+            server.await;
+            drop(guard);
+        });
+        Ok(MetricsServer {
+            trigger,
+            task: Some(task),
+            bound: Some(bound),
+        })
+    }
+
+    /// Stop serving; where it served.
+    async fn stop(self) -> Option<SocketAddr> {
+        self.trigger.trigger();
+        if let Some(t) = self.task {
+            let _ = t.await;
+        }
+        self.bound
+    }
+}
+
+fn log_ready(config: &Config, inputs: &[Input]) {
+    tracing::info!(
+        sample_rate_hz = config.gyro.sample_rate_hz,
+        pulse_arcsec = config.gyro.pulse_arcsec,
+        wavelet = config.dsp.wavelet,
+        gyros = inputs.iter().map(|i| i.gyros.len()).sum::<usize>(),
+        latency_samples = inputs[0].gyros[0].processor.pipeline().latency(),
+        estimator_interval_s = config.estimator.interval_s,
+        "pipeline ready"
+    );
+}
+
+type PipelineTask = tokio::task::JoinHandle<(String, ProcessReport)>;
+
+/// The running tasks: one pipeline thread per gyro, one task per source.
+struct Tasks {
+    pipelines: Vec<PipelineTask>,
+    sources: Vec<SourceTask>,
+}
+
+/// Spawn every gyro's pipeline thread, then each source feeding its gyros.
+fn spawn_gyros(
+    config: &Config,
+    inputs: Vec<Input>,
+    base: &Telemetry,
+    recorder: Option<&Recorder>,
+    trigger: &ShutdownTrigger,
+    drain_guard: &shutdown::DrainGuard,
+    mut status: Option<Arc<LiveStatus>>,
+) -> Tasks {
+    let n_gyros: usize = inputs.iter().map(|i| i.gyros.len()).sum();
+    let bound = if config.source.kind == SourceKind::Serial {
+        // the budget is shared by the gyros' queues
+        QueueBound::Bytes(config.source.queue_budget_bytes() / n_gyros as u64)
+    } else {
+        QueueBound::Batches(config.run.channel_capacity)
+    };
+    let mut tasks = Tasks {
+        pipelines: Vec::new(),
+        sources: Vec::new(),
+    };
+    for input in inputs {
+        let mut outs = Vec::new();
+        for g in input.gyros {
+            let telemetry = base.for_gyro(&config.gyro.info(&g.label));
+            let (sender, rx) = batch::channel(bound, &telemetry);
+            let outputs = Outputs {
+                recorder: recorder.map(|r| r.sender().for_gyro(&g.label)),
+                telemetry: telemetry.clone(),
+                stop: Some(trigger.subscribe()),
+                status: status.take(),
+            };
+            let guard = drain_guard.clone();
+            let (processor, label) = (g.processor, g.label);
+            tasks.pipelines.push(tokio::task::spawn_blocking(move || {
+                let report = processor.run(rx, outputs);
+                drop(guard);
+                (label, report)
+            }));
+            outs.push((telemetry, sender));
+        }
+        tasks.sources.push(spawn_source(
+            input.source,
+            input.frame,
+            outs,
+            trigger.subscribe(),
+        ));
+    }
+    tasks
+}
+
+/// Wait for every source; the first failure stops the others (the pipelines
+/// still drain) and is the result.
+async fn join_sources(
+    sources: Vec<SourceTask>,
+    trigger: &ShutdownTrigger,
+) -> Result<SourceReport, DaemonError> {
+    let mut result: Result<SourceReport, DaemonError> = Ok(SourceReport::default());
+    for task in sources {
+        let r = task
+            .await
+            .map_err(|e| join_err("source", e))
+            .and_then(|r| r);
+        match (r, &mut result) {
+            (Ok(r), Ok(total)) => {
+                total.bytes_read += r.bytes_read;
+                total.samples += r.samples;
+                total.periods += r.periods;
+                total.disconnects += r.disconnects;
+            }
+            (Err(e), Ok(_)) => {
+                tracing::error!(error = %e, "source failed; draining the pipeline");
+                trigger.trigger();
+                result = Err(e);
+            }
+            (Err(e), Err(_)) => tracing::error!(error = %e, "source failed"),
+            (Ok(_), Err(_)) => {}
+        }
+    }
+    result
+}
+
+async fn join_pipelines(
+    pipelines: Vec<PipelineTask>,
+) -> Result<Vec<(String, ProcessReport)>, DaemonError> {
+    let mut gyros = Vec::new();
+    for t in pipelines {
+        gyros.push(t.await.map_err(|e| join_err("pipeline", e))?);
+    }
+    Ok(gyros)
+}
+
+fn log_finished(gyros: &[(String, ProcessReport)]) {
+    for (label, p) in gyros {
+        tracing::info!(
+            gyro = label,
+            samples = p.samples,
+            periods = p.periods,
+            lost = p.lost,
+            updates = p.updates,
+            max_estimate_latency_s = p.max_estimate_latency_s,
+            recorder_dropped = p.recorder_dropped,
+            "run finished"
+        );
     }
 }
 

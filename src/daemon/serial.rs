@@ -48,8 +48,8 @@ use crate::daemon::batch::{BatchSender, PipelineClosed, SourceReport, wall_ns};
 use crate::daemon::lanes::Lanes;
 use crate::daemon::shutdown::Shutdown;
 use crate::daemon::telemetry::Telemetry;
-use crate::recording::messages::EventKind;
 use crate::input::frame::{Axes, DecoderConfig};
+use crate::recording::messages::EventKind;
 
 /// Errors of the serial source.
 #[derive(Debug, thiserror::Error)]
@@ -88,7 +88,7 @@ pub struct SerialConfig {
     /// Longest reconnect delay.
     pub reconnect_max: Duration,
     /// Sample rate of the gyro, Hz (for the sample clock).
-    pub rate_hz: f64,
+    pub sample_rate_hz: f64,
     /// Stop after this many sample periods (`None`: until shut down).
     pub limit_periods: Option<u64>,
     /// Frame decoder settings.
@@ -120,8 +120,12 @@ impl SerialConfig {
         if self.baud == 0 {
             return Err(bad("baud", "0".into(), "must be > 0"));
         }
-        if !(self.rate_hz.is_finite() && self.rate_hz > 0.0) {
-            return Err(bad("rate_hz", self.rate_hz.to_string(), "must be > 0"));
+        if !(self.sample_rate_hz.is_finite() && self.sample_rate_hz > 0.0) {
+            return Err(bad(
+                "sample_rate_hz",
+                self.sample_rate_hz.to_string(),
+                "must be > 0",
+            ));
         }
         if self.reconnect_initial.is_zero() || self.reconnect_max < self.reconnect_initial {
             return Err(bad(
@@ -191,7 +195,7 @@ impl SerialSource {
             source,
         };
 
-        let mut lanes = Lanes::<W>::new(cfg.decoder, cfg.rate_hz, cfg.limit_periods, outs);
+        let mut lanes = Lanes::<W>::new(cfg.decoder, cfg.sample_rate_hz, cfg.limit_periods, outs);
         let mut buf = BytesMut::with_capacity(READ_RESERVE);
         let mut disconnects = 0u64;
         let mut backoff = cfg.reconnect_initial;

@@ -50,11 +50,11 @@ pub struct SummaryAcc {
 }
 
 impl SummaryAcc {
-    /// Windows for a series at `rate_hz` with `pulse_arcsec` per pulse.
-    pub fn new(rate_hz: f64, pulse_arcsec: f64) -> Self {
+    /// Windows for a series at `sample_rate_hz` with `pulse_arcsec` per pulse.
+    pub fn new(sample_rate_hz: f64, pulse_arcsec: f64) -> Self {
         SummaryAcc {
-            window: summary_window_samples(rate_hz),
-            dph_per_pulse: crate::units::counts_to_dph(1.0, pulse_arcsec, 1.0 / rate_hz),
+            window: summary_window_samples(sample_rate_hz),
+            dph_per_pulse: crate::units::counts_to_dph(1.0, pulse_arcsec, 1.0 / sample_rate_hz),
             windows: VecDeque::new(),
         }
     }

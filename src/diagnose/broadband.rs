@@ -123,9 +123,11 @@ impl Current {
     /// Take an accepted edit into the current amplitudes.
     fn accept(&mut self, edit: &Edit) {
         match edit {
-            Edit::Quantization(v) | Edit::QuantizationBesideFilter { q_arcsec: v, .. } => {
-                self.q2 = v * v
-            }
+            Edit::Quantization(v)
+            | Edit::QuantizationBesideFilter {
+                quantization_arcsec: v,
+                ..
+            } => self.q2 = v * v,
             Edit::Arw(v) => self.n2 = units::dpsh_to_arcsec_per_sqrt_s(*v).powi(2),
             Edit::BiasInstability(v) => self.b2 = v * v,
             Edit::Rrw(v) => self.k2 = units::dphsh_to_arcsec_per_s_sqrt_s(*v).powi(2),
@@ -222,7 +224,7 @@ pub(crate) fn fit(
             cur: &cur,
             regions: &region_text,
             f_lo_flicker: model.flicker_f_lo_hz(),
-            d2_12: model.gyro.pulse_weight_arcsec.powi(2) / 12.0,
+            d2_12: model.gyro.pulse_arcsec.powi(2) / 12.0,
             tc_grid: &tc_grid,
             p_grid: &p_grid,
             blocks: &r.blocks,
@@ -302,7 +304,7 @@ fn filter_with_white_angle(c: &Ctx, model: &GyroModel) -> Option<(Candidate, Fin
     let (q0, q) = (c.cur.q2.sqrt(), j.q2.sqrt());
     let q_finding = Finding {
         edit: Edit::QuantizationBesideFilter {
-            q_arcsec: q,
+            quantization_arcsec: q,
             profile_widen: j.q_profile_widen,
         },
         changes: vec![ParameterChange {
@@ -481,13 +483,13 @@ fn flicker_or_rrw(c: &Ctx, flicker: bool) -> Candidate {
         (
             Edit::BiasInstability(v),
             Term::BiasInstability {
-                b_dph: v,
+                bias_instability_dph: v,
                 f_lo_hz: c.f_lo_flicker,
                 f_hi_hz: f64::INFINITY,
             },
         )
     } else {
-        (Edit::Rrw(v), Term::RateRandomWalk { k_dphsh: v })
+        (Edit::Rrw(v), Term::RateRandomWalk { rrw_dphsh: v })
     };
     let ci = sqrt_ci(fit.theta_ci, conv);
     let (changes, added) = if is_param {

@@ -96,7 +96,7 @@ pub fn candidates(data: &LevelData, basis: &Basis, model: &GyroModel, dur_s: f64
     let arw = units::dpsh_to_arcsec_per_sqrt_s(nz.arw_dpsh.unwrap_or(0.0));
     let b2 = nz.bias_instability_dph.unwrap_or(0.0).powi(2);
     let k2 = units::dphsh_to_arcsec_per_s_sqrt_s(nz.rrw_dphsh.unwrap_or(0.0)).powi(2);
-    let d2_12 = model.gyro.pulse_weight_arcsec.powi(2) / 12.0;
+    let d2_12 = model.gyro.pulse_arcsec.powi(2) / 12.0;
     let mut out = Vec::new();
     let mut push = |name: String, fit: Option<Fit>| {
         if let Some(fit) = fit.filter(|f| f.loglik.is_finite()) {

@@ -27,7 +27,7 @@ pub(crate) enum Edit {
     /// above) Q's interval is profiled over the filter and the white level
     /// than at them fixed.
     QuantizationBesideFilter {
-        q_arcsec: f64,
+        quantization_arcsec: f64,
         profile_widen: (f64, f64),
     },
     Arw(f64),
@@ -78,9 +78,11 @@ impl Edit {
     pub(crate) fn apply(&self, m: &mut GyroModel) {
         let n = &mut m.noise;
         match self {
-            Edit::Quantization(v) | Edit::QuantizationBesideFilter { q_arcsec: v, .. } => {
-                n.quantization_arcsec = Some(*v)
-            }
+            Edit::Quantization(v)
+            | Edit::QuantizationBesideFilter {
+                quantization_arcsec: v,
+                ..
+            } => n.quantization_arcsec = Some(*v),
             Edit::Arw(v) => n.arw_dpsh = Some(*v),
             Edit::BiasInstability(v) => n.bias_instability_dph = Some(*v),
             Edit::Rrw(v) => n.rrw_dphsh = Some(*v),

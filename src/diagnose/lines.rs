@@ -139,7 +139,7 @@ pub fn line_scan(model: &GyroModel, rec: &Recording, params: &lines::SearchParam
     let mut m = model.clone();
     m.gyro.sample_rate_hz = fs;
     if m.gyro.output == crate::model::config::OutputKind::Counts {
-        m.gyro.pulse_weight_arcsec = d;
+        m.gyro.pulse_arcsec = d;
     }
     let rate = stats::counts_to_rate(&rec.counts, d, fs);
     let layout = StatLayout::new(rate.len(), fs, d);

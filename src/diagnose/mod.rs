@@ -59,6 +59,7 @@ pub mod locate;
 pub mod lowfreq;
 pub mod mc;
 pub mod narrowband;
+pub mod read;
 pub mod readout;
 pub mod readout_angle;
 pub mod reference;
@@ -81,6 +82,7 @@ use crate::model::{GyroModel, ModelError};
 use crate::units;
 
 pub use self::lines::{LineScan, line_scan};
+pub use self::read::ReadError;
 pub use self::reference::{model_psd, model_spectral_terms};
 pub use self::report::{
     AddedTerm, DiagnosisReport, FitQuality, MismatchRegion, ParameterChange, Verdict,
@@ -101,6 +103,8 @@ pub use self::report::{
 #[derive(Debug, Clone, PartialEq)]
 pub struct Recording {
     pub counts: Vec<i64>,
+    /// Samples made up to fill gaps (indices into `counts`, sorted, disjoint).
+    pub filled: Vec<std::ops::Range<usize>>,
     pub temp_c: Option<Vec<f64>>,
     pub sample_rate_hz: f64,
     pub pulse_arcsec: f64,
@@ -163,6 +167,7 @@ impl Recording {
                 .iter()
                 .map(|v| (v / quantum_dps).round() as i64)
                 .collect(),
+            filled: Vec::new(),
             temp_c,
             sample_rate_hz,
             pulse_arcsec: quantum_dps * crate::units::ARCSEC_PER_DEG / sample_rate_hz,

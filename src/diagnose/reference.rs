@@ -210,7 +210,7 @@ pub(crate) fn reference_model(model: &GyroModel, rec: &Recording, mean_rate: f64
     m.gyro.sample_rate_hz = rec.sample_rate_hz;
     // a rate word's LSB is the model's own (the recording's quantum only counts it)
     if m.gyro.output == OutputKind::Counts {
-        m.gyro.pulse_weight_arcsec = rec.pulse_arcsec;
+        m.gyro.pulse_arcsec = rec.pulse_arcsec;
     }
     let dur = rec.counts.len() as f64 / rec.sample_rate_hz;
     // deterministic parts of the model with a non-zero mean over the record

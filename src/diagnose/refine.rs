@@ -364,7 +364,7 @@ impl Refit {
                 ci95 = widened(self.value, ci95, (*wl, *wh));
                 ci95[0] = ci95[0].max(0.0);
                 Edit::QuantizationBesideFilter {
-                    q_arcsec: self.value,
+                    quantization_arcsec: self.value,
                     profile_widen: (*wl, *wh),
                 }
             }
@@ -415,7 +415,10 @@ fn edit_value(e: &Edit) -> f64 {
     match e {
         Edit::Quantization(v) | Edit::Arw(v) | Edit::BiasInstability(v) | Edit::Rrw(v) => *v,
         Edit::ReadoutFilter { arw_dpsh, .. } => *arw_dpsh,
-        Edit::QuantizationBesideFilter { q_arcsec, .. } => *q_arcsec,
+        Edit::QuantizationBesideFilter {
+            quantization_arcsec,
+            ..
+        } => *quantization_arcsec,
         _ => f64::NAN,
     }
 }
@@ -673,7 +676,7 @@ fn knob_state(kn: Knob, basis: &Basis, model: &GyroModel) -> (Knob, Vec<f64>, f6
                 kn,
                 basis.white_angle(),
                 q * q,
-                model.gyro.pulse_weight_arcsec.powi(2) / 12.0,
+                model.gyro.pulse_arcsec.powi(2) / 12.0,
                 (|x| x) as UnitConv,
             )
         }

@@ -202,7 +202,9 @@ fn ramp_finding(model: &GyroModel, extra: f64, sd: f64, z: f64) -> Finding {
     let sd = units::arcsec_per_s2_to_dphh(sd);
     let ci = [fitted - 1.96 * sd, fitted + 1.96 * sd];
     let had = model.noise.rate_ramp_dphh.is_some_and(|v| v != 0.0);
-    let t = Term::RateRamp { r_dphh: fitted };
+    let t = Term::RateRamp {
+        rate_ramp_dphh: fitted,
+    };
     let expl = format!(
         "{} The least-squares rate slope is {} deg/h/h (z = {:.1} against the model's runs); \
          the wavelets cannot see a ramp (sym8 has 8 vanishing moments), the long-tau Allan variance does.",

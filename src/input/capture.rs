@@ -15,7 +15,9 @@ use std::path::{Path, PathBuf};
 
 use bytes::BytesMut;
 
-use super::frame::{DecodeEvent, Decoded, DecoderConfig, DecoderStats, FrameDecoder, Sample};
+use super::frame::{
+    Axes, DecodeEvent, Decoded, DecoderConfig, DecoderStats, FrameDecoder, Sample, Single,
+};
 
 /// Errors of the capture reader.
 #[derive(Debug, thiserror::Error)]
@@ -100,14 +102,17 @@ pub struct CaptureSummary {
     pub stats: DecoderStats,
 }
 
-/// Reads a capture block by block.
+/// Reads a capture block by block: of single frames (`W` = [`Single`], the
+/// default) or of one gyro of a multi-gyro frame (`W` = `Triad`, gyro
+/// [`CaptureReader::axis`]).
 #[derive(Debug)]
-pub struct CaptureReader<R> {
+pub struct CaptureReader<R, W: Axes = Single> {
     path: PathBuf,
     reader: R,
     buf: BytesMut,
     chunk: Vec<u8>,
-    decoder: FrameDecoder,
+    decoder: FrameDecoder<W>,
+    axis: usize,
     block_samples: usize,
     file_offset: u64,
     eof: bool,
@@ -139,12 +144,31 @@ impl CaptureReader<File> {
 impl<R: Read> CaptureReader<R> {
     /// Read from any reader; `name` is used in error messages.
     pub fn new(reader: R, name: impl Into<PathBuf>, config: DecoderConfig) -> Self {
+        CaptureReader::<R, Single>::for_axis(reader, name, config, 0)
+    }
+}
+
+impl<R: Read, W: Axes> CaptureReader<R, W> {
+    /// Read gyro `axis` (0-based, below `W::GYROS`) of frames of wire `W`
+    /// from any reader; `name` is used in error messages.
+    pub fn for_axis(
+        reader: R,
+        name: impl Into<PathBuf>,
+        config: DecoderConfig,
+        axis: usize,
+    ) -> Self {
+        assert!(
+            axis < W::GYROS,
+            "axis {axis} of a frame of {} gyros",
+            W::GYROS
+        );
         CaptureReader {
             path: name.into(),
             reader,
             buf: BytesMut::new(),
             chunk: vec![0; DEFAULT_READ_CHUNK],
-            decoder: FrameDecoder::with_config(config),
+            decoder: FrameDecoder::<W>::for_wire(config),
+            axis,
             block_samples: DEFAULT_BLOCK_SAMPLES,
             file_offset: 0,
             eof: false,
@@ -188,7 +212,7 @@ impl<R: Read> CaptureReader<R> {
                 } else {
                     self.decoder.decode(&mut self.buf)
                 };
-                match item {
+                match item.map(|i| W::axis(&i, self.axis)) {
                     Some(Decoded::Sample(s)) => block.samples.push(s),
                     Some(Decoded::Event(event)) => block.events.push(BlockEvent {
                         before_sample: block.samples.len(),

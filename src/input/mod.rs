@@ -1,9 +1,471 @@
-//! Sources, the sans-IO part: file input for the offline commands (`input`),
-//! the gyro's binary frames and their decoder (`frame`), and the capture
-//! reader (`capture`). The daemon's async sources (serial port, replayed
-//! captures, simulated bench) are in [`crate::daemon`]; nothing here imports
-//! from `daemon`, `sink` or `model`.
+//! The input layer: every recorded file comes in here, whatever made it.
+//!
+//! [`Input::open`] tells the format by the content ([`detect`]: the MCAP
+//! magic, the frame sync of single or triad frames, gzip, CSV or plain text;
+//! raw `f64le` needs `--format` or a `.f64` name), reads what the file says
+//! about itself (sample rate, pulse weight, gyros, units) and merges it with
+//! what the command line gives ([`Request`]), a flag that contradicts the file
+//! being an error. [`Input::stream`] then hands out the samples as a pull
+//! stream of [`Block`]s: pulse increments or rate values, the samples made up
+//! to fill gaps, and the temperature; it can be called again for a second pass.
+//!
+//! Formats and where their code lives:
+//! - text, CSV and raw `f64le`, each optionally gzip-compressed: [`plain`];
+//! - raw frame captures (single and triad frames) and their sans-IO decoder:
+//!   [`capture`], [`frame`];
+//! - MCAP recordings made by `sagnac run`: [`crate::recording`], read through
+//!   `recorded` here.
+//!
+//! Nothing here imports the numerics, the sinks or the daemon; the daemon's
+//! async sources (serial port, replay, simulated bench) are in
+//! [`crate::daemon`] and use the frame decoder and [`detect`] from here.
+
+use std::path::{Path, PathBuf};
 
 pub mod capture;
+pub mod detect;
 pub mod frame;
 pub mod plain;
+mod recorded;
+mod stream;
+
+pub use detect::{Format, FormatOrigin};
+pub use recorded::{RecordedGyro, recorded_gyros};
+pub use stream::{Block, Stream, StreamReport};
+
+use crate::recording::meta::Contradiction;
+use crate::recording::reader::ReadError;
+use crate::units;
+use capture::CaptureError;
+use plain::PlainError;
+
+/// Longest gap (lost samples) a recording may hold: 4.7 h at 1 kHz. The frame
+/// decoder never reports more than 4096; a gap this long would have to be
+/// filled with that many made-up samples.
+pub const MAX_GAP_SAMPLES: u64 = 1 << 24;
+
+/// Unit of the samples of a file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Unit {
+    /// Pulse increments per sample (integers or decimals).
+    Counts,
+    /// deg/h.
+    Dph,
+    /// deg/s.
+    Dps,
+    /// rad/s.
+    RadS,
+}
+
+impl Unit {
+    /// The name used on the command line and in the JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            Unit::Counts => "counts",
+            Unit::Dph => "dph",
+            Unit::Dps => "dps",
+            Unit::RadS => "rad_s",
+        }
+    }
+
+    /// The unit in words.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Unit::Counts => "pulse counts per sample",
+            Unit::Dph => "deg/h",
+            Unit::Dps => "deg/s",
+            Unit::RadS => "rad/s",
+        }
+    }
+
+    /// A sample in this unit as deg/h (`pulse_arcsec`, `tau0_s`: the
+    /// counter's pulse weight and sample period, for `Counts`).
+    pub fn to_dph(self, v: f64, pulse_arcsec: f64, tau0_s: f64) -> f64 {
+        match self {
+            Unit::Counts => units::counts_to_dph(v, pulse_arcsec, tau0_s),
+            Unit::Dph => v,
+            Unit::Dps => units::dps_to_dph(v),
+            Unit::RadS => units::rad_s_to_dph(v),
+        }
+    }
+}
+
+/// What the command line says about an input; `None` leaves a setting to the
+/// file (or to the default the file's format implies).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Request {
+    /// `--format`: an override, an error when it contradicts the content.
+    pub format: Option<Format>,
+    /// `--column`: the CSV column (default `counts`, or the only column).
+    pub column: Option<String>,
+    /// `--unit` of a CSV or text column (default counts).
+    pub unit: Option<Unit>,
+    /// `--sample-rate-hz`.
+    pub sample_rate_hz: Option<f64>,
+    /// `--pulse-arcsec`.
+    pub pulse_arcsec: Option<f64>,
+    /// `--gyro`: one gyro of a recording of several, or of a triad capture.
+    pub gyro: Option<String>,
+    /// Hand out the numbers of a text, CSV or f64le file as they are, without
+    /// checking up front whether they are whole pulse counts (`sagnac allan`
+    /// on phase or frequency data). Counters still stream counts.
+    pub values_only: bool,
+}
+
+/// What an input is, and the settings it is read with.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Meta {
+    /// The format read.
+    pub format: Format,
+    /// How the format was settled.
+    pub format_origin: FormatOrigin,
+    /// Whether the content is gzip-compressed.
+    pub gzip: bool,
+    /// Sample rate, Hz (`None`: neither the file nor a flag says it).
+    pub sample_rate_hz: Option<f64>,
+    /// Angle of one pulse, arcsec (pulse counts).
+    pub pulse_arcsec: Option<f64>,
+    /// Weight of one rate LSB, deg/s, when the file says it.
+    pub rate_lsb_dps: Option<f64>,
+    /// Unit of the samples.
+    pub unit: Unit,
+    /// Where the sample rate and pulse weight came from, in words.
+    pub origin: String,
+    /// The gyros the file holds (empty: one gyro without a label).
+    pub gyros: Vec<String>,
+    /// The gyro read (`--gyro`).
+    pub gyro: Option<String>,
+    /// The CSV column read.
+    pub column: Option<String>,
+    /// The samples are whole pulse counts: they stream as integers
+    /// ([`Block::counts`]), for the exact integer path.
+    pub integral: bool,
+    /// Number of samples, when known without reading them all.
+    pub len_hint: Option<u64>,
+}
+
+/// An opened input: its [`Meta`], and a stream of its samples on demand.
+#[derive(Debug, Clone)]
+pub struct Input {
+    path: PathBuf,
+    meta: Meta,
+}
+
+/// Errors of the input layer; each names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum InputError {
+    #[error("{}: cannot read: {source}", path.display())]
+    Open {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error(transparent)]
+    Format(#[from] detect::FormatError),
+    #[error(transparent)]
+    Plain(#[from] PlainError),
+    #[error(transparent)]
+    Capture(#[from] CaptureError),
+    #[error(transparent)]
+    Recording(#[from] ReadError),
+    #[error(transparent)]
+    Contradiction(#[from] Contradiction),
+    /// A value the input does not carry and no flag gave.
+    #[error("{flag} is required: {} carries no {what}", path.display())]
+    FlagRequired {
+        flag: &'static str,
+        path: PathBuf,
+        what: String,
+    },
+    /// A flag that does not apply to this format.
+    #[error("{flag} does not apply to {}: it is {}{why}", path.display(), format.describe())]
+    FlagNotApplicable {
+        flag: &'static str,
+        path: PathBuf,
+        format: Format,
+        why: &'static str,
+    },
+    /// A value out of range.
+    #[error("{flag} must be a positive number (got {value})")]
+    NotPositive { flag: &'static str, value: f64 },
+    /// A recording of several gyros read without saying which.
+    #[error("{}: holds several gyros ({}): choose one with --gyro LABEL", path.display(), labels.join(", "))]
+    ChooseGyro { path: PathBuf, labels: Vec<String> },
+    /// `--gyro` names a gyro the file does not have.
+    #[error("--gyro {gyro}: {} has no such gyro ({})", path.display(),
+        if labels.is_empty() { "it holds one gyro: leave --gyro out".to_string() }
+        else { format!("its gyros: {}", labels.join(", ")) })]
+    NoSuchGyro {
+        path: PathBuf,
+        gyro: String,
+        labels: Vec<String>,
+    },
+    /// A recording of rate samples, which is not read yet.
+    #[error("{}: its metadata says output = rate (rate samples, not pulse counts): not supported here yet", path.display())]
+    RateOutput { path: PathBuf },
+    #[error("{}: no samples", path.display())]
+    Empty { path: PathBuf },
+    #[error(
+        "{}: /gyro/raw batches disagree on the sample period ({first_ns} ns, then {other_ns} ns at t = {t0_ns} ns)",
+        path.display()
+    )]
+    MixedRate {
+        path: PathBuf,
+        first_ns: u64,
+        other_ns: u64,
+        t0_ns: u64,
+    },
+    #[error(
+        "{}: the /gyro/raw batch at t0 = {t0_ns} ns has a gap of {lost} lost samples \
+         (more than {MAX_GAP_SAMPLES}: not a recording of a gyro that kept running)",
+        path.display()
+    )]
+    ImplausibleGap {
+        path: PathBuf,
+        t0_ns: u64,
+        lost: u64,
+    },
+    #[error("{}: no samples before the file becomes unreadable at byte {offset}: {reason}", path.display())]
+    BrokenBeforeSamples {
+        path: PathBuf,
+        offset: u64,
+        reason: String,
+    },
+}
+
+/// "given on the command line": where a flag's value comes from.
+pub const GIVEN: &str = "given on the command line";
+
+impl Input {
+    /// Open `path`: settle its format, read what it says about itself, and
+    /// merge that with `req`. Nothing of the samples is read, except for a
+    /// CSV or text column of pulse counts, whose values are checked to be
+    /// whole numbers (that decides the exact integer path).
+    pub fn open(path: &Path, req: &Request) -> Result<Input, InputError> {
+        for (flag, v) in [
+            ("--sample-rate-hz", req.sample_rate_hz),
+            ("--pulse-arcsec", req.pulse_arcsec),
+        ] {
+            if let Some(v) = v
+                && !(v.is_finite() && v > 0.0)
+            {
+                return Err(InputError::NotPositive { flag, value: v });
+            }
+        }
+        let detected = detect::detect(path).map_err(|source| InputError::Open {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let (format, format_origin) = detect::settle(path, detected, req.format)?;
+        let mut meta = Meta {
+            format,
+            format_origin,
+            gzip: detected.gzip,
+            sample_rate_hz: req.sample_rate_hz,
+            pulse_arcsec: req.pulse_arcsec,
+            rate_lsb_dps: None,
+            unit: req.unit.unwrap_or(Unit::Counts),
+            origin: GIVEN.into(),
+            gyros: Vec::new(),
+            gyro: None,
+            column: None,
+            integral: false,
+            len_hint: None,
+        };
+        match format {
+            Format::Csv | Format::Text | Format::F64le => open_plain(path, req, &mut meta)?,
+            Format::Frames | Format::TriadFrames => open_frames(path, req, &mut meta)?,
+            Format::Mcap => recorded::open(path, req, &mut meta)?,
+        }
+        Ok(Input {
+            path: path.to_path_buf(),
+            meta,
+        })
+    }
+
+    /// The file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// What the input is, and the settings it is read with.
+    pub fn meta(&self) -> &Meta {
+        &self.meta
+    }
+
+    /// The sample rate, or the error naming the flag that must give it.
+    pub fn sample_rate_hz(&self) -> Result<f64, InputError> {
+        self.meta
+            .sample_rate_hz
+            .ok_or_else(|| self.required("--sample-rate-hz", "sample rate"))
+    }
+
+    /// The pulse weight, or the error naming the flag that must give it.
+    pub fn pulse_arcsec(&self) -> Result<f64, InputError> {
+        self.meta
+            .pulse_arcsec
+            .ok_or_else(|| self.required("--pulse-arcsec", "pulse weight"))
+    }
+
+    fn required(&self, flag: &'static str, what: &str) -> InputError {
+        let why = match self.meta.format {
+            Format::Mcap => " (no sagnac metadata record)".to_string(),
+            f => format!(" ({})", f.describe()),
+        };
+        InputError::FlagRequired {
+            flag,
+            path: self.path.clone(),
+            what: format!("{what}{why}"),
+        }
+    }
+
+    /// A new pass over the samples, from the first.
+    pub fn stream(&self) -> Result<Stream, InputError> {
+        Stream::open(&self.path, &self.meta)
+    }
+
+    /// Every sample at once: one [`Block`] holding the whole input (its
+    /// temperature only when every sample has one), and what the pass met.
+    pub fn read_all(&self) -> Result<(Block, StreamReport), InputError> {
+        let mut stream = self.stream()?;
+        let mut all = Block::default();
+        let mut block = Block::default();
+        let mut temps_complete = true;
+        while stream.next_block(&mut block)? {
+            let base = all.len();
+            all.counts.extend_from_slice(&block.counts);
+            all.values.extend_from_slice(&block.values);
+            all.filled
+                .extend(block.filled.iter().map(|r| r.start + base..r.end + base));
+            temps_complete &= block.temp_c.len() == block.len();
+            if temps_complete {
+                all.temp_c.extend_from_slice(&block.temp_c);
+            }
+            all.gaps += block.gaps;
+            all.lost_samples += block.lost_samples;
+        }
+        if !temps_complete {
+            all.temp_c = Vec::new();
+        }
+        Ok((all, stream.report()))
+    }
+}
+
+fn not_applicable(
+    flag: &'static str,
+    path: &Path,
+    format: Format,
+    why: &'static str,
+) -> InputError {
+    InputError::FlagNotApplicable {
+        flag,
+        path: path.to_path_buf(),
+        format,
+        why,
+    }
+}
+
+/// Text, CSV or f64le: the column, the unit, and whether the values are whole.
+fn open_plain(path: &Path, req: &Request, meta: &mut Meta) -> Result<(), InputError> {
+    if req.gyro.is_some() {
+        return Err(not_applicable("--gyro", path, meta.format, ", of one gyro"));
+    }
+    if meta.format == Format::Csv {
+        let column = req.column.clone().unwrap_or_else(|| "counts".into());
+        // a CSV of one column is read whatever its name, when none is asked for
+        let reader = match plain::SampleReader::open(path, Format::Csv, Some(&column)) {
+            Err(PlainError::MissingColumn { .. }) if req.column.is_none() => {
+                plain::SampleReader::open(path, Format::Csv, None)?
+            }
+            other => other?,
+        };
+        meta.column = reader.column().map(str::to_string);
+    } else if req.column.is_some() {
+        return Err(not_applicable(
+            "--column",
+            path,
+            meta.format,
+            " (one value per sample, no columns)",
+        ));
+    }
+    if meta.unit == Unit::Counts && !req.values_only {
+        meta.integral = whole_numbers(path, meta)?;
+    }
+    if meta.format == Format::F64le && !meta.gzip {
+        meta.len_hint = std::fs::metadata(path).ok().map(|m| m.len() / 8);
+    }
+    Ok(())
+}
+
+/// Whether every value of the column is a whole number (read once, up front).
+fn whole_numbers(path: &Path, meta: &mut Meta) -> Result<bool, InputError> {
+    let mut r = plain::SampleReader::open(path, meta.format, meta.column.as_deref())?
+        .require_integers(true);
+    let mut block = Vec::new();
+    loop {
+        match r.next_block(&mut block, 1 << 16) {
+            Ok(0) => break,
+            Ok(_) => {}
+            Err(PlainError::NotInteger { .. }) => return Ok(false),
+            Err(e) => return Err(e.into()),
+        }
+    }
+    meta.len_hint = Some(r.samples_read());
+    Ok(true)
+}
+
+/// A raw frame capture: one gyro, or the `--gyro` of a triad.
+fn open_frames(path: &Path, req: &Request, meta: &mut Meta) -> Result<(), InputError> {
+    if req.column.is_some() {
+        return Err(not_applicable(
+            "--column",
+            path,
+            meta.format,
+            ", which holds pulse counts",
+        ));
+    }
+    if req.unit.is_some_and(|u| u != Unit::Counts) {
+        return Err(not_applicable(
+            "--unit",
+            path,
+            meta.format,
+            ", which holds pulse counts",
+        ));
+    }
+    meta.unit = Unit::Counts;
+    meta.integral = true;
+    let frame_len = if meta.format == Format::TriadFrames {
+        meta.gyros = frame::triad::AXES.iter().map(|s| s.to_string()).collect();
+        24
+    } else {
+        16
+    };
+    meta.gyro = pick_gyro(path, &meta.gyros, req.gyro.as_deref())?;
+    if !meta.gzip {
+        meta.len_hint = std::fs::metadata(path).ok().map(|m| m.len() / frame_len);
+    }
+    Ok(())
+}
+
+/// Which of `labels` to read, given `--gyro`: none for a file of one gyro
+/// (and no `--gyro`), the label for one of several; an error naming the
+/// labels otherwise.
+fn pick_gyro(
+    path: &Path,
+    labels: &[String],
+    gyro: Option<&str>,
+) -> Result<Option<String>, InputError> {
+    match gyro {
+        None if labels.is_empty() => Ok(None),
+        None => Err(InputError::ChooseGyro {
+            path: path.to_path_buf(),
+            labels: labels.to_vec(),
+        }),
+        Some(g) if labels.iter().any(|l| l == g) => Ok(Some(g.to_string())),
+        Some(g) => Err(InputError::NoSuchGyro {
+            path: path.to_path_buf(),
+            gyro: g.to_string(),
+            labels: labels.to_vec(),
+        }),
+    }
+}

@@ -20,35 +20,12 @@ use std::path::{Path, PathBuf};
 
 use flate2::read::MultiGzDecoder;
 
+use super::detect::Format;
+
 /// Read buffer size for all formats.
 const BUF_BYTES: usize = 1 << 20;
 /// Longest quoted excerpt of an offending line.
 const QUOTE_MAX: usize = 40;
-
-/// Sample file format.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum InputFormat {
-    /// One number per line; `#` starts a comment; blank lines and CRLF tolerated.
-    Text,
-    /// Header row, then rows; one column is selected by name.
-    Csv,
-    /// Raw little-endian IEEE-754 doubles.
-    F64le,
-}
-
-impl std::str::FromStr for InputFormat {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "text" => Ok(InputFormat::Text),
-            "csv" => Ok(InputFormat::Csv),
-            "f64le" => Ok(InputFormat::F64le),
-            _ => Err(format!(
-                "unknown input format {s:?} (expected text, csv or f64le)"
-            )),
-        }
-    }
-}
 
 /// Where in a file something happened.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -70,7 +47,7 @@ impl fmt::Display for Location {
 
 /// Input errors; each names the file.
 #[derive(Debug, thiserror::Error)]
-pub enum InputError {
+pub enum PlainError {
     #[error("{}: cannot open: {source}", path.display())]
     Open { path: PathBuf, source: io::Error },
     #[error("{}: read error at {at}: {source}", path.display())]
@@ -137,13 +114,13 @@ pub enum InputError {
 /// Streaming reader of samples from a file.
 ///
 /// ```no_run
-/// use sagnac::input::plain::{InputFormat, SampleReader};
-/// let mut r = SampleReader::open("run.f64".as_ref(), InputFormat::F64le, None)?;
+/// use sagnac::input::{Format, plain::SampleReader};
+/// let mut r = SampleReader::open("run.f64".as_ref(), Format::F64le, None)?;
 /// let mut block = Vec::new();
 /// while r.next_block(&mut block, 65536)? > 0 {
 ///     // process `block`
 /// }
-/// # Ok::<(), sagnac::input::plain::InputError>(())
+/// # Ok::<(), sagnac::input::plain::PlainError>(())
 /// ```
 pub struct SampleReader {
     path: PathBuf,
@@ -153,6 +130,8 @@ pub struct SampleReader {
     total: u64,
     require_integers: bool,
     finished: bool,
+    /// The side column's values of the last block.
+    side: Vec<f64>,
 }
 
 enum Inner {
@@ -164,8 +143,20 @@ struct LineState {
     reader: Box<dyn BufRead + Send>,
     line: u64,
     buf: Vec<u8>,
-    /// For CSV: column index, delimiter, column name, fields per row (the header's).
-    csv: Option<(usize, u8, String, usize)>,
+    /// The CSV layout (`None` for text).
+    csv: Option<CsvLayout>,
+}
+
+/// Where the wanted fields are in a CSV row.
+struct CsvLayout {
+    /// Index of the sample column, and its name.
+    index: usize,
+    name: String,
+    /// Index of the side column, read along in the same pass.
+    side: Option<usize>,
+    delim: u8,
+    /// Fields per row (the header's).
+    width: usize,
 }
 
 struct BinState {
@@ -184,16 +175,28 @@ impl SampleReader {
     /// is recognised by its magic bytes and decompressed on the fly.
     pub fn open(
         path: &Path,
-        format: InputFormat,
+        format: Format,
         column: Option<&str>,
-    ) -> Result<SampleReader, InputError> {
+    ) -> Result<SampleReader, PlainError> {
+        Self::open_with_side(path, format, column, None)
+    }
+
+    /// [`SampleReader::open`], also reading the CSV column `side` (when the
+    /// header has it) in the same pass: its values of each block are in
+    /// [`SampleReader::side`].
+    pub fn open_with_side(
+        path: &Path,
+        format: Format,
+        column: Option<&str>,
+        side: Option<&str>,
+    ) -> Result<SampleReader, PlainError> {
         let p = path.to_path_buf();
-        let file = File::open(path).map_err(|source| InputError::Open {
+        let file = File::open(path).map_err(|source| PlainError::Open {
             path: p.clone(),
             source,
         })?;
         let mut raw = BufReader::with_capacity(BUF_BYTES, file);
-        let head = raw.fill_buf().map_err(|source| InputError::Read {
+        let head = raw.fill_buf().map_err(|source| PlainError::Read {
             path: p.clone(),
             at: Location::Byte(0),
             source,
@@ -203,16 +206,16 @@ impl SampleReader {
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("gz"));
         if named_gz && !gz && !head.is_empty() {
-            return Err(InputError::NotGzip { path: p });
+            return Err(PlainError::NotGzip { path: p });
         }
         let mut len_hint = None;
-        if !gz && format == InputFormat::F64le {
+        if !gz && format == Format::F64le {
             // plain file: check the length up front
             if let Ok(meta) = raw.get_ref().metadata()
                 && meta.is_file()
             {
                 if meta.len() % 8 != 0 {
-                    return Err(InputError::BadLength {
+                    return Err(PlainError::BadLength {
                         path: p,
                         bytes: meta.len(),
                     });
@@ -229,23 +232,26 @@ impl SampleReader {
             Box::new(raw)
         };
         let inner = match format {
-            InputFormat::Text => Inner::Lines(LineState {
+            Format::Text => Inner::Lines(LineState {
                 reader,
                 line: 0,
                 buf: Vec::with_capacity(128),
                 csv: None,
             }),
-            InputFormat::Csv => {
+            Format::Csv => {
                 let mut st = LineState {
                     reader,
                     line: 0,
                     buf: Vec::with_capacity(256),
                     csv: None,
                 };
-                st.csv = Some(read_csv_header(&mut st, &p, column)?);
+                st.csv = Some(read_csv_header(&mut st, &p, column, side)?);
                 Inner::Lines(st)
             }
-            InputFormat::F64le => Inner::Binary(BinState {
+            Format::Frames | Format::TriadFrames | Format::Mcap => {
+                unreachable!("SampleReader reads text, CSV and f64le, not {format}")
+            }
+            Format::F64le => Inner::Binary(BinState {
                 reader: Box::new(reader),
                 offset: 0,
                 buf: vec![0; BUF_BYTES],
@@ -258,6 +264,7 @@ impl SampleReader {
             path: p,
             len_hint,
             inner,
+            side: Vec::new(),
             total: 0,
             require_integers: false,
             finished: false,
@@ -281,6 +288,24 @@ impl SampleReader {
         self.len_hint
     }
 
+    /// The CSV column read (`None` for text and f64le).
+    pub fn column(&self) -> Option<&str> {
+        match &self.inner {
+            Inner::Lines(LineState { csv: Some(c), .. }) => Some(&c.name),
+            _ => None,
+        }
+    }
+
+    /// Whether a side column is read along (see [`SampleReader::open_with_side`]).
+    pub fn has_side(&self) -> bool {
+        matches!(&self.inner, Inner::Lines(LineState { csv: Some(c), .. }) if c.side.is_some())
+    }
+
+    /// The side column's values of the last block (empty without one).
+    pub fn side(&self) -> &[f64] {
+        &self.side
+    }
+
     /// Samples delivered so far.
     pub fn samples_read(&self) -> u64 {
         self.total
@@ -288,22 +313,23 @@ impl SampleReader {
 
     /// Replace the contents of `out` with the next (up to) `max` samples and
     /// return how many were read; 0 means the end of the input. An input
-    /// without any sample is an error ([`InputError::Empty`]).
-    pub fn next_block(&mut self, out: &mut Vec<f64>, max: usize) -> Result<usize, InputError> {
+    /// without any sample is an error ([`PlainError::Empty`]).
+    pub fn next_block(&mut self, out: &mut Vec<f64>, max: usize) -> Result<usize, PlainError> {
         out.clear();
+        self.side.clear();
         if self.finished || max == 0 {
             return Ok(0);
         }
         let ints = self.require_integers;
         match &mut self.inner {
-            Inner::Lines(st) => read_lines(st, &self.path, out, max, ints)?,
+            Inner::Lines(st) => read_lines(st, &self.path, out, &mut self.side, max, ints)?,
             Inner::Binary(st) => read_binary(st, &self.path, out, max, ints)?,
         }
         let n = out.len();
         if n == 0 {
             self.finished = true;
             if self.total == 0 {
-                return Err(InputError::Empty {
+                return Err(PlainError::Empty {
                     path: self.path.clone(),
                 });
             }
@@ -313,7 +339,7 @@ impl SampleReader {
     }
 
     /// Read everything that is left.
-    pub fn read_to_end(&mut self) -> Result<Vec<f64>, InputError> {
+    pub fn read_to_end(&mut self) -> Result<Vec<f64>, PlainError> {
         let mut all = Vec::new();
         if let Some(n) = self.len_hint {
             all.reserve_exact((n - self.total.min(n)) as usize);
@@ -327,11 +353,7 @@ impl SampleReader {
 }
 
 /// Read a whole file (see [`SampleReader::open`]).
-pub fn read_all(
-    path: &Path,
-    format: InputFormat,
-    column: Option<&str>,
-) -> Result<Vec<f64>, InputError> {
+pub fn read_all(path: &Path, format: Format, column: Option<&str>) -> Result<Vec<f64>, PlainError> {
     SampleReader::open(path, format, column)?.read_to_end()
 }
 
@@ -349,13 +371,13 @@ fn quote(text: &[u8]) -> String {
 
 /// Next meaningful line into `st.buf` (comment and surrounding blanks
 /// removed); `false` at end of input.
-fn next_line(st: &mut LineState, path: &Path) -> Result<bool, InputError> {
+fn next_line(st: &mut LineState, path: &Path) -> Result<bool, PlainError> {
     loop {
         st.buf.clear();
         let n = st
             .reader
             .read_until(b'\n', &mut st.buf)
-            .map_err(|source| InputError::Read {
+            .map_err(|source| PlainError::Read {
                 path: path.to_path_buf(),
                 at: Location::Line(st.line + 1),
                 source,
@@ -400,9 +422,10 @@ fn read_csv_header(
     st: &mut LineState,
     path: &Path,
     column: Option<&str>,
-) -> Result<(usize, u8, String, usize), InputError> {
+    side: Option<&str>,
+) -> Result<CsvLayout, PlainError> {
     if !next_line(st, path)? {
-        return Err(InputError::Empty {
+        return Err(PlainError::Empty {
             path: path.to_path_buf(),
         });
     }
@@ -418,37 +441,42 @@ fn read_csv_header(
         .map(|n| format!("\"{n}\""))
         .collect::<Vec<_>>()
         .join(", ");
+    let find = |want: &str| {
+        names.iter().position(|n| n == want).or_else(|| {
+            let ci: Vec<usize> = (0..names.len())
+                .filter(|&i| names[i].eq_ignore_ascii_case(want))
+                .collect();
+            (ci.len() == 1).then(|| ci[0])
+        })
+    };
     let idx = match column {
-        Some(want) => names
-            .iter()
-            .position(|n| n == want)
-            .or_else(|| {
-                let ci: Vec<usize> = (0..names.len())
-                    .filter(|&i| names[i].eq_ignore_ascii_case(want))
-                    .collect();
-                (ci.len() == 1).then(|| ci[0])
-            })
-            .ok_or_else(|| InputError::MissingColumn {
-                path: path.to_path_buf(),
-                name: want.to_string(),
-                available,
-            })?,
+        Some(want) => find(want).ok_or_else(|| PlainError::MissingColumn {
+            path: path.to_path_buf(),
+            name: want.to_string(),
+            available,
+        })?,
         None if names.len() == 1 => 0,
         None => {
-            return Err(InputError::ColumnNeeded {
+            return Err(PlainError::ColumnNeeded {
                 path: path.to_path_buf(),
                 available,
             });
         }
     };
-    Ok((idx, delim, names[idx].clone(), names.len()))
+    Ok(CsvLayout {
+        index: idx,
+        name: names[idx].clone(),
+        side: side.and_then(find).filter(|&i| i != idx),
+        delim,
+        width: names.len(),
+    })
 }
 
-fn parse_value(text: &[u8], path: &Path, at: Location, ints: bool) -> Result<f64, InputError> {
+fn parse_value(text: &[u8], path: &Path, at: Location, ints: bool) -> Result<f64, PlainError> {
     let v = std::str::from_utf8(text)
         .ok()
         .and_then(|s| s.parse::<f64>().ok())
-        .ok_or_else(|| InputError::NotNumber {
+        .ok_or_else(|| PlainError::NotNumber {
             path: path.to_path_buf(),
             at,
             text: quote(text),
@@ -466,23 +494,23 @@ fn check_value(
     at: Location,
     ints: bool,
     text: impl Fn() -> String,
-) -> Result<f64, InputError> {
+) -> Result<f64, PlainError> {
     if !v.is_finite() {
-        return Err(InputError::NonFinite {
+        return Err(PlainError::NonFinite {
             path: path.to_path_buf(),
             at,
             text: text(),
         });
     }
     if v.abs() >= MAX_ABS_VALUE {
-        return Err(InputError::OutOfRange {
+        return Err(PlainError::OutOfRange {
             path: path.to_path_buf(),
             at,
             text: text(),
         });
     }
     if ints && (v.fract() != 0.0 || v.abs() > 9_007_199_254_740_992.0) {
-        return Err(InputError::NotInteger {
+        return Err(PlainError::NotInteger {
             path: path.to_path_buf(),
             at,
             text: text(),
@@ -495,44 +523,53 @@ fn read_lines(
     st: &mut LineState,
     path: &Path,
     out: &mut Vec<f64>,
+    side: &mut Vec<f64>,
     max: usize,
     ints: bool,
-) -> Result<(), InputError> {
+) -> Result<(), PlainError> {
     while out.len() < max {
         if !next_line(st, path)? {
             break;
         }
         let at = Location::Line(st.line);
-        let v = match &st.csv {
-            None => parse_value(&st.buf, path, at, ints)?,
-            Some((idx, delim, name, width)) => {
-                // one pass: the wanted field, and the row's width
-                let (mut field, mut fields) = (&st.buf[..0], 0);
-                for (i, f) in st.buf.split(|b| b == delim).enumerate() {
-                    if i == *idx {
-                        field = f;
-                    }
-                    fields += 1;
-                }
-                if fields != *width {
-                    return Err(InputError::RaggedRow {
-                        path: path.to_path_buf(),
-                        line: st.line,
-                        fields,
-                        expected: *width,
-                        column: name.clone(),
-                        index: idx + 1,
-                    });
-                }
-                let f = field.trim_ascii();
-                let f = f.strip_prefix(b"\"").unwrap_or(f);
-                let f = f.strip_suffix(b"\"").unwrap_or(f);
-                parse_value(f.trim_ascii(), path, at, ints)?
-            }
+        let Some(c) = &st.csv else {
+            out.push(parse_value(&st.buf, path, at, ints)?);
+            continue;
         };
-        out.push(v);
+        // one pass: the wanted fields, and the row's width
+        let (mut field, mut side_field, mut fields) = (&st.buf[..0], &st.buf[..0], 0);
+        for (i, f) in st.buf.split(|b| *b == c.delim).enumerate() {
+            if i == c.index {
+                field = f;
+            } else if Some(i) == c.side {
+                side_field = f;
+            }
+            fields += 1;
+        }
+        if fields != c.width {
+            return Err(PlainError::RaggedRow {
+                path: path.to_path_buf(),
+                line: st.line,
+                fields,
+                expected: c.width,
+                column: c.name.clone(),
+                index: c.index + 1,
+            });
+        }
+        out.push(parse_value(unquote(field), path, at, ints)?);
+        if c.side.is_some() {
+            side.push(parse_value(unquote(side_field), path, at, false)?);
+        }
     }
     Ok(())
+}
+
+/// A field without its surrounding blanks and quotes.
+fn unquote(field: &[u8]) -> &[u8] {
+    let f = field.trim_ascii();
+    let f = f.strip_prefix(b"\"").unwrap_or(f);
+    let f = f.strip_suffix(b"\"").unwrap_or(f);
+    f.trim_ascii()
 }
 
 fn read_binary(
@@ -541,13 +578,13 @@ fn read_binary(
     out: &mut Vec<f64>,
     max: usize,
     ints: bool,
-) -> Result<(), InputError> {
+) -> Result<(), PlainError> {
     out.reserve(max.min(BUF_BYTES / 8));
     while out.len() < max {
         if st.end - st.start < 8 {
             if st.eof {
                 if st.end > st.start {
-                    return Err(InputError::BadLength {
+                    return Err(PlainError::BadLength {
                         path: path.to_path_buf(),
                         bytes: st.offset + (st.end - st.start) as u64,
                     });
@@ -563,7 +600,7 @@ fn read_binary(
                     Ok(n) => n,
                     Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
                     Err(source) => {
-                        return Err(InputError::Read {
+                        return Err(PlainError::Read {
                             path: path.to_path_buf(),
                             at: Location::Byte(st.offset),
                             source,
@@ -637,8 +674,8 @@ mod tests {
             ("tail.csv", &b"a,counts,b\n1,2,3\n4,5\n"[..], "line 3", 2, 3),
         ] {
             let (_d, p) = tmp(name, text);
-            let e = read_all(&p, InputFormat::Csv, Some("counts")).unwrap_err();
-            assert!(matches!(e, InputError::RaggedRow { .. }), "{name}: {e}");
+            let e = read_all(&p, Format::Csv, Some("counts")).unwrap_err();
+            assert!(matches!(e, PlainError::RaggedRow { .. }), "{name}: {e}");
             let e = e.to_string();
             assert!(
                 e.contains(name)
@@ -657,7 +694,7 @@ mod tests {
             "a.txt",
             b"# header\r\n\r\n+2.76845904000198E-007\r\n  -1.5  \r\n3 # trailing comment\n\n4e2",
         );
-        let v = read_all(&p, InputFormat::Text, None).unwrap();
+        let v = read_all(&p, Format::Text, None).unwrap();
         assert_eq!(v, vec![2.76845904000198e-7, -1.5, 3.0, 400.0]);
     }
 
@@ -667,26 +704,22 @@ mod tests {
             "bad.txt",
             b"1\n2\n# c\nabc def ghi jkl mno pqr stu vwx yz0 123 456 789\n",
         );
-        let e = read_all(&p, InputFormat::Text, None)
-            .unwrap_err()
-            .to_string();
+        let e = read_all(&p, Format::Text, None).unwrap_err().to_string();
         assert!(
             e.contains("bad.txt") && e.contains("line 4") && e.contains("\"abc def"),
             "{e}"
         );
         assert!(e.contains("..."), "long text is truncated: {e}");
         let (_d, p) = tmp("nan.txt", b"1\nNaN\n");
-        let e = read_all(&p, InputFormat::Text, None)
-            .unwrap_err()
-            .to_string();
+        let e = read_all(&p, Format::Text, None).unwrap_err().to_string();
         assert!(e.contains("line 2") && e.contains("not finite"), "{e}");
         let (_d, p) = tmp("empty.txt", b"# nothing\n\n");
         assert!(matches!(
-            read_all(&p, InputFormat::Text, None),
-            Err(InputError::Empty { .. })
+            read_all(&p, Format::Text, None),
+            Err(PlainError::Empty { .. })
         ));
         let (_d, p) = tmp("frac.txt", b"1\n2.5\n");
-        let mut r = SampleReader::open(&p, InputFormat::Text, None)
+        let mut r = SampleReader::open(&p, Format::Text, None)
             .unwrap()
             .require_integers(true);
         let e = r.read_to_end().unwrap_err().to_string();
@@ -697,33 +730,31 @@ mod tests {
     fn csv_column_selection() {
         let (_d, p) = tmp("a.csv", b"t,rate,\"counts\"\n0,1.5,3\n1,2.5,4\r\n");
         assert_eq!(
-            read_all(&p, InputFormat::Csv, Some("rate")).unwrap(),
+            read_all(&p, Format::Csv, Some("rate")).unwrap(),
             vec![1.5, 2.5]
         );
         assert_eq!(
-            read_all(&p, InputFormat::Csv, Some("counts")).unwrap(),
+            read_all(&p, Format::Csv, Some("counts")).unwrap(),
             vec![3.0, 4.0]
         );
-        let e = read_all(&p, InputFormat::Csv, Some("nope"))
+        let e = read_all(&p, Format::Csv, Some("nope"))
             .unwrap_err()
             .to_string();
         assert!(
             e.contains("a.csv") && e.contains("\"t\", \"rate\", \"counts\""),
             "{e}"
         );
-        let e = read_all(&p, InputFormat::Csv, None)
-            .unwrap_err()
-            .to_string();
+        let e = read_all(&p, Format::Csv, None).unwrap_err().to_string();
         assert!(e.contains("--column"), "{e}");
         let (_d, p) = tmp("short.csv", b"a,b\n1,2\n3\n");
-        let e = read_all(&p, InputFormat::Csv, Some("b"))
+        let e = read_all(&p, Format::Csv, Some("b"))
             .unwrap_err()
             .to_string();
         assert!(e.contains("line 3"), "{e}");
         // a spreadsheet's UTF-8 byte-order mark before the first name
         let (_d, p) = tmp("bom.csv", b"\xEF\xBB\xBFcounts,t\n5,0\n-2,1\n");
         assert_eq!(
-            read_all(&p, InputFormat::Csv, Some("counts")).unwrap(),
+            read_all(&p, Format::Csv, Some("counts")).unwrap(),
             vec![5.0, -2.0]
         );
     }
@@ -733,7 +764,7 @@ mod tests {
         let vals: Vec<f64> = (0..10_000).map(|i| i as f64 * 0.25 - 7.0).collect();
         let bytes: Vec<u8> = vals.iter().flat_map(|v| v.to_le_bytes()).collect();
         let (_d, p) = tmp("a.f64", &bytes);
-        let mut r = SampleReader::open(&p, InputFormat::F64le, None).unwrap();
+        let mut r = SampleReader::open(&p, Format::F64le, None).unwrap();
         let mut got = Vec::new();
         let mut block = Vec::new();
         let mut sizes = Vec::new();
@@ -744,16 +775,12 @@ mod tests {
         assert_eq!(got, vals);
         assert_eq!(sizes, vec![3333, 3333, 3333, 1]);
         let (_d, p) = tmp("odd.f64", &bytes[..8 * 5 + 3]);
-        let e = read_all(&p, InputFormat::F64le, None)
-            .unwrap_err()
-            .to_string();
+        let e = read_all(&p, Format::F64le, None).unwrap_err().to_string();
         assert!(e.contains("43 bytes"), "{e}");
         let mut b2 = bytes.clone();
         b2[8 * 7..8 * 8].copy_from_slice(&f64::INFINITY.to_le_bytes());
         let (_d, p) = tmp("inf.f64", &b2);
-        let e = read_all(&p, InputFormat::F64le, None)
-            .unwrap_err()
-            .to_string();
+        let e = read_all(&p, Format::F64le, None).unwrap_err().to_string();
         assert!(e.contains("byte offset 56"), "{e}");
     }
 
@@ -774,11 +801,11 @@ mod tests {
             e.finish().unwrap()
         };
         let cases = [
-            ("t.txt", text.as_bytes().to_vec(), InputFormat::Text),
-            ("t.txt.gz", gz(text.as_bytes()), InputFormat::Text),
-            ("c.csv", csv.as_bytes().to_vec(), InputFormat::Csv),
-            ("b.f64", bin.clone(), InputFormat::F64le),
-            ("b.f64.gz", gz(&bin), InputFormat::F64le),
+            ("t.txt", text.as_bytes().to_vec(), Format::Text),
+            ("t.txt.gz", gz(text.as_bytes()), Format::Text),
+            ("c.csv", csv.as_bytes().to_vec(), Format::Csv),
+            ("b.f64", bin.clone(), Format::F64le),
+            ("b.f64.gz", gz(&bin), Format::F64le),
         ];
         for (name, bytes, fmt) in cases {
             let (_d, p) = tmp(name, &bytes);
@@ -808,18 +835,18 @@ mod tests {
         let gz = enc.finish().unwrap();
         let (_d, p) = tmp("data.txt.gz", &gz);
         assert_eq!(
-            read_all(&p, InputFormat::Text, None).unwrap(),
+            read_all(&p, Format::Text, None).unwrap(),
             vec![1.0, 2.0, 3.0]
         );
         let (_d, p) = tmp("nogz.bin", &gz); // magic bytes, no .gz name
         assert_eq!(
-            read_all(&p, InputFormat::Text, None).unwrap(),
+            read_all(&p, Format::Text, None).unwrap(),
             vec![1.0, 2.0, 3.0]
         );
         let (_d, p) = tmp("fake.gz", b"1\n2\n");
         assert!(matches!(
-            read_all(&p, InputFormat::Text, None),
-            Err(InputError::NotGzip { .. })
+            read_all(&p, Format::Text, None),
+            Err(PlainError::NotGzip { .. })
         ));
     }
 }

@@ -4,11 +4,11 @@
 //! ```toml
 //! [gyro]
 //! sample_rate_hz = 1000.0
-//! pulse_weight_arcsec = 1.21      # angle per counter pulse, d
+//! pulse_arcsec = 1.21             # angle per counter pulse, d
 //! input_rate_dph = 12.3           # constant input (e.g. Earth rate on the axis); default 0
 //! # output = "rate"               # "counts" (RLG pulse counter, the default) or "rate" (FOG/MEMS)
 //! # rate_lsb_dps = 0.0005         # rate output: rate-word quantum, deg/s (absent or 0: unquantised);
-//! #                               # then pulse_weight_arcsec is left out
+//! #                               # then pulse_arcsec is left out
 //!
 //! [noise]                         # IEEE 952 coefficients; an absent key = the term is absent
 //! quantization_arcsec = 0.35      # total white-angle Q seen by the Allan variance (>= d/sqrt(12))
@@ -122,7 +122,8 @@ pub struct GyroParams {
     pub output: OutputKind,
     /// Angle per counter pulse, arcsec (counts output only; required there).
     #[serde(default, skip_serializing_if = "is_zero")]
-    pub pulse_weight_arcsec: f64,
+    #[serde(alias = "pulse_weight_arcsec")]
+    pub pulse_arcsec: f64,
     /// Rate-word quantum, deg/s (rate output only); 0 or absent = unquantised.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub rate_lsb_dps: f64,
@@ -263,7 +264,7 @@ impl GyroModel {
 
     /// The white-angle error of the counter alone, `d / sqrt(12)`, arcsec.
     pub fn counter_q_arcsec(&self) -> f64 {
-        self.gyro.pulse_weight_arcsec / 12f64.sqrt()
+        self.gyro.pulse_arcsec / 12f64.sqrt()
     }
 
     /// Total quantization coefficient Q (arcsec): the configured value, or
@@ -349,8 +350,8 @@ impl GyroModel {
         match g.output {
             OutputKind::Counts => {
                 within(
-                    "gyro.pulse_weight_arcsec",
-                    g.pulse_weight_arcsec,
+                    "gyro.pulse_arcsec",
+                    g.pulse_arcsec,
                     1e-9,
                     MAX_PULSE_WEIGHT_ARCSEC,
                     "arcsec (at most one turn)",
@@ -359,15 +360,15 @@ impl GyroModel {
                     return Err(ModelError::invalid(
                         "gyro.rate_lsb_dps",
                         show(g.rate_lsb_dps),
-                        "only for output = \"rate\" (a counter's quantum is gyro.pulse_weight_arcsec)",
+                        "only for output = \"rate\" (a counter's quantum is gyro.pulse_arcsec)",
                     ));
                 }
             }
             OutputKind::Rate => {
-                if g.pulse_weight_arcsec != 0.0 {
+                if g.pulse_arcsec != 0.0 {
                     return Err(ModelError::invalid(
-                        "gyro.pulse_weight_arcsec",
-                        show(g.pulse_weight_arcsec),
+                        "gyro.pulse_arcsec",
+                        show(g.pulse_arcsec),
                         "only for output = \"counts\" (a rate word's quantum is gyro.rate_lsb_dps)",
                     ));
                 }
@@ -400,7 +401,7 @@ impl GyroModel {
                     "noise.quantization_arcsec",
                     q,
                     format!(
-                        "below pulse_weight_arcsec/sqrt(12) = {c:.6}: the pulse counter alone already gives \
+                        "below pulse_arcsec/sqrt(12) = {c:.6}: the pulse counter alone already gives \
                          d/sqrt(12); Q must be >= that (omit the key to get exactly d/sqrt(12))"
                     ),
                 ));
@@ -511,26 +512,26 @@ impl GyroModel {
     pub fn terms(&self) -> Vec<Term> {
         let n = &self.noise;
         let mut out = vec![Term::Quantization {
-            q_arcsec: self.quantization_q_arcsec(),
+            quantization_arcsec: self.quantization_q_arcsec(),
         }];
         if let Some(v) = n.arw_dpsh.filter(|v| *v > 0.0) {
-            out.push(Term::AngleRandomWalk { n_dpsh: v });
+            out.push(Term::AngleRandomWalk { arw_dpsh: v });
         }
         if self.gyro.output == OutputKind::Rate && self.gyro.rate_lsb_dps > 0.0 {
             out.push(Term::RateQuantization {
-                lsb_dps: self.gyro.rate_lsb_dps,
+                rate_lsb_dps: self.gyro.rate_lsb_dps,
                 tau0_s: self.tau0_s(),
             });
         }
         if let Some(v) = n.bias_instability_dph.filter(|v| *v > 0.0) {
             out.push(Term::BiasInstability {
-                b_dph: v,
+                bias_instability_dph: v,
                 f_lo_hz: self.flicker_f_lo_hz(),
                 f_hi_hz: f64::INFINITY,
             });
         }
         if let Some(v) = n.rrw_dphsh.filter(|v| *v > 0.0) {
-            out.push(Term::RateRandomWalk { k_dphsh: v });
+            out.push(Term::RateRandomWalk { rrw_dphsh: v });
         }
         let thermal_ramp = self
             .thermal
@@ -539,7 +540,9 @@ impl GyroModel {
             .unwrap_or(0.0);
         let ramp = n.rate_ramp_dphh.unwrap_or(0.0) + thermal_ramp;
         if ramp != 0.0 {
-            out.push(Term::RateRamp { r_dphh: ramp });
+            out.push(Term::RateRamp {
+                rate_ramp_dphh: ramp,
+            });
         }
         for t in &n.gauss_markov {
             out.push(Term::GaussMarkov {

@@ -262,7 +262,7 @@ impl Simulator {
         model.validate()?;
         let fs = model.gyro.sample_rate_hz;
         let tau0 = 1.0 / fs;
-        let d = model.gyro.pulse_weight_arcsec;
+        let d = model.gyro.pulse_arcsec;
         let total = match duration_s {
             None => None,
             Some(dur) => {
@@ -463,7 +463,7 @@ impl Simulator {
         self.tau0
     }
     /// Pulse weight d, arcsec.
-    pub fn pulse_weight_arcsec(&self) -> f64 {
+    pub fn pulse_arcsec(&self) -> f64 {
         self.d
     }
     /// Standard deviation of the white dither residual added before the counter, arcsec.

@@ -181,10 +181,10 @@ fn gm_shape(u: f64) -> f64 {
 // Closed-form Allan variances in internal units (arcsec, arcsec/s, s)
 // ---------------------------------------------------------------------------
 
-/// White angle noise (quantization) with coefficient `q_arcsec`: `3 Q^2 / tau^2`.
+/// White angle noise (quantization) with coefficient `quantization_arcsec`: `3 Q^2 / tau^2`.
 #[inline]
-pub fn quantization_avar(q_arcsec: f64, tau_s: f64) -> f64 {
-    3.0 * q_arcsec * q_arcsec / (tau_s * tau_s)
+pub fn quantization_avar(quantization_arcsec: f64, tau_s: f64) -> f64 {
+    3.0 * quantization_arcsec * quantization_arcsec / (tau_s * tau_s)
 }
 
 /// White rate noise (ARW) with `n` in arcsec/sqrt(s): `N^2 / tau`.
@@ -343,12 +343,12 @@ pub struct FlickerBank {
 }
 
 impl FlickerBank {
-    /// A bank for bias instability `b_dph` (deg/h) from `f_lo_hz` to `f_top_hz`.
-    pub fn new(b_dph: f64, f_lo_hz: f64, f_top_hz: f64) -> Result<Self, ModelError> {
-        if !(b_dph.is_finite() && b_dph >= 0.0) {
+    /// A bank for bias instability `bias_instability_dph` (deg/h) from `f_lo_hz` to `f_top_hz`.
+    pub fn new(bias_instability_dph: f64, f_lo_hz: f64, f_top_hz: f64) -> Result<Self, ModelError> {
+        if !(bias_instability_dph.is_finite() && bias_instability_dph >= 0.0) {
             return Err(ModelError::invalid(
                 "bias_instability_dph",
-                b_dph,
+                bias_instability_dph,
                 "must be finite and >= 0",
             ));
         }
@@ -366,7 +366,7 @@ impl FlickerBank {
                 format!("must be finite and at least twice f_lo = {f_lo_hz}"),
             ));
         }
-        let b = units::dph_to_arcsec_per_s(b_dph);
+        let b = units::dph_to_arcsec_per_s(bias_instability_dph);
         let span = (f_top_hz / f_lo_hz).ln();
         let intervals = (span / (FLICKER_OCTAVES_PER_NODE * LN_2) - 1e-9)
             .ceil()
@@ -408,15 +408,19 @@ impl FlickerBank {
 
     /// The bank the simulator uses at `sample_rate_hz`: `f_top = 8 fs`.
     pub fn for_sample_rate(
-        b_dph: f64,
+        bias_instability_dph: f64,
         f_lo_hz: f64,
         sample_rate_hz: f64,
     ) -> Result<Self, ModelError> {
-        Self::new(b_dph, f_lo_hz, FLICKER_TOP_PER_SAMPLE_RATE * sample_rate_hz)
+        Self::new(
+            bias_instability_dph,
+            f_lo_hz,
+            FLICKER_TOP_PER_SAMPLE_RATE * sample_rate_hz,
+        )
     }
 
     /// Bias instability B in deg/h.
-    pub fn b_dph(&self) -> f64 {
+    pub fn bias_instability_dph(&self) -> f64 {
         units::arcsec_per_s_to_dph(self.b_arcsec_s)
     }
     /// Low edge (lowest corner), Hz.
@@ -466,20 +470,20 @@ impl FlickerBank {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Term {
     /// Quantization noise (white angle), Q in arcsec.
-    Quantization { q_arcsec: f64 },
+    Quantization { quantization_arcsec: f64 },
     /// Angle random walk (white rate), N in deg/sqrt(h).
-    AngleRandomWalk { n_dpsh: f64 },
+    AngleRandomWalk { arw_dpsh: f64 },
     /// Bias instability: 1/f rate noise `B^2/(pi f)` on `[f_lo_hz, f_hi_hz]`
     /// (`f_hi_hz` may be infinite). B in deg/h.
     BiasInstability {
-        b_dph: f64,
+        bias_instability_dph: f64,
         f_lo_hz: f64,
         f_hi_hz: f64,
     },
     /// Rate random walk, K in deg/h/sqrt(h).
-    RateRandomWalk { k_dphsh: f64 },
+    RateRandomWalk { rrw_dphsh: f64 },
     /// Rate ramp, R in deg/h/h.
-    RateRamp { r_dphh: f64 },
+    RateRamp { rate_ramp_dphh: f64 },
     /// First-order Gauss-Markov bias, sigma in deg/h, correlation time in s.
     GaussMarkov { sigma_dph: f64, tau_c_s: f64 },
     /// Sinusoidal bias, amplitude in deg/h, period in s.
@@ -490,10 +494,10 @@ pub enum Term {
         mean_dwell_s: f64,
     },
     /// Rate-word quantization of a rate-output gyro: rounding to a multiple of
-    /// `lsb_dps` (deg/s) at each sample of period `tau0_s`, white in *rate*
+    /// `rate_lsb_dps` (deg/s) at each sample of period `tau0_s`, white in *rate*
     /// with variance `lsb^2 / 12` per sample (an ARW-like term
     /// `N^2 = lsb^2 tau0 / 12`), not the white-angle QN of a pulse counter.
-    RateQuantization { lsb_dps: f64, tau0_s: f64 },
+    RateQuantization { rate_lsb_dps: f64, tau0_s: f64 },
     /// A resonance: narrowband rate noise of standard deviation `sigma_dph`
     /// (deg/h) centred at `centre_hz` with half-power width `width_hz`, the
     /// sample-rate AR(2) process of [`crate::model::resonance`] (sample period
@@ -580,15 +584,20 @@ impl Term {
     /// The amplitude coefficient in user units (Q, N, B, K, R, sigma, A, a).
     pub fn coefficient(&self) -> f64 {
         match *self {
-            Term::Quantization { q_arcsec } => q_arcsec,
-            Term::AngleRandomWalk { n_dpsh } => n_dpsh,
-            Term::BiasInstability { b_dph, .. } => b_dph,
-            Term::RateRandomWalk { k_dphsh } => k_dphsh,
-            Term::RateRamp { r_dphh } => r_dphh,
+            Term::Quantization {
+                quantization_arcsec,
+            } => quantization_arcsec,
+            Term::AngleRandomWalk { arw_dpsh } => arw_dpsh,
+            Term::BiasInstability {
+                bias_instability_dph,
+                ..
+            } => bias_instability_dph,
+            Term::RateRandomWalk { rrw_dphsh } => rrw_dphsh,
+            Term::RateRamp { rate_ramp_dphh } => rate_ramp_dphh,
             Term::GaussMarkov { sigma_dph, .. } => sigma_dph,
             Term::Sinusoid { amplitude_dph, .. } => amplitude_dph,
             Term::RandomTelegraph { amplitude_dph, .. } => amplitude_dph,
-            Term::RateQuantization { lsb_dps, .. } => lsb_dps,
+            Term::RateQuantization { rate_lsb_dps, .. } => rate_lsb_dps,
             Term::Resonance { sigma_dph, .. } => sigma_dph,
         }
     }
@@ -609,15 +618,20 @@ impl Term {
     pub fn with_coefficient(&self, c: f64) -> Term {
         let mut t = *self;
         match &mut t {
-            Term::Quantization { q_arcsec } => *q_arcsec = c,
-            Term::AngleRandomWalk { n_dpsh } => *n_dpsh = c,
-            Term::BiasInstability { b_dph, .. } => *b_dph = c,
-            Term::RateRandomWalk { k_dphsh } => *k_dphsh = c,
-            Term::RateRamp { r_dphh } => *r_dphh = c,
+            Term::Quantization {
+                quantization_arcsec,
+            } => *quantization_arcsec = c,
+            Term::AngleRandomWalk { arw_dpsh } => *arw_dpsh = c,
+            Term::BiasInstability {
+                bias_instability_dph,
+                ..
+            } => *bias_instability_dph = c,
+            Term::RateRandomWalk { rrw_dphsh } => *rrw_dphsh = c,
+            Term::RateRamp { rate_ramp_dphh } => *rate_ramp_dphh = c,
             Term::GaussMarkov { sigma_dph, .. } => *sigma_dph = c,
             Term::Sinusoid { amplitude_dph, .. } => *amplitude_dph = c,
             Term::RandomTelegraph { amplitude_dph, .. } => *amplitude_dph = c,
-            Term::RateQuantization { lsb_dps, .. } => *lsb_dps = c,
+            Term::RateQuantization { rate_lsb_dps, .. } => *rate_lsb_dps = c,
             Term::Resonance { sigma_dph, .. } => *sigma_dph = c,
         }
         t
@@ -640,14 +654,16 @@ impl Term {
             }
         };
         match *self {
-            Term::Quantization { q_arcsec } => nonneg("quantization_arcsec", q_arcsec),
-            Term::AngleRandomWalk { n_dpsh } => nonneg("arw_dpsh", n_dpsh),
+            Term::Quantization {
+                quantization_arcsec,
+            } => nonneg("quantization_arcsec", quantization_arcsec),
+            Term::AngleRandomWalk { arw_dpsh } => nonneg("arw_dpsh", arw_dpsh),
             Term::BiasInstability {
-                b_dph,
+                bias_instability_dph,
                 f_lo_hz,
                 f_hi_hz,
             } => {
-                nonneg("bias_instability_dph", b_dph)?;
+                nonneg("bias_instability_dph", bias_instability_dph)?;
                 if !(f_lo_hz.is_finite() && f_lo_hz >= 0.0) {
                     return Err(ModelError::invalid(
                         "bias_instability_f_lo_hz",
@@ -664,14 +680,14 @@ impl Term {
                 }
                 Ok(())
             }
-            Term::RateRandomWalk { k_dphsh } => nonneg("rrw_dphsh", k_dphsh),
-            Term::RateRamp { r_dphh } => {
-                if r_dphh.is_finite() {
+            Term::RateRandomWalk { rrw_dphsh } => nonneg("rrw_dphsh", rrw_dphsh),
+            Term::RateRamp { rate_ramp_dphh } => {
+                if rate_ramp_dphh.is_finite() {
                     Ok(())
                 } else {
                     Err(ModelError::invalid(
                         "rate_ramp_dphh",
-                        r_dphh,
+                        rate_ramp_dphh,
                         "must be finite",
                     ))
                 }
@@ -694,8 +710,11 @@ impl Term {
                 nonneg("amplitude_dph", amplitude_dph)?;
                 positive("mean_dwell_s", mean_dwell_s)
             }
-            Term::RateQuantization { lsb_dps, tau0_s } => {
-                nonneg("rate_lsb_dps", lsb_dps)?;
+            Term::RateQuantization {
+                rate_lsb_dps,
+                tau0_s,
+            } => {
+                nonneg("rate_lsb_dps", rate_lsb_dps)?;
                 positive("tau0_s", tau0_s)
             }
             Term::Resonance {
@@ -730,36 +749,38 @@ impl Term {
     pub fn psd(&self, f_hz: f64, tau0_s: f64) -> f64 {
         let f = f_hz;
         match *self {
-            Term::Quantization { q_arcsec } => {
+            Term::Quantization {
+                quantization_arcsec,
+            } => {
                 if f < 0.0 || f > 0.5 / tau0_s {
                     0.0
                 } else {
                     let s = (PI * f * tau0_s).sin();
-                    8.0 * q_arcsec * q_arcsec * s * s / tau0_s
+                    8.0 * quantization_arcsec * quantization_arcsec * s * s / tau0_s
                 }
             }
-            Term::AngleRandomWalk { n_dpsh } => {
-                let n = units::dpsh_to_arcsec_per_sqrt_s(n_dpsh);
+            Term::AngleRandomWalk { arw_dpsh } => {
+                let n = units::dpsh_to_arcsec_per_sqrt_s(arw_dpsh);
                 2.0 * n * n
             }
             Term::BiasInstability {
-                b_dph,
+                bias_instability_dph,
                 f_lo_hz,
                 f_hi_hz,
             } => {
                 if f < f_lo_hz || f > f_hi_hz || f <= 0.0 {
                     0.0
                 } else {
-                    let b = units::dph_to_arcsec_per_s(b_dph);
+                    let b = units::dph_to_arcsec_per_s(bias_instability_dph);
                     b * b / (PI * f)
                 }
             }
-            Term::RateRandomWalk { k_dphsh } => {
-                let k = units::dphsh_to_arcsec_per_s_sqrt_s(k_dphsh);
+            Term::RateRandomWalk { rrw_dphsh } => {
+                let k = units::dphsh_to_arcsec_per_s_sqrt_s(rrw_dphsh);
                 k * k / (2.0 * PI * PI * f * f)
             }
-            Term::RateRamp { r_dphh } => {
-                let r = units::dphh_to_arcsec_per_s2(r_dphh);
+            Term::RateRamp { rate_ramp_dphh } => {
+                let r = units::dphh_to_arcsec_per_s2(rate_ramp_dphh);
                 let w = 2.0 * PI * f;
                 2.0 * r * r / (w * w * w)
             }
@@ -775,9 +796,12 @@ impl Term {
                 0.5 * mean_dwell_s,
                 f,
             ),
-            Term::RateQuantization { lsb_dps, tau0_s } => {
+            Term::RateQuantization {
+                rate_lsb_dps,
+                tau0_s,
+            } => {
                 // white over the band: one-sided 2 var tau0
-                let l = lsb_dps * units::ARCSEC_PER_DEG;
+                let l = rate_lsb_dps * units::ARCSEC_PER_DEG;
                 if f < 0.0 || f > 0.5 / tau0_s {
                     0.0
                 } else {

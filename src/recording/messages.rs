@@ -261,7 +261,7 @@ impl Timestamp {
 /// The window holds [`summary_window_samples`] consecutive sample periods
 /// (gap-filled ones included), cut short at the start of a new time segment and
 /// at the end of the run. The rates are means over the window's periods: the raw
-/// rate of the gap-filled pulse increments (`pulses x pulse_arcsec x rate_hz`,
+/// rate of the gap-filled pulse increments (`pulses x pulse_arcsec x sample_rate_hz`,
 /// what the pipeline sees) and the wavelet-cleaned rate of the same periods
 /// (of the values before the rounding of `/gyro/clean`); both are recorded on
 /// the same 1e-3 deg/h grid ([`quantize_rate`]).
@@ -287,10 +287,10 @@ pub struct SummaryUpdate {
 /// Nominal length of a `/gyro/summary` window, s (10 Hz).
 pub const SUMMARY_PERIOD_S: f64 = 0.1;
 
-/// Sample periods per `/gyro/summary` window at `rate_hz`: `rate_hz x 0.1`
-/// rounded, at least 1 (exactly 10 Hz when `rate_hz` is a multiple of 10).
-pub fn summary_window_samples(rate_hz: f64) -> u64 {
-    (rate_hz * SUMMARY_PERIOD_S).round().max(1.0) as u64
+/// Sample periods per `/gyro/summary` window at `sample_rate_hz`: `sample_rate_hz x 0.1`
+/// rounded, at least 1 (exactly 10 Hz when `sample_rate_hz` is a multiple of 10).
+pub fn summary_window_samples(sample_rate_hz: f64) -> u64 {
+    (sample_rate_hz * SUMMARY_PERIOD_S).round().max(1.0) as u64
 }
 
 /// An octave Allan-deviation curve in columns of equal length.

@@ -279,7 +279,7 @@ mod tests {
     fn flags_meet_recorded_values() {
         let p = Path::new("r.mcap");
         let check =
-            |given, recorded| check_flag("--rate-hz", given, recorded, p, "in x", AGREE_REL);
+            |given, recorded| check_flag("--sample-rate-hz", given, recorded, p, "in x", AGREE_REL);
         assert_eq!(check(None, Some(100.0)), Ok(Some(100.0)));
         assert_eq!(check(Some(50.0), None), Ok(Some(50.0)));
         assert_eq!(check(Some(100.0), Some(100.0)), Ok(Some(100.0)));
@@ -291,13 +291,20 @@ mod tests {
         assert_eq!(check(None, None), Ok(None));
         let e = check(Some(50.0), Some(100.0)).unwrap_err().to_string();
         assert!(
-            e.contains("--rate-hz 50 contradicts r.mcap") && e.contains("says 100 in x"),
+            e.contains("--sample-rate-hz 50 contradicts r.mcap") && e.contains("says 100 in x"),
             "{e}"
         );
         // a rate from a period of 333333 ns: 3000 Hz agrees within 1 ns
         let r = 1e9 / 333_333.0;
         assert_eq!(
-            check_flag("--rate-hz", Some(3000.0), Some(r), p, "x", 1.0 / 333_333.0),
+            check_flag(
+                "--sample-rate-hz",
+                Some(3000.0),
+                Some(r),
+                p,
+                "x",
+                1.0 / 333_333.0
+            ),
             Ok(Some(3000.0))
         );
     }

@@ -43,7 +43,9 @@ use std::time::{Duration, Instant, SystemTime};
 
 use serde::{Deserialize, Serialize};
 
-use crate::recording::messages::{MESSAGE_ENCODING, MessageError, SCHEMA_ENCODING, SinkMessage, Topic};
+use crate::recording::messages::{
+    MESSAGE_ENCODING, MessageError, SCHEMA_ENCODING, SinkMessage, Topic,
+};
 use crate::recording::meta::RecordingMeta;
 
 mod queue;

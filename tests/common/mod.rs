@@ -57,9 +57,10 @@ pub fn simulated_recording(
     sim.next_block_with_temp(usize::MAX >> 1, &mut counts, &mut temp);
     sagnac::diagnose::Recording {
         counts,
+        filled: Vec::new(),
         temp_c: (!temp.is_empty()).then_some(temp),
         sample_rate_hz: m.gyro.sample_rate_hz,
-        pulse_arcsec: m.gyro.pulse_weight_arcsec,
+        pulse_arcsec: m.gyro.pulse_arcsec,
         output: Default::default(),
     }
 }

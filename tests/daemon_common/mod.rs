@@ -395,7 +395,7 @@ pub fn analyze_json(format: &str, input: &Path, out: &Path) -> serde_json::Value
     let flags: &[&str] = if format == "mcap" {
         &[]
     } else {
-        &["--rate-hz", "1000", "--pulse-arcsec", "1.21"]
+        &["--sample-rate-hz", "1000", "--pulse-arcsec", "1.21"]
     };
     let r = Command::new(env!("CARGO_BIN_EXE_sagnac"))
         .args(["analyze", "--format", format, "--input"])

@@ -24,7 +24,7 @@ pub struct GyroSim {
     pub bi_dph: f64,
     /// Total quantization noise Q, arcsec: the white angle error ("dither residual")
     /// added before the counter is sized so that Q^2 = d^2/12 + sigma_dither^2.
-    pub q_arcsec: f64,
+    pub quantization_arcsec: f64,
     /// RNG seed.
     pub seed: u64,
 }
@@ -68,14 +68,14 @@ fn gm_avar(var: f64, t: f64, tau: f64) -> f64 {
 
 impl GyroSim {
     /// The paper's gyro (28 cm RLG, 1 kHz, d = 1.21"), static, with the given Q, N, B.
-    pub fn paper(q_arcsec: f64, arw_dpsh: f64, bi_dph: f64, seed: u64) -> GyroSim {
+    pub fn paper(quantization_arcsec: f64, arw_dpsh: f64, bi_dph: f64, seed: u64) -> GyroSim {
         GyroSim {
             sample_rate_hz: 1000.0,
             pulse_arcsec: 1.21,
             rate_dph: 10.6,
             arw_dpsh,
             bi_dph,
-            q_arcsec,
+            quantization_arcsec,
             seed,
         }
     }
@@ -83,7 +83,9 @@ impl GyroSim {
     /// White angle error added before quantization, arcsec.
     pub fn sigma_dither(&self) -> f64 {
         let d2 = self.pulse_arcsec * self.pulse_arcsec / 12.0;
-        (self.q_arcsec * self.q_arcsec - d2).max(0.0).sqrt()
+        (self.quantization_arcsec * self.quantization_arcsec - d2)
+            .max(0.0)
+            .sqrt()
     }
 
     /// The true Allan variance of the non-QN part (ARW + BI), (arcsec/s)^2.
@@ -98,7 +100,7 @@ impl GyroSim {
 
     /// The IEEE 952 QN Allan variance, 3 Q^2 / tau^2.
     pub fn qn_avar(&self, tau_s: f64) -> f64 {
-        3.0 * self.q_arcsec * self.q_arcsec / (tau_s * tau_s)
+        3.0 * self.quantization_arcsec * self.quantization_arcsec / (tau_s * tau_s)
     }
 
     /// Simulate `n` samples.

@@ -22,13 +22,13 @@ use super::ExportError;
 use crate::model::estimate::{Coefficient, NoiseEstimates};
 
 /// N, deg/sqrt(h) -> rad/s/sqrt(Hz).
-pub fn noise_density_from_arw(n_dpsh: f64) -> f64 {
-    n_dpsh * PI / 180.0 / 60.0
+pub fn noise_density_from_arw(arw_dpsh: f64) -> f64 {
+    arw_dpsh * PI / 180.0 / 60.0
 }
 
 /// K, deg/h/sqrt(h) -> rad/s^2/sqrt(Hz).
-pub fn random_walk_from_rrw(k_dphsh: f64) -> f64 {
-    k_dphsh * PI / 180.0 / 3600.0 / 60.0
+pub fn random_walk_from_rrw(rrw_dphsh: f64) -> f64 {
+    rrw_dphsh * PI / 180.0 / 3600.0 / 60.0
 }
 
 /// A float YAML 1.1 readers (PyYAML, which Kalibr uses) take as a float: the
@@ -89,7 +89,11 @@ fn describe(b: Basis, sym: &str, unit: &str) -> (f64, String) {
 }
 
 /// The YAML text. `source` names the analysed recording in the header comment.
-pub fn imu_yaml(e: &NoiseEstimates, rate_hz: f64, source: &str) -> Result<String, ExportError> {
+pub fn imu_yaml(
+    e: &NoiseEstimates,
+    sample_rate_hz: f64,
+    source: &str,
+) -> Result<String, ExportError> {
     let (n, n_note) = describe(
         basis(&e.arw_dpsh, "gyroscope_noise_density", "the ARW N")?,
         "N",
@@ -137,10 +141,10 @@ pub fn imu_yaml(e: &NoiseEstimates, rate_hz: f64, source: &str) -> Result<String
         yaml_float(random_walk_from_rrw(k))
     );
     let _ = writeln!(y, "# update_rate: the sample rate, Hz");
-    let rate = if rate_hz.fract() == 0.0 && rate_hz.abs() < 1e15 {
-        format!("{rate_hz:.1}")
+    let rate = if sample_rate_hz.fract() == 0.0 && sample_rate_hz.abs() < 1e15 {
+        format!("{sample_rate_hz:.1}")
     } else {
-        yaml_float(rate_hz)
+        yaml_float(sample_rate_hz)
     };
     let _ = writeln!(y, "update_rate: {rate}");
     Ok(y)
@@ -150,10 +154,10 @@ pub fn imu_yaml(e: &NoiseEstimates, rate_hz: f64, source: &str) -> Result<String
 pub fn write(
     path: &std::path::Path,
     e: &NoiseEstimates,
-    rate_hz: f64,
+    sample_rate_hz: f64,
     source: &str,
 ) -> Result<(), ExportError> {
-    let y = imu_yaml(e, rate_hz, source)?;
+    let y = imu_yaml(e, sample_rate_hz, source)?;
     std::fs::write(path, y).map_err(|source| ExportError::Io {
         path: path.to_path_buf(),
         source,

@@ -15,17 +15,19 @@ use crate::model::Term;
 pub fn term_of_key(key: &str) -> Option<Term> {
     let base = key.split(['[', '.']).next().unwrap_or(key);
     Some(match base {
-        k if k.starts_with("quantization") || k.starts_with("pulse") => {
-            Term::Quantization { q_arcsec: 0.0 }
-        }
-        k if k.starts_with("arw") => Term::AngleRandomWalk { n_dpsh: 0.0 },
+        k if k.starts_with("quantization") || k.starts_with("pulse") => Term::Quantization {
+            quantization_arcsec: 0.0,
+        },
+        k if k.starts_with("arw") => Term::AngleRandomWalk { arw_dpsh: 0.0 },
         k if k.starts_with("bias_instability") => Term::BiasInstability {
-            b_dph: 0.0,
+            bias_instability_dph: 0.0,
             f_lo_hz: 0.0,
             f_hi_hz: f64::INFINITY,
         },
-        k if k.starts_with("rrw") => Term::RateRandomWalk { k_dphsh: 0.0 },
-        k if k.starts_with("rate_ramp") => Term::RateRamp { r_dphh: 0.0 },
+        k if k.starts_with("rrw") => Term::RateRandomWalk { rrw_dphsh: 0.0 },
+        k if k.starts_with("rate_ramp") => Term::RateRamp {
+            rate_ramp_dphh: 0.0,
+        },
         "gauss_markov" => Term::GaussMarkov {
             sigma_dph: 0.0,
             tau_c_s: 1.0,

@@ -190,7 +190,7 @@ fn metadata(h: &mut String, r: &Report<'_>) {
     row(
         h,
         "sample rate",
-        &format!("{} Hz ({})", m.rate_hz, m.origin),
+        &format!("{} Hz ({})", m.sample_rate_hz, m.origin),
     );
     match m.pulse_arcsec {
         Some(d) => row(h, "pulse weight", &format!("{d} arcsec ({})", m.origin)),

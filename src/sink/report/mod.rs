@@ -30,8 +30,8 @@ use std::path::{Path, PathBuf};
 use plotters::prelude::*;
 
 use crate::diagnose::Diagnosis;
-use crate::pipeline::Analysis;
 use crate::input::frame::DecoderStats;
+use crate::pipeline::Analysis;
 
 pub use collect::Collector;
 
@@ -60,7 +60,7 @@ pub struct Metadata {
     pub format: String,
     /// Where rate and pulse weight came from ("flags", "the recording's metadata record").
     pub origin: String,
-    pub rate_hz: f64,
+    pub sample_rate_hz: f64,
     /// Pulse weight, arcsec (`None`: rate input).
     pub pulse_arcsec: Option<f64>,
     /// Gaps and samples lost in them, when the format can tell (frames, MCAP).

@@ -213,10 +213,20 @@ mod tests {
         assert!((r.dev(t) - 0.04 / 2f64.sqrt()).abs() < 1e-15);
         // and they are the square roots of the model's own Allan variances
         for (a, term) in [
-            (q, Term::Quantization { q_arcsec: 0.35 }),
-            (n, Term::AngleRandomWalk { n_dpsh: 0.001 }),
-            (k, Term::RateRandomWalk { k_dphsh: 6.0 }),
-            (r, Term::RateRamp { r_dphh: 36.0 }),
+            (
+                q,
+                Term::Quantization {
+                    quantization_arcsec: 0.35,
+                },
+            ),
+            (n, Term::AngleRandomWalk { arw_dpsh: 0.001 }),
+            (k, Term::RateRandomWalk { rrw_dphsh: 6.0 }),
+            (
+                r,
+                Term::RateRamp {
+                    rate_ramp_dphh: 36.0,
+                },
+            ),
         ] {
             for tau in [0.01, 1.0, 300.0] {
                 let want = term.avar(tau).sqrt();

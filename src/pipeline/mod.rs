@@ -39,6 +39,8 @@ use crate::model::estimate::{
 };
 use crate::model::fit::{FitOptions, LevelObs};
 
+pub mod feed;
+
 /// Errors building or running the pipeline.
 #[derive(Debug, thiserror::Error)]
 pub enum PipelineError {
@@ -52,13 +54,15 @@ pub enum PipelineError {
     Dsp(#[from] DspError),
     #[error("Allan stage: {0}")]
     Allan(#[from] StreamError),
+    #[error(transparent)]
+    Input(#[from] crate::input::InputError),
 }
 
 /// Configuration of the chain.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PipelineConfig {
     /// Sample rate, Hz.
-    pub rate_hz: f64,
+    pub sample_rate_hz: f64,
     /// Pulse weight, arcsec, for count input; `None` for rate input.
     pub pulse_arcsec: Option<f64>,
     /// Wavelet of the QN-removal bank and of the level variances.
@@ -70,28 +74,28 @@ pub struct PipelineConfig {
 }
 
 impl PipelineConfig {
-    /// Defaults for count input at `rate_hz` with pulse weight `pulse_arcsec`.
-    pub fn counts(rate_hz: f64, pulse_arcsec: f64) -> Self {
+    /// Defaults for count input at `sample_rate_hz` with pulse weight `pulse_arcsec`.
+    pub fn counts(sample_rate_hz: f64, pulse_arcsec: f64) -> Self {
         PipelineConfig {
-            rate_hz,
+            sample_rate_hz,
             pulse_arcsec: Some(pulse_arcsec),
             wavelet: "sym8".into(),
             levels: None,
             allan_cap: 1 << 16,
         }
     }
-    /// Defaults for rate input (deg/h) at `rate_hz`.
-    pub fn rates(rate_hz: f64) -> Self {
+    /// Defaults for rate input (deg/h) at `sample_rate_hz`.
+    pub fn rates(sample_rate_hz: f64) -> Self {
         PipelineConfig {
             pulse_arcsec: None,
-            ..Self::counts(rate_hz, 1.0)
+            ..Self::counts(sample_rate_hz, 1.0)
         }
     }
     fn validate(&self) -> Result<(), PipelineError> {
-        if !(self.rate_hz.is_finite() && self.rate_hz > 0.0) {
+        if !(self.sample_rate_hz.is_finite() && self.sample_rate_hz > 0.0) {
             return Err(PipelineError::Config {
-                key: "rate_hz",
-                value: self.rate_hz.to_string(),
+                key: "sample_rate_hz",
+                value: self.sample_rate_hz.to_string(),
                 reason: "must be > 0",
             });
         }
@@ -427,9 +431,9 @@ const DEEP_LEVELS: u32 = 32;
 impl Pipeline {
     pub fn new(cfg: &PipelineConfig) -> Result<Pipeline, PipelineError> {
         cfg.validate()?;
-        let tau0_s = 1.0 / cfg.rate_hz;
+        let tau0_s = 1.0 / cfg.sample_rate_hz;
         let wavelet = Wavelet::by_name(&cfg.wavelet)?;
-        let mut qn = QnConfig::new(cfg.rate_hz);
+        let mut qn = QnConfig::new(cfg.sample_rate_hz);
         qn.wavelet = cfg.wavelet.clone();
         qn.levels = cfg.levels;
         qn.validate()?;
