@@ -28,6 +28,7 @@ pub mod input;
 pub mod keys;
 pub mod model;
 pub mod pipeline;
+pub mod quality;
 pub mod recording;
 pub mod sink;
 pub mod units;

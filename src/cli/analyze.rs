@@ -100,8 +100,9 @@ pub(crate) fn stream_notes(r: &StreamReport) -> Vec<(&'static str, String)> {
 
 /// Run the input through the pipeline (a bar on stderr once the job is
 /// visibly long; hidden when stderr is not a terminal).
-pub(crate) fn feed_input(input: &Input, tap: Option<feed::Tap>) -> Result<feed::Fed> {
-    let cfg = feed::config_for(input)?;
+pub(crate) fn feed_input(input: &Input, raw: bool, tap: Option<feed::Tap>) -> Result<feed::Fed> {
+    let mut cfg = feed::config_for(input)?;
+    cfg.data_quality = !raw;
     let mut bar = super::progress::DelayedBar::new("analysing", "samples");
     let mut progress = |done: u64, total: Option<u64>| bar.update(done, total);
     let fed = feed::run(input, &cfg, &mut progress, tap)
@@ -126,11 +127,14 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
     let spec = args.spec.as_deref().map(Spec::load).transpose()?;
     let input = args.input.open()?;
     let path = input.path().to_path_buf();
-    let fed = feed_input(&input, None)?;
+    let fed = feed_input(&input, args.input.raw_statistics, None)?;
     for (kind, note) in stream_notes(&fed.report) {
         eprintln!("{kind}: {}: {note}", path.display());
     }
-    let analysis = fed.pipeline.analysis();
+    let analysis = fed.analysis();
+    if let Some(dq) = &analysis.data_quality {
+        print_quality(dq, &path);
+    }
     warn_about(&analysis, &path);
     write_exports(
         &args,
@@ -150,6 +154,27 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
             }
             Ok(())
         }
+    }
+}
+
+/// One line per data-quality finding on stderr, and a warning when anything
+/// was handled.
+pub(crate) fn print_quality(dq: &crate::quality::DataQuality, path: &Path) {
+    let lines = dq.lines();
+    if lines.is_empty() {
+        return;
+    }
+    if dq.handled_anything() {
+        eprintln!(
+            "warning: {}: the record is not stationary noise alone; the estimates are of the handled record \
+             (--raw-statistics for the record as it is):",
+            path.display()
+        );
+    } else {
+        eprintln!("note: {}:", path.display());
+    }
+    for l in lines {
+        eprintln!("  {l}");
     }
 }
 

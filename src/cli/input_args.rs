@@ -45,6 +45,10 @@ pub struct InputArgs {
     /// deg/h, deg/s or rad/s.
     #[arg(long, value_enum)]
     pub unit: Option<UnitArg>,
+    /// Turn the data-quality stage off: no glitch exclusion, no warm-up, step
+    /// or thermal handling (the raw statistics, for comparison).
+    #[arg(long)]
+    pub raw_statistics: bool,
 }
 
 /// `--format`.

@@ -62,9 +62,12 @@ pub fn run(args: ReportArgs) -> Result<()> {
         .with_context(|| format!("creating {}", args.out.display()))?;
     let mut collector = Collector::new(input.sample_rate_hz()?);
     let mut tap = |b: &TapBlock<'_>| collector.tap(b);
-    let fed = super::analyze::feed_input(&input, Some(&mut tap))?;
+    let fed = super::analyze::feed_input(&input, args.input.raw_statistics, Some(&mut tap))?;
     let meta = metadata(&input, &fed, &collector);
-    let analysis = fed.pipeline.analysis();
+    let analysis = fed.analysis();
+    if let Some(dq) = &analysis.data_quality {
+        super::analyze::print_quality(dq, input.path());
+    }
     if !analysis.fit.ok {
         eprintln!(
             "warning: {}: the noise model does not describe this recording (fit chi2/dof {:.2}); see the report",

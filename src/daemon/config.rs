@@ -282,6 +282,15 @@ impl Default for EstimatorConfig {
     }
 }
 
+/// The data-quality stage ([`crate::quality`]).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct QualityConfig {
+    /// Turn the stage off: no glitch exclusion, no warm-up, step or thermal
+    /// handling (the raw statistics, for comparison).
+    pub raw_statistics: bool,
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct MetricsConfig {
@@ -384,6 +393,7 @@ pub struct Config {
     pub dsp: DspConfig,
     pub allan: AllanConfig,
     pub estimator: EstimatorConfig,
+    pub quality: QualityConfig,
     pub metrics: MetricsConfig,
     pub record: RecordConfig,
     pub log: LogConfig,

@@ -628,6 +628,7 @@ impl Daemon {
                 wavelet: config.dsp.wavelet.clone(),
                 levels: (config.dsp.levels > 0).then_some(config.dsp.levels),
                 allan_cap: config.allan.full_overlap_max_m,
+                data_quality: !config.quality.raw_statistics,
             },
             interval_s: config.estimator.interval_s,
             batch_samples: config.record.batch_samples,

@@ -6,9 +6,19 @@
 //! are not whole numbers) are converted to deg/h and take the rate path. The
 //! samples made up to fill gaps go in as filled spans, which the statistics
 //! leave out ([`Pipeline::push_counts_filled`]).
+//!
+//! With the data-quality stage on ([`PipelineConfig::data_quality`]) the
+//! first pass also excludes glitches and keeps the block means; when the
+//! slow effects it finds (a warm-up, bias steps, a significant thermal
+//! response) call for a correction, a second pass reads the input again and
+//! runs the corrected rate through a new pipeline, whose estimates are the
+//! result ([`crate::quality`]).
 
-use super::{Pipeline, PipelineConfig, PipelineError, PipelineOutput};
+use super::{Analysis, Pipeline, PipelineConfig, PipelineError, PipelineOutput};
 use crate::input::{Block, Input, InputError, StreamReport, Unit};
+use crate::quality::davar::DavarMap;
+use crate::quality::lowfreq::{Correction, FineNoise};
+use crate::quality::{self, DataQuality};
 
 /// Called with (samples so far, total expected if known) as input is read.
 pub type Progress<'a> = &'a mut dyn FnMut(u64, Option<u64>);
@@ -30,7 +40,8 @@ pub struct TapBlock<'a> {
     pub gaps: u64,
     pub lost_samples: u64,
     /// The clean and noise rates this push produced (delayed by
-    /// [`Pipeline::latency`] samples; the final flush gives the rest).
+    /// [`Pipeline::latency`] samples and by the glitch filter's window; the
+    /// final flush gives the rest).
     pub out: &'a PipelineOutput,
 }
 
@@ -51,23 +62,82 @@ pub fn config_for(input: &Input) -> Result<PipelineConfig, InputError> {
 /// A pipeline that has taken a whole input.
 #[derive(Debug)]
 pub struct Fed {
-    /// The pipeline, finished (every sample has its clean and noise values).
+    /// The pipeline, finished (every sample has its clean and noise values):
+    /// the second pass's when the data-quality stage corrected the rate.
     pub pipeline: Pipeline,
     /// What the pass over the input met (gaps, frame counts, a break).
     pub report: StreamReport,
+    /// What the data-quality stage found and did (`None`: the raw statistics).
+    pub data_quality: Option<DataQuality>,
+    /// The first pass's dynamic Allan deviation (glitches excluded, nothing
+    /// else handled), for the report's figure.
+    pub davar: Option<DavarMap>,
+}
+
+impl Fed {
+    /// The final analysis, with the data-quality findings.
+    pub fn analysis(&self) -> Analysis {
+        let mut a = self.pipeline.analysis();
+        a.data_quality = self.data_quality.clone();
+        a
+    }
 }
 
 /// Run every sample of `input` through a pipeline configured by `cfg`,
-/// showing each push to `tap`.
+/// showing each push of the first pass to `tap`.
 pub fn run(
     input: &Input,
     cfg: &PipelineConfig,
     progress: Progress,
-    mut tap: Option<Tap>,
+    tap: Option<Tap>,
 ) -> Result<Fed, PipelineError> {
+    let (pipe, report) = pass(input, cfg, progress, tap, None)?;
+    if !cfg.data_quality {
+        return Ok(Fed {
+            pipeline: pipe,
+            report,
+            data_quality: None,
+            davar: None,
+        });
+    }
+    let est = pipe.estimator_output().estimates;
+    let fine = FineNoise {
+        arw_dpsh: est.arw_dpsh.value.unwrap_or(0.0),
+        quantization_arcsec: est.quantization_arcsec.value.unwrap_or(0.0),
+    };
+    let spikes = pipe.spike_report().cloned().unwrap_or_default();
+    let series = pipe
+        .block_series()
+        .expect("the data-quality stage keeps block means");
+    let davar = pipe.davar().map(|d| d.map());
+    let (mut dq, correction) = quality::assess(&spikes, &series, fine);
+    let final_pipe = if correction.is_empty() {
+        pipe
+    } else {
+        pass(input, cfg, &mut |_, _| {}, None, Some(&correction))?.0
+    };
+    dq.stationary = final_pipe.davar().and_then(|d| d.stationarity());
+    Ok(Fed {
+        pipeline: final_pipe,
+        report,
+        data_quality: Some(dq),
+        davar,
+    })
+}
+
+/// One pass over the input; with a `correction`, the rate path on the
+/// corrected rate.
+fn pass(
+    input: &Input,
+    cfg: &PipelineConfig,
+    progress: Progress,
+    mut tap: Option<Tap>,
+    correction: Option<&Correction>,
+) -> Result<(Pipeline, StreamReport), PipelineError> {
     let meta = input.meta();
+    let exact = meta.integral && correction.is_none();
     let mut c = cfg.clone();
-    if !meta.integral {
+    if !exact {
         c.pulse_arcsec = None;
     }
     let mut pipe = Pipeline::new(&c)?;
@@ -79,23 +149,31 @@ pub fn run(
     let tau0 = 1.0 / cfg.sample_rate_hz;
     while stream.next_block(&mut block)? {
         out.clear();
-        let first_sample = pipe.samples();
+        let first_sample = pipe.samples_in();
+        if !block.temp_c.is_empty() {
+            pipe.push_temperature(first_sample, &block.temp_c);
+        }
         rates.clear();
-        if meta.integral {
+        if exact {
             pipe.push_counts_filled(&block.counts, &block.filled, &mut out);
             if tap.is_some() {
                 let k = pulse * cfg.sample_rate_hz;
                 rates.extend(block.counts.iter().map(|&c| c as f64 * k));
             }
         } else {
-            let unit = meta.unit;
-            rates.extend(block.values.iter().map(|&v| unit.to_dph(v, pulse, tau0)));
+            raw_rates(meta.integral, meta.unit, &block, pulse, tau0, &mut rates);
+            if let Some(corr) = correction {
+                for (i, r) in rates.iter_mut().enumerate() {
+                    let t = (first_sample + i as u64) as f64 * tau0;
+                    *r -= corr.mean_dph(t, t + tau0);
+                }
+            }
             pipe.push_rates_dph_filled(&rates, &block.filled, &mut out)?;
         }
         if let Some(tap) = tap.as_deref_mut() {
             tap(&TapBlock {
                 first_sample,
-                counts: meta.integral.then_some(&block.counts[..]),
+                counts: exact.then_some(&block.counts[..]),
                 rate_dph: &rates,
                 temp_c: (!block.temp_c.is_empty()).then_some(&block.temp_c[..]),
                 gaps: block.gaps,
@@ -103,7 +181,7 @@ pub fn run(
                 out: &out,
             });
         }
-        progress(pipe.samples(), meta.len_hint);
+        progress(pipe.samples_in(), meta.len_hint);
     }
     out.clear();
     pipe.finish(&mut out);
@@ -118,8 +196,15 @@ pub fn run(
             out: &out,
         });
     }
-    Ok(Fed {
-        pipeline: pipe,
-        report: stream.report(),
-    })
+    Ok((pipe, stream.report()))
+}
+
+/// The block's samples as deg/h.
+fn raw_rates(integral: bool, unit: Unit, block: &Block, pulse: f64, tau0: f64, out: &mut Vec<f64>) {
+    if integral {
+        let k = pulse / tau0;
+        out.extend(block.counts.iter().map(|&c| c as f64 * k));
+    } else {
+        out.extend(block.values.iter().map(|&v| unit.to_dph(v, pulse, tau0)));
+    }
 }

@@ -38,6 +38,9 @@ use crate::model::estimate::{
     RampAccumulator,
 };
 use crate::model::fit::{FitOptions, LevelObs};
+use crate::quality::blocks::BlockMeans;
+use crate::quality::davar::Davar;
+use crate::quality::spikes::{Emitted, Series, SpikeFilter};
 
 pub mod feed;
 
@@ -71,6 +74,11 @@ pub struct PipelineConfig {
     pub levels: Option<u32>,
     /// Largest averaging factor with full overlap in the Allan accumulators.
     pub allan_cap: u64,
+    /// Run the data-quality stage ([`crate::quality`]): glitches excluded as
+    /// gaps before anything else sees the samples, block means and the
+    /// dynamic Allan deviation kept for the slow effects. Off: the raw
+    /// statistics (`--raw-statistics`).
+    pub data_quality: bool,
 }
 
 impl PipelineConfig {
@@ -82,6 +90,7 @@ impl PipelineConfig {
             wavelet: "sym8".into(),
             levels: None,
             allan_cap: 1 << 16,
+            data_quality: true,
         }
     }
     /// Defaults for rate input (deg/h) at `sample_rate_hz`.
@@ -167,6 +176,10 @@ pub struct Analysis {
     /// The readout filter the data show, or `null`.
     pub readout_filter: Option<FilterEstimate>,
     pub baselines: Baselines,
+    /// What the data-quality stage found and handled (absent with the raw
+    /// statistics).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub data_quality: Option<crate::quality::DataQuality>,
 }
 
 /// Streaming per-level mean squares of a DWT, to any depth (two cascaded
@@ -423,6 +436,19 @@ pub struct Pipeline {
     /// longer (a rate sample after a filled one is not measured either).
     fill_abs: Vec<Range<u64>>,
     fill_rate: Vec<Range<u64>>,
+    /// The data-quality stage, when on.
+    quality: Option<Quality>,
+}
+
+/// The data-quality stage's parts that run inside the pipeline.
+#[derive(Debug)]
+struct Quality {
+    spikes: SpikeFilter,
+    emitted: Emitted,
+    blocks: BlockMeans,
+    davar: Davar,
+    /// Samples taken in (emitted or pending in the spike filter).
+    taken: u64,
 }
 
 /// Depth of the deep (rate) level accumulator.
@@ -468,12 +494,51 @@ impl Pipeline {
             angle_buf: Vec::new(),
             fill_abs: Vec::new(),
             fill_rate: Vec::new(),
+            quality: cfg.data_quality.then(|| Quality {
+                spikes: SpikeFilter::new(if cfg.pulse_arcsec.is_some() {
+                    Series::Counts
+                } else {
+                    Series::Rates
+                }),
+                emitted: Emitted::default(),
+                blocks: BlockMeans::new(tau0_s),
+                davar: Davar::new(tau0_s),
+                taken: 0,
+            }),
         })
     }
 
-    /// Samples pushed.
+    /// Samples through the statistics (those a glitch filter still holds are not).
     pub fn samples(&self) -> u64 {
         self.samples
+    }
+
+    /// Samples pushed in (the statistics' and those the glitch filter holds).
+    pub fn samples_in(&self) -> u64 {
+        self.quality.as_ref().map_or(self.samples, |q| q.taken)
+    }
+
+    /// Temperatures (deg C) of samples `first..` (absolute indices), for the
+    /// data-quality stage's thermal analysis.
+    pub fn push_temperature(&mut self, first: u64, temp_c: &[f64]) {
+        if let Some(q) = &mut self.quality {
+            q.blocks.push_temps(first, temp_c);
+        }
+    }
+
+    /// What the glitch filter found so far.
+    pub fn spike_report(&self) -> Option<&crate::quality::spikes::SpikeReport> {
+        self.quality.as_ref().map(|q| q.spikes.report())
+    }
+
+    /// Block means of the rate and temperature so far.
+    pub fn block_series(&self) -> Option<crate::quality::blocks::BlockSeries> {
+        self.quality.as_ref().map(|q| q.blocks.series())
+    }
+
+    /// The dynamic Allan deviation so far.
+    pub fn davar(&self) -> Option<&Davar> {
+        self.quality.as_ref().map(|q| &q.davar)
     }
     /// Delay of the clean/noise outputs, samples.
     pub fn latency(&self) -> usize {
@@ -539,6 +604,27 @@ impl Pipeline {
         filled: &[Range<usize>],
         out: &mut PipelineOutput,
     ) {
+        let Some(q) = &mut self.quality else {
+            return self.process_counts(counts, filled, out);
+        };
+        q.taken += counts.len() as u64;
+        let mut e = std::mem::take(&mut q.emitted);
+        e.clear();
+        q.spikes.push_counts(counts, filled, &mut e);
+        if !e.counts.is_empty() {
+            self.process_counts(&e.counts, &e.filled, out);
+        }
+        if let Some(q) = &mut self.quality {
+            q.emitted = e;
+        }
+    }
+
+    fn process_counts(
+        &mut self,
+        counts: &[i64],
+        filled: &[Range<usize>],
+        out: &mut PipelineOutput,
+    ) {
         self.set_filled(filled, counts.len());
         let d = self.cfg.pulse_arcsec.unwrap_or(1.0);
         if let Some(a) = &mut self.raw_counts {
@@ -565,6 +651,30 @@ impl Pipeline {
     /// Push rates in deg/h with the spans `filled` made up (see
     /// [`Self::push_counts_filled`]).
     pub fn push_rates_dph_filled(
+        &mut self,
+        rates: &[f64],
+        filled: &[Range<usize>],
+        out: &mut PipelineOutput,
+    ) -> Result<(), PipelineError> {
+        let Some(q) = &mut self.quality else {
+            return self.process_rates_dph(rates, filled, out);
+        };
+        q.taken += rates.len() as u64;
+        let mut e = std::mem::take(&mut q.emitted);
+        e.clear();
+        q.spikes.push_rates(rates, filled, &mut e);
+        let r = if e.rates.is_empty() {
+            Ok(())
+        } else {
+            self.process_rates_dph(&e.rates, &e.filled, out)
+        };
+        if let Some(q) = &mut self.quality {
+            q.emitted = e;
+        }
+        r
+    }
+
+    fn process_rates_dph(
         &mut self,
         rates: &[f64],
         filled: &[Range<usize>],
@@ -608,6 +718,17 @@ impl Pipeline {
     }
 
     fn process_rates(&mut self, out: &mut PipelineOutput) {
+        if let Some(q) = &mut self.quality {
+            let base = self.samples;
+            // this push's filled spans, relative (from the absolute ones)
+            let rel: Vec<Range<usize>> = self
+                .fill_abs
+                .iter()
+                .map(|r| (r.start - base) as usize..(r.end - base) as usize)
+                .collect();
+            q.blocks.push_rates(base, &self.rate_buf, &rel);
+            q.davar.push(&self.rate_buf, &rel);
+        }
         let n0 = out.clean_dph.len();
         self.splitter
             .push(&self.rate_buf, &mut out.clean_dph, &mut out.noise_dph);
@@ -634,6 +755,17 @@ impl Pipeline {
     /// End of stream: flush the wavelet bank so every sample has its clean and
     /// noise values.
     pub fn finish(&mut self, out: &mut PipelineOutput) {
+        if let Some(q) = &mut self.quality {
+            let mut e = std::mem::take(&mut q.emitted);
+            e.clear();
+            q.spikes.finish(&mut e);
+            if !e.counts.is_empty() {
+                self.process_counts(&e.counts, &e.filled, out);
+            } else if !e.rates.is_empty() {
+                // finite rates were checked as they came in
+                let _ = self.process_rates_dph(&e.rates, &e.filled, out);
+            }
+        }
         let n0 = out.clean_dph.len();
         self.splitter.flush(&mut out.clean_dph, &mut out.noise_dph);
         self.feed_channels(n0, out);
@@ -732,6 +864,7 @@ impl Pipeline {
                 graphical: baseline::graphical(&adev),
                 wls_raw: baseline::wls_raw(&adev),
             },
+            data_quality: None,
         }
     }
 }

@@ -1,0 +1,252 @@
+//! Step 4 of the method: the shape parameters refined, every effect's
+//! profile-likelihood intervals, and the correction of the rate.
+
+use super::super::gls::{Cholesky, GlsFit, gls};
+use super::{
+    Analysis, CHI2_95, Correction, Effect, Interval, LowFreq, StepFit, ThermalCorrection,
+    ThermalFit, WarmupFit, Z_975, lag_grid, log_grid,
+};
+
+/// Points of a profile.
+const PROFILE_POINTS: usize = 96;
+
+/// One point of a profile: the shape parameter, the whitened residual sum of
+/// squares, and the effect's amplitude with its standard error.
+#[derive(Debug, Clone, Copy)]
+struct Point {
+    param: f64,
+    rss: f64,
+    amp: f64,
+    se: f64,
+}
+
+impl Effect {
+    fn param(self) -> f64 {
+        match self {
+            Effect::Warmup { tau_s } => tau_s,
+            Effect::Step { at_s } => at_s,
+            Effect::Thermal { lag_s } => lag_s,
+        }
+    }
+    fn with(self, p: f64) -> Effect {
+        match self {
+            Effect::Warmup { .. } => Effect::Warmup { tau_s: p },
+            Effect::Step { .. } => Effect::Step { at_s: p },
+            Effect::Thermal { .. } => Effect::Thermal { lag_s: p.max(0.0) },
+        }
+    }
+}
+
+impl Analysis<'_> {
+    fn gls(&self, chol: &Cholesky, effects: &[Effect]) -> Option<GlsFit> {
+        gls(chol, &self.c.y, &self.columns(effects))
+    }
+
+    /// The range a shape parameter is searched and profiled over.
+    fn range(&self, e: Effect) -> (f64, f64, bool) {
+        let t = self.c.block_s;
+        match e {
+            Effect::Warmup { .. } => (0.25 * t, self.span_s, true),
+            Effect::Step { at_s } => (
+                (at_s - 1.5 * t).max(t),
+                (at_s + 1.5 * t).min(self.span_s - t),
+                false,
+            ),
+            Effect::Thermal { .. } => {
+                let g = lag_grid(t, self.span_s);
+                (0.0, *g.last().unwrap_or(&0.0), false)
+            }
+        }
+    }
+
+    /// The profile of effect `i` over its range, the others held.
+    fn profile(&self, chol: &Cholesky, effects: &[Effect], i: usize) -> Vec<Point> {
+        let (lo, hi, log) = self.range(effects[i]);
+        let grid = if log {
+            log_grid(lo, hi, PROFILE_POINTS)
+        } else {
+            (0..PROFILE_POINTS)
+                .map(|k| lo + (hi - lo) * k as f64 / (PROFILE_POINTS - 1) as f64)
+                .collect()
+        };
+        let mut es = effects.to_vec();
+        grid.into_iter()
+            .filter_map(|p| {
+                es[i] = effects[i].with(p);
+                let f = self.gls(chol, &es)?;
+                let k = 2 + i;
+                let p_all = f.beta.len();
+                Some(Point {
+                    param: p,
+                    rss: f.rss,
+                    amp: f.beta[k],
+                    se: f.cov[k * p_all + k].max(0.0).sqrt(),
+                })
+            })
+            .collect()
+    }
+
+    /// Golden-section refinement of effect `i`'s shape parameter about the
+    /// best point of its profile.
+    fn refine(&self, chol: &Cholesky, effects: &[Effect], i: usize) -> Effect {
+        let prof = self.profile(chol, effects, i);
+        let Some(k) = (0..prof.len()).min_by(|&a, &b| prof[a].rss.total_cmp(&prof[b].rss)) else {
+            return effects[i];
+        };
+        let (mut a, mut b) = (
+            prof[k.saturating_sub(1)].param,
+            prof[(k + 1).min(prof.len() - 1)].param,
+        );
+        let mut es = effects.to_vec();
+        let mut f = |p: f64| {
+            es[i] = effects[i].with(p);
+            self.gls(chol, &es).map_or(f64::INFINITY, |g| g.rss)
+        };
+        let g = 0.618_033_988_749_894_9;
+        let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
+        let (mut fc, mut fd) = (f(c), f(d));
+        for _ in 0..30 {
+            if fc < fd {
+                b = d;
+                d = c;
+                fd = fc;
+                c = b - g * (b - a);
+                fc = f(c);
+            } else {
+                a = c;
+                c = d;
+                fc = fd;
+                d = a + g * (b - a);
+                fd = f(d);
+            }
+        }
+        let best = if fc < fd { c } else { d };
+        if f(best) <= prof[k].rss {
+            effects[i].with(best)
+        } else {
+            effects[i].with(prof[k].param)
+        }
+    }
+
+    /// Step 4: refine, fit, and report with intervals and the correction.
+    pub(super) fn report(&self, mut effects: Vec<Effect>) -> Option<LowFreq> {
+        for _ in 0..2 {
+            let chol = self.fit(&effects)?.chol;
+            for i in 0..effects.len() {
+                effects[i] = self.refine(&chol, &effects, i);
+            }
+        }
+        let fitted = self.fit(&effects)?;
+        let chol = &fitted.chol;
+        let fit = self.gls(chol, &effects)?;
+        let mut out = LowFreq {
+            bias_instability_dph: fitted.b2.sqrt(),
+            rrw_dphsh: fitted.k2.sqrt(),
+            ..LowFreq::default()
+        };
+        for (i, e) in effects.iter().enumerate() {
+            let (param, amp) = intervals(&self.profile(chol, &effects, i), *e, fit.beta[2 + i]);
+            match e {
+                Effect::Warmup { .. } => {
+                    out.warmup = Some(WarmupFit {
+                        amplitude_dph: amp,
+                        tau_s: param,
+                    });
+                    out.correction.warmup = Some((amp.value, param.value));
+                }
+                Effect::Step { .. } => {
+                    out.steps.push(StepFit {
+                        at_s: param,
+                        amplitude_dph: amp,
+                    });
+                    out.correction.steps.push((param.value, amp.value));
+                }
+                Effect::Thermal { .. } => {
+                    out.thermal = Some(ThermalFit {
+                        bias_sensitivity_dph_per_c: amp,
+                        lag_s: param,
+                        compensated: true,
+                    });
+                    out.correction.thermal = self.thermal_correction(amp.value, param.value);
+                }
+            }
+        }
+        out.steps
+            .sort_by(|a, b| a.at_s.value.total_cmp(&b.at_s.value));
+        if out.thermal.is_none() && self.temp.is_some() {
+            out.thermal = self.thermal_not_significant(chol, &effects);
+        }
+        Some(out)
+    }
+
+    /// A temperature's response that did not pass its test: its estimate and
+    /// intervals, for the report; the rate is not compensated.
+    fn thermal_not_significant(&self, chol: &Cholesky, effects: &[Effect]) -> Option<ThermalFit> {
+        let mut es = effects.to_vec();
+        es.push(Effect::Thermal { lag_s: 0.0 });
+        let i = es.len() - 1;
+        let prof = self.profile(chol, &es, i);
+        let best = prof.iter().min_by(|a, b| a.rss.total_cmp(&b.rss))?;
+        es[i] = Effect::Thermal { lag_s: best.param };
+        let (lag, amp) = intervals(&prof, es[i], best.amp);
+        Some(ThermalFit {
+            bias_sensitivity_dph_per_c: amp,
+            lag_s: lag,
+            compensated: false,
+        })
+    }
+
+    fn thermal_correction(&self, sensitivity: f64, lag_s: f64) -> Option<ThermalCorrection> {
+        let temp = self.temp.clone()?;
+        let reference_c = temp.values.iter().sum::<f64>() / temp.values.len() as f64;
+        let _ = self.series;
+        Some(ThermalCorrection {
+            sensitivity,
+            lag_s,
+            reference_c,
+            temp,
+        })
+    }
+}
+
+/// The profile-likelihood intervals of a shape parameter and of the effect's
+/// amplitude (the union over the parameter's interval of the amplitude's
+/// conditional intervals at the level left).
+fn intervals(prof: &[Point], e: Effect, amp: f64) -> (Interval, Interval) {
+    let rss_min = prof.iter().map(|p| p.rss).fold(f64::INFINITY, f64::min);
+    let inside: Vec<&Point> = prof.iter().filter(|p| p.rss - rss_min < CHI2_95).collect();
+    let p = e.param();
+    let (mut plo, mut phi) = (p, p);
+    let (mut alo, mut ahi) = (amp, amp);
+    for q in &inside {
+        plo = plo.min(q.param);
+        phi = phi.max(q.param);
+        let half = q.se * (CHI2_95 - (q.rss - rss_min)).max(0.0).sqrt();
+        alo = alo.min(q.amp - half);
+        ahi = ahi.max(q.amp + half);
+    }
+    // never narrower than the amplitude's own interval at the estimate
+    if let Some(q) = prof.iter().min_by(|a, b| a.rss.total_cmp(&b.rss)) {
+        alo = alo.min(amp - Z_975 * q.se);
+        ahi = ahi.max(amp + Z_975 * q.se);
+    }
+    (
+        Interval {
+            value: p,
+            ci95: [plo, phi],
+        },
+        Interval {
+            value: amp,
+            ci95: [alo, ahi],
+        },
+    )
+}
+
+impl Correction {
+    /// Apply to block means (a test helper and the daemon's live view).
+    pub fn apply_to_blocks(&self, t0: &[f64], block_s: f64, y: &mut [f64]) {
+        for (v, &t) in y.iter_mut().zip(t0) {
+            *v -= self.mean_dph(t, t + block_s);
+        }
+    }
+}
