@@ -698,3 +698,113 @@ fn finite_runs_end_exactly() {
     let e = Simulator::new(&m, 1, Some(1e-4)).unwrap_err().to_string();
     assert!(e.contains("duration_s = 0.0001"), "{e}");
 }
+
+// ---------------------------------------------------------------------------
+// Bit-identical output of models without the warm-up, bias step, spike and
+// thermal-lag terms
+// ---------------------------------------------------------------------------
+
+/// FNV-1a over 64-bit words: a fingerprint of a whole output stream.
+fn fnv1a(words: impl IntoIterator<Item = u64>) -> u64 {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    for w in words {
+        for b in w.to_le_bytes() {
+            h ^= u64::from(b);
+            h = h.wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+    h
+}
+
+/// Every term the simulator had before the warm-up, bias step, spike and
+/// thermal-lag terms, with a readout filter and a thermal channel.
+const EVERY_OLD_TERM: &str = "
+[noise]
+quantization_arcsec = 0.5
+arw_dpsh = 0.01
+bias_instability_dph = 0.02
+rrw_dphsh = 0.05
+rate_ramp_dphh = 0.3
+[[noise.gauss_markov]]
+sigma_dph = 0.08
+tau_c_s = 0.9
+[[noise.sinusoid]]
+amplitude_dph = 0.04
+period_s = 6.0
+[[noise.random_telegraph]]
+amplitude_dph = 0.03
+mean_dwell_s = 0.3
+[[noise.resonance]]
+sigma_dph = 0.05
+centre_hz = 80.0
+width_hz = 5.0
+[thermal]
+temp_c0 = 25.0
+ramp_c_per_h = 3.0
+sine_amplitude_c = 0.3
+sine_period_s = 7.0
+bias_sensitivity_dph_per_c = 0.2
+";
+
+/// Fingerprints of 200 000 samples (counts or rate-word bits, then the
+/// temperature bits) at seed 11, and the first five outputs.
+fn fingerprint_old_terms(output: &str) -> (u64, Vec<f64>) {
+    let gyro = match output {
+        "counts" => "[gyro]\nsample_rate_hz = 1000.0\npulse_arcsec = 0.05\ninput_rate_dph = 12.3\n",
+        _ => {
+            "[gyro]\nsample_rate_hz = 1000.0\noutput = \"rate\"\nrate_lsb_dps = 1e-6\ninput_rate_dph = 12.3\n"
+        }
+    };
+    let filter = match output {
+        "counts" => "[readout_filter]\nkind = \"moving_average\"\nlength = 5\n",
+        _ => "[readout_filter]\nkind = \"first_order\"\ncorner_hz = 120.0\n",
+    };
+    let m =
+        GyroModel::from_toml_str(&format!("{gyro}{EVERY_OLD_TERM}{filter}"), "old terms").unwrap();
+    let n = 200_000;
+    let mut sim = Simulator::new(&m, 11, Some(n as f64 / 1000.0)).unwrap();
+    let (mut words, mut temps) = (Vec::new(), Vec::new());
+    if output == "counts" {
+        let mut c = Vec::new();
+        while sim.next_block_with_temp(7_777, &mut c, &mut temps) > 0 {}
+        words.extend(c.iter().map(|&v| v as u64));
+    } else {
+        let mut r = Vec::new();
+        while sim.next_block_rates(7_777, &mut r, &mut temps) > 0 {}
+        words.extend(r.iter().map(|v| v.to_bits()));
+    }
+    assert_eq!((words.len(), temps.len()), (n, n));
+    let head = words[..5]
+        .iter()
+        .map(|&w| match output {
+            "counts" => w as i64 as f64,
+            _ => f64::from_bits(w),
+        })
+        .collect();
+    (
+        fnv1a(words.into_iter().chain(temps.iter().map(|t| t.to_bits()))),
+        head,
+    )
+}
+
+/// A model without the warm-up, bias step, spike and thermal-lag terms gives
+/// bit for bit the output it gave before those terms existed (fingerprints
+/// taken from the simulator of that time), counts and rate words alike.
+#[test]
+fn models_without_the_transient_terms_are_bit_identical() {
+    let (h, head) = fingerprint_old_terms("counts");
+    assert_eq!(head, [-11.0, 9.0, 5.0, -20.0, 5.0]);
+    assert_eq!(h, 0x6e49_da43_0a8c_a2bc, "counts fingerprint {h:#018x}");
+    let (h, head) = fingerprint_old_terms("rate");
+    assert_eq!(
+        head,
+        [
+            -0.14907099999999998,
+            0.11677699999999999,
+            0.08051,
+            -0.279819,
+            0.071632
+        ]
+    );
+    assert_eq!(h, 0x6bac_797a_154d_60fa, "rate fingerprint {h:#018x}");
+}
