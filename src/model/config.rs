@@ -224,6 +224,51 @@ pub const MAX_RATE_DPH: f64 = 1e9;
 /// Shortest telegraph mean dwell, in sample periods.
 pub const MIN_DWELL_PER_SAMPLE: f64 = 0.01;
 
+/// A value for an error message: tiny and huge values in exponent form, not 300 digits.
+fn show(v: f64) -> String {
+    if v != 0.0 && v.is_finite() && !(1e-4..1e9).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        v.to_string()
+    }
+}
+
+fn finite(key: &str, v: f64) -> Result<(), ModelError> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(ModelError::invalid(key, show(v), "must be finite"))
+    }
+}
+
+fn nonneg(key: &str, v: f64) -> Result<(), ModelError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(ModelError::invalid(key, show(v), "must be finite and >= 0"))
+    }
+}
+
+fn positive(key: &str, v: f64) -> Result<(), ModelError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(ModelError::invalid(key, show(v), "must be finite and > 0"))
+    }
+}
+
+fn within(key: &str, v: f64, lo: f64, hi: f64, unit: &str) -> Result<(), ModelError> {
+    if (lo..=hi).contains(&v) {
+        Ok(())
+    } else {
+        Err(ModelError::invalid(
+            key,
+            show(v),
+            format!("must be in [{lo:e}, {hi:e}] {unit}"),
+        ))
+    }
+}
+
 impl GyroModel {
     /// Parse and validate a model from TOML text; `origin` names the source in errors.
     pub fn from_toml_str(text: &str, origin: &str) -> Result<Self, ModelError> {
@@ -299,46 +344,15 @@ impl GyroModel {
 
     /// Check every value; errors name the key (with its table path) and the value.
     pub fn validate(&self) -> Result<(), ModelError> {
-        // tiny and huge values in exponent form, not 300 digits
-        fn show(v: f64) -> String {
-            if v != 0.0 && v.is_finite() && !(1e-4..1e9).contains(&v.abs()) {
-                format!("{v:e}")
-            } else {
-                v.to_string()
-            }
-        }
-        fn finite(key: &str, v: f64) -> Result<(), ModelError> {
-            if v.is_finite() {
-                Ok(())
-            } else {
-                Err(ModelError::invalid(key, show(v), "must be finite"))
-            }
-        }
-        fn nonneg(key: &str, v: f64) -> Result<(), ModelError> {
-            if v.is_finite() && v >= 0.0 {
-                Ok(())
-            } else {
-                Err(ModelError::invalid(key, show(v), "must be finite and >= 0"))
-            }
-        }
-        fn positive(key: &str, v: f64) -> Result<(), ModelError> {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
-                Err(ModelError::invalid(key, show(v), "must be finite and > 0"))
-            }
-        }
-        fn within(key: &str, v: f64, lo: f64, hi: f64, unit: &str) -> Result<(), ModelError> {
-            if (lo..=hi).contains(&v) {
-                Ok(())
-            } else {
-                Err(ModelError::invalid(
-                    key,
-                    show(v),
-                    format!("must be in [{lo:e}, {hi:e}] {unit}"),
-                ))
-            }
-        }
+        self.validate_gyro()?;
+        self.validate_noise()?;
+        self.validate_catalog()?;
+        self.validate_thermal()
+    }
+
+    /// `[gyro]` and the `[readout_filter]` (whose corner is checked against
+    /// the sample rate).
+    fn validate_gyro(&self) -> Result<(), ModelError> {
         let g = &self.gyro;
         within(
             "gyro.sample_rate_hz",
@@ -390,8 +404,11 @@ impl GyroModel {
             -MAX_RATE_DPH,
             MAX_RATE_DPH,
             "deg/h",
-        )?;
+        )
+    }
 
+    /// The IEEE 952 coefficients of `[noise]`.
+    fn validate_noise(&self) -> Result<(), ModelError> {
         let n = &self.noise;
         if let Some(q) = n.quantization_arcsec {
             nonneg("noise.quantization_arcsec", q)?;
@@ -415,7 +432,7 @@ impl GyroModel {
         }
         if let Some(v) = n.bias_instability_f_lo_hz {
             positive("noise.bias_instability_f_lo_hz", v)?;
-            let top = super::terms::FLICKER_TOP_PER_SAMPLE_RATE * g.sample_rate_hz;
+            let top = super::terms::FLICKER_TOP_PER_SAMPLE_RATE * self.gyro.sample_rate_hz;
             if v * 2.0 > top {
                 return Err(ModelError::invalid(
                     "noise.bias_instability_f_lo_hz",
@@ -432,6 +449,14 @@ impl GyroModel {
         if let Some(v) = n.rate_ramp_dphh {
             finite("noise.rate_ramp_dphh", v)?;
         }
+        Ok(())
+    }
+
+    /// The catalog terms, `[[noise.gauss_markov]]`, `[[noise.sinusoid]]`,
+    /// `[[noise.random_telegraph]]` and `[[noise.resonance]]`; keys are named
+    /// with the entry's index, `noise.sinusoid[0].period_s`.
+    fn validate_catalog(&self) -> Result<(), ModelError> {
+        let (n, fs) = (&self.noise, self.gyro.sample_rate_hz);
         for (i, t) in n.gauss_markov.iter().enumerate() {
             nonneg(&format!("noise.gauss_markov[{i}].sigma_dph"), t.sigma_dph)?;
             positive(&format!("noise.gauss_markov[{i}].tau_c_s"), t.tau_c_s)?;
@@ -450,7 +475,7 @@ impl GyroModel {
             )?;
             // the simulator draws each switch: a dwell far below the sample
             // period would cost unbounded work per sample (and is white noise)
-            let min_dwell = MIN_DWELL_PER_SAMPLE / g.sample_rate_hz;
+            let min_dwell = MIN_DWELL_PER_SAMPLE / fs;
             if !(t.mean_dwell_s.is_finite() && t.mean_dwell_s >= min_dwell) {
                 return Err(ModelError::invalid(
                     format!("noise.random_telegraph[{i}].mean_dwell_s"),
@@ -462,7 +487,7 @@ impl GyroModel {
         for (i, t) in n.resonance.iter().enumerate() {
             let key = |k: &str| format!("noise.resonance[{i}].{k}");
             nonneg(&key("sigma_dph"), t.sigma_dph)?;
-            let nyquist = 0.5 * g.sample_rate_hz;
+            let nyquist = 0.5 * fs;
             if !(t.centre_hz > 0.0 && t.centre_hz < nyquist) {
                 return Err(ModelError::invalid(
                     key("centre_hz"),
@@ -473,35 +498,40 @@ impl GyroModel {
                 ));
             }
             // the pole radius exp(-pi w tau0) must stay below 1 and above 0
-            if !(t.width_hz > 0.0 && t.width_hz <= g.sample_rate_hz) {
+            if !(t.width_hz > 0.0 && t.width_hz <= fs) {
                 return Err(ModelError::invalid(
                     key("width_hz"),
                     show(t.width_hz),
-                    format!("must be in (0, {}] Hz (the sample rate)", g.sample_rate_hz),
+                    format!("must be in (0, {fs}] Hz (the sample rate)"),
                 ));
             }
         }
-        if let Some(th) = &self.thermal {
-            finite("thermal.temp_c0", th.temp_c0)?;
-            finite("thermal.ramp_c_per_h", th.ramp_c_per_h)?;
-            nonneg("thermal.sine_amplitude_c", th.sine_amplitude_c)?;
-            match th.sine_period_s {
-                Some(p) => positive("thermal.sine_period_s", p)?,
-                None if th.sine_amplitude_c > 0.0 => {
-                    return Err(ModelError::invalid(
-                        "thermal.sine_period_s",
-                        "(missing)",
-                        "required when thermal.sine_amplitude_c > 0",
-                    ));
-                }
-                None => {}
-            }
-            finite(
-                "thermal.bias_sensitivity_dph_per_c",
-                th.bias_sensitivity_dph_per_c,
-            )?;
-        }
         Ok(())
+    }
+
+    /// `[thermal]`.
+    fn validate_thermal(&self) -> Result<(), ModelError> {
+        let Some(th) = &self.thermal else {
+            return Ok(());
+        };
+        finite("thermal.temp_c0", th.temp_c0)?;
+        finite("thermal.ramp_c_per_h", th.ramp_c_per_h)?;
+        nonneg("thermal.sine_amplitude_c", th.sine_amplitude_c)?;
+        match th.sine_period_s {
+            Some(p) => positive("thermal.sine_period_s", p)?,
+            None if th.sine_amplitude_c > 0.0 => {
+                return Err(ModelError::invalid(
+                    "thermal.sine_period_s",
+                    "(missing)",
+                    "required when thermal.sine_amplitude_c > 0",
+                ));
+            }
+            None => {}
+        }
+        finite(
+            "thermal.bias_sensitivity_dph_per_c",
+            th.bias_sensitivity_dph_per_c,
+        )
     }
 
     /// The model's noise terms for the Allan analysis, in a fixed order:

@@ -59,7 +59,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Exp1, StandardNormal};
 
 use super::ModelError;
-use super::config::{GyroModel, OutputKind};
+use super::config::{GyroModel, OutputKind, ThermalParams};
 use super::filter::FilterState;
 use super::terms::FlickerBank;
 use crate::units;
@@ -254,37 +254,45 @@ pub struct Simulator {
     e_prev: f64,
 }
 
-impl Simulator {
-    /// A simulator for `model` (validated here), seeded with `seed`. With
-    /// `duration_s = Some(D)` the stream ends after `round(D fs)` samples;
-    /// with `None` it is unbounded.
-    pub fn new(model: &GyroModel, seed: u64, duration_s: Option<f64>) -> Result<Self, ModelError> {
-        model.validate()?;
+/// Samples of a run of `duration_s` at `fs` (`None`: unbounded).
+fn run_length(duration_s: Option<f64>, fs: f64) -> Result<Option<u64>, ModelError> {
+    let Some(dur) = duration_s else {
+        return Ok(None);
+    };
+    if !(dur.is_finite() && dur > 0.0) {
+        return Err(ModelError::invalid(
+            "duration_s",
+            dur,
+            "must be finite and > 0",
+        ));
+    }
+    let n = (dur * fs).round();
+    if n < 1.0 {
+        return Err(ModelError::invalid(
+            "duration_s",
+            dur,
+            "shorter than one sample period",
+        ));
+    }
+    Ok(Some(n as u64))
+}
+
+/// The Gaussian terms: the OU processes (flicker bank components, then the
+/// Gauss-Markov biases), the rate random walk, and the variance of the one
+/// merged white normal per sample (ARW, the flicker's white tail, and the
+/// conditional residuals of the OU and RRW increments).
+struct GaussianTerms {
+    white_var: f64,
+    ous: Vec<Ou>,
+    flicker: Option<FlickerBank>,
+    rrw: Option<Rrw>,
+}
+
+impl GaussianTerms {
+    fn new(model: &GyroModel, seed: u64) -> Result<Self, ModelError> {
+        let noise = &model.noise;
         let fs = model.gyro.sample_rate_hz;
         let tau0 = 1.0 / fs;
-        let d = model.gyro.pulse_arcsec;
-        let total = match duration_s {
-            None => None,
-            Some(dur) => {
-                if !(dur.is_finite() && dur > 0.0) {
-                    return Err(ModelError::invalid(
-                        "duration_s",
-                        dur,
-                        "must be finite and > 0",
-                    ));
-                }
-                let n = (dur * fs).round();
-                if n < 1.0 {
-                    return Err(ModelError::invalid(
-                        "duration_s",
-                        dur,
-                        "shorter than one sample period",
-                    ));
-                }
-                Some(n as u64)
-            }
-        };
-        let noise = &model.noise;
         let mut white_var = 0.0;
         if let Some(n) = noise.arw_dpsh {
             let n = units::dpsh_to_arcsec_per_sqrt_s(n);
@@ -339,57 +347,85 @@ impl Simulator {
                 rng: rng_for(seed, STREAM_RRW),
             }
         });
-        let sines = noise
-            .sinusoid
-            .iter()
-            .enumerate()
-            .filter(|(_, s)| s.amplitude_dph > 0.0)
-            .map(|(i, s)| {
-                let a = units::dph_to_arcsec_per_s(s.amplitude_dph);
-                let omega = 2.0 * PI / s.period_s;
-                let mut rng = rng_for(seed, STREAM_SINE + i as u64);
-                let phase = 2.0 * PI * rng.random::<f64>();
-                Sine {
-                    gain: 2.0 * a / omega * (0.5 * omega * tau0).sin(),
-                    omega,
-                    phase,
-                }
-            })
-            .collect();
-        let resonances = noise
-            .resonance
-            .iter()
-            .enumerate()
-            .filter(|(_, r)| r.sigma_dph > 0.0)
-            .map(|(i, r)| {
-                Resonance::new(
-                    units::dph_to_arcsec_per_s(r.sigma_dph),
-                    r.centre_hz,
-                    r.width_hz,
-                    tau0,
-                    rng_for(seed, STREAM_RESONANCE + i as u64),
-                )
-            })
-            .collect();
-        let rtns = noise
-            .random_telegraph
-            .iter()
-            .enumerate()
-            .filter(|(_, r)| r.amplitude_dph > 0.0)
-            .map(|(i, r)| {
-                let mut rng = rng_for(seed, STREAM_RTN + i as u64);
-                let state = if rng.random::<bool>() { 1.0 } else { -1.0 };
-                let remaining = r.mean_dwell_s * rng.sample::<f64, _>(Exp1);
-                Rtn {
-                    amp: units::dph_to_arcsec_per_s(r.amplitude_dph),
-                    dwell: r.mean_dwell_s,
-                    state,
-                    remaining,
-                    rng,
-                }
-            })
-            .collect();
-        let thermal = model.thermal.as_ref().map(|t| Thermal {
+        Ok(GaussianTerms {
+            white_var,
+            ous,
+            flicker,
+            rrw,
+        })
+    }
+}
+
+/// The sinusoidal biases (a random phase each).
+fn sines(model: &GyroModel, seed: u64) -> Vec<Sine> {
+    let tau0 = model.tau0_s();
+    model
+        .noise
+        .sinusoid
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| s.amplitude_dph > 0.0)
+        .map(|(i, s)| {
+            let a = units::dph_to_arcsec_per_s(s.amplitude_dph);
+            let omega = 2.0 * PI / s.period_s;
+            let mut rng = rng_for(seed, STREAM_SINE + i as u64);
+            let phase = 2.0 * PI * rng.random::<f64>();
+            Sine {
+                gain: 2.0 * a / omega * (0.5 * omega * tau0).sin(),
+                omega,
+                phase,
+            }
+        })
+        .collect()
+}
+
+/// The resonances, each started in its stationary distribution.
+fn resonances(model: &GyroModel, seed: u64) -> Vec<Resonance> {
+    let tau0 = model.tau0_s();
+    model
+        .noise
+        .resonance
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| r.sigma_dph > 0.0)
+        .map(|(i, r)| {
+            Resonance::new(
+                units::dph_to_arcsec_per_s(r.sigma_dph),
+                r.centre_hz,
+                r.width_hz,
+                tau0,
+                rng_for(seed, STREAM_RESONANCE + i as u64),
+            )
+        })
+        .collect()
+}
+
+/// The random-telegraph biases: a random start state and a first dwell each.
+fn telegraphs(model: &GyroModel, seed: u64) -> Vec<Rtn> {
+    model
+        .noise
+        .random_telegraph
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| r.amplitude_dph > 0.0)
+        .map(|(i, r)| {
+            let mut rng = rng_for(seed, STREAM_RTN + i as u64);
+            let state = if rng.random::<bool>() { 1.0 } else { -1.0 };
+            let remaining = r.mean_dwell_s * rng.sample::<f64, _>(Exp1);
+            Rtn {
+                amp: units::dph_to_arcsec_per_s(r.amplitude_dph),
+                dwell: r.mean_dwell_s,
+                state,
+                remaining,
+                rng,
+            }
+        })
+        .collect()
+}
+
+impl Thermal {
+    fn new(t: &ThermalParams) -> Self {
+        Thermal {
             temp_c0: t.temp_c0,
             ramp_c_per_s: t.ramp_c_per_h / units::S_PER_H,
             sine_amp_c: t.sine_amplitude_c,
@@ -398,7 +434,21 @@ impl Simulator {
                 _ => 0.0,
             },
             sens: units::dph_to_arcsec_per_s(t.bias_sensitivity_dph_per_c),
-        });
+        }
+    }
+}
+
+/// The readout's start: the true angle's sub-pulse fraction, the first white
+/// angle error and the counter reading (0 for a rate output).
+struct ReadoutStart {
+    frac: f64,
+    e0: f64,
+    counter: i64,
+    dither_rng: ChaCha8Rng,
+}
+
+impl ReadoutStart {
+    fn new(model: &GyroModel, seed: u64) -> Self {
         let dither_sigma = model.dither_sigma_arcsec();
         let mut dither_rng = rng_for(seed, STREAM_DITHER);
         let mut init = rng_for(seed, STREAM_INIT);
@@ -408,11 +458,31 @@ impl Simulator {
         } else {
             0.0
         };
-        let output = model.gyro.output;
-        let counter = match output {
-            OutputKind::Counts => (frac + e0 / d).floor() as i64,
+        let counter = match model.gyro.output {
+            OutputKind::Counts => (frac + e0 / model.gyro.pulse_arcsec).floor() as i64,
             OutputKind::Rate => 0,
         };
+        ReadoutStart {
+            frac,
+            e0,
+            counter,
+            dither_rng,
+        }
+    }
+}
+
+impl Simulator {
+    /// A simulator for `model` (validated here), seeded with `seed`. With
+    /// `duration_s = Some(D)` the stream ends after `round(D fs)` samples;
+    /// with `None` it is unbounded.
+    pub fn new(model: &GyroModel, seed: u64, duration_s: Option<f64>) -> Result<Self, ModelError> {
+        model.validate()?;
+        let fs = model.gyro.sample_rate_hz;
+        let tau0 = 1.0 / fs;
+        let d = model.gyro.pulse_arcsec;
+        let total = run_length(duration_s, fs)?;
+        let gauss = GaussianTerms::new(model, seed)?;
+        let start = ReadoutStart::new(model, seed);
         let input_inc = units::dph_to_arcsec_per_s(model.gyro.input_rate_dph) * tau0;
         Ok(Simulator {
             fs,
@@ -423,26 +493,26 @@ impl Simulator {
             total,
             k: 0,
             whole: 0,
-            frac,
-            counter,
-            dither_sigma,
-            dither_rng,
-            white_sigma: white_var.sqrt(),
+            frac: start.frac,
+            counter: start.counter,
+            dither_sigma: model.dither_sigma_arcsec(),
+            dither_rng: start.dither_rng,
+            white_sigma: gauss.white_var.sqrt(),
             white_rng: rng_for(seed, STREAM_WHITE),
-            ous,
-            resonances,
-            rrw,
-            ramp: units::dphh_to_arcsec_per_s2(noise.rate_ramp_dphh.unwrap_or(0.0)),
-            sines,
-            rtns,
-            thermal,
-            flicker,
+            ous: gauss.ous,
+            resonances: resonances(model, seed),
+            rrw: gauss.rrw,
+            ramp: units::dphh_to_arcsec_per_s2(model.noise.rate_ramp_dphh.unwrap_or(0.0)),
+            sines: sines(model, seed),
+            rtns: telegraphs(model, seed),
+            thermal: model.thermal.as_ref().map(Thermal::new),
+            flicker: gauss.flicker,
             buf_dtheta: vec![0.0; CHUNK],
             buf_e: vec![0.0; CHUNK],
-            output,
+            output: model.gyro.output,
             rate_lsb_dps: model.gyro.rate_lsb_dps,
             filter: model.readout_filter().map(|f| f.state(input_inc)),
-            e_prev: e0,
+            e_prev: start.e0,
         })
     }
 
