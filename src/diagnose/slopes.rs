@@ -288,5 +288,6 @@ fn fit_temperature_profile(t: &[f64], tau0: f64, sens_dph_per_c: f64) -> Thermal
         sine_amplitude_c: sine.0,
         sine_period_s: sine.1,
         bias_sensitivity_dph_per_c: sens_dph_per_c,
+        lag_s: 0.0,
     }
 }
