@@ -411,6 +411,25 @@ fn transients_are_not_allan_terms() {
 }
 
 #[test]
+fn transient_mean_rate_is_the_closed_form() {
+    // over D = 3600 s: warm-up -0.05 * 900 (1 - e^-4) / 3600, steps
+    // 0.01 * 1800/3600 and -0.004 * 1199.5/3600, and the lag's shift
+    // -0.001 deg/h/C * 0.5 C/h * 120 s / 3600 s/h
+    let m = with_transients();
+    let expect = -0.05 * 900.0 * (1.0 - (-4.0f64).exp()) / 3600.0 + 0.01 * 0.5
+        - 0.004 * 1199.5 / 3600.0
+        - 0.001 * 0.5 * 120.0 / 3600.0;
+    let got = m.transient_mean_rate_dph(3600.0);
+    assert!((got - expect).abs() < 1e-15, "{got} vs {expect}");
+    assert_eq!(
+        GyroModel::from_toml_str(BASE, "b")
+            .unwrap()
+            .transient_mean_rate_dph(3600.0),
+        0.0
+    );
+}
+
+#[test]
 fn transient_values_out_of_range_name_key_and_value() {
     let t = format!("{BASE}{TRANSIENTS}");
     let cases = [

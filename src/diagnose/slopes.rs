@@ -151,7 +151,9 @@ fn thermal_stat(r: &Reference, t: &[f64]) -> ThermalStat {
 fn thermal_finding(model: &GyroModel, ts: &ThermalStat, t: &[f64], tau0: f64) -> Finding {
     let s_dph = units::arcsec_per_s_to_dph(ts.obs_s);
     let sd_dph = units::arcsec_per_s_to_dph(ts.sd);
-    let th = fit_temperature_profile(t, tau0, s_dph);
+    let mut th = fit_temperature_profile(t, tau0, s_dph);
+    // the recorded temperature gives the profile; the gyro's lag behind it stays the model's
+    th.lag_s = model.thermal.as_ref().map_or(0.0, |t| t.lag_s);
     let sine = match th.sine_period_s {
         Some(p) if th.sine_amplitude_c > 0.0 => {
             format!(

@@ -638,6 +638,28 @@ impl GyroModel {
         nonneg("thermal.lag_s", th.lag_s)
     }
 
+    /// Mean rate over a record of `duration_s` of the transient terms and of
+    /// the thermal lag, deg/h: the warm-up's `a tau (1 - exp(-D/tau)) / D`, each
+    /// bias step's `a (D - at) / D`, and the lag's shift `-s ramp lag` of the
+    /// thermal ramp's bias (0 when the model has none of them).
+    pub fn transient_mean_rate_dph(&self, duration_s: f64) -> f64 {
+        let d = duration_s;
+        if !d.is_finite() || d <= 0.0 {
+            return 0.0;
+        }
+        let mut sum = 0.0;
+        if let Some(w) = &self.noise.warmup {
+            sum += -w.amplitude_dph * w.tau_s * (-d / w.tau_s).exp_m1() / d;
+        }
+        for b in &self.noise.bias_step {
+            sum += b.amplitude_dph * (d - b.at_s).max(0.0) / d;
+        }
+        if let Some(th) = self.thermal.as_ref().filter(|t| t.lag_s > 0.0) {
+            sum -= th.bias_sensitivity_dph_per_c * th.ramp_c_per_h * th.lag_s / units::S_PER_H;
+        }
+        sum
+    }
+
     /// The model's noise terms for the Allan analysis, in a fixed order:
     /// quantization (total Q), ARW, bias instability (ideal 1/f on
     /// `[flicker_f_lo_hz, inf)`), RRW, rate ramp (model ramp plus thermal ramp
