@@ -236,6 +236,7 @@ fn model_round_trips_through_toml() {
         sine_amplitude_c: 0.4,
         sine_period_s: Some(86_400.0),
         bias_sensitivity_dph_per_c: 0.0015,
+        lag_s: 30.0,
     });
     with_thermal.noise.bias_instability_f_lo_hz = Some(3e-6);
     models.push(with_thermal);
@@ -317,4 +318,196 @@ fn the_old_pulse_key_loads_and_the_new_one_is_written() {
         1,
         "{err}"
     );
+}
+
+/// The warm-up, bias steps, spikes and the thermal lag: a model with all
+/// four.
+const TRANSIENTS: &str = "
+[noise.warmup]
+amplitude_dph = -0.05
+tau_s = 900.0
+
+[[noise.bias_step]]
+at_s = 1800.0
+amplitude_dph = 0.01
+
+[[noise.bias_step]]
+at_s = 2400.5
+amplitude_dph = -0.004
+
+[noise.spikes]
+rate_per_h = 2.0
+amplitude_dph = 5.0
+";
+
+fn with_transients() -> GyroModel {
+    let text = format!("{BASE}{TRANSIENTS}").replace(
+        "bias_sensitivity_dph_per_c = 0.001",
+        "bias_sensitivity_dph_per_c = 0.001\nlag_s = 120.0",
+    );
+    GyroModel::from_toml_str(&text, "transients").unwrap()
+}
+
+#[test]
+fn transients_parse_and_round_trip_through_toml() {
+    let m = with_transients();
+    let n = &m.noise;
+    let w = n.warmup.as_ref().unwrap();
+    assert_eq!((w.amplitude_dph, w.tau_s), (-0.05, 900.0));
+    assert_eq!(n.bias_step.len(), 2);
+    assert_eq!(
+        (n.bias_step[1].at_s, n.bias_step[1].amplitude_dph),
+        (2400.5, -0.004)
+    );
+    let sp = n.spikes.as_ref().unwrap();
+    assert_eq!((sp.rate_per_h, sp.amplitude_dph), (2.0, 5.0));
+    assert_eq!(m.thermal.as_ref().unwrap().lag_s, 120.0);
+    let text = m.to_toml().unwrap();
+    for key in [
+        "[noise.warmup]",
+        "[[noise.bias_step]]",
+        "[noise.spikes]",
+        "lag_s = 120.0",
+    ] {
+        assert!(text.contains(key), "{key} not written:\n{text}");
+    }
+    assert_eq!(
+        GyroModel::from_toml_str(&text, "round-trip").unwrap(),
+        m,
+        "{text}"
+    );
+    // absent keys are absent terms, and are not written
+    let base = GyroModel::from_toml_str(BASE, "base").unwrap();
+    assert!(base.noise.warmup.is_none() && base.noise.bias_step.is_empty());
+    assert!(base.noise.spikes.is_none());
+    assert_eq!(base.thermal.as_ref().unwrap().lag_s, 0.0);
+    let text = base.to_toml().unwrap();
+    for key in ["warmup", "bias_step", "spikes", "lag_s"] {
+        assert!(
+            !text.contains(key),
+            "{key} written for a model without it:\n{text}"
+        );
+    }
+    // an unknown key inside the new tables names the key
+    let msg =
+        err_of(&format!("{BASE}{TRANSIENTS}").replace("tau_s = 900.0", "tau_s = 900.0\ntau = 1"));
+    assert!(msg.contains("`tau`"), "{msg}");
+}
+
+#[test]
+fn transients_are_not_allan_terms() {
+    // deterministic transients and sparse glitches have no stationary closed
+    // form: the term list is the model's without them; a lag does not change
+    // the thermal ramp and sinusoid
+    let mut m = with_transients();
+    m.thermal.as_mut().unwrap().sine_amplitude_c = 0.2;
+    m.thermal.as_mut().unwrap().sine_period_s = Some(3600.0);
+    let mut plain = m.clone();
+    plain.noise.warmup = None;
+    plain.noise.bias_step.clear();
+    plain.noise.spikes = None;
+    plain.thermal.as_mut().unwrap().lag_s = 0.0;
+    assert_eq!(m.terms(), plain.terms());
+}
+
+#[test]
+fn transient_mean_rate_is_the_closed_form() {
+    // over D = 3600 s: warm-up -0.05 * 900 (1 - e^-4) / 3600, steps
+    // 0.01 * 1800/3600 and -0.004 * 1199.5/3600, and the lag's shift
+    // -0.001 deg/h/C * 0.5 C/h * 120 s / 3600 s/h
+    let m = with_transients();
+    let expect = -0.05 * 900.0 * (1.0 - (-4.0f64).exp()) / 3600.0 + 0.01 * 0.5
+        - 0.004 * 1199.5 / 3600.0
+        - 0.001 * 0.5 * 120.0 / 3600.0;
+    let got = m.transient_mean_rate_dph(3600.0);
+    assert!((got - expect).abs() < 1e-15, "{got} vs {expect}");
+    assert_eq!(
+        GyroModel::from_toml_str(BASE, "b")
+            .unwrap()
+            .transient_mean_rate_dph(3600.0),
+        0.0
+    );
+}
+
+#[test]
+fn transient_values_out_of_range_name_key_and_value() {
+    let t = format!("{BASE}{TRANSIENTS}");
+    let cases = [
+        (
+            "tau_s = 900.0",
+            "tau_s = 0.0",
+            "noise.warmup.tau_s = 0: must be finite and > 0",
+        ),
+        ("tau_s = 900.0", "tau_s = -3.0", "noise.warmup.tau_s = -3"),
+        ("tau_s = 900.0", "tau_s = nan", "noise.warmup.tau_s = NaN"),
+        (
+            "amplitude_dph = -0.05",
+            "amplitude_dph = inf",
+            "noise.warmup.amplitude_dph = inf",
+        ),
+        (
+            "amplitude_dph = -0.05",
+            "amplitude_dph = -2e9",
+            "noise.warmup.amplitude_dph = -2e9: must be in",
+        ),
+        (
+            "at_s = 1800.0",
+            "at_s = -1.0",
+            "noise.bias_step[0].at_s = -1: must be finite and >= 0",
+        ),
+        (
+            "at_s = 2400.5",
+            "at_s = inf",
+            "noise.bias_step[1].at_s = inf",
+        ),
+        (
+            "amplitude_dph = -0.004",
+            "amplitude_dph = nan",
+            "noise.bias_step[1].amplitude_dph = NaN",
+        ),
+        (
+            "rate_per_h = 2.0",
+            "rate_per_h = -1.0",
+            "noise.spikes.rate_per_h = -1: must be in",
+        ),
+        (
+            "rate_per_h = 2.0",
+            "rate_per_h = nan",
+            "noise.spikes.rate_per_h = NaN",
+        ),
+        // at most 100 per sample period: 3.6e8 per hour at 1 kHz
+        (
+            "rate_per_h = 2.0",
+            "rate_per_h = 4e9",
+            "noise.spikes.rate_per_h = 4e9: must be in",
+        ),
+        (
+            "amplitude_dph = 5.0",
+            "amplitude_dph = -5.0",
+            "noise.spikes.amplitude_dph = -5",
+        ),
+        (
+            "bias_sensitivity_dph_per_c = 0.001",
+            "bias_sensitivity_dph_per_c = 0.001\nlag_s = -5.0",
+            "thermal.lag_s = -5: must be finite and >= 0",
+        ),
+        (
+            "bias_sensitivity_dph_per_c = 0.001",
+            "bias_sensitivity_dph_per_c = 0.001\nlag_s = inf",
+            "thermal.lag_s = inf",
+        ),
+    ];
+    for (from, to, expect) in cases {
+        assert!(t.contains(from), "{from}");
+        let msg = err_of(&t.replacen(from, to, 1));
+        assert!(msg.starts_with("m.toml: "), "{msg}");
+        assert!(msg.contains(expect), "expected `{expect}` in: {msg}");
+    }
+    // the limits themselves are allowed
+    for (from, to) in [
+        ("rate_per_h = 2.0", "rate_per_h = 3.6e8"),
+        ("at_s = 1800.0", "at_s = 0.0"),
+    ] {
+        GyroModel::from_toml_str(&t.replacen(from, to, 1), "m.toml").expect(to);
+    }
 }

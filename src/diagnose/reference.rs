@@ -220,7 +220,8 @@ pub(crate) fn reference_model(model: &GyroModel, rec: &Recording, mean_rate: f64
             * dur
             / 2.0
     });
-    m.gyro.input_rate_dph = units::arcsec_per_s_to_dph(mean_rate - ramp - thermal);
+    m.gyro.input_rate_dph =
+        units::arcsec_per_s_to_dph(mean_rate - ramp - thermal) - m.transient_mean_rate_dph(dur);
     m
 }
 

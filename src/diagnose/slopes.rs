@@ -151,7 +151,9 @@ fn thermal_stat(r: &Reference, t: &[f64]) -> ThermalStat {
 fn thermal_finding(model: &GyroModel, ts: &ThermalStat, t: &[f64], tau0: f64) -> Finding {
     let s_dph = units::arcsec_per_s_to_dph(ts.obs_s);
     let sd_dph = units::arcsec_per_s_to_dph(ts.sd);
-    let th = fit_temperature_profile(t, tau0, s_dph);
+    let mut th = fit_temperature_profile(t, tau0, s_dph);
+    // the recorded temperature gives the profile; the gyro's lag behind it stays the model's
+    th.lag_s = model.thermal.as_ref().map_or(0.0, |t| t.lag_s);
     let sine = match th.sine_period_s {
         Some(p) if th.sine_amplitude_c > 0.0 => {
             format!(
@@ -288,5 +290,6 @@ fn fit_temperature_profile(t: &[f64], tau0: f64, sens_dph_per_c: f64) -> Thermal
         sine_amplitude_c: sine.0,
         sine_period_s: sine.1,
         bias_sensitivity_dph_per_c: sens_dph_per_c,
+        lag_s: 0.0,
     }
 }

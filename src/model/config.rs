@@ -28,12 +28,23 @@
 //! amplitude_dph = 0.003
 //! mean_dwell_s = 300.0
 //!
+//! [noise.warmup]                  # bias settling after switch-on: amplitude_dph exp(-t/tau_s)
+//! amplitude_dph = 0.05            # offset at t = 0 from the settled bias (negative: rising bias)
+//! tau_s = 900.0                   # time constant
+//! [[noise.bias_step]]             # repeatable: the bias jumps by amplitude_dph at at_s and stays
+//! at_s = 1800.0
+//! amplitude_dph = 0.01
+//! [noise.spikes]                  # single-sample readout glitches, Poisson in time
+//! rate_per_h = 2.0                # mean number per hour
+//! amplitude_dph = 5.0             # random sign, magnitude uniform in [0.1, 1] x amplitude_dph
+//!
 //! [thermal]                       # optional; present = the simulator emits a temp_c channel
 //! temp_c0 = 25.0                  # temperature at t = 0
 //! ramp_c_per_h = 0.5              # linear trend (default 0)
 //! sine_amplitude_c = 0.2          # periodic part (default 0) ...
 //! sine_period_s = 3600.0          # ... with this period (required when the amplitude > 0)
 //! bias_sensitivity_dph_per_c = 0.001   # rate bias per degree away from temp_c0 (default 0)
+//! lag_s = 120.0                   # the bias follows the temperature this much later (default 0)
 //! ```
 //!
 //! ```toml
@@ -56,8 +67,22 @@
 //! [`super::terms::counter_readout_avar`]).
 //!
 //! Thermal: `T(t) = temp_c0 + ramp_c_per_h t/3600 + sine_amplitude_c sin(2 pi t/sine_period_s)`
-//! and the rate bias is `bias_sensitivity_dph_per_c (T(t) - temp_c0)`; in Allan terms
-//! this is a rate ramp `s * ramp` (deg/h/h) plus a sinusoid of amplitude `s * A`.
+//! and the rate bias is `bias_sensitivity_dph_per_c (T(t - lag_s) - temp_c0)` (the
+//! gyro's bias follows the chamber with a pure delay; `T` is analytic, so also
+//! defined before the record starts); in Allan terms this is a rate ramp
+//! `s * ramp` (deg/h/h) plus a sinusoid of amplitude `s * A`, whatever the lag.
+//! The temperature recorded beside the output (the `temp_c` column) is `T(t)`.
+//!
+//! Transients and glitches (left out of [`GyroModel::terms`]: not stationary
+//! noise): the warm-up adds `amplitude_dph exp(-t / tau_s)` to the rate, each
+//! bias step `amplitude_dph` from `at_s` on (a step inside a sample period
+//! counts for the fraction of the period after it). A spike disturbs one
+//! sample's readout, not the true rate (so no readout filter acts on it): a
+//! rate word is off by the spike `s` (deg/h); a pulse counter's reading is off
+//! by the angle `s tau0` for that one sample, so its increments carry `+x`
+//! then `-x`. Spikes arrive as a Poisson process of `rate_per_h` per hour
+//! (each in the sample period where it falls), with a random sign and a
+//! magnitude uniform in `[0.1, 1] amplitude_dph`.
 //!
 //! Unknown keys are errors naming the key and line (`deny_unknown_fields` on every
 //! table); [`GyroModel::validate`] names the key and the value of any out-of-range
@@ -70,6 +95,7 @@ use serde::{Deserialize, Serialize};
 use super::ModelError;
 use super::filter::{ReadoutFilter, ReadoutFilterParams};
 use super::terms::{DEFAULT_FLICKER_F_LO_HZ, Term};
+use crate::units;
 
 /// A complete gyro model.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -155,6 +181,12 @@ pub struct NoiseParams {
     pub random_telegraph: Vec<RandomTelegraphParams>,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub resonance: Vec<ResonanceParams>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub warmup: Option<WarmupParams>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub bias_step: Vec<BiasStepParams>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spikes: Option<SpikesParams>,
 }
 
 /// A first-order Gauss-Markov bias.
@@ -192,6 +224,34 @@ pub struct ResonanceParams {
     pub width_hz: f64,
 }
 
+/// The bias's settling after switch-on: a rate offset
+/// `amplitude_dph * exp(-t / tau_s)` at time `t` since the start of the record
+/// (a negative amplitude: the bias rises while it settles).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WarmupParams {
+    pub amplitude_dph: f64,
+    pub tau_s: f64,
+}
+
+/// A bias step: the bias jumps by `amplitude_dph` at time `at_s` and stays.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BiasStepParams {
+    pub at_s: f64,
+    pub amplitude_dph: f64,
+}
+
+/// Single-sample glitches of the readout arriving as a Poisson process at
+/// `rate_per_h` per hour; each has a random sign and a magnitude drawn
+/// uniformly in `[0.1, 1] * amplitude_dph`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpikesParams {
+    pub rate_per_h: f64,
+    pub amplitude_dph: f64,
+}
+
 /// A slow temperature profile and the bias it causes.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -205,6 +265,9 @@ pub struct ThermalParams {
     pub sine_period_s: Option<f64>,
     #[serde(default)]
     pub bias_sensitivity_dph_per_c: f64,
+    /// Delay of the bias behind the chamber temperature, s (default 0).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub lag_s: f64,
 }
 
 fn byte_to_line_col(text: &str, byte: usize) -> (usize, usize) {
@@ -223,6 +286,51 @@ pub const MAX_PULSE_WEIGHT_ARCSEC: f64 = 1_296_000.0;
 pub const MAX_RATE_DPH: f64 = 1e9;
 /// Shortest telegraph mean dwell, in sample periods.
 pub const MIN_DWELL_PER_SAMPLE: f64 = 0.01;
+
+/// A value for an error message: tiny and huge values in exponent form, not 300 digits.
+fn show(v: f64) -> String {
+    if v != 0.0 && v.is_finite() && !(1e-4..1e9).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        v.to_string()
+    }
+}
+
+fn finite(key: &str, v: f64) -> Result<(), ModelError> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(ModelError::invalid(key, show(v), "must be finite"))
+    }
+}
+
+fn nonneg(key: &str, v: f64) -> Result<(), ModelError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(ModelError::invalid(key, show(v), "must be finite and >= 0"))
+    }
+}
+
+fn positive(key: &str, v: f64) -> Result<(), ModelError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(ModelError::invalid(key, show(v), "must be finite and > 0"))
+    }
+}
+
+fn within(key: &str, v: f64, lo: f64, hi: f64, unit: &str) -> Result<(), ModelError> {
+    if (lo..=hi).contains(&v) {
+        Ok(())
+    } else {
+        Err(ModelError::invalid(
+            key,
+            show(v),
+            format!("must be in [{lo:e}, {hi:e}] {unit}"),
+        ))
+    }
+}
 
 impl GyroModel {
     /// Parse and validate a model from TOML text; `origin` names the source in errors.
@@ -299,46 +407,16 @@ impl GyroModel {
 
     /// Check every value; errors name the key (with its table path) and the value.
     pub fn validate(&self) -> Result<(), ModelError> {
-        // tiny and huge values in exponent form, not 300 digits
-        fn show(v: f64) -> String {
-            if v != 0.0 && v.is_finite() && !(1e-4..1e9).contains(&v.abs()) {
-                format!("{v:e}")
-            } else {
-                v.to_string()
-            }
-        }
-        fn finite(key: &str, v: f64) -> Result<(), ModelError> {
-            if v.is_finite() {
-                Ok(())
-            } else {
-                Err(ModelError::invalid(key, show(v), "must be finite"))
-            }
-        }
-        fn nonneg(key: &str, v: f64) -> Result<(), ModelError> {
-            if v.is_finite() && v >= 0.0 {
-                Ok(())
-            } else {
-                Err(ModelError::invalid(key, show(v), "must be finite and >= 0"))
-            }
-        }
-        fn positive(key: &str, v: f64) -> Result<(), ModelError> {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
-                Err(ModelError::invalid(key, show(v), "must be finite and > 0"))
-            }
-        }
-        fn within(key: &str, v: f64, lo: f64, hi: f64, unit: &str) -> Result<(), ModelError> {
-            if (lo..=hi).contains(&v) {
-                Ok(())
-            } else {
-                Err(ModelError::invalid(
-                    key,
-                    show(v),
-                    format!("must be in [{lo:e}, {hi:e}] {unit}"),
-                ))
-            }
-        }
+        self.validate_gyro()?;
+        self.validate_noise()?;
+        self.validate_catalog()?;
+        self.validate_transients()?;
+        self.validate_thermal()
+    }
+
+    /// `[gyro]` and the `[readout_filter]` (whose corner is checked against
+    /// the sample rate).
+    fn validate_gyro(&self) -> Result<(), ModelError> {
         let g = &self.gyro;
         within(
             "gyro.sample_rate_hz",
@@ -390,8 +468,11 @@ impl GyroModel {
             -MAX_RATE_DPH,
             MAX_RATE_DPH,
             "deg/h",
-        )?;
+        )
+    }
 
+    /// The IEEE 952 coefficients of `[noise]`.
+    fn validate_noise(&self) -> Result<(), ModelError> {
         let n = &self.noise;
         if let Some(q) = n.quantization_arcsec {
             nonneg("noise.quantization_arcsec", q)?;
@@ -415,7 +496,7 @@ impl GyroModel {
         }
         if let Some(v) = n.bias_instability_f_lo_hz {
             positive("noise.bias_instability_f_lo_hz", v)?;
-            let top = super::terms::FLICKER_TOP_PER_SAMPLE_RATE * g.sample_rate_hz;
+            let top = super::terms::FLICKER_TOP_PER_SAMPLE_RATE * self.gyro.sample_rate_hz;
             if v * 2.0 > top {
                 return Err(ModelError::invalid(
                     "noise.bias_instability_f_lo_hz",
@@ -432,6 +513,14 @@ impl GyroModel {
         if let Some(v) = n.rate_ramp_dphh {
             finite("noise.rate_ramp_dphh", v)?;
         }
+        Ok(())
+    }
+
+    /// The catalog terms, `[[noise.gauss_markov]]`, `[[noise.sinusoid]]`,
+    /// `[[noise.random_telegraph]]` and `[[noise.resonance]]`; keys are named
+    /// with the entry's index, `noise.sinusoid[0].period_s`.
+    fn validate_catalog(&self) -> Result<(), ModelError> {
+        let (n, fs) = (&self.noise, self.gyro.sample_rate_hz);
         for (i, t) in n.gauss_markov.iter().enumerate() {
             nonneg(&format!("noise.gauss_markov[{i}].sigma_dph"), t.sigma_dph)?;
             positive(&format!("noise.gauss_markov[{i}].tau_c_s"), t.tau_c_s)?;
@@ -450,7 +539,7 @@ impl GyroModel {
             )?;
             // the simulator draws each switch: a dwell far below the sample
             // period would cost unbounded work per sample (and is white noise)
-            let min_dwell = MIN_DWELL_PER_SAMPLE / g.sample_rate_hz;
+            let min_dwell = MIN_DWELL_PER_SAMPLE / fs;
             if !(t.mean_dwell_s.is_finite() && t.mean_dwell_s >= min_dwell) {
                 return Err(ModelError::invalid(
                     format!("noise.random_telegraph[{i}].mean_dwell_s"),
@@ -462,7 +551,7 @@ impl GyroModel {
         for (i, t) in n.resonance.iter().enumerate() {
             let key = |k: &str| format!("noise.resonance[{i}].{k}");
             nonneg(&key("sigma_dph"), t.sigma_dph)?;
-            let nyquist = 0.5 * g.sample_rate_hz;
+            let nyquist = 0.5 * fs;
             if !(t.centre_hz > 0.0 && t.centre_hz < nyquist) {
                 return Err(ModelError::invalid(
                     key("centre_hz"),
@@ -473,35 +562,102 @@ impl GyroModel {
                 ));
             }
             // the pole radius exp(-pi w tau0) must stay below 1 and above 0
-            if !(t.width_hz > 0.0 && t.width_hz <= g.sample_rate_hz) {
+            if !(t.width_hz > 0.0 && t.width_hz <= fs) {
                 return Err(ModelError::invalid(
                     key("width_hz"),
                     show(t.width_hz),
-                    format!("must be in (0, {}] Hz (the sample rate)", g.sample_rate_hz),
+                    format!("must be in (0, {fs}] Hz (the sample rate)"),
                 ));
             }
         }
-        if let Some(th) = &self.thermal {
-            finite("thermal.temp_c0", th.temp_c0)?;
-            finite("thermal.ramp_c_per_h", th.ramp_c_per_h)?;
-            nonneg("thermal.sine_amplitude_c", th.sine_amplitude_c)?;
-            match th.sine_period_s {
-                Some(p) => positive("thermal.sine_period_s", p)?,
-                None if th.sine_amplitude_c > 0.0 => {
-                    return Err(ModelError::invalid(
-                        "thermal.sine_period_s",
-                        "(missing)",
-                        "required when thermal.sine_amplitude_c > 0",
-                    ));
-                }
-                None => {}
-            }
-            finite(
-                "thermal.bias_sensitivity_dph_per_c",
-                th.bias_sensitivity_dph_per_c,
+        Ok(())
+    }
+
+    /// The bias's transients and the readout's glitches: `[noise.warmup]`,
+    /// `[[noise.bias_step]]` (keys named with the entry's index) and
+    /// `[noise.spikes]`.
+    fn validate_transients(&self) -> Result<(), ModelError> {
+        let n = &self.noise;
+        let rate = |key: &str, v: f64| within(key, v, -MAX_RATE_DPH, MAX_RATE_DPH, "deg/h");
+        if let Some(w) = &n.warmup {
+            rate("noise.warmup.amplitude_dph", w.amplitude_dph)?;
+            positive("noise.warmup.tau_s", w.tau_s)?;
+        }
+        for (i, b) in n.bias_step.iter().enumerate() {
+            nonneg(&format!("noise.bias_step[{i}].at_s"), b.at_s)?;
+            rate(
+                &format!("noise.bias_step[{i}].amplitude_dph"),
+                b.amplitude_dph,
+            )?;
+        }
+        if let Some(sp) = &n.spikes {
+            // the simulator draws each spike: a mean gap far below the sample
+            // period would cost unbounded work per sample
+            let max = units::S_PER_H * self.gyro.sample_rate_hz / MIN_DWELL_PER_SAMPLE;
+            within(
+                "noise.spikes.rate_per_h",
+                sp.rate_per_h,
+                0.0,
+                max,
+                "per hour (at most 100 per sample period)",
+            )?;
+            within(
+                "noise.spikes.amplitude_dph",
+                sp.amplitude_dph,
+                0.0,
+                MAX_RATE_DPH,
+                "deg/h",
             )?;
         }
         Ok(())
+    }
+
+    /// `[thermal]`.
+    fn validate_thermal(&self) -> Result<(), ModelError> {
+        let Some(th) = &self.thermal else {
+            return Ok(());
+        };
+        finite("thermal.temp_c0", th.temp_c0)?;
+        finite("thermal.ramp_c_per_h", th.ramp_c_per_h)?;
+        nonneg("thermal.sine_amplitude_c", th.sine_amplitude_c)?;
+        match th.sine_period_s {
+            Some(p) => positive("thermal.sine_period_s", p)?,
+            None if th.sine_amplitude_c > 0.0 => {
+                return Err(ModelError::invalid(
+                    "thermal.sine_period_s",
+                    "(missing)",
+                    "required when thermal.sine_amplitude_c > 0",
+                ));
+            }
+            None => {}
+        }
+        finite(
+            "thermal.bias_sensitivity_dph_per_c",
+            th.bias_sensitivity_dph_per_c,
+        )?;
+        nonneg("thermal.lag_s", th.lag_s)
+    }
+
+    /// Mean rate over a record of `duration_s` of the transient terms and of
+    /// the thermal lag, deg/h: the warm-up's `a tau (1 - exp(-D/tau)) / D`, each
+    /// bias step's `a (D - at) / D`, and the lag's shift `-s ramp lag` of the
+    /// thermal ramp's bias (0 when the model has none of them).
+    pub fn transient_mean_rate_dph(&self, duration_s: f64) -> f64 {
+        let d = duration_s;
+        if !d.is_finite() || d <= 0.0 {
+            return 0.0;
+        }
+        let mut sum = 0.0;
+        if let Some(w) = &self.noise.warmup {
+            sum += -w.amplitude_dph * w.tau_s * (-d / w.tau_s).exp_m1() / d;
+        }
+        for b in &self.noise.bias_step {
+            sum += b.amplitude_dph * (d - b.at_s).max(0.0) / d;
+        }
+        if let Some(th) = self.thermal.as_ref().filter(|t| t.lag_s > 0.0) {
+            sum -= th.bias_sensitivity_dph_per_c * th.ramp_c_per_h * th.lag_s / units::S_PER_H;
+        }
+        sum
     }
 
     /// The model's noise terms for the Allan analysis, in a fixed order:
@@ -509,6 +665,13 @@ impl GyroModel {
     /// `[flicker_f_lo_hz, inf)`), RRW, rate ramp (model ramp plus thermal ramp
     /// `s * ramp`, added linearly since both are deterministic), the catalog terms,
     /// and the thermal sinusoid. Absent or zero terms are left out.
+    ///
+    /// The warm-up, the bias steps and the spikes are not in the list: the
+    /// first two are deterministic transients and the spikes are sparse
+    /// glitches, none a stationary noise with an Allan or spectral closed form.
+    /// A thermal lag changes neither term of the thermal profile: delayed, the
+    /// ramp's bias is the same ramp (offset by a constant) and the sinusoid's
+    /// only changes phase.
     pub fn terms(&self) -> Vec<Term> {
         let n = &self.noise;
         let mut out = vec![Term::Quantization {

@@ -11,7 +11,11 @@
 //!   Gauss-Markov processes plus a white tail; see [`super::terms`]);
 //! * RRW: a rate random walk; rate ramp; Gauss-Markov biases; sinusoidal biases
 //!   (random phase); random-telegraph biases (exponential dwell times, switching
-//!   instants resolved inside the sample); the thermal bias `s (T(t) - T0)`.
+//!   instants resolved inside the sample); the thermal bias `s (T(t - lag) - T0)`
+//!   (the gyro follows the chamber temperature `T` with a pure delay; the
+//!   temperature channel reports `T(t)`);
+//! * the warm-up `a exp(-t / tau)` (closed-form integral over each period) and
+//!   bias steps (a step inside a period counts for the part of the period after it).
 //!
 //! Every Gaussian process is integrated **exactly** in distribution: for an
 //! Ornstein-Uhlenbeck rate the pair (next rate, angle increment) is jointly
@@ -43,6 +47,15 @@
 //! rate before the readout: the angle increments are filtered (moving average or
 //! one pole, unit DC gain), then counted or output as a rate.
 //!
+//! **Spikes** (`[noise.spikes]`) are glitches of the readout, not of the true
+//! rate, so they come after the filter: Poisson arrivals (each in the sample
+//! period where it falls), random sign, magnitude uniform in `[0.1, 1]` of the
+//! amplitude. A spike `s` puts the angle `x = s tau0` on the measured angle of
+//! its sample only: a counter's reading of that frame is
+//! `floor((theta_k + e_k + x) / d)` and the next frame reads right again (the
+//! increments carry `+x`, then `-x`, in pulses); a rate word is off by `s` for
+//! that one sample.
+//!
 //! # Streaming
 //! [`Simulator::next_block`] appends the next `n` pulse increments; the stream is
 //! identical whatever the block sizes (each term draws from its own ChaCha8 stream
@@ -59,7 +72,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Exp1, StandardNormal};
 
 use super::ModelError;
-use super::config::{GyroModel, OutputKind};
+use super::config::{GyroModel, OutputKind, ThermalParams, WarmupParams};
 use super::filter::FilterState;
 use super::terms::FlickerBank;
 use crate::units;
@@ -77,6 +90,7 @@ const STREAM_GM: u64 = 2_000;
 const STREAM_RTN: u64 = 3_000;
 const STREAM_SINE: u64 = 4_000;
 const STREAM_RESONANCE: u64 = 5_000;
+const STREAM_SPIKES: u64 = 6_000;
 
 fn rng_for(seed: u64, stream: u64) -> ChaCha8Rng {
     let mut r = ChaCha8Rng::seed_from_u64(seed);
@@ -97,6 +111,9 @@ pub struct Truth {
     pub angle_increment_arcsec: Vec<f64>,
     /// White dither residual added before the counter at the end of each sample, arcsec.
     pub readout_error_arcsec: Vec<f64>,
+    /// Spikes' glitch angle added to each sample's counter reading (and to
+    /// that reading only), arcsec; empty when the model has no spikes.
+    pub glitch_arcsec: Vec<f64>,
 }
 
 /// A resonance: the AR(2) rate `x` (arcsec/s) of [`crate::model::resonance`],
@@ -208,15 +225,211 @@ struct Thermal {
     omega: f64,
     /// rate bias per degree, arcsec/s/C
     sens: f64,
+    /// delay of the bias behind the temperature, s
+    lag: f64,
 }
 
 impl Thermal {
+    /// The chamber temperature `T(t)`, deg C (analytic, so also for `t < 0`).
     fn temp_at(&self, t: f64) -> f64 {
         let mut v = self.temp_c0 + self.ramp_c_per_s * t;
         if self.omega > 0.0 {
             v += self.sine_amp_c * (self.omega * t).sin();
         }
         v
+    }
+
+    /// The bias's exact integral over each sample period into `dth`:
+    /// `s (T(t - lag) - T0)` is a ramp plus a sinusoid of `t - lag`, whose
+    /// integrals over a period are their values at the period's middle times
+    /// `tau0` (times `2 sin(omega tau0 / 2) / omega` for the sinusoid).
+    fn add(&self, dth: &mut [f64], k0: u64, tau0: f64) {
+        let g_ramp = self.sens * self.ramp_c_per_s * tau0;
+        let g_sine = if self.omega > 0.0 {
+            self.sens * self.sine_amp_c * 2.0 / self.omega * (0.5 * self.omega * tau0).sin()
+        } else {
+            0.0
+        };
+        for (i, v) in dth.iter_mut().enumerate() {
+            let t = ((k0 + i as u64) as f64 + 0.5) * tau0 - self.lag;
+            *v += g_ramp * t;
+            if g_sine != 0.0 {
+                *v += g_sine * (self.omega * t).sin();
+            }
+        }
+    }
+}
+
+/// The bias's settling after switch-on, `a exp(-t / tau)`.
+#[derive(Debug, Clone)]
+struct Warmup {
+    /// The angle over the first period, `a tau (1 - exp(-tau0 / tau))`, arcsec.
+    gain: f64,
+    /// `tau0 / tau`.
+    decay_per_sample: f64,
+}
+
+impl Warmup {
+    fn new(w: &WarmupParams, tau0: f64) -> Self {
+        let a = units::dph_to_arcsec_per_s(w.amplitude_dph);
+        let h = tau0 / w.tau_s;
+        Warmup {
+            gain: -a * w.tau_s * (-h).exp_m1(),
+            decay_per_sample: h,
+        }
+    }
+
+    /// The exact integral over period `k`, `gain exp(-k tau0 / tau)`, into `dth`.
+    fn add(&self, dth: &mut [f64], k0: u64) {
+        for (i, v) in dth.iter_mut().enumerate() {
+            let x = (k0 + i as u64) as f64 * self.decay_per_sample;
+            if x > 746.0 {
+                // exp(-x) is 0 in f64 from here on
+                break;
+            }
+            *v += self.gain * (-x).exp();
+        }
+    }
+}
+
+/// A bias step of `amp` (arcsec/s) at time `at` (s).
+#[derive(Debug, Clone)]
+struct BiasStep {
+    at: f64,
+    amp: f64,
+}
+
+impl BiasStep {
+    /// The step's angle over each period into `dth`: `amp tau0` after the
+    /// step, `amp (t_end - at)` in the period it falls in, 0 before.
+    fn add(&self, dth: &mut [f64], k0: u64, tau0: f64) {
+        let chunk_end = (k0 + dth.len() as u64) as f64 * tau0;
+        if self.at >= chunk_end {
+            return;
+        }
+        for (i, v) in dth.iter_mut().enumerate() {
+            let k = k0 + i as u64;
+            let (t0, t1) = (k as f64 * tau0, (k + 1) as f64 * tau0);
+            if self.at <= t0 {
+                *v += self.amp * tau0;
+            } else if self.at < t1 {
+                *v += self.amp * (t1 - self.at);
+            }
+        }
+    }
+}
+
+/// The deterministic rate terms (rate ramp, sinusoids, thermal bias, warm-up,
+/// bias steps), each integrated exactly over the sample periods.
+#[derive(Debug, Clone)]
+struct Deterministic {
+    /// Rate ramp, arcsec/s^2.
+    ramp: f64,
+    sines: Vec<Sine>,
+    thermal: Option<Thermal>,
+    warmup: Option<Warmup>,
+    steps: Vec<BiasStep>,
+}
+
+impl Deterministic {
+    fn new(model: &GyroModel, seed: u64) -> Self {
+        let tau0 = model.tau0_s();
+        let noise = &model.noise;
+        Deterministic {
+            ramp: units::dphh_to_arcsec_per_s2(noise.rate_ramp_dphh.unwrap_or(0.0)),
+            sines: sines(model, seed),
+            thermal: model.thermal.as_ref().map(Thermal::new),
+            warmup: noise
+                .warmup
+                .as_ref()
+                .filter(|w| w.amplitude_dph != 0.0)
+                .map(|w| Warmup::new(w, tau0)),
+            steps: noise
+                .bias_step
+                .iter()
+                .filter(|b| b.amplitude_dph != 0.0)
+                .map(|b| BiasStep {
+                    at: b.at_s,
+                    amp: units::dph_to_arcsec_per_s(b.amplitude_dph),
+                })
+                .collect(),
+        }
+    }
+
+    /// The terms' angles over samples `k0..k0 + dth.len()`, added to `dth`.
+    fn add(&self, dth: &mut [f64], k0: u64, tau0: f64) {
+        let t_mid = |i: usize| ((k0 + i as u64) as f64 + 0.5) * tau0;
+        if self.ramp != 0.0 {
+            let g = self.ramp * tau0;
+            for (i, v) in dth.iter_mut().enumerate() {
+                *v += g * t_mid(i);
+            }
+        }
+        for s in &self.sines {
+            for (i, v) in dth.iter_mut().enumerate() {
+                *v += s.gain * (s.omega * t_mid(i) + s.phase).sin();
+            }
+        }
+        if let Some(th) = &self.thermal {
+            th.add(dth, k0, tau0);
+        }
+        if let Some(w) = &self.warmup {
+            w.add(dth, k0);
+        }
+        for b in &self.steps {
+            b.add(dth, k0, tau0);
+        }
+    }
+}
+
+/// Single-sample readout glitches: Poisson arrivals, each in the sample
+/// period where it falls, with a random sign and a magnitude uniform in
+/// `[0.1, 1] amp`; kept apart from the true angle.
+#[derive(Debug, Clone)]
+struct Spikes {
+    /// Mean gap between arrivals, sample periods.
+    mean_gap: f64,
+    /// Largest spike, arcsec/s.
+    amp: f64,
+    /// Arrival time of the next spike, sample periods since the start.
+    next: f64,
+    rng: ChaCha8Rng,
+    /// The glitch angle (spike times `tau0`) of each sample of the chunk, arcsec.
+    buf: Vec<f64>,
+}
+
+impl Spikes {
+    fn new(model: &GyroModel, seed: u64) -> Option<Self> {
+        let sp = model
+            .noise
+            .spikes
+            .as_ref()
+            .filter(|sp| sp.rate_per_h > 0.0 && sp.amplitude_dph > 0.0)?;
+        let mean_gap = units::S_PER_H * model.gyro.sample_rate_hz / sp.rate_per_h;
+        let mut rng = rng_for(seed, STREAM_SPIKES);
+        let next = mean_gap * rng.sample::<f64, _>(Exp1);
+        Some(Spikes {
+            mean_gap,
+            amp: units::dph_to_arcsec_per_s(sp.amplitude_dph),
+            next,
+            rng,
+            buf: vec![0.0; CHUNK],
+        })
+    }
+
+    /// The glitch angles of samples `k0..k0 + m` into `buf[..m]`.
+    fn fill(&mut self, k0: u64, m: usize, tau0: f64) {
+        let buf = &mut self.buf[..m];
+        buf.fill(0.0);
+        let end = (k0 + m as u64) as f64;
+        while self.next < end {
+            // earlier chunks consumed every arrival before k0
+            let i = (self.next.floor() as u64 - k0) as usize;
+            let magnitude = self.amp * (0.1 + 0.9 * self.rng.random::<f64>());
+            let sign = if self.rng.random::<bool>() { 1.0 } else { -1.0 };
+            buf[i] += sign * magnitude * tau0;
+            self.next += self.mean_gap * self.rng.sample::<f64, _>(Exp1);
+        }
     }
 }
 
@@ -240,10 +453,9 @@ pub struct Simulator {
     ous: Vec<Ou>,
     resonances: Vec<Resonance>,
     rrw: Option<Rrw>,
-    ramp: f64,
-    sines: Vec<Sine>,
+    det: Deterministic,
     rtns: Vec<Rtn>,
-    thermal: Option<Thermal>,
+    spikes: Option<Spikes>,
     flicker: Option<FlickerBank>,
     buf_dtheta: Vec<f64>,
     buf_e: Vec<f64>,
@@ -254,37 +466,45 @@ pub struct Simulator {
     e_prev: f64,
 }
 
-impl Simulator {
-    /// A simulator for `model` (validated here), seeded with `seed`. With
-    /// `duration_s = Some(D)` the stream ends after `round(D fs)` samples;
-    /// with `None` it is unbounded.
-    pub fn new(model: &GyroModel, seed: u64, duration_s: Option<f64>) -> Result<Self, ModelError> {
-        model.validate()?;
+/// Samples of a run of `duration_s` at `fs` (`None`: unbounded).
+fn run_length(duration_s: Option<f64>, fs: f64) -> Result<Option<u64>, ModelError> {
+    let Some(dur) = duration_s else {
+        return Ok(None);
+    };
+    if !(dur.is_finite() && dur > 0.0) {
+        return Err(ModelError::invalid(
+            "duration_s",
+            dur,
+            "must be finite and > 0",
+        ));
+    }
+    let n = (dur * fs).round();
+    if n < 1.0 {
+        return Err(ModelError::invalid(
+            "duration_s",
+            dur,
+            "shorter than one sample period",
+        ));
+    }
+    Ok(Some(n as u64))
+}
+
+/// The Gaussian terms: the OU processes (flicker bank components, then the
+/// Gauss-Markov biases), the rate random walk, and the variance of the one
+/// merged white normal per sample (ARW, the flicker's white tail, and the
+/// conditional residuals of the OU and RRW increments).
+struct GaussianTerms {
+    white_var: f64,
+    ous: Vec<Ou>,
+    flicker: Option<FlickerBank>,
+    rrw: Option<Rrw>,
+}
+
+impl GaussianTerms {
+    fn new(model: &GyroModel, seed: u64) -> Result<Self, ModelError> {
+        let noise = &model.noise;
         let fs = model.gyro.sample_rate_hz;
         let tau0 = 1.0 / fs;
-        let d = model.gyro.pulse_arcsec;
-        let total = match duration_s {
-            None => None,
-            Some(dur) => {
-                if !(dur.is_finite() && dur > 0.0) {
-                    return Err(ModelError::invalid(
-                        "duration_s",
-                        dur,
-                        "must be finite and > 0",
-                    ));
-                }
-                let n = (dur * fs).round();
-                if n < 1.0 {
-                    return Err(ModelError::invalid(
-                        "duration_s",
-                        dur,
-                        "shorter than one sample period",
-                    ));
-                }
-                Some(n as u64)
-            }
-        };
-        let noise = &model.noise;
         let mut white_var = 0.0;
         if let Some(n) = noise.arw_dpsh {
             let n = units::dpsh_to_arcsec_per_sqrt_s(n);
@@ -339,57 +559,85 @@ impl Simulator {
                 rng: rng_for(seed, STREAM_RRW),
             }
         });
-        let sines = noise
-            .sinusoid
-            .iter()
-            .enumerate()
-            .filter(|(_, s)| s.amplitude_dph > 0.0)
-            .map(|(i, s)| {
-                let a = units::dph_to_arcsec_per_s(s.amplitude_dph);
-                let omega = 2.0 * PI / s.period_s;
-                let mut rng = rng_for(seed, STREAM_SINE + i as u64);
-                let phase = 2.0 * PI * rng.random::<f64>();
-                Sine {
-                    gain: 2.0 * a / omega * (0.5 * omega * tau0).sin(),
-                    omega,
-                    phase,
-                }
-            })
-            .collect();
-        let resonances = noise
-            .resonance
-            .iter()
-            .enumerate()
-            .filter(|(_, r)| r.sigma_dph > 0.0)
-            .map(|(i, r)| {
-                Resonance::new(
-                    units::dph_to_arcsec_per_s(r.sigma_dph),
-                    r.centre_hz,
-                    r.width_hz,
-                    tau0,
-                    rng_for(seed, STREAM_RESONANCE + i as u64),
-                )
-            })
-            .collect();
-        let rtns = noise
-            .random_telegraph
-            .iter()
-            .enumerate()
-            .filter(|(_, r)| r.amplitude_dph > 0.0)
-            .map(|(i, r)| {
-                let mut rng = rng_for(seed, STREAM_RTN + i as u64);
-                let state = if rng.random::<bool>() { 1.0 } else { -1.0 };
-                let remaining = r.mean_dwell_s * rng.sample::<f64, _>(Exp1);
-                Rtn {
-                    amp: units::dph_to_arcsec_per_s(r.amplitude_dph),
-                    dwell: r.mean_dwell_s,
-                    state,
-                    remaining,
-                    rng,
-                }
-            })
-            .collect();
-        let thermal = model.thermal.as_ref().map(|t| Thermal {
+        Ok(GaussianTerms {
+            white_var,
+            ous,
+            flicker,
+            rrw,
+        })
+    }
+}
+
+/// The sinusoidal biases (a random phase each).
+fn sines(model: &GyroModel, seed: u64) -> Vec<Sine> {
+    let tau0 = model.tau0_s();
+    model
+        .noise
+        .sinusoid
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| s.amplitude_dph > 0.0)
+        .map(|(i, s)| {
+            let a = units::dph_to_arcsec_per_s(s.amplitude_dph);
+            let omega = 2.0 * PI / s.period_s;
+            let mut rng = rng_for(seed, STREAM_SINE + i as u64);
+            let phase = 2.0 * PI * rng.random::<f64>();
+            Sine {
+                gain: 2.0 * a / omega * (0.5 * omega * tau0).sin(),
+                omega,
+                phase,
+            }
+        })
+        .collect()
+}
+
+/// The resonances, each started in its stationary distribution.
+fn resonances(model: &GyroModel, seed: u64) -> Vec<Resonance> {
+    let tau0 = model.tau0_s();
+    model
+        .noise
+        .resonance
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| r.sigma_dph > 0.0)
+        .map(|(i, r)| {
+            Resonance::new(
+                units::dph_to_arcsec_per_s(r.sigma_dph),
+                r.centre_hz,
+                r.width_hz,
+                tau0,
+                rng_for(seed, STREAM_RESONANCE + i as u64),
+            )
+        })
+        .collect()
+}
+
+/// The random-telegraph biases: a random start state and a first dwell each.
+fn telegraphs(model: &GyroModel, seed: u64) -> Vec<Rtn> {
+    model
+        .noise
+        .random_telegraph
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| r.amplitude_dph > 0.0)
+        .map(|(i, r)| {
+            let mut rng = rng_for(seed, STREAM_RTN + i as u64);
+            let state = if rng.random::<bool>() { 1.0 } else { -1.0 };
+            let remaining = r.mean_dwell_s * rng.sample::<f64, _>(Exp1);
+            Rtn {
+                amp: units::dph_to_arcsec_per_s(r.amplitude_dph),
+                dwell: r.mean_dwell_s,
+                state,
+                remaining,
+                rng,
+            }
+        })
+        .collect()
+}
+
+impl Thermal {
+    fn new(t: &ThermalParams) -> Self {
+        Thermal {
             temp_c0: t.temp_c0,
             ramp_c_per_s: t.ramp_c_per_h / units::S_PER_H,
             sine_amp_c: t.sine_amplitude_c,
@@ -398,7 +646,22 @@ impl Simulator {
                 _ => 0.0,
             },
             sens: units::dph_to_arcsec_per_s(t.bias_sensitivity_dph_per_c),
-        });
+            lag: t.lag_s,
+        }
+    }
+}
+
+/// The readout's start: the true angle's sub-pulse fraction, the first white
+/// angle error and the counter reading (0 for a rate output).
+struct ReadoutStart {
+    frac: f64,
+    e0: f64,
+    counter: i64,
+    dither_rng: ChaCha8Rng,
+}
+
+impl ReadoutStart {
+    fn new(model: &GyroModel, seed: u64) -> Self {
         let dither_sigma = model.dither_sigma_arcsec();
         let mut dither_rng = rng_for(seed, STREAM_DITHER);
         let mut init = rng_for(seed, STREAM_INIT);
@@ -408,11 +671,31 @@ impl Simulator {
         } else {
             0.0
         };
-        let output = model.gyro.output;
-        let counter = match output {
-            OutputKind::Counts => (frac + e0 / d).floor() as i64,
+        let counter = match model.gyro.output {
+            OutputKind::Counts => (frac + e0 / model.gyro.pulse_arcsec).floor() as i64,
             OutputKind::Rate => 0,
         };
+        ReadoutStart {
+            frac,
+            e0,
+            counter,
+            dither_rng,
+        }
+    }
+}
+
+impl Simulator {
+    /// A simulator for `model` (validated here), seeded with `seed`. With
+    /// `duration_s = Some(D)` the stream ends after `round(D fs)` samples;
+    /// with `None` it is unbounded.
+    pub fn new(model: &GyroModel, seed: u64, duration_s: Option<f64>) -> Result<Self, ModelError> {
+        model.validate()?;
+        let fs = model.gyro.sample_rate_hz;
+        let tau0 = 1.0 / fs;
+        let d = model.gyro.pulse_arcsec;
+        let total = run_length(duration_s, fs)?;
+        let gauss = GaussianTerms::new(model, seed)?;
+        let start = ReadoutStart::new(model, seed);
         let input_inc = units::dph_to_arcsec_per_s(model.gyro.input_rate_dph) * tau0;
         Ok(Simulator {
             fs,
@@ -423,26 +706,25 @@ impl Simulator {
             total,
             k: 0,
             whole: 0,
-            frac,
-            counter,
-            dither_sigma,
-            dither_rng,
-            white_sigma: white_var.sqrt(),
+            frac: start.frac,
+            counter: start.counter,
+            dither_sigma: model.dither_sigma_arcsec(),
+            dither_rng: start.dither_rng,
+            white_sigma: gauss.white_var.sqrt(),
             white_rng: rng_for(seed, STREAM_WHITE),
-            ous,
-            resonances,
-            rrw,
-            ramp: units::dphh_to_arcsec_per_s2(noise.rate_ramp_dphh.unwrap_or(0.0)),
-            sines,
-            rtns,
-            thermal,
-            flicker,
+            ous: gauss.ous,
+            resonances: resonances(model, seed),
+            rrw: gauss.rrw,
+            det: Deterministic::new(model, seed),
+            rtns: telegraphs(model, seed),
+            spikes: Spikes::new(model, seed),
+            flicker: gauss.flicker,
             buf_dtheta: vec![0.0; CHUNK],
             buf_e: vec![0.0; CHUNK],
-            output,
+            output: model.gyro.output,
             rate_lsb_dps: model.gyro.rate_lsb_dps,
             filter: model.readout_filter().map(|f| f.state(input_inc)),
-            e_prev: e0,
+            e_prev: start.e0,
         })
     }
 
@@ -472,7 +754,7 @@ impl Simulator {
     }
     /// Whether the model has a thermal section (a `temp_c` channel).
     pub fn has_temperature(&self) -> bool {
-        self.thermal.is_some()
+        self.det.thermal.is_some()
     }
     /// The flicker generator, when the model has bias instability.
     pub fn flicker_bank(&self) -> Option<&FlickerBank> {
@@ -500,7 +782,7 @@ impl Simulator {
     }
     /// Temperature of the thermal profile at time `t_s`, deg C (`None` without thermal model).
     pub fn temperature_at(&self, t_s: f64) -> Option<f64> {
-        self.thermal.as_ref().map(|t| t.temp_at(t_s))
+        self.det.thermal.as_ref().map(|t| t.temp_at(t_s))
     }
 
     /// Append the next `n` pulse increments (fewer at the end of a finite run) to
@@ -559,17 +841,22 @@ impl Simulator {
             let m = (n - done).min(CHUNK);
             self.fill_chunk(m);
             let (to_dps, lsb) = (1.0 / (self.tau0 * units::ARCSEC_PER_DEG), self.rate_lsb_dps);
+            let glitch = self.spikes.as_ref().map(|sp| &sp.buf[..m]);
             for i in 0..m {
                 let e = self.buf_e[i];
-                let r = (self.buf_dtheta[i] + e - self.e_prev) * to_dps;
+                let mut r = (self.buf_dtheta[i] + e - self.e_prev) * to_dps;
                 self.e_prev = e;
+                if let Some(g) = glitch {
+                    // one rate word off by the spike, g / tau0
+                    r += g[i] * to_dps;
+                }
                 rates_dps.push(if lsb > 0.0 {
                     (r / lsb).round() * lsb
                 } else {
                     r
                 });
             }
-            if let Some(th) = self.thermal.as_ref() {
+            if let Some(th) = self.det.thermal.as_ref() {
                 temp_c
                     .extend((0..m).map(|i| th.temp_at((self.k + i as u64 + 1) as f64 * self.tau0)));
             }
@@ -596,22 +883,31 @@ impl Simulator {
             let m = (n - done).min(CHUNK);
             self.fill_chunk(m);
             let inv_d = self.inv_d;
+            let glitch = self.spikes.as_ref().map(|sp| &sp.buf[..m]);
             for i in 0..m {
                 self.frac += self.buf_dtheta[i] * inv_d;
                 let f = self.frac.floor();
                 self.whole += f as i64;
                 self.frac -= f;
-                let c = self.whole + (self.frac + self.buf_e[i] * inv_d).floor() as i64;
+                let mut e = self.buf_e[i];
+                if let Some(g) = glitch {
+                    // this one reading is off; the true angle is not
+                    e += g[i];
+                }
+                let c = self.whole + (self.frac + e * inv_d).floor() as i64;
                 counts.push(c - self.counter);
                 self.counter = c;
             }
-            if let (Some(out), Some(th)) = (temp_c.as_deref_mut(), self.thermal.as_ref()) {
+            if let (Some(out), Some(th)) = (temp_c.as_deref_mut(), self.det.thermal.as_ref()) {
                 out.extend((0..m).map(|i| th.temp_at((self.k + i as u64 + 1) as f64 * self.tau0)));
             }
             if let Some(t) = truth.as_deref_mut() {
                 t.angle_increment_arcsec
                     .extend_from_slice(&self.buf_dtheta[..m]);
                 t.readout_error_arcsec.extend_from_slice(&self.buf_e[..m]);
+                if let Some(g) = glitch {
+                    t.glitch_arcsec.extend_from_slice(g);
+                }
             }
             self.k += m as u64;
             done += m;
@@ -620,7 +916,7 @@ impl Simulator {
     }
 
     /// True angle increments (arcsec) of the next `m` samples into `buf_dtheta`,
-    /// dither residuals into `buf_e`.
+    /// dither residuals into `buf_e`, spikes' glitch angles into their buffer.
     fn fill_chunk(&mut self, m: usize) {
         let tau0 = self.tau0;
         let k0 = self.k;
@@ -630,9 +926,8 @@ impl Simulator {
             ous,
             resonances,
             rrw,
-            sines,
+            det,
             rtns,
-            thermal,
             white_rng,
             dither_rng,
             ..
@@ -640,33 +935,7 @@ impl Simulator {
         let dth = &mut buf_dtheta[..m];
         let e = &mut buf_e[..m];
         dth.fill(self.input_inc);
-        let t_mid = |i: usize| ((k0 + i as u64) as f64 + 0.5) * tau0;
-        if self.ramp != 0.0 {
-            let g = self.ramp * tau0;
-            for (i, v) in dth.iter_mut().enumerate() {
-                *v += g * t_mid(i);
-            }
-        }
-        for s in sines.iter() {
-            for (i, v) in dth.iter_mut().enumerate() {
-                *v += s.gain * (s.omega * t_mid(i) + s.phase).sin();
-            }
-        }
-        if let Some(th) = thermal.as_ref() {
-            let g_ramp = th.sens * th.ramp_c_per_s * tau0;
-            let g_sine = if th.omega > 0.0 {
-                th.sens * th.sine_amp_c * 2.0 / th.omega * (0.5 * th.omega * tau0).sin()
-            } else {
-                0.0
-            };
-            for (i, v) in dth.iter_mut().enumerate() {
-                let t = t_mid(i);
-                *v += g_ramp * t;
-                if g_sine != 0.0 {
-                    *v += g_sine * (th.omega * t).sin();
-                }
-            }
-        }
+        det.add(dth, k0, tau0);
         for ou in ous.iter_mut() {
             let (mut x, a, c_int, k_cov, s1) = (ou.x, ou.a, ou.c_int, ou.k_cov, ou.s1);
             for v in dth.iter_mut() {
@@ -716,6 +985,10 @@ impl Simulator {
         }
         if let Some(f) = self.filter.as_mut() {
             f.apply(dth);
+        }
+        // a glitch is the readout's, not the true rate's: after the filter, apart
+        if let Some(sp) = self.spikes.as_mut() {
+            sp.fill(k0, m, tau0);
         }
         if self.dither_sigma > 0.0 {
             let s = self.dither_sigma;
