@@ -124,6 +124,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
         runs: args.runs,
         runs_after: args.runs_after,
         seed: args.seed,
+        data_quality: !args.input.raw_statistics,
         ..DiagnoseOptions::default()
     };
     let bar = super::progress::RunsBar::start();
@@ -137,6 +138,12 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
         )
     })?;
     let mut value = serde_json::to_value(&diag.report).context("serialising the verdict")?;
+    if let (Some(dq), Some(obj)) = (&diag.data_quality, value.as_object_mut()) {
+        obj.insert(
+            "data_quality".into(),
+            serde_json::to_value(dq).context("serialising the data quality")?,
+        );
+    }
     provenance(&args, &input, &model, &rec).insert_into(&mut value);
     let json = serde_json::to_string_pretty(&value).context("serialising the verdict")?;
     if args.json.as_ref().is_some_and(|p| p.as_os_str() == "-") {

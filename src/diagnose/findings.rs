@@ -11,7 +11,8 @@ use std::collections::BTreeMap;
 use super::{AddedTerm, ParameterChange};
 use crate::model::GyroModel;
 use crate::model::config::{
-    GaussMarkovParams, RandomTelegraphParams, ResonanceParams, SinusoidParams, ThermalParams,
+    BiasStepParams, GaussMarkovParams, RandomTelegraphParams, ResonanceParams, SinusoidParams,
+    SpikesParams, ThermalParams, WarmupParams,
 };
 use crate::model::filter::ReadoutFilterParams;
 
@@ -66,6 +67,11 @@ pub(crate) enum Edit {
     GaussMarkovToTelegraph(usize, f64, f64),
     /// Replace random_telegraph[i] by a Gauss-Markov term with the same spectrum.
     TelegraphToGaussMarkov(usize),
+    /// A warm-up, bias steps or glitches the data-quality stage found (set
+    /// as found; the diagnosis compared the recording without them).
+    Warmup(WarmupParams),
+    BiasStep(BiasStepParams),
+    Spikes(SpikesParams),
     /// A new resonance.
     Resonance {
         sigma_dph: f64,
@@ -130,6 +136,9 @@ impl Edit {
                 }
             }
             Edit::Thermal(t) => m.thermal = Some(t.clone()),
+            Edit::Warmup(w) => n.warmup = Some(w.clone()),
+            Edit::BiasStep(b) => n.bias_step.push(b.clone()),
+            Edit::Spikes(s) => n.spikes = Some(s.clone()),
             Edit::ReadoutFilter {
                 params, arw_dpsh, ..
             } => {

@@ -59,6 +59,7 @@ pub mod locate;
 pub mod lowfreq;
 pub mod mc;
 pub mod narrowband;
+pub mod quality;
 pub mod read;
 pub mod readout;
 pub mod readout_angle;
@@ -195,6 +196,8 @@ pub struct DiagnoseOptions {
     pub threads: usize,
     /// Family-wise false-alarm probability of the broadband test.
     pub alpha: f64,
+    /// Run the data-quality stage first (phase 0); off: `--raw-statistics`.
+    pub data_quality: bool,
 }
 
 impl Default for DiagnoseOptions {
@@ -205,6 +208,7 @@ impl Default for DiagnoseOptions {
             seed: 0x5A6_AC00,
             threads: 0,
             alpha: 0.01,
+            data_quality: true,
         }
     }
 }
@@ -297,6 +301,8 @@ pub struct Diagnosis {
     pub mc_input_rate_dph: f64,
     /// Human-readable findings, one per line.
     pub notes: Vec<String>,
+    /// What the data-quality stage found (phase 0); `None` with it off.
+    pub data_quality: Option<crate::quality::DataQuality>,
 }
 
 /// Run the diagnosis of `rec` against `model`.
@@ -319,6 +325,34 @@ pub fn diagnose_with_progress(
     check_recording(rec, opts)?;
     model.validate()?;
     check_output(model, rec)?;
+    // 0: the data-quality stage, and the diagnosis of what remains
+    let handled = if opts.data_quality {
+        quality::handle(model, rec)?
+    } else {
+        quality::Handled::none(model, rec)
+    };
+    let mut d = diagnose_core(&handled.compared, &handled.recording, opts, progress)?;
+    let updated = d.updated_model.take();
+    d.updated_model = handled.updated(updated);
+    for f in &handled.findings {
+        d.report.parameter_changes.extend(f.changes.iter().cloned());
+        d.report.added_terms.extend(f.added.iter().cloned());
+        d.notes.insert(0, f.note.clone());
+    }
+    if !handled.findings.is_empty() {
+        d.report.verdict = Verdict::Mismatch;
+    }
+    d.data_quality = handled.data_quality;
+    Ok(d)
+}
+
+/// Phases 1-7 on a recording the data-quality stage has handled.
+fn diagnose_core(
+    model: &GyroModel,
+    rec: &Recording,
+    opts: &DiagnoseOptions,
+    progress: &mc::Progress,
+) -> Result<Diagnosis, DiagnoseError> {
     // 1-2: the reference, and where the recording leaves its band
     let reference = Reference::simulate(model, rec, opts, progress)?;
     let r = &reference;
@@ -426,6 +460,7 @@ pub fn diagnose_with_progress(
         model_comparison: comparison,
         mc_input_rate_dph: r.model.gyro.input_rate_dph,
         notes,
+        data_quality: None,
     })
 }
 

@@ -255,7 +255,7 @@ pub(crate) fn slope_sd_for(model: &GyroModel, n: u64, tau0: f64) -> f64 {
 
 /// Fit `T(t) = T0 + ramp t + A sin(2 pi t / P)` to the recorded temperature
 /// (the sine only when it explains at least half of the residual variance).
-fn fit_temperature_profile(t: &[f64], tau0: f64, sens_dph_per_c: f64) -> ThermalParams {
+pub(crate) fn fit_temperature_profile(t: &[f64], tau0: f64, sens_dph_per_c: f64) -> ThermalParams {
     let n = t.len();
     let time: Vec<f64> = (0..n).map(|k| k as f64 * tau0).collect();
     let slope = stats::regression_slope(&time, t);

@@ -17,7 +17,7 @@
 
 use std::ops::Range;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Most windows kept.
 pub const MAX_WINDOWS: usize = 64;
@@ -83,7 +83,7 @@ pub struct DavarMap {
 }
 
 /// The stationarity test's result.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Stationarity {
     /// False when the windows' noise differs beyond chance (p < 0.01).
     pub ok: bool,

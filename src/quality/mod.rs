@@ -15,7 +15,7 @@
 //! daemon records in `/gyro/estimates` and the report draws. Everything here
 //! is plain synchronous numerics; the pipeline runs it.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 pub mod blocks;
 pub mod davar;
@@ -26,7 +26,7 @@ pub mod spikes;
 pub use lowfreq::{Interval, StepFit, ThermalFit};
 
 /// The outliers (glitches) of a record.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Outliers {
     /// Outliers found.
     pub count: u64,
@@ -56,19 +56,19 @@ impl Outliers {
 }
 
 /// A fitted warm-up, and how it was handled.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Warmup {
     pub amplitude_dph: Interval,
     pub tau_s: Interval,
     /// `modelled` (the fitted settling subtracted) or `excluded` (the
     /// statistics restarted after it).
-    pub handled: &'static str,
+    pub handled: String,
     /// Seconds of the record left out.
     pub excluded_s: f64,
 }
 
 /// What the data-quality stage found and did.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DataQuality {
     pub outliers: Outliers,
     pub warmup: Option<Warmup>,
@@ -171,7 +171,7 @@ pub fn assess(
         warmup: low.warmup.map(|w| Warmup {
             amplitude_dph: w.amplitude_dph,
             tau_s: w.tau_s,
-            handled: "modelled",
+            handled: "modelled".into(),
             excluded_s: 0.0,
         }),
         steps: low.steps,

@@ -72,6 +72,9 @@ pub struct SpikeReport {
     pub heavy_windows: u64,
     /// Windows decided.
     pub windows: u64,
+    /// The largest `|e|` among the outliers (the statistic's unit: pulses
+    /// for a counter, the rate's unit for a rate word).
+    pub max_abs: f64,
     /// Sum of `e^2` and `e^4` over the samples kept, and their number (the
     /// excess kurtosis of the statistic).
     sum2: f64,
@@ -275,6 +278,9 @@ impl SpikeFilter {
 
     fn count(&mut self, found: &[usize], excluded: bool) {
         self.report.count += found.len() as u64;
+        for &k in found {
+            self.report.max_abs = self.report.max_abs.max(self.e[k].abs());
+        }
         if excluded {
             self.report.excluded += found.len() as u64;
         }

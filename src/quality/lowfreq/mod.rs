@@ -23,7 +23,7 @@
 //! ramp of the gyro's own is not taken for a step or a warm-up; and a step or
 //! a warm-up is found against them, so it is not read as a random walk.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use super::blocks::BlockSeries;
 
@@ -48,7 +48,7 @@ const CHI2_95: f64 = 3.841_458_820_694_124;
 const Z_975: f64 = 1.959_963_984_540_054;
 
 /// A value with its 95 % interval.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Interval {
     pub value: f64,
     pub ci95: [f64; 2],
@@ -56,21 +56,21 @@ pub struct Interval {
 
 /// A fitted warm-up: the bias is `amplitude * exp(-t/tau)` away from its
 /// settled value at time `t` after the start.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct WarmupFit {
     pub amplitude_dph: Interval,
     pub tau_s: Interval,
 }
 
 /// A fitted bias step: the bias jumps by `amplitude` at `at`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct StepFit {
     pub at_s: Interval,
     pub amplitude_dph: Interval,
 }
 
 /// The bias's response to temperature, delayed by `lag`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ThermalFit {
     pub bias_sensitivity_dph_per_c: Interval,
     pub lag_s: Interval,
