@@ -150,7 +150,7 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
         None => {
             print_table(&analysis)?;
             if let Some(v) = &verdict {
-                print_verdict(v)?;
+                print_verdict(v, analysis.data_quality.as_ref())?;
             }
             Ok(())
         }
@@ -222,10 +222,12 @@ fn write_json(
 ) -> Result<()> {
     let mut value = serde_json::to_value(analysis).context("serialising the analysis")?;
     if let (Some(v), Some(obj)) = (verdict, value.as_object_mut()) {
-        obj.insert(
-            "spec".into(),
-            serde_json::to_value(v).context("serialising the verdict")?,
-        );
+        let mut spec = serde_json::to_value(v).context("serialising the verdict")?;
+        // the verdict is decided on the handled record: say what was handled
+        if let (Some(s), Some(dq)) = (spec.as_object_mut(), &analysis.data_quality) {
+            s.insert("handled".into(), serde_json::to_value(handled_lines(dq))?);
+        }
+        obj.insert("spec".into(), spec);
     }
     Provenance::new(input_args::settings(input, given_path), analysis_units())
         .insert_into(&mut value);
@@ -237,9 +239,25 @@ fn write_json(
     }
 }
 
-fn print_verdict(r: &SpecReport) -> Result<()> {
+/// The findings the record was handled for (the verdict's basis).
+fn handled_lines(dq: &crate::quality::DataQuality) -> Vec<String> {
+    if dq.handled_anything() {
+        dq.lines()
+    } else {
+        Vec::new()
+    }
+}
+
+fn print_verdict(r: &SpecReport, dq: Option<&crate::quality::DataQuality>) -> Result<()> {
     let mut o = std::io::stdout().lock();
     writeln!(o)?;
+    if let Some(dq) = dq.filter(|d| d.handled_anything()) {
+        writeln!(
+            o,
+            "spec verdict on the handled record ({}):",
+            handled_lines(dq).join("; ")
+        )?;
+    }
     writeln!(
         o,
         "spec verdict: {} (each coefficient at {} % confidence, one look at {:.1} s)",

@@ -116,7 +116,13 @@ pub fn run(
     } else {
         pass(input, cfg, &mut |_, _| {}, None, Some(&correction))?.0
     };
-    dq.stationary = final_pipe.davar().and_then(|d| d.stationarity());
+    let q = final_pipe
+        .estimator_output()
+        .estimates
+        .quantization_arcsec
+        .value
+        .unwrap_or(0.0);
+    dq.stationary = final_pipe.davar().and_then(|d| d.stationarity(q));
     Ok(Fed {
         pipeline: final_pipe,
         report,

@@ -10,7 +10,10 @@
 //! (the non-overlapping estimator); a term touching a filled sample is left out.
 //!
 //! Stationarity: at each octave where every window holds at least
-//! [`MIN_TERMS`] terms, the windows' log Allan variances are tested for a
+//! [`MIN_TERMS`] terms and quantization noise is less than half the Allan
+//! variance (a pulse counter's quantization error is a sawtooth that follows
+//! the input rate: deterministic, not noise, and it changes with any change
+//! of the rate), the windows' log Allan variances are tested for a
 //! trend over the record and for an outlying window (a bad hour), each
 //! against the windows' own scatter about the trend (Student t); the smallest
 //! p-value over the tests, times their number (Bonferroni), is the record's.
@@ -57,7 +60,8 @@ pub struct Davar {
     comp: f64,
     /// Absolute index of the next sample.
     k: u64,
-    /// Absolute index just past the last filled sample.
+    /// Absolute index just past the last filled sample (and, at the start,
+    /// past the samples a transient of the source affects).
     filled_end: u64,
 }
 
@@ -227,8 +231,10 @@ impl Davar {
     /// of the windows get a linear trend test and an outlying-window test,
     /// each against the windows' own scatter (Student t), so that a noise
     /// whose windows vary more than theory says (a counter's sawtooth,
-    /// mode hops) is judged by its own spread.
-    pub fn stationarity(&self) -> Option<Stationarity> {
+    /// mode hops) is judged by its own spread. Octaves where quantization
+    /// (`quantization_arcsec`, the record's Q) is half the Allan variance or
+    /// more are left out.
+    pub fn stationarity(&self, quantization_arcsec: f64) -> Option<Stationarity> {
         // the last window is usually partial: leave it out
         let full = self.windows.len().saturating_sub(1);
         if full < 8 {
@@ -242,6 +248,14 @@ impl Davar {
                 .iter()
                 .any(|w| w[j].n < MIN_TERMS || !(w[j].sum_sq > 0.0))
             {
+                continue;
+            }
+            let tau = (1u64 << j) as f64 * self.tau0_s;
+            let (s2, n) = win
+                .iter()
+                .fold((0.0, 0u64), |a, w| (a.0 + w[j].sum_sq, a.1 + w[j].n));
+            let pooled = s2 / (2.0 * tau * tau * n as f64);
+            if 3.0 * quantization_arcsec.powi(2) / (tau * tau) >= 0.5 * pooled {
                 continue;
             }
             let l: Vec<f64> = win
@@ -343,7 +357,7 @@ mod tests {
                 assert!(rel < 0.25, "octave {j}: {dev} vs {want}");
             }
         }
-        let s = d.stationarity().unwrap();
+        let s = d.stationarity(0.0).unwrap();
         assert!(s.ok, "{s:?}");
     }
 
@@ -355,7 +369,7 @@ mod tests {
         }
         let mut d = Davar::new(0.01);
         d.push(&x, &[]);
-        let s = d.stationarity().unwrap();
+        let s = d.stationarity(0.0).unwrap();
         assert!(!s.ok && s.p_value < 1e-6, "{s:?}");
     }
 }

@@ -326,12 +326,6 @@ impl Analysis<'_> {
                 let limit = grid.threshold(&scan, &fitted.chol, ALPHA, seed);
                 let ratio = lr / limit;
                 let p = scan.params[i];
-                if std::env::var_os("SAGNAC_DEBUG_DQ").is_some() {
-                    eprintln!(
-                        "round {round} kind {kind} lr {lr:.2} limit {limit:.2} at {p:.1} b2 {:.4} k2 {:.4}",
-                        fitted.b2, fitted.k2
-                    );
-                }
                 let effect = match kind {
                     0 => Effect::Warmup { tau_s: p },
                     1 => Effect::Step { at_s: p },

@@ -209,19 +209,29 @@ impl Analysis<'_> {
     }
 }
 
+/// The profile level of a change point's 95 % interval: the likelihood ratio
+/// of a change point's location is not chi-square(1) (its argmax is that of
+/// a two-sided random walk with drift), and the chi-square(2) level covers.
+const CHANGE_POINT_95: f64 = 5.991_464_547_107_979;
+
 /// The profile-likelihood intervals of a shape parameter and of the effect's
 /// amplitude (the union over the parameter's interval of the amplitude's
 /// conditional intervals at the level left).
 fn intervals(prof: &[Point], e: Effect, amp: f64) -> (Interval, Interval) {
     let rss_min = prof.iter().map(|p| p.rss).fold(f64::INFINITY, f64::min);
-    let inside: Vec<&Point> = prof.iter().filter(|p| p.rss - rss_min < CHI2_95).collect();
+    let level = if matches!(e, Effect::Step { .. }) {
+        CHANGE_POINT_95
+    } else {
+        CHI2_95
+    };
+    let inside: Vec<&Point> = prof.iter().filter(|p| p.rss - rss_min < level).collect();
     let p = e.param();
     let (mut plo, mut phi) = (p, p);
     let (mut alo, mut ahi) = (amp, amp);
     for q in &inside {
         plo = plo.min(q.param);
         phi = phi.max(q.param);
-        let half = q.se * (CHI2_95 - (q.rss - rss_min)).max(0.0).sqrt();
+        let half = q.se * (level - (q.rss - rss_min)).max(0.0).sqrt();
         alo = alo.min(q.amp - half);
         ahi = ahi.max(q.amp + half);
     }
