@@ -113,31 +113,41 @@ pub fn page(r: &Report<'_>) -> Result<String, ReportError> {
          mean.</figcaption></figure></section>\n",
         inline_svg(&noise)
     );
-    let rate = svg(super::RATE_SIZE, |area| rate_fig::draw(area, r.series))?;
-    let _ = write!(
-        h,
-        "<section id=\"rate\"><h2>Rate{}</h2><figure>{}<figcaption>The rate over the recording: the raw rate \
-         as its mean per pixel column (its sample-to-sample spread is the quantization noise above), the clean \
-         rate as minimum-maximum band per pixel column and mean (the axis leaves out the most extreme 2 % of \
-         the columns, such as the wavelet bank's start-up, drawn at its edge){}.</figcaption></figure></section>\n",
-        if r.series.temperature().is_some() {
-            " and temperature"
-        } else {
-            ""
-        },
-        inline_svg(&rate),
-        if r.series.temperature().is_some() {
-            "; below, the temperature the frames carry"
-        } else {
-            "; the input has no temperature"
-        }
-    );
+    rate_section(&mut h, r)?;
     if let Some(d) = &r.diagnosis {
         h.push_str(&diagnosis::section(d)?);
         h.push('\n');
     }
     h.push_str("</body></html>\n");
     Ok(h)
+}
+
+/// The rate figure, with what the data-quality stage handled marked on it.
+fn rate_section(h: &mut String, r: &Report<'_>) -> Result<(), ReportError> {
+    let dq = r.analysis.data_quality.as_ref();
+    let rate = svg(super::RATE_SIZE, |area| rate_fig::draw(area, r.series, dq))?;
+    let temp = r.series.temperature().is_some();
+    let marked = if dq.is_some_and(|d| d.handled_anything()) {
+        " Marked on the rate: what the data-quality stage handled (excluded outliers as ticks along the \
+         top, bias steps as lines over their 95 % interval, the fitted warm-up over the raw rate)."
+    } else {
+        ""
+    };
+    let _ = write!(
+        h,
+        "<section id=\"rate\"><h2>Rate{}</h2><figure>{}<figcaption>The rate over the recording: the raw rate \
+         as its mean per pixel column (its sample-to-sample spread is the quantization noise above), the clean \
+         rate as minimum-maximum band per pixel column and mean (the axis leaves out the most extreme 2 % of \
+         the columns, such as the wavelet bank's start-up, drawn at its edge){}.{marked}</figcaption></figure></section>\n",
+        if temp { " and temperature" } else { "" },
+        inline_svg(&rate),
+        if temp {
+            "; below, the temperature the frames carry"
+        } else {
+            "; the input has no temperature"
+        }
+    );
+    Ok(())
 }
 
 /// The acceptance test: overall verdict and one row per coefficient.

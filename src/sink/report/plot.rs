@@ -18,6 +18,11 @@ pub const NOISE: RGBColor = RGBColor(225, 110, 20);
 pub const TEMP: RGBColor = RGBColor(190, 40, 40);
 /// The total model curve.
 pub const MODEL: RGBColor = RGBColor(125, 125, 125);
+/// What the data-quality stage handled, on the rate figure: excluded
+/// outliers, bias steps (with their intervals), the fitted warm-up.
+pub const OUTLIER: RGBColor = RGBColor(140, 60, 170);
+pub const STEP: RGBColor = RGBColor(200, 30, 90);
+pub const WARMUP: RGBColor = RGBColor(20, 140, 70);
 /// QN, ARW, BI, RRW, RR.
 pub const TERM_COLORS: [RGBColor; 5] = [
     RGBColor(140, 60, 170),
@@ -287,6 +292,25 @@ pub fn side_legend<DB: DrawingBackend>(
                 ))
                 .map_err(draw_err)?;
             }
+            LineKind::Tick => {
+                area.draw(&PathElement::new(
+                    vec![(x0 + 17, y - 7), (x0 + 17, y + 7)],
+                    c.stroke_width(2),
+                ))
+                .map_err(draw_err)?;
+            }
+            LineKind::Marker => {
+                area.draw(&Rectangle::new(
+                    [(x0 + 7, y - 8), (x0 + 27, y + 8)],
+                    c.mix(0.15).filled(),
+                ))
+                .map_err(draw_err)?;
+                area.draw(&PathElement::new(
+                    vec![(x0 + 17, y - 8), (x0 + 17, y + 8)],
+                    c.stroke_width(2),
+                ))
+                .map_err(draw_err)?;
+            }
         }
         // a long row wraps at " | "
         for (i, part) in text.split(" | ").enumerate() {
@@ -313,6 +337,10 @@ pub enum LineKind {
     Points,
     Ring,
     Band,
+    /// A short vertical tick (an event in time).
+    Tick,
+    /// A vertical line over a light band (an event and its interval).
+    Marker,
 }
 
 #[cfg(test)]
