@@ -75,6 +75,7 @@ pub fn page(r: &Report<'_>) -> Result<String, ReportError> {
     );
     metadata(&mut h, r);
     coefficients(&mut h, a);
+    quality_section(&mut h, a.data_quality.as_ref());
     if let Some(v) = r.spec {
         spec_section(&mut h, v);
     }
@@ -148,6 +149,55 @@ fn rate_section(h: &mut String, r: &Report<'_>) -> Result<(), ReportError> {
         }
     );
     Ok(())
+}
+
+/// What the data-quality stage found and did, one line per finding, and
+/// the stationarity test of what remains.
+fn quality_section(h: &mut String, dq: Option<&crate::quality::DataQuality>) {
+    h.push_str("<section id=\"quality\"><h2>Data quality</h2>");
+    let Some(dq) = dq else {
+        h.push_str(
+            "<p class=\"muted\">data-quality stage off (--raw-statistics): the estimates are of the \
+             record as it is.</p></section>\n",
+        );
+        return;
+    };
+    h.push_str(
+        "<p>Before the final estimates the record is searched for glitches, a warm-up, bias steps and a \
+         thermal response; what is found is excluded or modelled, and the estimates above are of the \
+         handled record.</p>",
+    );
+    let lines = dq.lines();
+    if lines.is_empty() {
+        h.push_str("<p>Findings: nothing found.</p>");
+    } else {
+        h.push_str("<ul>");
+        for l in &lines {
+            let _ = write!(h, "<li>{}</li>", esc(l));
+        }
+        h.push_str("</ul>");
+    }
+    match &dq.stationary {
+        Some(s) => {
+            let _ = write!(
+                h,
+                "<p class=\"verdict {}\">Stationarity of what remains: {} (p = {}; {}).</p>",
+                if s.ok { "ok" } else { "bad" },
+                if s.ok {
+                    "ok, the windows share one noise"
+                } else {
+                    "NOT stationary, the noise changes over the record"
+                },
+                esc(&fmt_sig(s.p_value, 3)),
+                esc(&s.test)
+            );
+        }
+        None => h.push_str(
+            "<p class=\"muted\">Stationarity: not tested (fewer than 8 full windows, or no averaging time with enough \
+             terms in every window).</p>",
+        ),
+    }
+    h.push_str("</section>\n");
 }
 
 /// The acceptance test: overall verdict and one row per coefficient.
