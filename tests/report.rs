@@ -65,7 +65,7 @@ fn png_size(p: &Path) -> (u32, u32) {
 }
 
 #[test]
-fn report_writes_a_self_contained_page_and_two_pngs() {
+fn report_writes_a_self_contained_page_and_its_pngs() {
     let dir = tempfile::tempdir().unwrap();
     let (bin, model) = simulate(dir.path(), "120");
     let out = dir.path().join("rep");
@@ -94,6 +94,10 @@ fn report_writes_a_self_contained_page_and_two_pngs() {
         png_size(&out.join("noise_integral.png")),
         sagnac::sink::report::NOISE_SIZE
     );
+    assert_eq!(
+        png_size(&out.join("davar.png")),
+        sagnac::sink::report::DAVAR_SIZE
+    );
     // self-contained: no script, no stylesheet or font link, no outside source
     let lower = html.to_lowercase();
     for bad in [
@@ -116,13 +120,15 @@ fn report_writes_a_self_contained_page_and_two_pngs() {
         html.contains("default-src 'none'"),
         "no Content-Security-Policy"
     );
-    // the parts the issue asks for
+    // the page's sections
     for id in [
         "recording",
         "coefficients",
+        "quality",
         "allan",
         "noise",
         "rate",
+        "davar",
         "diagnosis",
     ] {
         assert!(
@@ -132,8 +138,8 @@ fn report_writes_a_self_contained_page_and_two_pngs() {
     }
     assert_eq!(
         html.matches("<svg").count(),
-        4,
-        "Allan, noise, rate and diagnosis figures"
+        5,
+        "Allan, noise, rate, dynamic Allan deviation and diagnosis figures"
     );
     for text in [
         "quantization noise",

@@ -4,7 +4,9 @@
 
 use std::fmt::Write;
 
-use super::{Report, ReportError, allan_fig, diagnosis, fmt_sig, noise_fig, rate_fig, svg};
+use super::{
+    Report, ReportError, allan_fig, davar_fig, diagnosis, fmt_sig, noise_fig, rate_fig, svg,
+};
 use crate::model::estimate::Coefficient;
 use crate::pipeline::Analysis;
 
@@ -115,6 +117,7 @@ pub fn page(r: &Report<'_>) -> Result<String, ReportError> {
         inline_svg(&noise)
     );
     rate_section(&mut h, r)?;
+    davar_section(&mut h, r)?;
     if let Some(d) = &r.diagnosis {
         h.push_str(&diagnosis::section(d)?);
         h.push('\n');
@@ -148,6 +151,34 @@ fn rate_section(h: &mut String, r: &Report<'_>) -> Result<(), ReportError> {
             "; the input has no temperature"
         }
     );
+    Ok(())
+}
+
+/// The dynamic Allan deviation's heat map, or one line saying why there is none.
+fn davar_section(h: &mut String, r: &Report<'_>) -> Result<(), ReportError> {
+    h.push_str("<section id=\"davar\"><h2>Dynamic Allan deviation</h2>");
+    match davar_fig::drawable(r.davar) {
+        Ok(m) => {
+            let fig = svg(super::DAVAR_SIZE, |area| {
+                davar_fig::draw(area, m, r.analysis.duration_s)
+            })?;
+            let _ = write!(
+                h,
+                "<figure>{}<figcaption>The Allan deviation of each {} s window of the record (columns) at \
+                 octave averaging times (rows), coloured by its logarithm: a stationary noise keeps each \
+                 row one colour, and a warm-up, a step or a bad hour shows as a change along time. Glitches \
+                 are excluded, nothing else is handled. Blank cells have no term; a cell at an averaging time \
+                 near the window's length or beyond rests on one or two terms and scatters by a factor of a \
+                 few.</figcaption></figure>",
+                inline_svg(&fig),
+                davar_fig::window_text(m.window_s)
+            );
+        }
+        Err(why) => {
+            let _ = write!(h, "<p class=\"muted\">{}.</p>", esc(&why));
+        }
+    }
+    h.push_str("</section>\n");
     Ok(())
 }
 
