@@ -51,7 +51,11 @@ pub fn log_tick(v: f64) -> String {
     if !(v.is_finite() && v > 0.0) {
         return String::new();
     }
-    let e = v.log10().floor();
+    let mut e = v.log10().floor();
+    // a value a rounding below a power of ten is that power
+    if (v / 10f64.powf(e + 1.0) - 1.0).abs() < 1e-6 {
+        e += 1.0;
+    }
     let mant = v / 10f64.powf(e);
     let mant_txt = if (mant - mant.round()).abs() < 1e-6 {
         format!("{}", mant.round())
@@ -356,6 +360,9 @@ mod tests {
         assert_eq!(log_tick(0.0005), "5e-4");
         assert_eq!(log_tick(1e5), "1e5");
         assert_eq!(log_tick(2e-7), "2e-7");
+        assert_eq!(log_tick(0.999_999_999_9), "1");
+        assert_eq!(log_tick(0.009_999_999_99), "0.01");
+        assert_eq!(log_tick(1e-4 * (1.0 - 1e-12)), "1e-4");
         assert_eq!(lin_tick(-0.0, 0.5), "0.0");
         assert_eq!(lin_tick(12.345, 5.0), "12");
         assert_eq!(lin_tick(0.25, 0.05), "0.25");
