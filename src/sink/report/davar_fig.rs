@@ -8,7 +8,11 @@
 //! A stationary noise gives the same colour along each row; a warm-up, a
 //! step or a bad hour shows as a change along time. A cell with no term (a
 //! tau longer than what reaches into that window, or a window of gaps) is
-//! left blank rather than given a colour it has no value for.
+//! left blank rather than given a colour it has no value for; so is a cell
+//! whose deviation is zero but for rounding (a pulse counter's second
+//! differences, whole pulses, can cancel exactly, and the phase sum leaves
+//! some 1e-14 deg/h), which has no logarithm and would otherwise stretch the
+//! colour scale over twelve empty decades.
 
 use plotters::prelude::*;
 
@@ -22,6 +26,12 @@ pub const MIN_WINDOWS: usize = 4;
 const BAR_COLUMN: u32 = 130;
 /// Strips the colour bar is drawn with.
 const BAR_STRIPS: usize = 128;
+/// A deviation below this fraction of the largest in its row and the rows
+/// an octave either side is zero but for rounding: the Allan deviation
+/// changes by at most a factor of two an octave, and a term's chance of
+/// falling this far below its expected size is about 1e-6, while a row of a
+/// pulse counter can hold more exact zeros than values.
+pub const ZERO_RATIO: f64 = 1e-6;
 /// The figure's title.
 const CAPTION: &str = "dynamic Allan deviation";
 
@@ -75,10 +85,29 @@ pub struct Cell {
     pub log_dev: f64,
 }
 
-/// The cells of `map` that have a value (NaN and non-positive deviations
-/// are left out), the last window cut at `duration_s`.
+/// The cells of `map` that have a value (NaN, and deviations that are zero
+/// but for rounding, [`ZERO_RATIO`], are left out), the last window cut at
+/// `duration_s`.
 pub fn cells(map: &DavarMap, duration_s: f64) -> Vec<Cell> {
     let half = std::f64::consts::SQRT_2;
+    let rows = map.tau_s.len();
+    let top: Vec<f64> = (0..rows)
+        .map(|j| {
+            map.windows
+                .iter()
+                .filter_map(|w| w.dev.get(j).copied())
+                .filter(|d| d.is_finite())
+                .fold(0.0f64, f64::max)
+        })
+        .collect();
+    let floor: Vec<f64> = (0..rows)
+        .map(|j| {
+            top[j.saturating_sub(1)..(j + 2).min(rows)]
+                .iter()
+                .fold(0.0f64, |a, &b| a.max(b))
+                * ZERO_RATIO
+        })
+        .collect();
     let mut out = Vec::new();
     for w in &map.windows {
         let end = w.t0_s + map.window_s;
@@ -87,8 +116,8 @@ pub fn cells(map: &DavarMap, duration_s: f64) -> Vec<Cell> {
         } else {
             end
         };
-        for (&tau, &dev) in map.tau_s.iter().zip(&w.dev) {
-            if dev.is_finite() && dev > 0.0 {
+        for ((&tau, &dev), &zero) in map.tau_s.iter().zip(&w.dev).zip(&floor) {
+            if dev.is_finite() && dev > zero && dev > 0.0 {
                 out.push(Cell {
                     t_s: (w.t0_s, t1),
                     tau_s: (tau / half, tau * half),
@@ -302,19 +331,19 @@ mod tests {
     }
 
     fn map() -> DavarMap {
-        let w = |t0: f64, dev: [f64; 3]| DavarWindow {
+        let w = |t0: f64, dev: [f64; 4]| DavarWindow {
             t0_s: t0,
             dev: dev.to_vec(),
             n: dev.iter().map(|d| u64::from(d.is_finite())).collect(),
         };
         DavarMap {
             window_s: 10.0,
-            tau_s: vec![0.5, 1.0, 2.0],
+            tau_s: vec![0.5, 1.0, 2.0, 4.0],
             windows: vec![
-                w(0.0, [4.0, 2.0, f64::NAN]),
-                w(10.0, [4.0, f64::NAN, 1.0]),
-                w(20.0, [4.0, 2.0, f64::NAN]),
-                w(30.0, [f64::NAN, 0.0, 100.0]),
+                w(0.0, [4.0, 2.0, f64::NAN, f64::NAN]),
+                w(10.0, [4.0, f64::NAN, 1.0, 1e-14]),
+                w(20.0, [4.0, 2.0, f64::NAN, f64::NAN]),
+                w(30.0, [1e-15, 0.0, 100.0, f64::NAN]),
             ],
         }
     }
@@ -323,7 +352,8 @@ mod tests {
     fn nan_cells_are_blank_and_leave_the_colour_scale_alone() {
         let m = map();
         let c = cells(&m, 35.0);
-        // 12 cells, of which 4 NaN and one zero deviation
+        // 16 cells, of which 6 NaN, one zero and two zero but for rounding
+        // (one in a row of its own, judged by the row below)
         assert_eq!(c.len(), 7);
         assert!(c.iter().all(|c| c.log_dev.is_finite()));
         let at = |t: f64, tau: f64| {
@@ -331,13 +361,15 @@ mod tests {
                 .any(|c| c.t_s.0 == t && c.tau_s.0 < tau && tau < c.tau_s.1)
         };
         assert!(!at(0.0, 2.0) && !at(10.0, 1.0) && !at(30.0, 0.5) && !at(30.0, 1.0));
+        assert!(!at(10.0, 4.0));
         assert!(at(10.0, 2.0) && at(30.0, 2.0));
         // the last window is cut at the record's end; octaves meet halfway
         let last = c.iter().find(|c| c.t_s.0 == 30.0).unwrap();
         assert_eq!(last.t_s, (30.0, 35.0));
         assert!((c[0].tau_s.1 - c[1].tau_s.0).abs() < 1e-12);
         assert_eq!(color_range(&c), Some((0.0, 2.0)));
-        // drawn: no NaN reaches the SVG, and one rectangle per cell besides the bar's
+        // drawn: no NaN reaches the SVG, and one rectangle per cell besides the
+        // bar's strips and the background
         let svg = super::super::svg((600, 400), |a| draw(a, &m, 35.0)).unwrap();
         assert!(!svg.contains("NaN"));
         assert_eq!(svg.matches("<rect").count() - BAR_STRIPS, 7 + 1);

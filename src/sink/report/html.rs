@@ -167,8 +167,9 @@ fn davar_section(h: &mut String, r: &Report<'_>) -> Result<(), ReportError> {
                 "<figure>{}<figcaption>The Allan deviation of each {} s window of the record (columns) at \
                  octave averaging times (rows), coloured by its logarithm: a stationary noise keeps each \
                  row one colour, and a warm-up, a step or a bad hour shows as a change along time. Glitches \
-                 are excluded, nothing else is handled. Blank cells have no term; a cell at an averaging time \
-                 near the window's length or beyond rests on one or two terms and scatters by a factor of a \
+                 are excluded, nothing else is handled. Blank cells have no term, or a deviation of zero (a pulse \
+                 counter's whole pulses can cancel exactly); a cell at an averaging time near the window's \
+                 length or beyond rests on one or two terms and scatters by a factor of a \
                  few.</figcaption></figure>",
                 inline_svg(&fig),
                 davar_fig::window_text(m.window_s)
