@@ -1,8 +1,11 @@
 //! `sagnac report`: analyse a recording and write a self-contained HTML page
 //! (`DIR/index.html`: inline SVG figures, no outside requests) with the
-//! Allan figure, the extracted noise and its integral, the rate and
-//! temperature, the coefficient table, the recording's metadata and, with
-//! `--model`, the diagnosis; plus `DIR/allan.png` and `DIR/noise_integral.png`.
+//! recording's metadata, the coefficient table, the data-quality findings,
+//! the Allan figure, the extracted noise and its integral, the rate and
+//! temperature (with what the data-quality stage handled marked), the
+//! dynamic Allan deviation and, with `--model`, the diagnosis; plus
+//! `DIR/allan.png`, `DIR/noise_integral.png` and, when the record has a
+//! dynamic Allan deviation of at least four windows, `DIR/davar.png`.
 //!
 //! Thin: the input flags are `analyze`'s (same rules: `--sample-rate-hz` and,
 //! for counts, `--pulse-arcsec` are required for CSV and frame captures; an
@@ -28,7 +31,7 @@ use crate::sink::report::{self, Collector, DiagnosisPart, Metadata};
 pub struct ReportArgs {
     #[command(flatten)]
     pub input: InputArgs,
-    /// Output directory (created if missing): index.html, allan.png, noise_integral.png.
+    /// Output directory (created if missing): index.html, allan.png, noise_integral.png, davar.png.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
     /// Gyro model (TOML): also diagnose the recording against it and show the findings.
@@ -91,14 +94,17 @@ pub fn run(args: ReportArgs) -> Result<()> {
             model: m,
         }),
         spec: verdict.as_ref(),
+        davar: fed.davar.as_ref(),
     };
     let written = report::write(&args.out, &r).context("writing the report")?;
-    super::write_stdout(&format!(
-        "wrote {}, {} and {}",
-        written.html.display(),
-        written.allan_png.display(),
-        written.noise_png.display()
-    ))?;
+    let mut files = vec![
+        written.html.display().to_string(),
+        written.allan_png.display().to_string(),
+        written.noise_png.display().to_string(),
+    ];
+    files.extend(written.davar_png.map(|p| p.display().to_string()));
+    let last = files.pop().unwrap_or_default();
+    super::write_stdout(&format!("wrote {} and {last}", files.join(", ")))?;
     Ok(())
 }
 

@@ -4,7 +4,9 @@
 
 use std::fmt::Write;
 
-use super::{Report, ReportError, allan_fig, diagnosis, fmt_sig, noise_fig, rate_fig, svg};
+use super::{
+    Report, ReportError, allan_fig, davar_fig, diagnosis, fmt_sig, noise_fig, rate_fig, svg,
+};
 use crate::model::estimate::Coefficient;
 use crate::pipeline::Analysis;
 
@@ -75,6 +77,7 @@ pub fn page(r: &Report<'_>) -> Result<String, ReportError> {
     );
     metadata(&mut h, r);
     coefficients(&mut h, a);
+    quality_section(&mut h, a.data_quality.as_ref());
     if let Some(v) = r.spec {
         spec_section(&mut h, v);
     }
@@ -113,31 +116,120 @@ pub fn page(r: &Report<'_>) -> Result<String, ReportError> {
          mean.</figcaption></figure></section>\n",
         inline_svg(&noise)
     );
-    let rate = svg(super::RATE_SIZE, |area| rate_fig::draw(area, r.series))?;
-    let _ = write!(
-        h,
-        "<section id=\"rate\"><h2>Rate{}</h2><figure>{}<figcaption>The rate over the recording: the raw rate \
-         as its mean per pixel column (its sample-to-sample spread is the quantization noise above), the clean \
-         rate as minimum-maximum band per pixel column and mean (the axis leaves out the most extreme 2 % of \
-         the columns, such as the wavelet bank's start-up, drawn at its edge){}.</figcaption></figure></section>\n",
-        if r.series.temperature().is_some() {
-            " and temperature"
-        } else {
-            ""
-        },
-        inline_svg(&rate),
-        if r.series.temperature().is_some() {
-            "; below, the temperature the frames carry"
-        } else {
-            "; the input has no temperature"
-        }
-    );
+    rate_section(&mut h, r)?;
+    davar_section(&mut h, r)?;
     if let Some(d) = &r.diagnosis {
         h.push_str(&diagnosis::section(d)?);
         h.push('\n');
     }
     h.push_str("</body></html>\n");
     Ok(h)
+}
+
+/// The rate figure, with what the data-quality stage handled marked on it.
+fn rate_section(h: &mut String, r: &Report<'_>) -> Result<(), ReportError> {
+    let dq = r.analysis.data_quality.as_ref();
+    let rate = svg(super::RATE_SIZE, |area| rate_fig::draw(area, r.series, dq))?;
+    let temp = r.series.temperature().is_some();
+    let marked = if dq.is_some_and(|d| d.handled_anything()) {
+        " Marked on the rate: what the data-quality stage handled (excluded outliers as ticks along the \
+         top, bias steps as lines over their 95 % interval, the fitted warm-up over the raw rate)."
+    } else {
+        ""
+    };
+    let _ = write!(
+        h,
+        "<section id=\"rate\"><h2>Rate{}</h2><figure>{}<figcaption>The rate over the recording: the raw rate \
+         as its mean per pixel column (its sample-to-sample spread is the quantization noise above), the clean \
+         rate as minimum-maximum band per pixel column and mean (the axis leaves out the most extreme 2 % of \
+         the columns, such as the wavelet bank's start-up, drawn at its edge){}.{marked}</figcaption></figure></section>\n",
+        if temp { " and temperature" } else { "" },
+        inline_svg(&rate),
+        if temp {
+            "; below, the temperature the frames carry"
+        } else {
+            "; the input has no temperature"
+        }
+    );
+    Ok(())
+}
+
+/// The dynamic Allan deviation's heat map, or one line saying why there is none.
+fn davar_section(h: &mut String, r: &Report<'_>) -> Result<(), ReportError> {
+    h.push_str("<section id=\"davar\"><h2>Dynamic Allan deviation</h2>");
+    match davar_fig::drawable(r.davar) {
+        Ok(m) => {
+            let fig = svg(super::DAVAR_SIZE, |area| {
+                davar_fig::draw(area, m, r.analysis.duration_s)
+            })?;
+            let _ = write!(
+                h,
+                "<figure>{}<figcaption>The Allan deviation of each {} s window of the record (columns) at \
+                 octave averaging times (rows), coloured by its logarithm: a stationary noise keeps each \
+                 row one colour, and a warm-up, a step or a bad hour shows as a change along time. Glitches \
+                 are excluded, nothing else is handled. Blank cells have no term, or a deviation of zero (a pulse \
+                 counter's whole pulses can cancel exactly); a cell at an averaging time near the window's \
+                 length or beyond rests on one or two terms and scatters by a factor of a \
+                 few.</figcaption></figure>",
+                inline_svg(&fig),
+                davar_fig::window_text(m.window_s)
+            );
+        }
+        Err(why) => {
+            let _ = write!(h, "<p class=\"muted\">{}.</p>", esc(&why));
+        }
+    }
+    h.push_str("</section>\n");
+    Ok(())
+}
+
+/// What the data-quality stage found and did, one line per finding, and
+/// the stationarity test of what remains.
+fn quality_section(h: &mut String, dq: Option<&crate::quality::DataQuality>) {
+    h.push_str("<section id=\"quality\"><h2>Data quality</h2>");
+    let Some(dq) = dq else {
+        h.push_str(
+            "<p class=\"muted\">data-quality stage off (--raw-statistics): the estimates are of the \
+             record as it is.</p></section>\n",
+        );
+        return;
+    };
+    h.push_str(
+        "<p>Before the final estimates the record is searched for glitches, a warm-up, bias steps and a \
+         thermal response; what is found is excluded or modelled, and the estimates above are of the \
+         handled record.</p>",
+    );
+    let lines = dq.lines();
+    if lines.is_empty() {
+        h.push_str("<p>Findings: nothing found.</p>");
+    } else {
+        h.push_str("<ul>");
+        for l in &lines {
+            let _ = write!(h, "<li>{}</li>", esc(l));
+        }
+        h.push_str("</ul>");
+    }
+    match &dq.stationary {
+        Some(s) => {
+            let _ = write!(
+                h,
+                "<p class=\"verdict {}\">Stationarity of what remains: {} (p = {}; {}).</p>",
+                if s.ok { "ok" } else { "bad" },
+                if s.ok {
+                    "ok, the windows share one noise"
+                } else {
+                    "NOT stationary, the noise changes over the record"
+                },
+                esc(&fmt_sig(s.p_value, 3)),
+                esc(&s.test)
+            );
+        }
+        None => h.push_str(
+            "<p class=\"muted\">Stationarity: not tested (fewer than 8 full windows, or no averaging time with enough \
+             terms in every window).</p>",
+        ),
+    }
+    h.push_str("</section>\n");
 }
 
 /// The acceptance test: overall verdict and one row per coefficient.

@@ -1,22 +1,31 @@
 //! `sagnac report`: one self-contained HTML page (inline SVG figures, inline
-//! CSS, no script, font or request from outside) and two PNG figures
-//! (plotters' bitmap backend, text in the bundled font, [`crate::font`]).
+//! CSS, no script, font or request from outside) and the PNG figures
+//! (plotters' bitmap backend, text in the bundled font, [`crate::font`]):
+//! `allan.png`, `noise_integral.png` and, when the record has a map to
+//! draw, `davar.png`.
 //!
 //! The page holds, in order: the recording's metadata; the coefficient table
-//! with 95 % intervals, the fit verdict and the readout filter; the Allan
-//! figure ([`allan_fig`]: raw, clean and noise deviations with confidence
-//! bars, the IEEE 952 asymptotes and their total); the noise figure
-//! ([`noise_fig`]: the extracted noise and its running integral against the
-//! one-pulse band); the rate and temperature figure ([`rate_fig`]); and, with
-//! a gyro model, the diagnosis ([`diagnosis`]: its SVG and its findings in
-//! words).
+//! with 95 % intervals, the fit verdict and the readout filter; the
+//! data-quality findings ([`crate::quality`]: one line per finding and the
+//! stationarity test, or a line saying the stage is off); the Allan figure
+//! ([`allan_fig`]: raw, clean and noise deviations with confidence bars, the
+//! IEEE 952 asymptotes and their total); the noise figure ([`noise_fig`]:
+//! the extracted noise and its running integral against the one-pulse band);
+//! the rate and temperature figure ([`rate_fig`], with the excluded outliers,
+//! the bias steps and the fitted warm-up marked); the dynamic Allan
+//! deviation as a heat map ([`davar_fig`]: time against averaging time,
+//! coloured by the deviation; one line instead when there is no map or too
+//! few windows); and, with a gyro model, the diagnosis ([`diagnosis`]: its
+//! SVG and its findings in words).
 //!
-//! The numbers come from a [`crate::pipeline::Analysis`] and a
-//! [`collect::Collector`] fed by [`crate::offline`]'s taps during the same
+//! The numbers come from a [`crate::pipeline::Analysis`] (with its
+//! data-quality findings), the first pass's [`DavarMap`] and a
+//! [`collect::Collector`] fed by [`crate::pipeline::feed`]'s taps during the same
 //! pass; nothing here reads files or runs numerics.
 
 pub mod allan_fig;
 pub mod collect;
+pub mod davar_fig;
 pub mod decimate;
 pub mod diagnosis;
 pub mod html;
@@ -32,6 +41,7 @@ use plotters::prelude::*;
 use crate::diagnose::Diagnosis;
 use crate::input::frame::DecoderStats;
 use crate::pipeline::Analysis;
+use crate::quality::davar::DavarMap;
 
 pub use collect::Collector;
 
@@ -88,12 +98,15 @@ pub struct Report<'a> {
     pub diagnosis: Option<DiagnosisPart<'a>>,
     /// The acceptance test's verdict, with `--spec`.
     pub spec: Option<&'a crate::model::spec::SpecReport>,
+    /// The dynamic Allan deviation (`None`: the data-quality stage is off).
+    pub davar: Option<&'a DavarMap>,
 }
 
 /// Sizes of the figures, px.
 pub const ALLAN_SIZE: (u32, u32) = (1150, 640);
 pub const NOISE_SIZE: (u32, u32) = (1150, 620);
 pub const RATE_SIZE: (u32, u32) = (1150, 560);
+pub const DAVAR_SIZE: (u32, u32) = (1150, 520);
 
 /// The files written.
 #[derive(Debug, Clone)]
@@ -101,6 +114,8 @@ pub struct Written {
     pub html: PathBuf,
     pub allan_png: PathBuf,
     pub noise_png: PathBuf,
+    /// `davar.png`, when the record has a map to draw ([`davar_fig::drawable`]).
+    pub davar_png: Option<PathBuf>,
 }
 
 /// Render an SVG document of `size` with `draw`.
@@ -133,24 +148,46 @@ where
     })
 }
 
-/// Write `dir/index.html`, `dir/allan.png` and `dir/noise_integral.png`
-/// (`dir` must exist).
+/// Write `dir/index.html`, `dir/allan.png`, `dir/noise_integral.png` and,
+/// when the record has a dynamic Allan deviation to draw, `dir/davar.png`
+/// (`dir` must exist; a `davar.png` left there by an earlier report is
+/// removed when this one has none, so the directory never shows another
+/// record's map).
 pub fn write(dir: &Path, r: &Report<'_>) -> Result<Written, ReportError> {
     let page = html::page(r)?;
+    let davar = davar_fig::drawable(r.davar).ok();
     let w = Written {
         html: dir.join("index.html"),
         allan_png: dir.join("allan.png"),
         noise_png: dir.join("noise_integral.png"),
+        davar_png: davar.map(|_| dir.join("davar.png")),
     };
     png(&w.allan_png, ALLAN_SIZE, |a| allan_fig::draw(a, r.analysis))?;
     png(&w.noise_png, NOISE_SIZE, |a| {
         noise_fig::draw(a, r.series, r.meta.pulse_arcsec)
     })?;
+    match (davar, &w.davar_png) {
+        (Some(m), Some(p)) => png(p, DAVAR_SIZE, |a| {
+            davar_fig::draw(a, m, r.analysis.duration_s)
+        })?,
+        _ => remove_if_present(&dir.join("davar.png"))?,
+    }
     std::fs::write(&w.html, page).map_err(|source| ReportError::Io {
         path: w.html.clone(),
         source,
     })?;
     Ok(w)
+}
+
+/// Remove `path` if it exists.
+fn remove_if_present(path: &Path) -> Result<(), ReportError> {
+    match std::fs::remove_file(path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(ReportError::Io {
+            path: path.to_path_buf(),
+            source: e,
+        }),
+        _ => Ok(()),
+    }
 }
 
 /// `v` with `sig` significant digits, plain or in exponent form.

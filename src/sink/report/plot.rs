@@ -18,6 +18,11 @@ pub const NOISE: RGBColor = RGBColor(225, 110, 20);
 pub const TEMP: RGBColor = RGBColor(190, 40, 40);
 /// The total model curve.
 pub const MODEL: RGBColor = RGBColor(125, 125, 125);
+/// What the data-quality stage handled, on the rate figure: excluded
+/// outliers, bias steps (with their intervals), the fitted warm-up.
+pub const OUTLIER: RGBColor = RGBColor(140, 60, 170);
+pub const STEP: RGBColor = RGBColor(200, 30, 90);
+pub const WARMUP: RGBColor = RGBColor(20, 140, 70);
 /// QN, ARW, BI, RRW, RR.
 pub const TERM_COLORS: [RGBColor; 5] = [
     RGBColor(140, 60, 170),
@@ -46,7 +51,11 @@ pub fn log_tick(v: f64) -> String {
     if !(v.is_finite() && v > 0.0) {
         return String::new();
     }
-    let e = v.log10().floor();
+    let mut e = v.log10().floor();
+    // a value a rounding below a power of ten is that power
+    if (v / 10f64.powf(e + 1.0) - 1.0).abs() < 1e-6 {
+        e += 1.0;
+    }
     let mant = v / 10f64.powf(e);
     let mant_txt = if (mant - mant.round()).abs() < 1e-6 {
         format!("{}", mant.round())
@@ -287,6 +296,25 @@ pub fn side_legend<DB: DrawingBackend>(
                 ))
                 .map_err(draw_err)?;
             }
+            LineKind::Tick => {
+                area.draw(&PathElement::new(
+                    vec![(x0 + 17, y - 7), (x0 + 17, y + 7)],
+                    c.stroke_width(2),
+                ))
+                .map_err(draw_err)?;
+            }
+            LineKind::Marker => {
+                area.draw(&Rectangle::new(
+                    [(x0 + 7, y - 8), (x0 + 27, y + 8)],
+                    c.mix(0.15).filled(),
+                ))
+                .map_err(draw_err)?;
+                area.draw(&PathElement::new(
+                    vec![(x0 + 17, y - 8), (x0 + 17, y + 8)],
+                    c.stroke_width(2),
+                ))
+                .map_err(draw_err)?;
+            }
         }
         // a long row wraps at " | "
         for (i, part) in text.split(" | ").enumerate() {
@@ -313,6 +341,10 @@ pub enum LineKind {
     Points,
     Ring,
     Band,
+    /// A short vertical tick (an event in time).
+    Tick,
+    /// A vertical line over a light band (an event and its interval).
+    Marker,
 }
 
 #[cfg(test)]
@@ -328,6 +360,9 @@ mod tests {
         assert_eq!(log_tick(0.0005), "5e-4");
         assert_eq!(log_tick(1e5), "1e5");
         assert_eq!(log_tick(2e-7), "2e-7");
+        assert_eq!(log_tick(0.999_999_999_9), "1");
+        assert_eq!(log_tick(0.009_999_999_99), "0.01");
+        assert_eq!(log_tick(1e-4 * (1.0 - 1e-12)), "1e-4");
         assert_eq!(lin_tick(-0.0, 0.5), "0.0");
         assert_eq!(lin_tick(12.345, 5.0), "12");
         assert_eq!(lin_tick(0.25, 0.05), "0.25");
