@@ -19,6 +19,7 @@
 //! `diagnose`) are plain synchronous Rust and never import tokio.
 
 pub mod allan;
+pub mod chain;
 pub mod cli;
 pub mod daemon;
 pub mod diagnose;

@@ -359,7 +359,7 @@ fn invalid_messages_are_refused_before_queueing() {
     });
     let err = rec.send(bad.clone()).unwrap_err();
     assert!(matches!(err, RecordError::Invalid { .. }), "{err}");
-    assert!(err.to_string().contains("values[0]"), "{err}");
+    assert!(sagnac::chain::chain(&err).contains("values[0]"), "{err}");
     assert!(matches!(
         rec.try_send(bad),
         Err(RecordError::Invalid { .. })

@@ -42,13 +42,13 @@ pub enum BenchError {
         reason: &'static str,
     },
     /// The model cannot be simulated.
-    #[error("simulated bench: {0}")]
+    #[error("simulated bench")]
     Model(#[from] ModelError),
     /// An increment does not fit a frame.
-    #[error("simulated bench: {0}")]
+    #[error("simulated bench")]
     Frame(#[from] FrameError),
     /// The pipeline stopped.
-    #[error("simulated bench: {0}")]
+    #[error("simulated bench")]
     Pipeline(#[from] PipelineClosed),
 }
 

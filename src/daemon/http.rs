@@ -27,7 +27,7 @@ const DRAIN_TIMEOUT: Duration = Duration::from_secs(5);
 /// Errors of the metrics server.
 #[derive(Debug, thiserror::Error)]
 pub enum HttpError {
-    #[error("cannot listen for /metrics on {addr}: {source}")]
+    #[error("cannot listen for /metrics on {addr}")]
     Bind {
         addr: SocketAddr,
         source: std::io::Error,

@@ -76,7 +76,7 @@ pub enum ProcessError {
         reason: &'static str,
     },
     /// The pipeline cannot be built.
-    #[error("processing stage: {0}")]
+    #[error("processing stage")]
     Pipeline(#[from] PipelineError),
 }
 
@@ -421,7 +421,7 @@ impl Run<'_> {
         };
         match rec.checked(msg) {
             Ok(m) => self.outbox.push(m),
-            Err(e) => tracing::warn!(error = %e, "message not recorded"),
+            Err(e) => tracing::warn!(error = %crate::chain::chain(&e), "message not recorded"),
         }
     }
 
@@ -474,7 +474,7 @@ impl Run<'_> {
             }
             Err(e) => {
                 // The writer thread stopped; finish() reports its error.
-                tracing::error!(error = %e, "MCAP recorder stopped: recording disabled for the rest of the run");
+                tracing::error!(error = %crate::chain::chain(&e), "MCAP recorder stopped: recording disabled for the rest of the run");
                 self.recorder_failed = true;
             }
         }
@@ -749,7 +749,7 @@ impl Run<'_> {
         ] {
             let c = curve(pts);
             if let Err(err) = m.set_allan_curve(ch, &c.tau_s, &c.dev) {
-                tracing::warn!(error = %err, "Allan curve not exported");
+                tracing::warn!(error = %crate::chain::chain(&err), "Allan curve not exported");
             }
         }
         tel.estimator_updates.inc();

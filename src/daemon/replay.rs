@@ -46,7 +46,7 @@ pub enum ReplayError {
         reason: &'static str,
     },
     /// The capture cannot be opened or read.
-    #[error("cannot read capture {} at byte {offset}: {source}", path.display())]
+    #[error("cannot read capture {} at byte {offset}", path.display())]
     Io {
         path: PathBuf,
         offset: u64,
@@ -83,7 +83,7 @@ pub enum ReplayError {
     #[error(transparent)]
     Input(#[from] crate::input::InputError),
     /// The pipeline stopped during the replay.
-    #[error("replay of {}: {source}", path.display())]
+    #[error("replay of {}", path.display())]
     Pipeline {
         path: PathBuf,
         source: PipelineClosed,

@@ -75,7 +75,7 @@ pub const UPDATE_BUDGET: f64 = 0.05;
 pub enum DaemonError {
     #[error(transparent)]
     Config(#[from] ConfigError),
-    #[error("gyro model {origin}: {source}")]
+    #[error("gyro model {origin}")]
     Model { origin: String, source: ModelError },
     #[error(transparent)]
     Serial(#[from] SerialError),
@@ -85,13 +85,13 @@ pub enum DaemonError {
     Bench(#[from] BenchError),
     #[error(transparent)]
     Process(#[from] ProcessError),
-    #[error("MCAP recording: {0}")]
+    #[error("MCAP recording")]
     Record(#[from] RecordError),
     #[error(transparent)]
     Http(#[from] HttpError),
     #[error(transparent)]
     Spec(#[from] crate::model::spec::SpecError),
-    #[error("metrics: {0}")]
+    #[error("metrics")]
     Metrics(#[from] MetricsError),
     /// An explicit gyro setting contradicts what the replayed recording says.
     #[error(transparent)]
@@ -902,11 +902,11 @@ async fn join_sources(
                 total.disconnects += r.disconnects;
             }
             (Err(e), Ok(_)) => {
-                tracing::error!(error = %e, "source failed; draining the pipeline");
+                tracing::error!(error = %crate::chain::chain(&e), "source failed; draining the pipeline");
                 trigger.trigger();
                 result = Err(e);
             }
-            (Err(e), Err(_)) => tracing::error!(error = %e, "source failed"),
+            (Err(e), Err(_)) => tracing::error!(error = %crate::chain::chain(&e), "source failed"),
             (Ok(_), Err(_)) => {}
         }
     }
@@ -1005,7 +1005,7 @@ async fn finish_recorder(
             Ok(s)
         }
         Err(e) => {
-            tracing::error!(error = %e, "recording failed");
+            tracing::error!(error = %crate::chain::chain(&e), "recording failed");
             Err(e.into())
         }
     }

@@ -62,14 +62,14 @@ pub enum SerialError {
         reason: &'static str,
     },
     /// The port could not be opened at start-up.
-    #[error("cannot open serial port {path} at {baud} baud: {source}")]
+    #[error("cannot open serial port {path} at {baud} baud")]
     Open {
         path: PathBuf,
         baud: u32,
         source: tokio_serial::Error,
     },
     /// The pipeline stopped while the source was still reading.
-    #[error("serial source {path}: {source}")]
+    #[error("serial source {path}")]
     Pipeline {
         path: PathBuf,
         source: PipelineClosed,
@@ -223,7 +223,7 @@ impl SerialSource {
                         backoff = cfg.reconnect_initial;
                     }
                     Err(e) => {
-                        tracing::debug!(device, error = %e, retry_in = ?backoff, "serial device still away");
+                        tracing::debug!(device, error = %crate::chain::chain(&e), retry_in = ?backoff, "serial device still away");
                         backoff = (backoff * 2).min(cfg.reconnect_max);
                     }
                 }

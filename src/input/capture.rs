@@ -23,7 +23,7 @@ use super::frame::{
 #[derive(Debug, thiserror::Error)]
 pub enum CaptureError {
     /// The file could not be opened.
-    #[error("cannot open frame capture {path}: {source}")]
+    #[error("cannot open frame capture {path}")]
     Open {
         /// The file.
         path: PathBuf,
@@ -32,7 +32,7 @@ pub enum CaptureError {
         source: io::Error,
     },
     /// Reading failed.
-    #[error("read error in frame capture {path} at byte offset {offset}: {source}")]
+    #[error("read error in frame capture {path} at byte offset {offset}")]
     Read {
         /// The file.
         path: PathBuf,

@@ -235,10 +235,10 @@ pub enum FrameError {
         increment: i64,
     },
     /// An I/O error of the stream being decoded (the tokio codec adapter).
-    #[error("I/O error while reading frames: {0}")]
+    #[error("I/O error while reading frames")]
     Io(#[from] std::io::Error),
     /// An I/O error while writing frames ([`FrameWriter`]).
-    #[error("I/O error writing frames after {offset} bytes: {source}")]
+    #[error("I/O error writing frames after {offset} bytes")]
     Write {
         /// Bytes successfully written before the error.
         offset: u64,

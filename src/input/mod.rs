@@ -155,7 +155,7 @@ pub struct Input {
 /// Errors of the input layer; each names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum InputError {
-    #[error("{}: cannot read: {source}", path.display())]
+    #[error("{}: cannot read", path.display())]
     Open {
         path: PathBuf,
         source: std::io::Error,

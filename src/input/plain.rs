@@ -48,9 +48,9 @@ impl fmt::Display for Location {
 /// Input errors; each names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum PlainError {
-    #[error("{}: cannot open: {source}", path.display())]
+    #[error("{}: cannot open", path.display())]
     Open { path: PathBuf, source: io::Error },
-    #[error("{}: read error at {at}: {source}", path.display())]
+    #[error("{}: read error at {at}", path.display())]
     Read {
         path: PathBuf,
         at: Location,

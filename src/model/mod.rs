@@ -41,7 +41,7 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 pub enum ModelError {
     /// The model file could not be read.
-    #[error("cannot read model file {path}: {source}")]
+    #[error("cannot read model file {path}")]
     Read {
         path: PathBuf,
         #[source]
@@ -67,7 +67,7 @@ pub enum ModelError {
     #[error("cannot serialise the model to TOML: {0}")]
     Serialize(String),
     /// Writing simulator output failed.
-    #[error("cannot write simulator output: {0}")]
+    #[error("cannot write simulator output")]
     Write(#[source] std::io::Error),
 }
 

@@ -110,7 +110,7 @@ pub fn default_systematic_rel(c: SpecCoefficient) -> f64 {
 /// Errors reading or validating a spec file.
 #[derive(Debug, thiserror::Error)]
 pub enum SpecError {
-    #[error("cannot read spec file {path}: {source}")]
+    #[error("cannot read spec file {path}")]
     Read {
         path: PathBuf,
         #[source]

@@ -53,9 +53,9 @@ pub enum PipelineError {
         value: String,
         reason: &'static str,
     },
-    #[error("wavelet stage: {0}")]
+    #[error("wavelet stage")]
     Dsp(#[from] DspError),
-    #[error("Allan stage: {0}")]
+    #[error("Allan stage")]
     Allan(#[from] StreamError),
     #[error(transparent)]
     Input(#[from] crate::input::InputError),

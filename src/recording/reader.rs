@@ -39,7 +39,7 @@ use crate::recording::meta::{METADATA_NAME, MetaError, RecordingMeta};
 #[derive(Debug, thiserror::Error)]
 pub enum ReadError {
     /// The file cannot be opened or read.
-    #[error("cannot read {} at byte {offset}: {source}", path.display())]
+    #[error("cannot read {} at byte {offset}", path.display())]
     Io {
         path: PathBuf,
         offset: u64,
@@ -49,14 +49,14 @@ pub enum ReadError {
     #[error("{} is not an MCAP file (bad magic in the first 8 bytes)", path.display())]
     NotMcap { path: PathBuf },
     /// The MCAP structure is broken at `offset` (start of the offending record).
-    #[error("{}: MCAP record at byte {offset} is unreadable: {source}", path.display())]
+    #[error("{}: MCAP record at byte {offset} is unreadable", path.display())]
     Mcap {
         path: PathBuf,
         offset: u64,
         source: McapError,
     },
     /// A message of one of our topics does not decode (offset of its chunk record).
-    #[error("{}: message #{sequence} on {topic} in the record at byte {offset}: {source}", path.display())]
+    #[error("{}: message #{sequence} on {topic} in the record at byte {offset}", path.display())]
     Message {
         path: PathBuf,
         offset: u64,
@@ -73,7 +73,7 @@ pub enum ReadError {
         encoding: String,
     },
     /// The `sagnac` Metadata record does not describe a recording.
-    #[error("{}: the sagnac metadata record at byte {offset}: {source}", path.display())]
+    #[error("{}: the sagnac metadata record at byte {offset}", path.display())]
     Metadata {
         path: PathBuf,
         offset: u64,

@@ -66,16 +66,16 @@ pub enum RecordError {
     #[error("system clock is before the Unix epoch: cannot name the recording")]
     ClockBeforeEpoch,
     /// The record directory cannot be created.
-    #[error("cannot create record directory {}: {source}", path.display())]
+    #[error("cannot create record directory {}", path.display())]
     CreateDir { path: PathBuf, source: io::Error },
     /// The recording file cannot be created.
-    #[error("cannot create recording {}: {source}", path.display())]
+    #[error("cannot create recording {}", path.display())]
     CreateFile { path: PathBuf, source: io::Error },
     /// The recorder thread cannot be started.
-    #[error("cannot start the recorder thread for {}: {source}", path.display())]
+    #[error("cannot start the recorder thread for {}", path.display())]
     Spawn { path: PathBuf, source: io::Error },
     /// The MCAP writer failed.
-    #[error("MCAP writer failed on {} while {action} (file at {bytes} bytes): {source}", path.display())]
+    #[error("MCAP writer failed on {} while {action} (file at {bytes} bytes)", path.display())]
     Mcap {
         path: PathBuf,
         action: &'static str,
@@ -83,10 +83,10 @@ pub enum RecordError {
         source: ::mcap::McapError,
     },
     /// A message was refused before being queued.
-    #[error("message refused for {}: {source}", path.display())]
+    #[error("message refused for {}", path.display())]
     Invalid { path: PathBuf, source: MessageError },
     /// A message could not be serialized.
-    #[error("cannot serialize a {topic} message for {}: {source}", path.display())]
+    #[error("cannot serialize a {topic} message for {}", path.display())]
     Serialize {
         path: PathBuf,
         topic: &'static str,

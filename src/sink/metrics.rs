@@ -52,7 +52,7 @@ pub const DEFAULT_GYRO: &str = "gyro";
 #[derive(Debug, thiserror::Error)]
 pub enum MetricsError {
     /// A metric could not be created or registered (a bug in this module).
-    #[error("cannot register metric `{name}`: {source}")]
+    #[error("cannot register metric `{name}`")]
     Register {
         name: &'static str,
         source: prometheus::Error,
