@@ -34,8 +34,11 @@ pub struct Outliers {
     pub at_s: Vec<f64>,
     /// The test's threshold, in standard deviations of its statistic.
     pub threshold_sigma: f64,
-    /// They were excluded as gaps (false: the noise is heavy-tailed and they were kept).
+    /// Every one was excluded as a gap (false: in windows whose noise is
+    /// heavy-tailed they were kept).
     pub excluded: bool,
+    /// How many were excluded.
+    pub excluded_count: u64,
     /// Excess kurtosis of the test statistic over the samples kept (0 for Gaussian noise).
     pub excess_kurtosis: Option<f64>,
     /// Windows of the record whose noise is heavy-tailed.
@@ -49,6 +52,7 @@ impl Outliers {
             at_s: r.at.iter().map(|&k| k as f64 * tau0_s).collect(),
             threshold_sigma: spikes::THRESHOLD_SIGMA,
             excluded: r.heavy_windows == 0,
+            excluded_count: r.excluded,
             excess_kurtosis: r.excess_kurtosis(),
             heavy_tailed_windows: r.heavy_windows,
         }
@@ -80,7 +84,7 @@ pub struct DataQuality {
 impl DataQuality {
     /// Whether anything was handled (excluded, modelled or compensated).
     pub fn handled_anything(&self) -> bool {
-        (self.outliers.excluded && self.outliers.count > 0)
+        self.outliers.excluded_count > 0
             || self.warmup.is_some()
             || !self.steps.is_empty()
             || self.thermal.as_ref().is_some_and(|t| t.compensated)
@@ -99,7 +103,9 @@ impl DataQuality {
                     "excluded as gaps".to_string()
                 } else {
                     format!(
-                        "kept: the noise is heavy-tailed (excess kurtosis {:.2})",
+                        "{} excluded, the rest kept: the noise of {} windows is heavy-tailed (excess kurtosis {:.2})",
+                        o.excluded_count,
+                        o.heavy_tailed_windows,
                         o.excess_kurtosis.unwrap_or(f64::NAN)
                     )
                 }

@@ -365,3 +365,55 @@ fn lag_grid(block_s: f64, span_s: f64) -> Vec<f64> {
 }
 
 mod report;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+    use rand_distr::{Distribution, StandardNormal};
+
+    /// Block means of white noise of sd `sd` per block, plus `f(t)`.
+    fn series(n: usize, block_s: f64, sd: f64, seed: u64, f: impl Fn(f64) -> f64) -> BlockSeries {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let tau0 = 0.005;
+        let per = (block_s / tau0) as u64;
+        BlockSeries {
+            block_s,
+            t0_s: (0..n).map(|b| b as f64 * block_s).collect(),
+            rate_dph: (0..n)
+                .map(|b| {
+                    let z: f64 = StandardNormal.sample(&mut rng);
+                    sd * z + f((b as f64 + 0.5) * block_s)
+                })
+                .collect(),
+            n: vec![per; n],
+            temp_c: None,
+            samples: per * n as u64,
+            tau0_s: tau0,
+        }
+    }
+
+    /// The white noise whose block means have standard deviation `sd`:
+    /// (60 N)^2 / block_s = sd^2.
+    fn white_for(sd: f64, block_s: f64) -> FineNoise {
+        FineNoise {
+            arw_dpsh: sd * block_s.sqrt() / 60.0,
+            quantization_arcsec: 0.0,
+        }
+    }
+
+    #[test]
+    fn a_warm_up_in_white_block_noise_is_found_and_clean_noise_gives_nothing() {
+        let sd = 0.8;
+        let s = series(160, 15.0, sd, 1, |t| 5.0 * (-t / 300.0).exp());
+        let f = white_for(sd, 15.0);
+        let low = analyse(&s, f).unwrap();
+        let w = low.warmup.expect("the warm-up");
+        assert!(w.amplitude_dph.ci95[0] <= 5.0 && 5.0 <= w.amplitude_dph.ci95[1], "{w:?}");
+        assert!(w.tau_s.ci95[0] <= 300.0 && 300.0 <= w.tau_s.ci95[1], "{w:?}");
+        assert!(low.steps.is_empty());
+        let clean = analyse(&series(160, 15.0, sd, 2, |_| 0.0), f).unwrap();
+        assert!(clean.warmup.is_none() && clean.steps.is_empty(), "{clean:?}");
+    }
+}

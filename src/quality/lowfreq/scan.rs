@@ -7,10 +7,11 @@
 //! A rate random walk absorbs much of any slow effect when its coefficient is
 //! fitted without the effect, so the test compares the two models each at its
 //! own best noise: on a grid of flicker and random-walk coefficients
-//! ([`NoiseGrid`]) around the null model's REML estimates, the restricted
+//! ([`NoiseGrid`]) around the null model's REML estimates, the (full, not
+//! restricted: REML likelihoods of different mean models do not compare)
 //! likelihood of the data with and without the regressor is computed at
 //! every grid point (one Cholesky factor per point serves every candidate),
-//! and the likelihood ratio is the difference of the two minima over the
+//! and the likelihood ratio is the difference of the two maxima over the
 //! grid. A scan takes the largest over its candidates.
 //!
 //! The scan's null distribution is simulated from the null model (fixed
@@ -31,7 +32,7 @@ use super::model::Noise;
 const REPLICAS: usize = 160;
 
 /// One grid point: the factor, the whitened mean model, and the constant
-/// part of its restricted likelihood.
+/// part of its likelihood (`ln det Sigma`).
 struct Point {
     chol: Cholesky,
     basis: Basis,
@@ -155,19 +156,13 @@ impl NoiseGrid {
 fn point(noise: &Noise, x: &[Vec<f64>], b2: f64, k2: f64) -> Option<Point> {
     let chol = Cholesky::new(&noise.covariance(b2, k2), noise.len())?;
     let mut basis = Basis::default();
-    let mut log_det_x = 0.0;
     for col in x {
         let mut v = col.clone();
         chol.whiten(&mut v);
-        let mut r = v.clone();
-        basis.residual(&mut r);
-        let after = dot(&r, &r);
-        if basis.push(v) {
-            log_det_x += after.max(1e-300).ln();
-        }
+        basis.push(v);
     }
     Some(Point {
-        constant: chol.log_det() + log_det_x,
+        constant: chol.log_det(),
         chol,
         basis,
     })
@@ -184,7 +179,7 @@ fn best_of(scan: &Scan, res: &[(Vec<f64>, f64)]) -> Option<(usize, f64)> {
                 .iter()
                 .zip(res)
                 .filter(|(u, _)| !u.1.is_empty())
-                .map(|((ln_n2, u), (w, r0))| r0 + ln_n2 - dot(u, w).powi(2))
+                .map(|((_, u), (w, r0))| r0 - dot(u, w).powi(2))
                 .fold(f64::INFINITY, f64::min);
             alt.is_finite().then_some((i, (null - alt).max(0.0)))
         })
