@@ -772,6 +772,7 @@ impl Run<'_> {
             samples: a.samples,
             duration_s: a.duration_s,
             estimates,
+            data_quality: None,
         }));
         let mut curves = BTreeMap::new();
         curves.insert("raw".to_string(), curve(&a.allan.raw));
