@@ -10,7 +10,9 @@
 //!   are not bit-invariant to its block split);
 //! * gaps: `/gyro/raw` keeps the samples and gaps as delivered, the pipeline sees
 //!   `lost + 1` periods per gap, every pulse is kept;
-//! * one estimator update per interval plus the final one, each in the metrics.
+//! * one estimator update per interval plus the final one, each in the metrics;
+//! * a warm-up: reported `modelled` while it settles, then the statistics
+//!   restart once and it is `excluded`, while the channels go on whole.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -99,6 +101,14 @@ fn run(batches: Vec<SourceBatch>, dir: &Path) -> (ProcessReport, Telemetry, std:
         delivery: Delivery::Lossless,
         update_budget: None,
     };
+    run_with(cfg, batches, dir)
+}
+
+fn run_with(
+    cfg: ProcessConfig,
+    batches: Vec<SourceBatch>,
+    dir: &Path,
+) -> (ProcessReport, Telemetry, std::path::PathBuf) {
     let processor = cfg.build().unwrap();
     let recorder = Recorder::start(&RecorderConfig {
         record_dir: dir.to_path_buf(),
@@ -243,4 +253,113 @@ fn the_stage_is_chunking_invariant_keeps_gaps_and_matches_the_pipeline() {
         text.contains("sagnac_temperature_celsius{gyro=\"gyro\"} 25\n"),
         "{text}"
     );
+}
+
+/// A 3 deg/h warm-up settling with a 60 s time constant, 15 min at 200 Hz,
+/// every estimator update published (no update budget): the updates report
+/// it `modelled` while it settles (from the first assessment on, a minute of
+/// samples in), then, once 5 time constants (at the upper
+/// end of tau's interval) have passed, the statistics restart once (at an
+/// assessment, a whole minute of samples) and every later update reports it
+/// `excluded` with the seconds left out, and holds only the samples after
+/// them. The clean and noise channels and the summary windows carry every
+/// sample exactly once across the restart; the warm-up gauges end at 0
+/// active with its amplitude and time constant; no glitch is counted.
+#[test]
+fn a_settled_warmup_restarts_the_statistics_once_and_the_channels_go_on() {
+    const RATE: u64 = 200;
+    const N: u64 = 15 * 60 * RATE;
+    let model = GyroModel::from_toml_str(
+        "[gyro]\nsample_rate_hz = 200.0\npulse_arcsec = 1.21\ninput_rate_dph = 10.0\n\
+         [noise]\nquantization_arcsec = 0.4\narw_dpsh = 0.01\nbias_instability_dph = 0.005\n\
+         [noise.warmup]\namplitude_dph = 3.0\ntau_s = 60.0\n",
+        "warm-up model",
+    )
+    .unwrap();
+    let mut counts = Vec::new();
+    Simulator::new(&model, 1, None)
+        .unwrap()
+        .next_block(N as usize, &mut counts);
+    let decoded: Vec<(i64, u64)> = counts.iter().map(|&c| (c, 0)).collect();
+    let cfg = ProcessConfig {
+        pipeline: PipelineConfig::counts(RATE as f64, 1.21),
+        interval_s: 30.0,
+        batch_samples: 1000,
+        delivery: Delivery::Lossless,
+        update_budget: None,
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let (report, telemetry, path) = run_with(cfg, batches(&decoded, 3), dir.path());
+    assert_eq!(report.periods, N);
+    // 30 updates plus the final one, every one published
+    assert_eq!(report.updates, 31);
+    let msgs = read_recording(&path).unwrap().messages;
+    let mut handled = Vec::new();
+    let (mut clean, mut noise, mut summary) = (0, 0, 0);
+    for m in &msgs {
+        match &m.message {
+            SinkMessage::Estimates(e) => {
+                let w = e.data_quality.as_ref().and_then(|d| d.warmup.as_ref());
+                handled.push((e.samples, w.map(|w| (w.handled.clone(), w.excluded_s))));
+            }
+            SinkMessage::Clean(c) => clean += c.values.len() as u64,
+            SinkMessage::Noise(c) => noise += c.values.len() as u64,
+            SinkMessage::Summary(s) => summary += s.samples,
+            _ => {}
+        }
+    }
+    assert_eq!((clean, noise, summary), (N, N, N), "every sample once");
+    let first_excluded = handled
+        .iter()
+        .position(|(_, w)| w.as_ref().is_some_and(|w| w.0 == "excluded"))
+        .unwrap_or_else(|| panic!("never excluded: {handled:?}"));
+    assert!(
+        handled[..first_excluded]
+            .iter()
+            .any(|(_, w)| w.as_ref().is_some_and(|w| w.0 == "modelled")),
+        "modelled before the restart: {handled:?}"
+    );
+    let excluded_s = handled[first_excluded].1.as_ref().unwrap().1;
+    assert!(
+        excluded_s >= 300.0 && excluded_s % 60.0 == 0.0 && excluded_s <= 600.0,
+        "{handled:?}"
+    );
+    // `samples` are those through the statistics (the glitch filter holds a
+    // window of 4096): they grow, start again after the restart, and end
+    // with every sample after it
+    let base = (excluded_s as u64) * RATE;
+    for (i, (samples, w)) in handled.iter().enumerate() {
+        if i < first_excluded {
+            assert!(w.as_ref().is_none_or(|w| w.0 == "modelled"), "{handled:?}");
+        } else {
+            assert_eq!(
+                w,
+                &Some(("excluded".to_string(), excluded_s)),
+                "{handled:?}"
+            );
+        }
+        if i > 0 && i != first_excluded {
+            assert!(*samples >= handled[i - 1].0, "update {i}: {handled:?}");
+        }
+    }
+    assert!(handled[first_excluded].0 < handled[first_excluded - 1].0);
+    assert!(handled[first_excluded - 1].0 <= base);
+    assert_eq!(handled.last().unwrap().0, N - base);
+    assert_eq!(report.analysis.samples, N - base);
+    let dq = report.analysis.data_quality.as_ref().unwrap();
+    assert_eq!(dq.outliers.count, 0);
+    let text = telemetry.metrics.encode();
+    let get = |name: &str| {
+        let key = format!("{name}{{gyro=\"gyro\"}} ");
+        text.lines()
+            .find_map(|l| l.strip_prefix(&key))
+            .and_then(|v| v.parse::<f64>().ok())
+            .unwrap_or_else(|| panic!("{name} in\n{text}"))
+    };
+    assert_eq!(get("sagnac_warmup_active"), 0.0);
+    let w = dq.warmup.as_ref().unwrap();
+    assert_eq!(get("sagnac_warmup_amplitude_dph"), w.amplitude_dph.value);
+    assert_eq!(get("sagnac_warmup_tau_seconds"), w.tau_s.value);
+    assert!((2.0..4.5).contains(&w.amplitude_dph.value), "{w:?}");
+    assert_eq!(get("sagnac_outliers_total"), 0.0);
 }

@@ -297,8 +297,8 @@ fn truncation_at_many_bytes_recovers_a_prefix() {
 #[test]
 fn damaged_bytes_never_panic() {
     let dir = tempfile::tempdir().unwrap();
-    // 120 messages: the chunks outweigh the summary's copy of the seven schemas
-    let (path, sent, marks) = flushed_recording(dir.path(), 23, 120, 20);
+    // 240 messages: the chunks outweigh the summary's copy of the eight schemas
+    let (path, sent, marks) = flushed_recording(dir.path(), 23, 240, 40);
     let data = std::fs::read(&path).unwrap();
     let bad_path = dir.path().join("bad.mcap");
     let mut rng = ChaCha8Rng::seed_from_u64(24);

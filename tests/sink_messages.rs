@@ -10,7 +10,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use sagnac::recording::messages::{
     AllanCurve, AllanUpdate, Event, EventKind, Gap, MessageError, RateBatch, RawBatch, SinkMessage,
-    Topic, quantize_rate,
+    Topic, quantize_rate, recordable_quality,
 };
 use serde_json::{Value, json};
 
@@ -146,7 +146,13 @@ fn schema_properties_are_exactly_the_serialized_fields() {
     ] {
         let s = topic.json_schema();
         assert_eq!(s["additionalProperties"], json!(false), "{topic:?}");
-        let props: Vec<&String> = s["properties"].as_object().unwrap().keys().collect();
+        // the one optional field: `data_quality`, absent with the raw statistics
+        let props: Vec<&String> = s["properties"]
+            .as_object()
+            .unwrap()
+            .keys()
+            .filter(|k| !(topic == Topic::Estimates && *k == "data_quality"))
+            .collect();
         let req: Vec<&str> = s["required"]
             .as_array()
             .unwrap()
@@ -163,6 +169,114 @@ fn schema_properties_are_exactly_the_serialized_fields() {
         Topic::Clean.json_schema()["title"],
         Topic::Noise.json_schema()["title"]
     );
+    // data_quality's objects: every field required, no other
+    let dq = &Topic::Estimates.json_schema()["properties"]["data_quality"];
+    let mut objects = vec![dq.clone()];
+    while let Some(o) = objects.pop() {
+        if let Some(props) = o["properties"].as_object() {
+            let req = o["required"].as_array().unwrap();
+            assert_eq!(props.len(), req.len(), "{}", o["title"]);
+            assert_eq!(o["additionalProperties"], json!(false), "{}", o["title"]);
+            objects.extend(props.values().cloned());
+        }
+        if o["items"].is_object() {
+            objects.push(o["items"].clone());
+        }
+    }
+}
+
+/// `data_quality` in `/gyro/estimates`: the field names of `sagnac analyze
+/// --json`'s `data_quality` (the same serde structs), absent (not null) with
+/// the raw statistics; the validator holds messages to its schema; numbers
+/// JSON cannot carry are refused, and [`recordable_quality`] leaves out the
+/// findings that hold them.
+#[test]
+fn data_quality_has_analyzes_names_and_is_optional() {
+    let schema = Topic::Estimates.json_schema();
+    let with: Vec<_> = sink_common::stream(21, 400)
+        .into_iter()
+        .filter_map(|m| match m {
+            SinkMessage::Estimates(e) => Some(e),
+            _ => None,
+        })
+        .collect();
+    assert!(with.iter().any(|e| e.data_quality.is_none()));
+    let mut kinds = std::collections::BTreeSet::new();
+    for e in &with {
+        let j = json_of(&SinkMessage::Estimates(e.clone()));
+        check(&schema, &j, "$").unwrap();
+        match &e.data_quality {
+            None => assert!(j.get("data_quality").is_none(), "absent, not null"),
+            Some(dq) => {
+                assert_eq!(j["data_quality"], serde_json::to_value(dq).unwrap());
+                for k in ["outliers", "warmup", "steps", "thermal", "stationary"] {
+                    assert!(j["data_quality"].get(k).is_some(), "{k}");
+                    if !j["data_quality"][k].is_null() {
+                        kinds.insert(k);
+                    }
+                }
+            }
+        }
+    }
+    assert_eq!(
+        kinds.len(),
+        5,
+        "every kind of finding is covered: {kinds:?}"
+    );
+    // the validator rejects a broken data_quality
+    let good = json_of(&SinkMessage::Estimates(
+        with.iter()
+            .find(|e| e.data_quality.as_ref().is_some_and(|d| d.warmup.is_some()))
+            .unwrap()
+            .clone(),
+    ));
+    for (path, value) in [
+        ("warmup", json!({"amplitude_dph": 1.0})),
+        ("outliers", json!(null)),
+        ("steps", json!([{"at_s": 1.0}])),
+        ("thermal", json!(3)),
+        ("extra", json!(1)),
+    ] {
+        let mut bad = good.clone();
+        bad["data_quality"][path] = value.clone();
+        assert!(
+            check(&schema, &bad, "$").is_err(),
+            "{path} = {value} accepted"
+        );
+    }
+    let mut bad = good.clone();
+    bad["data_quality"]["warmup"]["handled"] = json!("ignored");
+    assert!(
+        check(&schema, &bad, "$").is_err(),
+        "handled is modelled or excluded"
+    );
+    // non-finite numbers: refused; the sanitiser drops what holds them
+    let mut e = with
+        .iter()
+        .find(|e| {
+            e.data_quality
+                .as_ref()
+                .is_some_and(|d| d.warmup.is_some() && d.outliers.count > 0)
+        })
+        .unwrap()
+        .clone();
+    let dq = e.data_quality.as_mut().unwrap();
+    dq.warmup.as_mut().unwrap().tau_s.ci95[1] = f64::INFINITY;
+    dq.outliers.at_s[0] = f64::NAN;
+    dq.outliers.excess_kurtosis = Some(f64::NAN);
+    let n_at = dq.outliers.at_s.len();
+    let err = SinkMessage::Estimates(e.clone()).validate().unwrap_err();
+    assert!(matches!(err, MessageError::NonFinite { .. }), "{err}");
+    let clean = recordable_quality(e.data_quality.as_ref().unwrap());
+    assert!(clean.warmup.is_none());
+    assert_eq!(clean.outliers.at_s.len(), n_at - 1);
+    assert_eq!(clean.outliers.excess_kurtosis, None);
+    assert_eq!(
+        clean.outliers.count,
+        e.data_quality.as_ref().unwrap().outliers.count
+    );
+    e.data_quality = Some(clean);
+    assert_eq!(SinkMessage::Estimates(e).validate(), Ok(()));
 }
 
 #[test]

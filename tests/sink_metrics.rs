@@ -104,6 +104,10 @@ fn fill(metrics: &Metrics, info: &GyroInfo) {
         .unwrap();
     m.set_temperature_c(Some(31.5));
     m.set_processing_lag_s(0.125);
+    m.add_outliers(4);
+    m.add_outliers(3);
+    m.add_bias_steps(1);
+    m.set_warmup(true, Some((-0.3, 900.0)));
     metrics.set_recording_bytes(123_456);
 }
 
@@ -128,7 +132,7 @@ fn promtool_catches_bad_names() {
 }
 
 /// The families whose every series carries the `gyro` label, and the daemon-wide ones.
-const PER_GYRO: [&str; 16] = [
+const PER_GYRO: [&str; 21] = [
     "sagnac_samples_total",
     "sagnac_frames_decoded_total",
     "sagnac_frame_errors_total",
@@ -141,6 +145,11 @@ const PER_GYRO: [&str; 16] = [
     "sagnac_allan_deviation_degrees_per_hour",
     "sagnac_temperature_celsius",
     "sagnac_processing_lag_seconds",
+    "sagnac_outliers_total",
+    "sagnac_bias_steps_total",
+    "sagnac_warmup_active",
+    "sagnac_warmup_amplitude_dph",
+    "sagnac_warmup_tau_seconds",
     "sagnac_gyro_info",
     "sagnac_spec_verdict",
     "sagnac_spec_limit",
@@ -181,6 +190,11 @@ fn names_help_and_values() {
         ("sagnac_rate_ramp_degrees_per_hour_squared", "gauge"),
         ("sagnac_build_info", "gauge"),
         ("sagnac_gyro_info", "gauge"),
+        ("sagnac_outliers_total", "counter"),
+        ("sagnac_bias_steps_total", "counter"),
+        ("sagnac_warmup_active", "gauge"),
+        ("sagnac_warmup_amplitude_dph", "gauge"),
+        ("sagnac_warmup_tau_seconds", "gauge"),
     ] {
         assert!(text.contains(&format!("# HELP {name} ")), "HELP {name}");
         assert!(
@@ -190,8 +204,8 @@ fn names_help_and_values() {
     }
     let families = text.lines().filter(|l| l.starts_with("# TYPE ")).count();
     assert_eq!(
-        families, 16,
-        "exactly the sixteen metrics (no spec without a spec):\n{text}"
+        families, 21,
+        "exactly the twenty-one metrics (no spec without a spec):\n{text}"
     );
     let build = format!(
         "sagnac_build_info{{version=\"{}\"}} 1\n",
@@ -282,6 +296,38 @@ fn names_help_and_values() {
     assert_eq!(get("sagnac_temperature_celsius{gyro=\"gyro\"}"), 31.5);
     assert_eq!(get("sagnac_processing_lag_seconds{gyro=\"gyro\"}"), 0.125);
     assert_eq!(get("sagnac_recording_bytes"), 123_456.0);
+    assert_eq!(get("sagnac_outliers_total{gyro=\"gyro\"}"), 7.0);
+    assert_eq!(get("sagnac_bias_steps_total{gyro=\"gyro\"}"), 1.0);
+    assert_eq!(get("sagnac_warmup_active{gyro=\"gyro\"}"), 1.0);
+    assert_eq!(get("sagnac_warmup_amplitude_dph{gyro=\"gyro\"}"), -0.3);
+    assert_eq!(get("sagnac_warmup_tau_seconds{gyro=\"gyro\"}"), 900.0);
+}
+
+/// The data-quality series of a gyro exist from the start, at 0 (with the raw
+/// statistics they stay there); a warm-up's gauges read 0 when there is none,
+/// never NaN.
+#[test]
+fn data_quality_series_start_at_zero_and_are_never_nan() {
+    let metrics = Metrics::new().unwrap();
+    let m = metrics.gyro(&GyroInfo::labelled("x"));
+    let s = samples(&metrics.encode());
+    for name in [
+        "sagnac_outliers_total",
+        "sagnac_bias_steps_total",
+        "sagnac_warmup_active",
+        "sagnac_warmup_amplitude_dph",
+        "sagnac_warmup_tau_seconds",
+    ] {
+        assert_eq!(s[&format!("{name}{{gyro=\"x\"}}")], 0.0, "{name}");
+    }
+    m.set_warmup(true, Some((f64::NAN, f64::INFINITY)));
+    let s = samples(&metrics.encode());
+    assert_eq!(s["sagnac_warmup_active{gyro=\"x\"}"], 1.0);
+    assert_eq!(s["sagnac_warmup_amplitude_dph{gyro=\"x\"}"], 0.0);
+    assert_eq!(s["sagnac_warmup_tau_seconds{gyro=\"x\"}"], 0.0);
+    m.set_warmup(false, None);
+    let s = samples(&metrics.encode());
+    assert_eq!(s["sagnac_warmup_active{gyro=\"x\"}"], 0.0);
 }
 
 #[test]

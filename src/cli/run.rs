@@ -5,6 +5,7 @@
 //!            | --simulate MODEL.toml | --simulate-triad X.toml,Y.toml,Z.toml] [--frame single|triad]
 //!            [--sample-rate-hz F] [--pulse-arcsec D] [--metrics-addr ADDR] [--record-dir DIR]
 //!            [--wavelet sym8] [--duration-s S] [--spec SPEC.toml [--stop-when-decided]]
+//!            [--raw-statistics]
 //! ```
 //!
 //! Thin: read the config file (or the built-in defaults), apply the flags,
@@ -107,6 +108,11 @@ pub struct RunArgs {
     /// estimates, finished recording, exit 0).
     #[arg(long)]
     pub stop_when_decided: bool,
+    /// Turn the data-quality stage off: no glitch exclusion, no warm-up, step or
+    /// thermal assessment, no restart after a warm-up (the raw statistics, for
+    /// comparison; `quality.raw_statistics`).
+    #[arg(long)]
+    pub raw_statistics: bool,
 }
 
 /// The config key a flag overrides (for error messages).
@@ -136,6 +142,7 @@ fn flag_of(args: &RunArgs, key: &str) -> Option<(&'static str, bool)> {
         "run.duration_s" => ("--duration-s", args.duration_s.is_some()),
         "spec.path" => ("--spec", args.spec.is_some()),
         "spec.stop_when_decided" => ("--stop-when-decided", args.stop_when_decided),
+        "quality.raw_statistics" => ("--raw-statistics", args.raw_statistics),
         _ => return None,
     })
 }
@@ -260,6 +267,9 @@ pub fn resolve(args: &RunArgs) -> Result<(Config, Explicit), ConfigError> {
     }
     if args.stop_when_decided {
         cfg.spec.stop_when_decided = true;
+    }
+    if args.raw_statistics {
+        cfg.quality.raw_statistics = true;
     }
     cfg.validate()?;
     Ok((cfg, explicit))

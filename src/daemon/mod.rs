@@ -9,6 +9,8 @@
 //!   (backpressure) or, for a live source, by a memory budget in bytes;
 //! * [`process`]: the pipeline thread (gap fill, the shared
 //!   [`crate::pipeline::Pipeline`], estimator updates) publishing to the sinks;
+//! * [`quality`]: the data-quality stage of a live run (glitch counts, the
+//!   slow effects assessed every minute of samples, the restart after a warm-up);
 //! * [`run`]: [`run::Daemon`], wiring sources, pipeline, recorder and the
 //!   `/metrics` server ([`http`]) with bounded channels and a drained shutdown
 //!   ([`shutdown`]);
@@ -28,6 +30,7 @@ pub mod config;
 pub mod http;
 pub mod lanes;
 pub mod process;
+pub mod quality;
 pub mod queue;
 pub mod replay;
 pub mod run;

@@ -19,8 +19,10 @@
 //!   bench: 5 %), an update is skipped while less than `cost / budget` of wall
 //!   time has passed since the previous one started. At real-time pace (1 kHz,
 //!   5 s interval) no update is skipped; a live serial source never skips while
-//!   it runs. After a shutdown request the queued batches are drained without
-//!   intermediate updates. The final update after the end of the stream is
+//!   it runs. The data-quality assessments are not skipped (their schedule is
+//!   by sample count) and do not count against the budget. After a shutdown
+//!   request the queued batches are drained without intermediate updates or
+//!   assessments. The final update after the end of the stream is
 //!   always made, so final estimates are deterministic.
 //! * Recording: lossless sources use the recorder's blocking `send`
 //!   (backpressure all the way to the source); live sources use `try_send`, and
@@ -35,6 +37,17 @@
 //!   estimates (with the same configuration).
 //! * Time: each segment of contiguous samples has a time anchor (from its first
 //!   batch); uniform sample `u` of the segment is at `t0 + u / rate`.
+//! * Data quality ([`crate::daemon::quality`], unless `[quality]
+//!   raw_statistics`): glitches are counted at every estimator boundary, the
+//!   slow effects assessed every minute of samples or so and at the end, and their
+//!   findings go into `/gyro/estimates` (`data_quality`), the metrics and the
+//!   status line. Each batch's temperature goes into the pipeline with its
+//!   samples (the thermal analysis). A warm-up that has settled restarts the
+//!   statistics once: the old pipeline is finished (every sample it took gets
+//!   its clean and noise values, so `/gyro/clean`, `/gyro/noise` and the
+//!   summary windows go on without a hole or a repeat) and a new one with the
+//!   same configuration takes the samples from there; only the estimates start
+//!   again.
 //! * Acceptance test (issue 17, [`Processor::set_spec`]): at each estimator
 //!   update the [`SequentialSpec`] sees the estimates (its looks are at fixed
 //!   record lengths, so skipped updates only skip looks); the verdicts go to the
@@ -51,6 +64,7 @@ use crate::model::spec::{SequentialSpec, Spec, SpecReport, Verdict};
 
 use crate::allan::AllanPoint;
 use crate::daemon::batch::{Delivery, SourceBatch};
+use crate::daemon::quality::LiveQuality;
 use crate::daemon::queue::BatchReceiver;
 use crate::daemon::status::{LiveStatus, StatusEstimate, format_coefficient};
 use crate::daemon::summary::{Place, SummaryAcc};
@@ -60,7 +74,7 @@ use crate::model::estimate::Coefficient;
 use crate::pipeline::{Analysis, Pipeline, PipelineConfig, PipelineError, PipelineOutput};
 use crate::recording::messages::{
     AllanCurve, AllanUpdate, EstimateUpdate, Event, EventKind, Gap, RateBatch, RawBatch,
-    SinkMessage, SummaryUpdate, VerdictUpdate,
+    SinkMessage, SummaryUpdate, VerdictUpdate, recordable_quality,
 };
 use crate::recording::writer::{Checked, RecordError, RecordSender};
 use crate::sink::metrics::{AllanChannel, Bounds95};
@@ -105,6 +119,8 @@ pub struct Processor {
     period_ns: f64,
     dt_ns: u64,
     spec: Option<LiveSpec>,
+    /// The data-quality stage's live state (`None`: the raw statistics).
+    quality: Option<LiveQuality>,
 }
 
 /// The acceptance test of a live run.
@@ -138,7 +154,12 @@ impl ProcessConfig {
         let pipeline = Pipeline::new(&self.pipeline)?;
         let rate: f64 = self.pipeline.sample_rate_hz;
         let interval_samples = (self.interval_s * rate).round().max(1.0) as u64;
+        let quality = self
+            .pipeline
+            .data_quality
+            .then(|| LiveQuality::new(1.0 / rate));
         Ok(Processor {
+            quality,
             period_ns: 1e9 / rate,
             dt_ns: (1e9 / rate).round() as u64,
             interval_samples,
@@ -237,6 +258,11 @@ struct Run<'a> {
     raw: RawAcc,
     rates: RateAcc,
     temp_c: Option<f64>,
+    /// (uniform index from which a batch's temperature holds, the temperature),
+    /// oldest first, for the samples not yet pushed.
+    temps: VecDeque<(u64, f64)>,
+    /// Temperatures of one push (scratch).
+    push_temps: Vec<f64>,
     status: u32,
     /// Gap-filled samples not yet pushed into the pipeline.
     pending: FilledSeries,
@@ -307,6 +333,8 @@ impl Processor {
             raw: RawAcc::default(),
             rates: RateAcc::default(),
             temp_c: None,
+            temps: VecDeque::new(),
+            push_temps: Vec::new(),
             status: 0,
             pending: FilledSeries::default(),
             push_filled: Vec::new(),
@@ -574,6 +602,12 @@ impl Run<'_> {
             return;
         }
         let u_next = self.pushed + self.pending.len() as u64;
+        if let Some(t) = self.temp_c
+            && self.p.quality.is_some()
+            && self.temps.back().is_none_or(|&(_, last)| last != t)
+        {
+            self.temps.push_back((u_next, t));
+        }
         if b.new_segment || self.segments.is_empty() {
             self.flush_raw();
             self.segments.push_back(Segment {
@@ -678,6 +712,7 @@ impl Run<'_> {
                 self.temp_c,
                 &place,
             );
+            self.push_temperatures(n);
             self.p.pipeline.push_counts_filled(
                 &self.pending.counts[start..start + n],
                 &self.push_filled,
@@ -688,24 +723,7 @@ impl Run<'_> {
             self.take_output();
             if self.pushed == self.next_update_at {
                 self.next_update_at += self.p.interval_samples;
-                let draining = self.out.stop.as_ref().is_some_and(Shutdown::is_requested);
-                let due = !draining
-                    && match (self.p.cfg.update_budget, self.last_update) {
-                        (Some(budget), Some((t, cost))) => {
-                            t.elapsed().as_secs_f64() * budget >= cost.as_secs_f64()
-                        }
-                        _ => true,
-                    };
-                if due {
-                    // when the sample that closed the interval arrived
-                    let pushed = self.pushed;
-                    let arrived = self
-                        .arrivals
-                        .iter()
-                        .find(|(end, _)| *end >= pushed)
-                        .map_or_else(Instant::now, |(_, a)| *a);
-                    self.update(arrived, false);
-                }
+                self.boundary();
             }
         }
         self.pending.drain_front(start);
@@ -726,12 +744,119 @@ impl Run<'_> {
         }
     }
 
-    /// Publish an estimator update from everything pushed so far.
-    fn update(&mut self, arrived: Instant, last: bool) {
-        let start = Instant::now();
-        let a = self.p.pipeline.analysis();
-        self.publish(&a, arrived, last);
-        self.last_update = Some((start, start.elapsed()));
+    /// The temperatures of the next `n` samples pushed (each batch's for its
+    /// own samples) into the pipeline, for the thermal analysis.
+    fn push_temperatures(&mut self, n: usize) {
+        if self.temps.is_empty() {
+            return;
+        }
+        let end = self.pushed + n as u64;
+        self.push_temps.clear();
+        let mut k = 0;
+        for u in self.pushed..end {
+            while k + 1 < self.temps.len() && self.temps[k + 1].0 <= u {
+                k += 1;
+            }
+            let (from, t) = self.temps[k];
+            self.push_temps.push(if from <= u { t } else { f64::NAN });
+        }
+        let first = self.p.pipeline.samples_in();
+        self.p.pipeline.push_temperature(first, &self.push_temps);
+        while self.temps.len() > 1 && self.temps[1].0 <= end {
+            self.temps.pop_front();
+        }
+    }
+
+    /// At an estimator boundary: count the glitches; assess the slow effects
+    /// when due (by sample count, so whatever the pace); publish an update
+    /// unless draining or over the update budget; restart the statistics after
+    /// a warm-up that has settled.
+    fn boundary(&mut self) {
+        let draining = self.out.stop.as_ref().is_some_and(Shutdown::is_requested);
+        let due = !draining
+            && match (self.p.cfg.update_budget, self.last_update) {
+                (Some(budget), Some((t, cost))) => {
+                    t.elapsed().as_secs_f64() * budget >= cost.as_secs_f64()
+                }
+                _ => true,
+            };
+        let samples = self.p.pipeline.samples_in();
+        let assess = !draining && self.p.quality.as_mut().is_some_and(|q| q.due(samples));
+        let mut restart = false;
+        if due || assess {
+            let start = Instant::now();
+            let mut a = self.p.pipeline.analysis();
+            let estimated = start.elapsed();
+            if let Some(q) = self.p.quality.as_mut() {
+                if assess {
+                    restart = q.assess(&self.p.pipeline, &a.estimates, false);
+                    tracing::debug!(
+                        gyro = self.out.telemetry.gyro.label(),
+                        cost_s = (start.elapsed() - estimated).as_secs_f64(),
+                        "data-quality assessment"
+                    );
+                }
+                a.data_quality = q.report();
+            }
+            if due {
+                // when the sample that closed the interval arrived
+                let pushed = self.pushed;
+                let arrived = self
+                    .arrivals
+                    .iter()
+                    .find(|(end, _)| *end >= pushed)
+                    .map_or_else(Instant::now, |(_, a)| *a);
+                let published = Instant::now();
+                self.publish(&a, arrived, false);
+                // the budget is the updates': the assessments are made whatever the pace
+                self.last_update = Some((start, estimated + published.elapsed()));
+            }
+        }
+        if restart {
+            self.restart_statistics();
+        }
+        self.publish_quality();
+    }
+
+    /// Glitch counts, warm-up and steps to the metrics and the status line.
+    fn publish_quality(&mut self) {
+        if let Some(q) = self.p.quality.as_mut() {
+            q.publish(
+                &self.p.pipeline,
+                &self.out.telemetry.gyro,
+                self.out.status.as_deref(),
+            );
+        }
+    }
+
+    /// Restart the statistics after a warm-up: finish the pipeline (every
+    /// sample pushed gets its clean and noise values, which go out as usual)
+    /// and push the samples from here on into a new one of the same
+    /// configuration.
+    fn restart_statistics(&mut self) {
+        let fresh = match Pipeline::new(&self.p.cfg.pipeline) {
+            Ok(p) => p,
+            Err(e) => {
+                tracing::warn!(error = %e, "statistics not restarted after the warm-up");
+                return;
+            }
+        };
+        self.p.pipeline.finish(&mut self.pout);
+        self.take_output();
+        debug_assert_eq!(self.emitted, self.pushed, "every sample pushed came out");
+        let old = std::mem::replace(&mut self.p.pipeline, fresh);
+        let Some(q) = self.p.quality.as_mut() else {
+            return;
+        };
+        q.restart(&old, self.pushed);
+        let w = q.report().and_then(|d| d.warmup);
+        tracing::info!(
+            gyro = self.out.telemetry.gyro.label(),
+            excluded_s = q.excluded_s().unwrap_or(0.0),
+            warmup_amplitude_dph = w.as_ref().map_or(0.0, |w| w.amplitude_dph.value),
+            warmup_tau_s = w.as_ref().map_or(0.0, |w| w.tau_s.value),
+            "warm-up settled: statistics restarted, the data before left out"
+        );
     }
 
     fn publish(&mut self, a: &Analysis, arrived: Instant, last: bool) {
@@ -772,6 +897,7 @@ impl Run<'_> {
             samples: a.samples,
             duration_s: a.duration_s,
             estimates,
+            data_quality: a.data_quality.as_ref().map(recordable_quality),
         }));
         let mut curves = BTreeMap::new();
         curves.insert("raw".to_string(), curve(&a.allan.raw));
@@ -872,7 +998,12 @@ impl Run<'_> {
         self.record_summaries();
         self.flush_raw();
         self.flush_rates();
-        let a = self.p.pipeline.analysis();
+        let mut a = self.p.pipeline.analysis();
+        if let Some(q) = self.p.quality.as_mut() {
+            q.assess(&self.p.pipeline, &a.estimates, true);
+            a.data_quality = q.report();
+        }
+        self.publish_quality();
         if a.samples > 0 {
             self.publish(&a, Instant::now(), true);
         }

@@ -1,6 +1,8 @@
 //! The live status of a run, for the one-line display `sagnac run` redraws at a
 //! terminal: elapsed time, samples, lost samples, QN and ARW with their 95 %
-//! intervals, the fit verdict, and a replay's progress through its file.
+//! intervals, the fit verdict, what the data-quality stage found (a warm-up
+//! settling or excluded, outliers excluded, bias steps), and a replay's
+//! progress through its file.
 //!
 //! The pipeline thread writes [`LiveStatus`] (samples at every batch, the
 //! coefficients at every estimator update); the terminal side reads a
@@ -25,6 +27,59 @@ pub struct StatusEstimate {
     pub final_update: bool,
 }
 
+/// What the data-quality stage found so far, as the status line says it.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StatusQuality {
+    /// A warm-up is settling: its time constant, s.
+    pub warmup_settling_tau_s: Option<f64>,
+    /// The statistics restarted after a warm-up: seconds of the run left out.
+    pub warmup_excluded_s: Option<f64>,
+    /// Outliers excluded as gaps.
+    pub outliers_excluded: u64,
+    /// Bias steps found.
+    pub steps: u64,
+}
+
+impl StatusQuality {
+    /// `warm-up settling (tau 60 s), 3 outliers excluded, 1 step`; empty when
+    /// nothing was found.
+    fn full(&self) -> Vec<String> {
+        let mut v = Vec::new();
+        if let Some(t) = self.warmup_excluded_s {
+            v.push(format!("warm-up excluded: first {t:.0} s"));
+        } else if let Some(tau) = self.warmup_settling_tau_s {
+            v.push(format!("warm-up settling (tau {tau:.0} s)"));
+        }
+        if self.outliers_excluded > 0 {
+            let s = if self.outliers_excluded == 1 { "" } else { "s" };
+            v.push(format!("{} outlier{s} excluded", self.outliers_excluded));
+        }
+        if self.steps > 0 {
+            let s = if self.steps == 1 { "" } else { "s" };
+            v.push(format!("{} step{s}", self.steps));
+        }
+        v
+    }
+
+    /// `wu 60s`, `wu-excl 300s`, `3 outl`, `1 step`.
+    fn compact(&self) -> Vec<String> {
+        let mut v = Vec::new();
+        if let Some(t) = self.warmup_excluded_s {
+            v.push(format!("wu-excl {t:.0}s"));
+        } else if let Some(tau) = self.warmup_settling_tau_s {
+            v.push(format!("wu {tau:.0}s"));
+        }
+        if self.outliers_excluded > 0 {
+            v.push(format!("{} outl", short_count(self.outliers_excluded)));
+        }
+        if self.steps > 0 {
+            let s = if self.steps == 1 { "" } else { "s" };
+            v.push(format!("{} step{s}", self.steps));
+        }
+        v
+    }
+}
+
 /// What the status line shows.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct StatusSnapshot {
@@ -35,6 +90,8 @@ pub struct StatusSnapshot {
     /// Sample periods lost (gaps, drops).
     pub lost: u64,
     pub estimate: Option<StatusEstimate>,
+    /// What the data-quality stage found.
+    pub quality: StatusQuality,
     /// A replay's (bytes read, file size).
     pub replay_bytes: Option<(u64, u64)>,
 }
@@ -52,6 +109,7 @@ struct State {
     samples: u64,
     lost: u64,
     estimate: Option<StatusEstimate>,
+    quality: StatusQuality,
 }
 
 /// A replay's file size and where to read how far the replay has got.
@@ -107,6 +165,11 @@ impl LiveStatus {
         self.lock().estimate = Some(e);
     }
 
+    /// What the data-quality stage found so far.
+    pub fn set_quality(&self, q: StatusQuality) {
+        self.lock().quality = q;
+    }
+
     /// A replay of a file of `total_bytes`: its progress is the
     /// `sagnac_bytes_read_total` counter of `metrics`.
     pub fn set_replay(&self, total_bytes: u64, metrics: Arc<Metrics>) {
@@ -128,6 +191,7 @@ impl LiveStatus {
             samples: s.samples,
             lost: s.lost,
             estimate: s.estimate,
+            quality: s.quality,
             replay_bytes,
         }
     }
@@ -177,20 +241,29 @@ pub fn format_coefficient(c: &Coefficient) -> String {
 
 /// The status line for a terminal `width` columns wide: [`format_status`] when
 /// it fits, else [`format_status_compact`] (the same fields, shorter: it fits
-/// 80 columns). Nothing is cut off: on a terminal narrower than the compact
-/// line, the compact line is drawn and the terminal truncates it.
+/// 80 columns), else the compact line without its data-quality part. On a
+/// terminal narrower than that, the compact line is drawn and the terminal
+/// truncates it.
 pub fn format_status_for_width(s: &StatusSnapshot, width: usize) -> String {
+    let fits = |l: &String| l.chars().count() <= width;
     let full = format_status(s);
-    if full.chars().count() <= width {
-        full
-    } else {
-        format_status_compact(s)
+    if fits(&full) {
+        return full;
     }
+    let compact = format_status_compact(s);
+    if fits(&compact) {
+        return compact;
+    }
+    format_status_compact(&StatusSnapshot {
+        quality: StatusQuality::default(),
+        ..*s
+    })
 }
 
 /// `12.3 s | 12300 samples, 0 lost | Q 0.351 [0.349, 0.353] arcsec | N 0.000990
 /// [0.000641, 0.00120] deg/sqrt(h) | fit ok`, preceded by `replay 45 % |` for a
-/// replay; `estimating...` before the first update.
+/// replay; `estimating...` before the first update; then what the data-quality
+/// stage found, when anything (`| warm-up settling (tau 60 s), 3 outliers excluded`).
 pub fn format_status(s: &StatusSnapshot) -> String {
     let mut parts = Vec::with_capacity(6);
     if let Some(pct) = s.replay_percent() {
@@ -216,13 +289,19 @@ pub fn format_status(s: &StatusSnapshot) -> String {
         }
         None => parts.push("estimating...".into()),
     }
+    let q = s.quality.full();
+    if !q.is_empty() {
+        parts.push(q.join(", "));
+    }
     parts.join(" | ")
 }
 
 /// The status line in at most 80 columns: `45% 12m34s 1.23M (3 lost) Q
 /// 0.35[0.34,0.36] N 0.00099[0.00064,0.0012] ok`: replay progress, elapsed
 /// time, samples and lost samples, Q in arcsec and N in deg/sqrt(h) with their
-/// 95 % intervals to 2 significant digits, `ok` or `MISFIT` for the fit.
+/// 95 % intervals to 2 significant digits, `ok` or `MISFIT` for the fit, then
+/// the data-quality findings in short (`wu 60s`, `wu-excl 300s`, `3 outl`,
+/// `1 step`; without them the line fits 80 columns).
 pub fn format_status_compact(s: &StatusSnapshot) -> String {
     let mut parts = Vec::with_capacity(8);
     if let Some(pct) = s.replay_percent() {
@@ -242,6 +321,7 @@ pub fn format_status_compact(s: &StatusSnapshot) -> String {
         }
         None => parts.push("estimating...".into()),
     }
+    parts.extend(s.quality.compact());
     parts.join(" ")
 }
 
@@ -385,6 +465,7 @@ mod tests {
                 final_update: false,
             }),
             replay_bytes: Some((999, 1000)),
+            ..StatusSnapshot::default()
         };
         let line = format_status_compact(&worst);
         assert_eq!(
@@ -404,6 +485,78 @@ mod tests {
         assert_eq!(
             compact_coefficient(&coef(None, None, Some(0.0012))),
             "<0.0012"
+        );
+    }
+
+    #[test]
+    fn the_data_quality_part_of_the_status_line() {
+        let mut s = StatusSnapshot {
+            elapsed_s: 12.34,
+            samples: 12_300,
+            ..StatusSnapshot::default()
+        };
+        s.quality = StatusQuality {
+            warmup_settling_tau_s: Some(59.6),
+            outliers_excluded: 3,
+            steps: 1,
+            ..StatusQuality::default()
+        };
+        assert_eq!(
+            format_status(&s),
+            "12.3 s | 12300 samples, 0 lost | estimating... | warm-up settling (tau 60 s), 3 outliers excluded, 1 step"
+        );
+        assert_eq!(
+            format_status_compact(&s),
+            "12.3s 12300 (0 lost) estimating... wu 60s 3 outl 1 step"
+        );
+        s.quality = StatusQuality {
+            warmup_settling_tau_s: Some(59.6),
+            warmup_excluded_s: Some(420.0),
+            outliers_excluded: 1,
+            steps: 2,
+        };
+        assert_eq!(
+            format_status(&s),
+            "12.3 s | 12300 samples, 0 lost | estimating... | warm-up excluded: first 420 s, 1 outlier excluded, 2 steps"
+        );
+        // nothing found: no part at all
+        s.quality = StatusQuality::default();
+        assert_eq!(
+            format_status(&s),
+            "12.3 s | 12300 samples, 0 lost | estimating..."
+        );
+        // the widest compact line with findings: they go first when 80 columns are too few
+        let worst = StatusSnapshot {
+            elapsed_s: 3.0 * 86_400.0 - 1.0,
+            samples: 259_199_999,
+            lost: 123_456,
+            estimate: Some(StatusEstimate {
+                quantization_arcsec: coef(Some(0.35054), Some([0.34086, 0.35996]), None),
+                arw_dpsh: coef(Some(0.00099011), Some([0.00064116, 0.0012039]), None),
+                fit: FitSummary {
+                    chi2_per_dof: 17.5,
+                    dof: 40.0,
+                    ok: false,
+                    observations: 60,
+                },
+                final_update: false,
+            }),
+            quality: StatusQuality {
+                warmup_excluded_s: Some(900.0),
+                outliers_excluded: 12,
+                ..StatusQuality::default()
+            },
+            replay_bytes: Some((999, 1000)),
+        };
+        let line = format_status_for_width(&worst, 80);
+        assert_eq!(
+            line,
+            "100% 71h59m 259M (123k lost) Q 0.35[0.34,0.36] N 0.00099[0.00064,0.0012] MISFIT"
+        );
+        assert!(
+            format_status_for_width(&worst, 120).ends_with("MISFIT wu-excl 900s 12 outl"),
+            "{}",
+            format_status_for_width(&worst, 120)
         );
     }
 }

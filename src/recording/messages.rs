@@ -13,7 +13,7 @@
 //! | `/gyro/raw` | [`RawBatch`]: per-sample pulse increments with gaps | `t0_ns` |
 //! | `/gyro/clean` | [`RateBatch`]: wavelet-cleaned rate, deg/h | `t0_ns` |
 //! | `/gyro/noise` | [`RateBatch`]: quantization-noise component, deg/h | `t0_ns` |
-//! | `/gyro/estimates` | [`EstimateUpdate`]: noise coefficients with 95 % intervals, as `analyze --json` names them | `t_ns` |
+//! | `/gyro/estimates` | [`EstimateUpdate`]: noise coefficients with 95 % intervals and the data-quality findings, as `analyze --json` names them | `t_ns` |
 //! | `/gyro/allan` | [`AllanUpdate`]: octave Allan curves with CIs | `t_ns` |
 //! | `/gyro/events` | [`Event`]: gaps, resyncs, CRC errors, device changes, drops | `t_ns` |
 //! | `/gyro/verdict` | [`VerdictUpdate`]: acceptance-test verdicts (`sagnac run --spec`) | `t_ns` |
@@ -52,6 +52,7 @@ use serde_json::{Value, json};
 
 use crate::model::estimate::{Coefficient, NoiseEstimates};
 use crate::model::spec::{CoefficientVerdict, SpecReport, Verdict};
+use crate::quality::{DataQuality, Interval};
 use crate::units;
 
 /// Schema encoding written in the MCAP Schema records.
@@ -203,7 +204,8 @@ fn serialize_rate<S: serde::Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error
 /// coefficients `quantization_arcsec`, `arw_dpsh`, `bias_instability_dph`,
 /// `rrw_dphsh`, `rate_ramp_dphh`, each `{value, ci95: [lo, hi]}` or, when the data
 /// do not resolve the term, `{value: null, upper95}`; units in the names,
-/// [`units::COEFFICIENTS`]).
+/// [`units::COEFFICIENTS`]), and with the data-quality stage on, its findings
+/// as `data_quality` (the fields of `analyze --json`'s `data_quality`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct EstimateUpdate {
@@ -215,6 +217,30 @@ pub struct EstimateUpdate {
     pub duration_s: f64,
     /// The five coefficients.
     pub estimates: NoiseEstimates,
+    /// What the data-quality stage found and did so far (absent with the raw
+    /// statistics).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub data_quality: Option<DataQuality>,
+}
+
+/// `dq` as recorded: JSON has no NaN or infinity, so a finding holding a
+/// non-finite number is left out (an outlier time, a fit, the stationarity
+/// test), and a non-finite excess kurtosis is `null`.
+pub fn recordable_quality(dq: &DataQuality) -> DataQuality {
+    let ok = |i: &Interval| i.value.is_finite() && i.ci95.iter().all(|v| v.is_finite());
+    let mut out = dq.clone();
+    out.outliers.at_s.retain(|t| t.is_finite());
+    out.outliers.excess_kurtosis = dq.outliers.excess_kurtosis.filter(|k| k.is_finite());
+    out.warmup = dq
+        .warmup
+        .clone()
+        .filter(|w| ok(&w.amplitude_dph) && ok(&w.tau_s) && w.excluded_s.is_finite());
+    out.steps.retain(|s| ok(&s.at_s) && ok(&s.amplitude_dph));
+    out.thermal = dq
+        .thermal
+        .filter(|t| ok(&t.bias_sensitivity_dph_per_c) && ok(&t.lag_s));
+    out.stationary = dq.stationary.clone().filter(|s| s.p_value.is_finite());
+    out
 }
 
 impl EstimateUpdate {
@@ -708,7 +734,10 @@ impl SinkMessage {
                     }
                     finite_opt(topic, &format!("estimates.{name}.upper95"), c.upper95)?;
                 }
-                Ok(())
+                match &m.data_quality {
+                    Some(dq) => finite_quality(topic, dq),
+                    None => Ok(()),
+                }
             }
             SinkMessage::Summary(m) => {
                 if m.timestamp.nsec >= 1_000_000_000 {
@@ -1037,6 +1066,46 @@ fn finite_opt(topic: &'static str, field: &str, value: Option<f64>) -> Result<()
     value.map_or(Ok(()), |v| finite(topic, field, v))
 }
 
+/// Every number of a `data_quality` finite.
+fn finite_quality(topic: &'static str, dq: &DataQuality) -> Result<(), MessageError> {
+    let interval = |field: &str, i: &Interval| {
+        finite(topic, &format!("data_quality.{field}.value"), i.value)?;
+        finite_slice(topic, &format!("data_quality.{field}.ci95"), &i.ci95)
+    };
+    let o = &dq.outliers;
+    finite_slice(topic, "data_quality.outliers.at_s", &o.at_s)?;
+    finite(
+        topic,
+        "data_quality.outliers.threshold_sigma",
+        o.threshold_sigma,
+    )?;
+    finite_opt(
+        topic,
+        "data_quality.outliers.excess_kurtosis",
+        o.excess_kurtosis,
+    )?;
+    if let Some(w) = &dq.warmup {
+        interval("warmup.amplitude_dph", &w.amplitude_dph)?;
+        interval("warmup.tau_s", &w.tau_s)?;
+        finite(topic, "data_quality.warmup.excluded_s", w.excluded_s)?;
+    }
+    for (k, s) in dq.steps.iter().enumerate() {
+        interval(&format!("steps[{k}].at_s"), &s.at_s)?;
+        interval(&format!("steps[{k}].amplitude_dph"), &s.amplitude_dph)?;
+    }
+    if let Some(t) = &dq.thermal {
+        interval(
+            "thermal.bias_sensitivity_dph_per_c",
+            &t.bias_sensitivity_dph_per_c,
+        )?;
+        interval("thermal.lag_s", &t.lag_s)?;
+    }
+    if let Some(s) = &dq.stationary {
+        finite(topic, "data_quality.stationary.p_value", s.p_value)?;
+    }
+    Ok(())
+}
+
 fn finite_slice(topic: &'static str, field: &str, values: &[f64]) -> Result<(), MessageError> {
     match values.iter().position(|v| !v.is_finite()) {
         None => Ok(()),
@@ -1133,7 +1202,7 @@ fn estimate_update_schema() -> Value {
         coefficients.insert(key.to_string(), coefficient_schema(key, unit, what));
     }
     let names: Vec<&str> = units::COEFFICIENTS.iter().map(|c| c.0).collect();
-    object(
+    let mut schema = object(
         "sagnac.EstimateUpdate",
         "noise-coefficient estimates, named as in `sagnac analyze --json` (units in the names)",
         json!({
@@ -1145,6 +1214,88 @@ fn estimate_update_schema() -> Value {
                 &format!("the IEEE 952 coefficients: {}", names.join(", ")),
                 Value::Object(coefficients),
             ),
+        }),
+    );
+    // optional: absent with the raw statistics
+    schema["properties"]["data_quality"] = data_quality_schema();
+    schema
+}
+
+/// `data_quality`, as `sagnac analyze --json` writes it.
+fn data_quality_schema() -> Value {
+    let nullable = |mut o: Value| {
+        o["type"] = json!(["object", "null"]);
+        o
+    };
+    let interval = |what: &str| {
+        object(
+            "sagnac.Interval",
+            &format!("{what}: value with its 95 % interval"),
+            json!({
+                "value": number(what),
+                "ci95": {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2,
+                         "description": format!("95 % interval [lower, upper] of the {what}")},
+            }),
+        )
+    };
+    let outliers = object(
+        "sagnac.Outliers",
+        "single-sample glitches, found by a robust test against the record's own noise",
+        json!({
+            "count": uint("outliers found"),
+            "at_s": {"type": "array", "items": {"type": "number"}, "description": "their times, s from the start of the run (the first 1000)"},
+            "threshold_sigma": number("the test's threshold, standard deviations of its statistic"),
+            "excluded": {"type": "boolean", "description": "excluded from the statistics as gaps (false: the noise is heavy-tailed and they were kept)"},
+            "excess_kurtosis": nullable_number("excess kurtosis of the test statistic over the samples kept (0 for Gaussian noise)"),
+            "heavy_tailed_windows": uint("windows of the record whose noise is heavy-tailed"),
+        }),
+    );
+    let warmup = object(
+        "sagnac.Warmup",
+        "a warm-up: the bias settles as amplitude_dph exp(-t / tau_s) from the start",
+        json!({
+            "amplitude_dph": interval("amplitude, deg/h"),
+            "tau_s": interval("time constant, s"),
+            "handled": {"type": "string", "enum": ["modelled", "excluded"],
+                        "description": "modelled (the fitted settling subtracted; the daemon before its restart: in the statistics) or excluded (the statistics restarted after it)"},
+            "excluded_s": number("seconds of the run left out of the statistics"),
+        }),
+    );
+    let step = object(
+        "sagnac.BiasStep",
+        "a bias step: the bias jumps by amplitude_dph at at_s",
+        json!({
+            "at_s": interval("time of the step, s from the start of the run"),
+            "amplitude_dph": interval("size of the step, deg/h"),
+        }),
+    );
+    let thermal = object(
+        "sagnac.Thermal",
+        "the bias's response to the temperature, delayed by lag_s",
+        json!({
+            "bias_sensitivity_dph_per_c": interval("sensitivity, deg/h per deg C"),
+            "lag_s": interval("lag, s"),
+            "compensated": {"type": "boolean", "description": "the response is significant and the rate is compensated for it"},
+        }),
+    );
+    let stationary = object(
+        "sagnac.Stationarity",
+        "whether the windows of the record share one noise (dynamic Allan deviation)",
+        json!({
+            "ok": {"type": "boolean", "description": "false when the windows' noise differs beyond chance"},
+            "test": {"type": "string", "description": "what was tested"},
+            "p_value": number("the record's p-value"),
+        }),
+    );
+    object(
+        "sagnac.DataQuality",
+        "what the data-quality stage found and did, as `sagnac analyze --json` names it",
+        json!({
+            "outliers": outliers,
+            "warmup": nullable(warmup),
+            "steps": {"type": "array", "items": step, "description": "bias steps found"},
+            "thermal": nullable(thermal),
+            "stationary": nullable(stationary),
         }),
     )
 }

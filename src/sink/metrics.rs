@@ -26,6 +26,11 @@
 //! | `sagnac_allan_deviation_degrees_per_hour` | gauge | `gyro`; `channel`: `raw`, `clean`; `tau_seconds` |
 //! | `sagnac_temperature_celsius` | gauge | `gyro` |
 //! | `sagnac_processing_lag_seconds` | gauge | `gyro` |
+//! | `sagnac_outliers_total` | counter | `gyro` (single-sample glitches the data-quality stage found; apart from lost samples) |
+//! | `sagnac_bias_steps_total` | counter | `gyro` (bias steps the data-quality stage found so far) |
+//! | `sagnac_warmup_active` | gauge | `gyro` (1 while a warm-up is found and not yet settled, else 0) |
+//! | `sagnac_warmup_amplitude_dph` | gauge | `gyro` (the warm-up's amplitude, deg/h; 0 when none) |
+//! | `sagnac_warmup_tau_seconds` | gauge | `gyro` (the warm-up's time constant, s; 0 when none) |
 //! | `sagnac_gyro_info` | gauge | `gyro`, `serial_number`, `model` (always 1; from the config) |
 //! | `sagnac_spec_verdict` | gauge | `gyro`; `coefficient` (as in the spec, and `overall`): 1 pass, 0 undecided, -1 fail |
 //! | `sagnac_spec_limit` | gauge | `gyro`; `coefficient`: the spec's limit, in the coefficient's unit |
@@ -35,6 +40,8 @@
 //! | `sagnac_build_info` | gauge | `version` (always 1) |
 //!
 //! The `sagnac_spec_*` series exist only in a run with a spec (`sagnac run --spec`).
+//! The data-quality series (outliers, bias steps, warm-up) stay at 0 with the
+//! raw statistics (`--raw-statistics`).
 //!
 //! A coefficient bound that is not known is absent (no series), not zero; the
 //! temperature and lag read `NaN` until first set. The Allan series of a channel
@@ -168,6 +175,11 @@ struct GyroFamilies {
     allan: GaugeVec,
     temperature: GaugeVec,
     lag: GaugeVec,
+    outliers: IntCounterVec,
+    bias_steps: IntCounterVec,
+    warmup_active: GaugeVec,
+    warmup_amplitude: GaugeVec,
+    warmup_tau: GaugeVec,
     info: GaugeVec,
     spec_verdict: GaugeVec,
     spec_limit: GaugeVec,
@@ -258,6 +270,32 @@ impl GyroFamilies {
             lag: gauge(
                 "sagnac_processing_lag_seconds",
                 "Wall time minus the sample time of the newest processed sample, seconds (NaN before the first).",
+                &[],
+            )?,
+            outliers: counter(
+                "sagnac_outliers_total",
+                "Single-sample glitches (outliers) found by the data-quality stage, excluded from the statistics \
+                 as gaps unless the noise is heavy-tailed (lost samples are counted apart).",
+            )?,
+            bias_steps: counter(
+                "sagnac_bias_steps_total",
+                "Bias steps found by the data-quality stage's analysis of the slow effects so far.",
+            )?,
+            warmup_active: gauge(
+                "sagnac_warmup_active",
+                "1 while a warm-up (exponential settling of the bias) is found and has not settled yet \
+                 (5 time constants since the start of the statistics), else 0.",
+                &[],
+            )?,
+            warmup_amplitude: gauge(
+                "sagnac_warmup_amplitude_dph",
+                "Amplitude of the warm-up found (the bias's offset at the start from its settled value), \
+                 degrees per hour (0 when none).",
+                &[],
+            )?,
+            warmup_tau: gauge(
+                "sagnac_warmup_tau_seconds",
+                "Time constant of the warm-up found, seconds (0 when none).",
                 &[],
             )?,
             info: gauge(
@@ -363,6 +401,13 @@ impl Metrics {
             lost_samples: f.lost_samples.with_label_values(&[g]),
             temperature: f.temperature.with_label_values(&[g]),
             lag: f.lag.with_label_values(&[g]),
+            outliers: f.outliers.with_label_values(&[g]),
+            bias_steps: f.bias_steps.with_label_values(&[g]),
+            warmup: [
+                f.warmup_active.with_label_values(&[g]),
+                f.warmup_amplitude.with_label_values(&[g]),
+                f.warmup_tau.with_label_values(&[g]),
+            ],
             families: f.clone(),
             allan_taus: Arc::clone(&self.allan_taus),
         };
@@ -422,6 +467,10 @@ pub struct GyroMetrics {
     lost_samples: IntCounter,
     temperature: Gauge,
     lag: Gauge,
+    outliers: IntCounter,
+    bias_steps: IntCounter,
+    /// `sagnac_warmup_active`, `_amplitude_dph`, `_tau_seconds`.
+    warmup: [Gauge; 3],
     families: GyroFamilies,
     allan_taus: Arc<Mutex<BTreeMap<(String, AllanChannel), Vec<String>>>>,
 }
@@ -555,6 +604,26 @@ impl GyroMetrics {
     /// Set the processing lag, s.
     pub fn set_processing_lag_s(&self, lag_s: f64) {
         self.lag.set(lag_s);
+    }
+
+    /// Count outliers (glitches) found.
+    pub fn add_outliers(&self, n: u64) {
+        self.outliers.inc_by(n);
+    }
+
+    /// Count bias steps found.
+    pub fn add_bias_steps(&self, n: u64) {
+        self.bias_steps.inc_by(n);
+    }
+
+    /// Set the warm-up series: whether one is settling, its amplitude (deg/h)
+    /// and time constant (s); `None` (no warm-up) and non-finite numbers read 0.
+    pub fn set_warmup(&self, active: bool, amplitude_tau: Option<(f64, f64)>) {
+        let finite = |v: f64| if v.is_finite() { v } else { 0.0 };
+        let (a, tau) = amplitude_tau.unwrap_or((0.0, 0.0));
+        self.warmup[0].set(if active { 1.0 } else { 0.0 });
+        self.warmup[1].set(finite(a));
+        self.warmup[2].set(finite(tau));
     }
 
     /// Set one coefficient's acceptance-test series: verdict (1 pass, 0 undecided,

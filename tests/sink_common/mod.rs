@@ -7,6 +7,8 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sagnac::model::estimate::{Coefficient, NoiseEstimates};
 use sagnac::model::spec::{CoefficientVerdict, Verdict};
+use sagnac::quality::davar::Stationarity;
+use sagnac::quality::{DataQuality, Interval, Outliers, StepFit, ThermalFit, Warmup};
 use sagnac::recording::messages::{
     AllanCurve, AllanUpdate, EstimateUpdate, Event, EventKind, Gap, RateBatch, RawBatch,
     SinkMessage, SummaryUpdate, Timestamp, VerdictUpdate,
@@ -89,7 +91,58 @@ pub fn estimate(rng: &mut ChaCha8Rng, i: u64) -> EstimateUpdate {
             rrw_dphsh: coef(),
             rate_ramp_dphh: coef(),
         },
+        data_quality: data_quality(i),
     }
+}
+
+/// The data-quality findings of estimate `i` (its own generator, so the other
+/// messages of a stream do not depend on them): none for one in three, else
+/// every kind of finding, some absent.
+pub fn data_quality(i: u64) -> Option<DataQuality> {
+    let mut rng = ChaCha8Rng::seed_from_u64(0xD0 ^ i);
+    if i % 3 == 0 {
+        return None;
+    }
+    let interval = |rng: &mut ChaCha8Rng| {
+        let v = awkward_f64(rng);
+        Interval {
+            value: v,
+            ci95: [v - v.abs() * 0.2, v + v.abs() * 0.3],
+        }
+    };
+    let count = rng.random_range(0..20u64);
+    Some(DataQuality {
+        outliers: Outliers {
+            count,
+            at_s: (0..count).map(|_| rng.random_range(0.0..7200.0)).collect(),
+            threshold_sigma: 6.0,
+            excluded: rng.random_bool(0.8),
+            excess_kurtosis: rng.random_bool(0.9).then(|| awkward_f64(&mut rng)),
+            heavy_tailed_windows: rng.random_range(0..3),
+        },
+        warmup: rng.random_bool(0.5).then(|| Warmup {
+            amplitude_dph: interval(&mut rng),
+            tau_s: interval(&mut rng),
+            handled: if i % 2 == 0 { "excluded" } else { "modelled" }.into(),
+            excluded_s: if i % 2 == 0 { 420.0 } else { 0.0 },
+        }),
+        steps: (0..rng.random_range(0..3))
+            .map(|_| StepFit {
+                at_s: interval(&mut rng),
+                amplitude_dph: interval(&mut rng),
+            })
+            .collect(),
+        thermal: rng.random_bool(0.5).then(|| ThermalFit {
+            bias_sensitivity_dph_per_c: interval(&mut rng),
+            lag_s: interval(&mut rng),
+            compensated: rng.random_bool(0.5),
+        }),
+        stationary: rng.random_bool(0.7).then(|| Stationarity {
+            ok: rng.random_bool(0.5),
+            test: "trend and outlying-window tests".into(),
+            p_value: rng.random_range(0.0..1.0),
+        }),
+    })
 }
 
 pub fn summary(rng: &mut ChaCha8Rng, i: u64) -> SummaryUpdate {
