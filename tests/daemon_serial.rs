@@ -355,7 +355,7 @@ fn peak_rss_bytes(pid: u32) -> Option<u64> {
 #[test]
 fn serial_overload_drops_are_counted_recorded_and_lose_no_angle() {
     let dir = tempfile::tempdir().unwrap();
-    let emu = BenchEmulator::simulate(&paper_model(), 23, 12.0, 40_000, u32::MAX - 300).unwrap();
+    let emu = BenchEmulator::simulate(&paper_model(), 23, 45.0, 40_000, u32::MAX - 300).unwrap();
     let injected = emu.inject(&FaultPlan::none());
     let bytes = &injected.bytes;
     let socat = Socat::start(&dir.path().join("A"), &dir.path().join("B"));
@@ -369,8 +369,10 @@ fn serial_overload_drops_are_counted_recorded_and_lose_no_angle() {
     .unwrap();
     let mut daemon = start_serial_daemon(dir.path(), &cfg, &socat.b, addr, &rec_dir);
     let mut w = socat.writer();
-    // 10 s of frames at 20x: far more estimator work than the pipeline can do
-    let burst = 10_000 * 16;
+    // 40 s of frames at 20x: once the statistics have their first samples
+    // (after the wavelet bank's latency), far more estimator work than the
+    // pipeline can do
+    let burst = 40_000 * 16;
     write_paced(&mut w, &bytes[..burst], RATE_HZ * 16.0 * SPEEDUP).unwrap();
     let budget = 64.0 * 1024.0;
     let mut most_queued: f64 = 0.0;

@@ -455,8 +455,11 @@ impl Run<'_> {
 
     /// Hand the queued messages to the recorder (entries of up to
     /// [`crate::recording::writer::GROUP_MAX`] messages, one wake of the writer thread
-    /// each): blocking for lossless sources; a live source's full queue drops
-    /// them, counted.
+    /// each), blocking for lossless sources. A live source blocks for the data
+    /// (raw, clean, noise, events, summaries: the record of the measurement, so a
+    /// slow disk backs up into the source queue, whose drops keep the angle) and
+    /// offers the statistics (estimates, Allan curves: recomputable from the data)
+    /// without blocking; those a full queue refuses are dropped, counted.
     fn send_outbox(&mut self) {
         let msgs = std::mem::take(&mut self.outbox);
         let Some(rec) = &self.out.recorder else {
@@ -465,12 +468,15 @@ impl Run<'_> {
         if msgs.is_empty() || self.recorder_failed {
             return;
         }
-        let n = msgs.len() as u64;
+        let before = rec.dropped();
         let r = if self.p.cfg.delivery == Delivery::Live {
-            rec.try_send_all(msgs)
+            let (stats, data): (Vec<_>, Vec<_>) =
+                msgs.into_iter().partition(|m| m.message().is_statistic());
+            rec.send_all(data).and_then(|()| rec.try_send_all(stats))
         } else {
             rec.send_all(msgs)
         };
+        let n = rec.dropped() - before;
         match r {
             Ok(()) => {
                 if self.unreported_drops > 0 {
@@ -490,7 +496,7 @@ impl Run<'_> {
             }
             Err(RecordError::QueueFull { .. }) => {
                 if self.recorder_dropped == 0 {
-                    tracing::warn!("MCAP recorder queue full: dropping messages (counted)");
+                    tracing::warn!("MCAP recorder queue full: dropping statistics messages (counted)");
                 }
                 self.recorder_dropped += n;
                 self.unreported_drops += n;

@@ -564,6 +564,12 @@ pub enum SinkMessage {
 }
 
 impl SinkMessage {
+    /// A statistic of the data (estimates, an Allan curve), recomputable from the
+    /// data channels: what a live source's full recorder queue may drop.
+    pub fn is_statistic(&self) -> bool {
+        matches!(self, SinkMessage::Estimates(_) | SinkMessage::Allan(_))
+    }
+
     /// The channel the message goes to.
     pub fn topic(&self) -> Topic {
         match self {
@@ -1245,7 +1251,8 @@ fn data_quality_schema() -> Value {
             "count": uint("outliers found"),
             "at_s": {"type": "array", "items": {"type": "number"}, "description": "their times, s from the start of the run (the first 1000)"},
             "threshold_sigma": number("the test's threshold, standard deviations of its statistic"),
-            "excluded": {"type": "boolean", "description": "excluded from the statistics as gaps (false: the noise is heavy-tailed and they were kept)"},
+            "excluded": {"type": "boolean", "description": "every one excluded from the statistics as a gap (false: in windows whose noise is heavy-tailed they were kept)"},
+            "excluded_count": uint("how many were excluded"),
             "excess_kurtosis": nullable_number("excess kurtosis of the test statistic over the samples kept (0 for Gaussian noise)"),
             "heavy_tailed_windows": uint("windows of the record whose noise is heavy-tailed"),
         }),

@@ -352,6 +352,13 @@ pub const GROUP_MAX: usize = 128;
 #[derive(Debug)]
 pub struct Checked(SinkMessage);
 
+impl Checked {
+    /// The message.
+    pub fn message(&self) -> &SinkMessage {
+        &self.0
+    }
+}
+
 /// A cloneable handle that queues messages for a [`Recorder`].
 #[derive(Clone)]
 pub struct RecordSender {
