@@ -117,6 +117,7 @@ pub fn data_quality(i: u64) -> Option<DataQuality> {
             at_s: (0..count).map(|_| rng.random_range(0.0..7200.0)).collect(),
             threshold_sigma: 6.0,
             excluded: rng.random_bool(0.8),
+            excluded_count: rng.random_range(0..=count),
             excess_kurtosis: rng.random_bool(0.9).then(|| awkward_f64(&mut rng)),
             heavy_tailed_windows: rng.random_range(0..3),
         },
