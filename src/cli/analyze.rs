@@ -346,16 +346,52 @@ fn print_table(a: &Analysis) -> Result<()> {
     )?;
     for p in &a.allan.raw {
         let find = |v: &[crate::allan::AllanPoint]| v.iter().find(|q| q.m == p.m).map(|q| q.dev);
-        let f = |x: Option<f64>| x.map_or("-".to_string(), |v| format!("{v:.6e}"));
+        let f = |x: Option<f64>| x.map_or("-".to_string(), readable);
         writeln!(
             o,
             "{:>12.4} {:>14} {:>14} {:>14}",
             p.tau_s,
-            format!("{:.6e}", p.dev),
+            readable(p.dev),
             f(find(&a.allan.clean)),
             f(find(&a.allan.noise))
         )?;
     }
     writeln!(o, "(Allan deviations in deg/h)")?;
     Ok(())
+}
+
+/// `v` to 5 significant digits, in fixed notation from 1e-3 to 1e6 and as
+/// `1.2345e-05` outside it.
+fn readable(v: f64) -> String {
+    let a = v.abs();
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    if (1e-3..1e6).contains(&a) {
+        let decimals = (4 - a.log10().floor() as i32).max(0) as usize;
+        return format!("{v:.decimals$}");
+    }
+    let s = format!("{v:.4e}");
+    match s.split_once('e') {
+        Some((m, e)) => {
+            let (sign, digits) = e.strip_prefix('-').map_or(("+", e), |d| ("-", d));
+            format!("{m}e{sign}{digits:0>2}")
+        }
+        None => s,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::readable;
+
+    #[test]
+    fn deviations_read_in_fixed_notation_with_five_digits() {
+        assert_eq!(readable(21.557541), "21.558");
+        assert_eq!(readable(0.0012345678), "0.0012346");
+        assert_eq!(readable(123456.7), "123457");
+        assert_eq!(readable(2.5e-5), "2.5000e-05");
+        assert_eq!(readable(3.0e7), "3.0000e+07");
+        assert_eq!(readable(0.0), "0");
+    }
 }
