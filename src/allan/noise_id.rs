@@ -17,7 +17,7 @@
 //!   describes, for fewer points. Stable32's own choices there are not fully
 //!   documented; the agreement we reach is measured and reported by the tests.
 
-use super::batch::deviation;
+use super::sums::deviation;
 use super::{Phase, Stat};
 
 /// Fewest decimated points for the lag-1 ACF method (Riley & Greenhall).

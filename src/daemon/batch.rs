@@ -18,7 +18,7 @@
 //! periods, and the batch records `Gap { index, lost }` before it (the
 //! representation of `/gyro/raw`). The sum of the counts is therefore the true
 //! number of pulses, whatever was lost. The pipeline thread spreads such an
-//! increment over the missing periods ([`crate::input::frame::spread_increment`]).
+//! increment over the missing periods ([`crate::dsp::gaps::spread_increment`]).
 //!
 //! # Delivery
 //! [`Delivery::Lossless`] (replays, the simulated bench) waits for room in a
@@ -32,6 +32,7 @@
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
 use crate::daemon::queue::{self, BatchReceiver, QueueBound, QueueTx};
+pub use crate::daemon::queue::{PipelineClosed, SourceBatch};
 use crate::daemon::telemetry::{
     ANOMALY_DISCONTINUITY, ANOMALY_DUPLICATE, ANOMALY_OUT_OF_SEQUENCE, Telemetry,
 };
@@ -44,57 +45,6 @@ pub fn wall_ns() -> u64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
-}
-
-/// Decoded samples and events, in stream order.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SourceBatch {
-    /// Unwrapped sequence number of the first sample period the batch covers
-    /// (a leading gap included).
-    pub seq0: u64,
-    /// Time of period `seq0`, ns since the Unix epoch.
-    pub t0_ns: u64,
-    /// Pulse increments; after a gap, the whole increment over the gap.
-    pub counts: Vec<i64>,
-    /// Missing samples: `lost` periods just before `counts[index]`.
-    pub gaps: Vec<Gap>,
-    /// Device temperature of the newest frame, deg C.
-    pub temp_c: Option<f64>,
-    /// Device status word of the newest frame.
-    pub status: Option<u32>,
-    /// Events, each with its own time.
-    pub events: Vec<Event>,
-    /// The first sample starts a new time segment (after a discontinuity).
-    pub new_segment: bool,
-    /// When the newest sample arrived (or was due, for a paced source).
-    pub arrived: Instant,
-}
-
-impl SourceBatch {
-    /// An empty batch.
-    pub fn new(arrived: Instant) -> Self {
-        SourceBatch {
-            seq0: 0,
-            t0_ns: 0,
-            counts: Vec::new(),
-            gaps: Vec::new(),
-            temp_c: None,
-            status: None,
-            events: Vec::new(),
-            new_segment: false,
-            arrived,
-        }
-    }
-
-    /// Sample periods covered: samples plus lost ones.
-    pub fn periods(&self) -> u64 {
-        self.counts.len() as u64 + self.gaps.iter().map(|g| g.lost).sum::<u64>()
-    }
-
-    /// No samples and no events.
-    pub fn is_empty(&self) -> bool {
-        self.counts.is_empty() && self.gaps.is_empty() && self.events.is_empty()
-    }
 }
 
 /// Turns frame-decoder output into [`SourceBatch`]es and counts it in the metrics.
@@ -430,11 +380,6 @@ pub enum Delivery {
     /// Never wait (a serial port): drop, count and fold into the next batch.
     Live,
 }
-
-/// The pipeline stopped (its receiver is gone).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
-#[error("the pipeline stopped accepting samples")]
-pub struct PipelineClosed;
 
 /// What a live source had to drop, kept compact until the next batch fits.
 #[derive(Debug, Clone, PartialEq)]

@@ -48,7 +48,7 @@
 //!   summary windows go on without a hole or a repeat) and a new one with the
 //!   same configuration takes the samples from there; only the estimates start
 //!   again.
-//! * Acceptance test (issue 17, [`Processor::set_spec`]): at each estimator
+//! * Acceptance test ([`Processor::set_spec`]): at each estimator
 //!   update the [`SequentialSpec`] sees the estimates (its looks are at fixed
 //!   record lengths, so skipped updates only skip looks); the verdicts go to the
 //!   metrics and `/gyro/verdict`, a change to the log; with a stop trigger the

@@ -16,13 +16,69 @@
 //! never fitting.
 
 use std::sync::Arc;
+use std::time::Instant;
 
 use prometheus::IntGauge;
 use tokio::sync::{OwnedSemaphorePermit, Semaphore, mpsc};
 
-use crate::daemon::batch::{PipelineClosed, SourceBatch};
 use crate::daemon::telemetry::Telemetry;
 use crate::recording::messages::{Event, Gap};
+
+/// Decoded samples and events, in stream order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SourceBatch {
+    /// Unwrapped sequence number of the first sample period the batch covers
+    /// (a leading gap included).
+    pub seq0: u64,
+    /// Time of period `seq0`, ns since the Unix epoch.
+    pub t0_ns: u64,
+    /// Pulse increments; after a gap, the whole increment over the gap.
+    pub counts: Vec<i64>,
+    /// Missing samples: `lost` periods just before `counts[index]`.
+    pub gaps: Vec<Gap>,
+    /// Device temperature of the newest frame, deg C.
+    pub temp_c: Option<f64>,
+    /// Device status word of the newest frame.
+    pub status: Option<u32>,
+    /// Events, each with its own time.
+    pub events: Vec<Event>,
+    /// The first sample starts a new time segment (after a discontinuity).
+    pub new_segment: bool,
+    /// When the newest sample arrived (or was due, for a paced source).
+    pub arrived: Instant,
+}
+
+impl SourceBatch {
+    /// An empty batch.
+    pub fn new(arrived: Instant) -> Self {
+        SourceBatch {
+            seq0: 0,
+            t0_ns: 0,
+            counts: Vec::new(),
+            gaps: Vec::new(),
+            temp_c: None,
+            status: None,
+            events: Vec::new(),
+            new_segment: false,
+            arrived,
+        }
+    }
+
+    /// Sample periods covered: samples plus lost ones.
+    pub fn periods(&self) -> u64 {
+        self.counts.len() as u64 + self.gaps.iter().map(|g| g.lost).sum::<u64>()
+    }
+
+    /// No samples and no events.
+    pub fn is_empty(&self) -> bool {
+        self.counts.is_empty() && self.gaps.is_empty() && self.events.is_empty()
+    }
+}
+
+/// The pipeline stopped (its receiver is gone).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("the pipeline stopped accepting samples")]
+pub struct PipelineClosed;
 
 /// Bytes in a MiB.
 pub const MIB: f64 = 1024.0 * 1024.0;

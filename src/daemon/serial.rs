@@ -249,23 +249,9 @@ impl SerialSource {
                 Err(e) => Some(e.to_string()),
             };
             if let Some(reason) = gone {
-                // Drop the partial frame (counted), keep the decoder's state.
-                while lanes.decode_one(&mut buf, true, now) {}
-                lanes.sync_stats();
+                went_away(&mut lanes, &mut buf, &device, reason, now);
                 disconnects += 1;
-                tracing::warn!(
-                    device,
-                    reason,
-                    "serial device went away; reconnecting with backoff"
-                );
                 connected(0);
-                lanes.push_event(
-                    now,
-                    EventKind::DeviceDisconnected {
-                        device: device.clone(),
-                        reason,
-                    },
-                );
                 port = None;
                 backoff = cfg.reconnect_initial;
             } else {
@@ -299,4 +285,23 @@ impl SerialSource {
         lanes.send().await.map_err(pipeline_err)?;
         lanes.close(disconnects).await.map_err(pipeline_err)
     }
+}
+
+/// The device went away: drop the partial frame (counted), keep the
+/// decoder's state, log it and record the event.
+fn went_away<W: Axes>(lanes: &mut Lanes<W>, buf: &mut BytesMut, device: &str, reason: String, now: u64) {
+    while lanes.decode_one(buf, true, now) {}
+    lanes.sync_stats();
+    tracing::warn!(
+        device,
+        reason,
+        "serial device went away; reconnecting with backoff"
+    );
+    lanes.push_event(
+        now,
+        EventKind::DeviceDisconnected {
+            device: device.to_string(),
+            reason,
+        },
+    );
 }

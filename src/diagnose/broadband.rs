@@ -21,7 +21,6 @@ use super::compare::Region;
 use super::findings::{Edit, Finding, UnitConv, fmt_g, sqrt_ci};
 use super::line_search::SearchParams;
 use super::locate::Located;
-use super::lowfreq;
 use super::readout;
 use super::readout_angle;
 use super::reference::{BlockRate, Reference};
@@ -61,7 +60,7 @@ pub(crate) fn level_data(
     };
     if basis.has_lf() {
         let all: Vec<&StatSet> = r.runs.iter().collect();
-        lowfreq::append_rows(&mut data, &r.layout.lf, &r.obs.lf_psd, &all);
+        wvar_fit::append_rows(&mut data, &r.layout.lf, &r.obs.lf_psd, &all);
     }
     for &(f, amp) in sines {
         let phi = basis.sinusoid(f);

@@ -31,8 +31,8 @@
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 use super::compare::{Point, Region};
-use super::locate::{Located, floors};
-use super::lowfreq;
+use super::locate::Located;
+use super::points::floors;
 use super::reference::Reference;
 use super::stats::{StatLayout, StatSet};
 use super::wvar_fit::{self, Basis, Fit, LevelData};
@@ -244,7 +244,7 @@ pub fn leave_one_out(
         nu,
     };
     if lf {
-        lowfreq::append_rows(&mut data, &layout.lf, &runs[k].lf_psd, &others);
+        wvar_fit::append_rows(&mut data, &layout.lf, &runs[k].lf_psd, &others);
     }
     data
 }

@@ -1,4 +1,4 @@
-//! Spectral lines at the whole record's resolution (issue 14): find narrow
+//! Spectral lines at the whole record's resolution: find narrow
 //! lines (sinusoids) the model does not have, from about ten cycles per record
 //! up to the Nyquist frequency, and measure them with intervals from their
 //! Fisher information.
@@ -8,7 +8,7 @@
 //!    removed, Hann-windowed, one FFT of the whole record (`N` samples, bins
 //!    `f_k = k / T`): the one-sided periodogram `P_k = 2 |X_k|^2 / (fs sum w^2)`
 //!    (`E P_k = S(f_k)` for a smooth PSD `S`). It is whitened by the model's
-//!    own PSD (its Gaussian terms, [`super::reference::model_spectral_terms`]), so that a
+//!    own PSD (its Gaussian terms, [`crate::model::spectrum::model_spectral_terms`]), so that a
 //!    steep continuum (flicker, random walk) is flat around every bin.
 //! 2. **Detection** ([`search`]): each usable bin `k` (not in a masked
 //!    interval, e.g. the counter's own harmonic lines) is compared with its
@@ -426,7 +426,7 @@ pub fn fit_line(x: &[f64], fs_hz: f64, f0_hz: f64, s_local: f64) -> LineFit {
         .map(|i| f0_hz + i as f64 * df / 8.0)
         .max_by(|a, b| power(*a).total_cmp(&power(*b)))
         .unwrap_or(f0_hz);
-    let f = super::stats::golden_max(&power, best - df / 8.0, best + df / 8.0, 40);
+    let f = super::golden::golden_max(&power, best - df / 8.0, best + df / 8.0, 40);
     let m = window_moments(&w);
     let a_s = 2.0 * power(f).sqrt() / m.sum_w;
     let xarg = PI * f * tau0;

@@ -30,8 +30,6 @@
 use std::f64::consts::PI;
 
 use super::line_search::detrend;
-use super::stats::StatSet;
-use super::wvar_fit::LevelData;
 use crate::model::wvar::SpectralTerm;
 
 /// Blocks the rate is averaged into before the low-frequency periodogram.
@@ -135,28 +133,6 @@ impl LfLayout {
     }
 }
 
-/// Append the low-frequency rows to `data`: observed `y`, expectation the
-/// mean of `runs`, EDF from their log spread floored by `layout`'s analytic
-/// EDF. Nothing when the runs carry no such rows.
-pub fn append_rows(data: &mut LevelData, layout: &LfLayout, y: &[f64], runs: &[&StatSet]) {
-    let nb = layout.bands.len();
-    if nb == 0 || y.len() != nb || runs.is_empty() || runs.iter().any(|s| s.lf_psd.len() != nb) {
-        return;
-    }
-    let r = runs.len() as f64;
-    let floor = layout.floor_sd();
-    for i in 0..nb {
-        let vals: Vec<f64> = runs.iter().map(|s| s.lf_psd[i]).collect();
-        let e0 = vals.iter().sum::<f64>() / r;
-        let logs: Vec<f64> = vals.iter().map(|v| v.max(1e-300).ln()).collect();
-        let m = logs.iter().sum::<f64>() / r;
-        let var = logs.iter().map(|l| (l - m).powi(2)).sum::<f64>() / (r - 1.0).max(1.0);
-        let sd = var.sqrt().max(floor[i]);
-        data.y.push(y[i]);
-        data.e0.push(e0);
-        data.nu.push(2.0 / (sd * sd * (1.0 + 1.0 / r)));
-    }
-}
 
 /// The periodic Hann taper over the blocks.
 fn hann() -> Vec<f64> {

@@ -52,6 +52,7 @@
 pub mod broadband;
 pub mod candidates;
 pub mod compare;
+pub mod golden;
 pub(crate) mod findings;
 pub mod line_search;
 pub mod lines;
@@ -59,6 +60,7 @@ pub mod locate;
 pub mod lowfreq;
 pub mod mc;
 pub mod narrowband;
+pub mod points;
 pub mod quality;
 pub mod read;
 pub mod readout;
@@ -84,7 +86,7 @@ use crate::units;
 
 pub use self::lines::{LineScan, line_scan};
 pub use self::read::ReadError;
-pub use self::reference::{model_psd, model_spectral_terms};
+pub use crate::model::spectrum::{model_psd, model_spectral_terms};
 pub use self::report::{
     AddedTerm, DiagnosisReport, FitQuality, MismatchRegion, ParameterChange, Verdict,
 };

@@ -24,7 +24,7 @@
 use std::collections::BTreeMap;
 
 use super::findings::{Edit, Finding, fmt_g, sqrt_ci};
-use super::stats::golden_max;
+use super::golden::golden_max;
 use super::telegraph::mean_sd;
 use super::wvar_fit::{Basis, CI_DEVIANCE, Fit, LevelData, fit_amplitude};
 use super::{AddedTerm, ParameterChange};

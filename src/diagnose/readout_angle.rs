@@ -19,7 +19,7 @@
 //! below the chi-square(1) point. Three parameters in all.
 
 use super::readout::{self, FilterFit};
-use super::stats::golden_max;
+use super::golden::golden_max;
 use super::wvar_fit::{self, Basis, CI_DEVIANCE, LevelData};
 use crate::model::filter::ReadoutFilter;
 

@@ -18,8 +18,7 @@ use super::compare::{self, Family, Point};
 use super::findings::{
     Edit, Finding, UnitConv, fitted_parameters, fmt_g, sqrt_ci, tidy, with_findings,
 };
-use super::locate::{all_points, detect_points, floors, mean_stats};
-use super::lowfreq;
+use super::points::{all_points, detect_points, floors, mean_stats};
 use super::readout;
 use super::reference::Reference;
 use super::stats::StatSet;
@@ -160,11 +159,32 @@ pub(crate) fn refine(
     m_new.gyro = user_model.gyro.clone();
     m_new.gyro.sample_rate_hz = r.layout.fs_hz;
     tidy(&mut m_new);
+    let updated = judge_update(m_new, findings, chi2_before, chi2_after, r.tau0_s(), notes);
+    Ok(Refined {
+        updated,
+        after,
+        chi2_after,
+        telegraph_test,
+        fitted,
+    })
+}
+
+/// The updated model judged: every finding's interval widened when it does not
+/// fit, and no model handed out when it fits worse than the original and not
+/// acceptably (with a note each time).
+fn judge_update(
+    m_new: GyroModel,
+    findings: &mut [Finding],
+    chi2_before: f64,
+    chi2_after: f64,
+    tau0_s: f64,
+    notes: &mut Vec<String>,
+) -> Option<GyroModel> {
     // A model that does not fit: the fit's intervals assume one that does.
     if chi2_after > ACCEPTABLE_CHI2_PER_DOF {
         let s = chi2_after.sqrt();
         for f in findings.iter_mut() {
-            f.widen_for_misfit(s, 0.5 / r.tau0_s());
+            f.widen_for_misfit(s, 0.5 / tau0_s);
         }
         notes.push(format!(
             "The updated model does not describe the recording (chi2/dof {chi2_after:.2} > \
@@ -175,7 +195,7 @@ pub(crate) fn refine(
     // An update that fits worse and not acceptably is reported, never handed out
     // as the better model. (A ramp or a thermal sensitivity is found by tests the
     // chi2 points barely see: its chi2/dof may rise a little while staying fine.)
-    let updated = if chi2_after > chi2_before && chi2_after > ACCEPTABLE_CHI2_PER_DOF {
+    if chi2_after > chi2_before && chi2_after > ACCEPTABLE_CHI2_PER_DOF {
         notes.push(format!(
             "The updated model fits worse than the original (chi2/dof {chi2_before:.2} -> {chi2_after:.2}): \
              it is not offered as a replacement; the changes listed are candidates only."
@@ -183,14 +203,7 @@ pub(crate) fn refine(
         None
     } else {
         Some(m_new)
-    };
-    Ok(Refined {
-        updated,
-        after,
-        chi2_after,
-        telegraph_test,
-        fitted,
-    })
+    }
 }
 
 /// One refinement round; false when the parameters stopped moving or the
@@ -511,7 +524,7 @@ fn after_data(
     };
     if basis.has_lf() {
         let all: Vec<&StatSet> = runs.iter().collect();
-        lowfreq::append_rows(&mut data, &layout.lf, &r.obs.lf_psd, &all);
+        wvar_fit::append_rows(&mut data, &layout.lf, &r.obs.lf_psd, &all);
     }
     Some(data)
 }

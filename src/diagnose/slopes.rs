@@ -16,7 +16,8 @@
 use statrs::distribution::{ContinuousCDF, Normal};
 
 use super::findings::{Edit, Finding, fmt_g, with_findings};
-use super::reference::{Reference, model_spectral_terms};
+use super::reference::Reference;
+use crate::model::spectrum::model_spectral_terms;
 use super::stats;
 use super::telegraph::mean_sd;
 use super::{ALPHA_SLOPE, Recording};

@@ -24,6 +24,7 @@ use std::sync::Arc;
 use rustfft::num_complex::Complex64;
 use rustfft::{Fft, FftPlanner};
 
+use super::golden::golden_max;
 use super::lowfreq::LfLayout;
 use crate::allan::{self, Phase, Stat};
 use crate::model::estimate::RampAccumulator;
@@ -732,27 +733,3 @@ pub fn centred_rate(counts: &[i64], pulse_arcsec: f64, fs_hz: f64) -> Vec<f64> {
     rate.into_iter().map(|v| v - m).collect()
 }
 
-/// Golden-section search for the maximum of a unimodal `f` on `[a, b]`:
-/// `iters` shrinking steps, then the midpoint of the last bracket.
-pub(crate) fn golden_max(f: &dyn Fn(f64) -> f64, mut a: f64, mut b: f64, iters: usize) -> f64 {
-    let g = 0.618_033_988_749_895;
-    let mut c = b - g * (b - a);
-    let mut d = a + g * (b - a);
-    let (mut fc, mut fd) = (f(c), f(d));
-    for _ in 0..iters {
-        if fc > fd {
-            b = d;
-            d = c;
-            fd = fc;
-            c = b - g * (b - a);
-            fc = f(c);
-        } else {
-            a = c;
-            c = d;
-            fc = fd;
-            d = a + g * (b - a);
-            fd = f(d);
-        }
-    }
-    0.5 * (a + b)
-}

@@ -234,6 +234,23 @@ fn xy(p: &Point, v: f64) -> (f64, f64) {
     (x, y)
 }
 
+/// The plotted ranges of x and y over the points, their observations and bands.
+fn extent(before: &[&Point], after: &[&Point]) -> ((f64, f64), (f64, f64)) {
+    let mut xs = Vec::new();
+    let mut ys = Vec::new();
+    for p in before.iter().chain(after.iter()) {
+        let (lo, hi) = p.band95();
+        for v in [p.obs, lo, hi] {
+            let (x, y) = xy(p, v);
+            xs.push(x);
+            if y > 0.0 && y.is_finite() {
+                ys.push(y);
+            }
+        }
+    }
+    (range(&xs), range(&ys))
+}
+
 /// One panel: caption, a legend strip, and the chart below them.
 fn panel(
     area: &DrawingArea<SVGBackend, Shift>,
@@ -260,20 +277,7 @@ fn panel(
         !after.is_empty(),
         !diag.report.mismatch_regions.is_empty(),
     )?;
-    let mut xs = Vec::new();
-    let mut ys = Vec::new();
-    for p in before.iter().chain(after.iter()) {
-        let (lo, hi) = p.band95();
-        for v in [p.obs, lo, hi] {
-            let (x, y) = xy(p, v);
-            xs.push(x);
-            if y > 0.0 && y.is_finite() {
-                ys.push(y);
-            }
-        }
-    }
-    let (x0, x1) = range(&xs);
-    let (y0, y1) = range(&ys);
+    let ((x0, x1), (y0, y1)) = extent(&before, &after);
     let mut chart = ChartBuilder::on(&chart_area)
         .margin(12)
         .margin_top(4)

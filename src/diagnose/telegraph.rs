@@ -23,7 +23,8 @@ use statrs::distribution::{ContinuousCDF, StudentsT};
 
 use super::compare::{Family, Point};
 use super::findings::{Edit, Finding, fmt_g, sqrt_ci, with_findings};
-use super::locate::{KTerm, Located};
+use super::locate::Located;
+use super::points::KTerm;
 use super::reference::Reference;
 use super::stats::{self, StatSet};
 use super::two_level::TwoLevelProbe;

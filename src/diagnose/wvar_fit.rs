@@ -24,6 +24,7 @@ use std::f64::consts::PI;
 use std::sync::{Arc, Mutex};
 
 use super::lowfreq::{LfLayout, LfWindows};
+use super::stats::StatSet;
 use crate::model::filter::ReadoutFilter;
 use crate::model::wvar::{self, LevelBasis, SpectralTerm};
 
@@ -505,7 +506,7 @@ pub fn fit_shape(
         let phi = phi_of(ls.exp());
         fit_linear(data, &base, &phi, 0.0, 0.0)
     };
-    let mut s_best = super::stats::golden_max(&|ls| eval(ls).1, a, b, 30).exp();
+    let mut s_best = super::golden::golden_max(&|ls| eval(ls).1, a, b, 30).exp();
     let (mut theta, mut l) = eval(s_best.ln());
     if fits[ibest].1 > l {
         s_best = grid[ibest];
@@ -637,3 +638,26 @@ pub fn widen_ci(theta: f64, ci: (f64, f64), factor: f64, floor: f64) -> (f64, f6
         theta + factor * (ci.1 - theta),
     )
 }
+/// Append the low-frequency rows to `data`: observed `y`, expectation the
+/// mean of `runs`, EDF from their log spread floored by `layout`'s analytic
+/// EDF. Nothing when the runs carry no such rows.
+pub fn append_rows(data: &mut LevelData, layout: &LfLayout, y: &[f64], runs: &[&StatSet]) {
+    let nb = layout.bands.len();
+    if nb == 0 || y.len() != nb || runs.is_empty() || runs.iter().any(|s| s.lf_psd.len() != nb) {
+        return;
+    }
+    let r = runs.len() as f64;
+    let floor = layout.floor_sd();
+    for i in 0..nb {
+        let vals: Vec<f64> = runs.iter().map(|s| s.lf_psd[i]).collect();
+        let e0 = vals.iter().sum::<f64>() / r;
+        let logs: Vec<f64> = vals.iter().map(|v| v.max(1e-300).ln()).collect();
+        let m = logs.iter().sum::<f64>() / r;
+        let var = logs.iter().map(|l| (l - m).powi(2)).sum::<f64>() / (r - 1.0).max(1.0);
+        let sd = var.sqrt().max(floor[i]);
+        data.y.push(y[i]);
+        data.e0.push(e0);
+        data.nu.push(2.0 / (sd * sd * (1.0 + 1.0 / r)));
+    }
+}
+

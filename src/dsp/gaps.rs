@@ -1,6 +1,6 @@
 //! Filled (not measured) samples through a wavelet analysis cascade.
 //!
-//! Role in the whole: the gap fill (`source::frame::fill`) keeps the series
+//! Role in the whole: the gap fill (`input::frame::fill`, with [`spread_increment`]) keeps the series
 //! uniform and the angle continuous, but the samples it makes up are not
 //! measurements. Statistics built from detail coefficients (the pipeline's
 //! level variances, the QN energy) must leave out every coefficient whose
@@ -149,6 +149,23 @@ pub fn spans_of(filled: &[bool]) -> Vec<Range<usize>> {
         }
     }
     out
+}
+
+/// The `n` integer shares of an increment `total` spread over `n` sample
+/// periods (empty when `n == 0`): `share_j = floor(total (j+1)/n) -
+/// floor(total j/n)`. They sum to exactly `total` (no angle lost or invented),
+/// each is `floor(total/n)` or one more, and the running sum is the cumulative
+/// counter linearly interpolated and floored, within one pulse of the line.
+pub fn spread_increment(total: i64, n: u32) -> impl Iterator<Item = i64> {
+    let t = i128::from(total);
+    let m = i128::from(n.max(1));
+    (0..n).map(move |j| {
+        let j = i128::from(j);
+        let hi = (t * (j + 1)).div_euclid(m);
+        let lo = (t * j).div_euclid(m);
+        // |hi - lo| <= |total|/n + 1 fits an i64.
+        (hi - lo) as i64
+    })
 }
 
 #[cfg(test)]

@@ -6,7 +6,7 @@
 //! from the emulator go in; uniformly numbered pulse increments
 //! ([`Sample`]) and diagnostic [`DecodeEvent`]s come out and feed `dsp`/`allan`.
 //!
-//! # Frame format (issue 5)
+//! # Frame format
 //!
 //! 16 bytes, multi-byte fields little-endian:
 //!
@@ -128,7 +128,8 @@ pub use decoder::{
     increment_between,
 };
 pub use encoder::{FrameEncoder, FrameWriter, encode_increments};
-pub use fill::{FilledSeries, GapFiller, UniformSample, fill_gap, spread_increment};
+pub use crate::dsp::gaps::spread_increment;
+pub use fill::{FilledSeries, GapFiller, UniformSample, fill_gap};
 pub use triad::{TRIAD_FRAME_LEN, TRIAD_SYNC, Triad, TriadEncoder, encode_triad_frame};
 
 use crc::{CRC_16_IBM_3740, Crc};

@@ -32,6 +32,7 @@ pub mod fit;
 pub mod resonance;
 pub mod sim;
 pub mod spec;
+pub mod spectrum;
 pub mod terms;
 pub mod wvar;
 

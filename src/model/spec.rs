@@ -1,4 +1,4 @@
-//! Acceptance testing: does this gyro meet its specification? (issue 17)
+//! Acceptance testing: does this gyro meet its specification?
 //!
 //! A spec file (`config/spec_example.toml`) gives an upper limit on some of the
 //! IEEE 952 coefficients and the confidence each verdict must have. Each limited

@@ -300,7 +300,7 @@ impl SpikeFilter {
                 let n = (end - k) as u32;
                 for (slot, share) in v[k..end]
                     .iter_mut()
-                    .zip(crate::input::frame::spread_increment(total, n))
+                    .zip(crate::dsp::gaps::spread_increment(total, n))
                 {
                     *slot = share;
                 }

@@ -586,39 +586,7 @@ impl Recorder {
                     .map_err(|e| mcap_err("writing a gyro's metadata record", e))?;
             }
         }
-        let mut channels = BTreeMap::new();
-        for topic in Topic::ALL {
-            let schema = serde_json::to_vec_pretty(&topic.json_schema()).map_err(|source| {
-                RecordError::Serialize {
-                    path: path.clone(),
-                    topic: topic.name(),
-                    source,
-                }
-            })?;
-            let schema_id = writer
-                .add_schema(topic.schema_name(), SCHEMA_ENCODING, &schema)
-                .map_err(|e| mcap_err("adding a schema", e))?;
-            let owners: Vec<Option<u16>> = if multi && topic != Topic::Events {
-                (0..gyros.len()).map(|i| u16::try_from(i).ok()).collect()
-            } else {
-                vec![None]
-            };
-            for g in owners {
-                let name = topic.name_for(g.map(|i| gyros[usize::from(i)].0.as_str()));
-                let id = writer
-                    .add_channel(schema_id, &name, MESSAGE_ENCODING, &BTreeMap::new())
-                    .map_err(|e| mcap_err("adding a channel", e))?;
-                channels.insert(
-                    (g, topic),
-                    ChannelState {
-                        id,
-                        name,
-                        sequence: 0,
-                        count: 0,
-                    },
-                );
-            }
-        }
+        let channels = add_channels(&mut writer, gyros, &path, &mcap_err)?;
         // Close the first chunk (schemas and channels) at once: from now on the
         // file is readable, and recovery always finds the channel records.
         writer
@@ -749,6 +717,51 @@ fn create_unique(dir: &Path, name: &str) -> Result<(PathBuf, File), RecordError>
         path: dir.join(name),
         source: io::Error::new(io::ErrorKind::AlreadyExists, "1000 runs named alike"),
     })
+}
+
+/// Every topic's schema and channels (one per gyro in a recording of several,
+/// but one `/gyro/events`).
+fn add_channels(
+    writer: &mut ::mcap::Writer<RecordFile>,
+    gyros: &[(String, RecordingMeta)],
+    path: &Path,
+    mcap_err: &dyn Fn(&'static str, ::mcap::McapError) -> RecordError,
+) -> Result<BTreeMap<(Option<u16>, Topic), ChannelState>, RecordError> {
+    let multi = gyros.len() > 1;
+    let mut channels = BTreeMap::new();
+    for topic in Topic::ALL {
+        let schema = serde_json::to_vec_pretty(&topic.json_schema()).map_err(|source| {
+            RecordError::Serialize {
+                path: path.to_path_buf(),
+                topic: topic.name(),
+                source,
+            }
+        })?;
+        let schema_id = writer
+            .add_schema(topic.schema_name(), SCHEMA_ENCODING, &schema)
+            .map_err(|e| mcap_err("adding a schema", e))?;
+        let owners: Vec<Option<u16>> = if multi && topic != Topic::Events {
+            (0..gyros.len()).map(|i| u16::try_from(i).ok()).collect()
+        } else {
+            vec![None]
+        };
+        for g in owners {
+            let name = topic.name_for(g.map(|i| gyros[usize::from(i)].0.as_str()));
+            let id = writer
+                .add_channel(schema_id, &name, MESSAGE_ENCODING, &BTreeMap::new())
+                .map_err(|e| mcap_err("adding a channel", e))?;
+            channels.insert(
+                (g, topic),
+                ChannelState {
+                    id,
+                    name,
+                    sequence: 0,
+                    count: 0,
+                },
+            );
+        }
+    }
+    Ok(channels)
 }
 
 /// One channel of the recording: its id, name, next sequence number and the

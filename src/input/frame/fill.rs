@@ -19,6 +19,7 @@
 use std::ops::Range;
 
 use super::Sample;
+use crate::dsp::gaps::spread_increment;
 
 /// A gap-filled uniform series: the counts and the spans (sorted, disjoint,
 /// indices into `counts`) of the samples made up by the fill.
@@ -107,20 +108,6 @@ impl FilledSeries {
             r.start < r.end
         });
     }
-}
-
-/// The `n` integer shares of `total` described in the module docs (empty when
-/// `n == 0`).
-pub fn spread_increment(total: i64, n: u32) -> impl Iterator<Item = i64> {
-    let t = i128::from(total);
-    let m = i128::from(n.max(1));
-    (0..n).map(move |j| {
-        let j = i128::from(j);
-        let hi = (t * (j + 1)).div_euclid(m);
-        let lo = (t * j).div_euclid(m);
-        // |hi - lo| <= |total|/n + 1 fits an i64.
-        (hi - lo) as i64
-    })
 }
 
 /// One sample of a uniformly sampled series.

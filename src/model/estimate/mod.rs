@@ -481,17 +481,7 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
     let basis = lf.basis(&terms);
     let mut rows = lf.rows(&terms, &basis.phi, from);
     filter_search::saturate_rows(&mut rows, saturated);
-    let mut o = *opts;
-    // The white-angle nuisance stays out of model selection, and so does the
-    // filter's complement column: dropped at its zero boundary, it would be
-    // held at 0 in N's profile, the fine (filtered) levels would then pin N as
-    // if no white noise could enter after the filter, and N's interval would be
-    // too narrow by about 1.6 (2 h, 500 Hz, moving average of 6: 15/20 covered).
-    o.always_keep |= 1;
-    if choice.is_some() {
-        o.always_keep |= 1 << filter_search::COMPLEMENT_COL;
-        o.signed_in_profile |= 1 << filter_search::COMPLEMENT_COL;
-    }
+    let o = fit_options(opts, choice.is_some());
     let corr = |theta: &[f64]| lf.correlation(&terms, from, theta);
     let fit = fit_rows(
         &rows.phi,
@@ -536,6 +526,69 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         term_coefficient(&widen_term(t, widen), CONV[i])
     };
     let ramp_term = fit.terms.get(terms.len()).filter(|_| lf.ramp_col);
+    let (ramp, ramp_wide) = ramp_slopes(
+        input,
+        &terms,
+        &fit,
+        &theta_lf,
+        q2,
+        &level_bounds,
+        collapsed,
+        widen,
+    );
+    EstimatorOutput {
+        estimates: NoiseEstimates {
+            quantization_arcsec: quantization::coefficient(q2, q2_sd * widen),
+            arw_dpsh: coef(1),
+            bias_instability_dph: coef(2),
+            rrw_dphsh: coef(3),
+            rate_ramp_dphh: ramp_coefficient(
+                ramp,
+                ramp_wide,
+                lf.ramp_col,
+                ramp_term.is_some_and(|t| t.included),
+                opts.ci_lr,
+            ),
+        },
+        fit,
+        theta,
+        ramp_arcsec_s2: ramp,
+        readout_filter: choice.map(|c| FilterEstimate::new(&c, tau0)),
+        quality,
+    }
+}
+
+/// The fit's options: the white-angle nuisance, and with a readout filter the
+/// filter's complement column, stay out of model selection.
+fn fit_options(opts: &FitOptions, filtered: bool) -> FitOptions {
+    let mut o = *opts;
+    // The white-angle nuisance stays out of model selection, and so does the
+    // filter's complement column: dropped at its zero boundary, it would be
+    // held at 0 in N's profile, the fine (filtered) levels would then pin N as
+    // if no white noise could enter after the filter, and N's interval would be
+    // too narrow by about 1.6 (2 h, 500 Hz, moving average of 6: 15/20 covered).
+    o.always_keep |= 1;
+    if filtered {
+        o.always_keep |= 1 << filter_search::COMPLEMENT_COL;
+        o.signed_in_profile |= 1 << filter_search::COMPLEMENT_COL;
+    }
+    o
+}
+
+/// The ramp's slope and standard error under the fitted spectrum, and again
+/// with every term the record cannot rule out at its upper bound (the
+/// interval's spread).
+#[allow(clippy::too_many_arguments)]
+fn ramp_slopes(
+    input: &EstimatorInput,
+    terms: &[SpectralTerm],
+    fit: &LevelFit,
+    theta_lf: &[f64],
+    q2: f64,
+    level_bounds: &[f64],
+    collapsed: bool,
+    widen: f64,
+) -> (Option<(f64, f64)>, Option<(f64, f64)>) {
     // The slope's white-angle part is the quantization read from the angle
     // (`q2`, thousands of degrees of freedom), not the low-frequency fit's
     // white-angle nuisance (a few levels below the QN band, often 0 or far
@@ -546,11 +599,11 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
     // 0.0005 deg/rt(h) the QN part is larger below about 25 min). With the
     // nuisance in its place the standard error scattered from record to
     // record and the slope's z-scores had heavy tails (examples/ramp_calibration.rs).
-    let mut theta_ramp = theta_lf.clone();
+    let mut theta_ramp = theta_lf.to_vec();
     if q2.is_finite() {
         theta_ramp[0] = theta_ramp[0].max(q2);
     }
-    let ramp = ramp_slope(input, &terms, &theta_ramp).map(|(s, sd)| (s, sd * widen));
+    let ramp = ramp_slope(input, terms, &theta_ramp).map(|(s, sd)| (s, sd * widen));
     // The ramp's interval allows every term the record cannot rule out at its
     // upper bound (an unresolved bias instability or RRW wanders the rate as
     // much as a ramp over the record); whether a ramp is reported at all stays
@@ -575,27 +628,8 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
             }
         })
         .collect();
-    let ramp_wide = ramp_slope(input, &terms, &theta_slope).map(|(s, sd)| (s, sd * widen));
-    EstimatorOutput {
-        estimates: NoiseEstimates {
-            quantization_arcsec: quantization::coefficient(q2, q2_sd * widen),
-            arw_dpsh: coef(1),
-            bias_instability_dph: coef(2),
-            rrw_dphsh: coef(3),
-            rate_ramp_dphh: ramp_coefficient(
-                ramp,
-                ramp_wide,
-                lf.ramp_col,
-                ramp_term.is_some_and(|t| t.included),
-                opts.ci_lr,
-            ),
-        },
-        fit,
-        theta,
-        ramp_arcsec_s2: ramp,
-        readout_filter: choice.map(|c| FilterEstimate::new(&c, tau0)),
-        quality,
-    }
+    let ramp_wide = ramp_slope(input, terms, &theta_slope).map(|(s, sd)| (s, sd * widen));
+    (ramp, ramp_wide)
 }
 
 /// Conversions from theta (arcsec/s units, squared) to the reported units of Q, N, B, K.

@@ -23,17 +23,7 @@ pub fn draw<DB: DrawingBackend>(area: &Area<DB>, a: &Analysis) -> Result<(), Rep
         ("noise", &a.allan.noise, plot::NOISE),
     ];
     let pos = |v: f64| v.is_finite() && v > 0.0;
-    let pts = curves
-        .iter()
-        .flat_map(|c| c.1.iter())
-        .filter(|p| pos(p.tau_s) && pos(p.dev));
-    let (mut t_lo, mut t_hi, mut d_lo, mut d_hi) = (f64::INFINITY, 0.0f64, f64::INFINITY, 0.0f64);
-    for p in pts {
-        t_lo = t_lo.min(p.tau_s);
-        t_hi = t_hi.max(p.tau_s);
-        d_lo = d_lo.min(if pos(p.ci_lo) { p.ci_lo } else { p.dev });
-        d_hi = d_hi.max(if pos(p.ci_hi) { p.ci_hi } else { p.dev });
-    }
+    let (t_lo, t_hi, d_lo, d_hi) = bounds(&curves);
     if !(t_lo < t_hi && d_lo <= d_hi) {
         left.draw(&Text::new(
             "no Allan deviation to plot (record too short?)",
@@ -135,7 +125,30 @@ pub fn draw<DB: DrawingBackend>(area: &Area<DB>, a: &Analysis) -> Result<(), Rep
         }
     }
 
-    // the legend column
+    let rows = legend_rows(&asym);
+    let legend = right.margin(50, 10, 4, 4);
+    plot::side_legend(&legend, &rows)
+}
+
+/// The span of tau and of the deviations (with their intervals) to plot.
+fn bounds(curves: &[(&str, &[AllanPoint], RGBColor)]) -> (f64, f64, f64, f64) {
+    let pos = |v: f64| v.is_finite() && v > 0.0;
+    let pts = curves
+        .iter()
+        .flat_map(|c| c.1.iter())
+        .filter(|p| pos(p.tau_s) && pos(p.dev));
+    let (mut t_lo, mut t_hi, mut d_lo, mut d_hi) = (f64::INFINITY, 0.0f64, f64::INFINITY, 0.0f64);
+    for p in pts {
+        t_lo = t_lo.min(p.tau_s);
+        t_hi = t_hi.max(p.tau_s);
+        d_lo = d_lo.min(if pos(p.ci_lo) { p.ci_lo } else { p.dev });
+        d_hi = d_hi.max(if pos(p.ci_hi) { p.ci_hi } else { p.dev });
+    }
+    (t_lo, t_hi, d_lo, d_hi)
+}
+
+/// The legend column: the three curves, the total model and each term.
+fn legend_rows(asym: &[Asymptote]) -> Vec<(RGBColor, LineKind, String)> {
     let mut rows = vec![
         (
             plot::RAW,
@@ -157,7 +170,7 @@ pub fn draw<DB: DrawingBackend>(area: &Area<DB>, a: &Analysis) -> Result<(), Rep
             "total IEEE 952 model".to_string(),
         ),
     ];
-    for t in &asym {
+    for t in asym {
         let k = t.kind;
         rows.push((
             color_of(t),
@@ -180,8 +193,7 @@ pub fn draw<DB: DrawingBackend>(area: &Area<DB>, a: &Analysis) -> Result<(), Rep
             "no term estimated".to_string(),
         ));
     }
-    let legend = right.margin(50, 10, 4, 4);
-    plot::side_legend(&legend, &rows)
+    rows
 }
 
 fn color_of(t: &Asymptote) -> RGBColor {

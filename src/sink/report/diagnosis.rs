@@ -5,7 +5,7 @@
 
 use std::fmt::Write;
 
-use super::html::esc;
+use super::markup::{esc, inline_svg};
 use super::{DiagnosisPart, ReportError, fmt_sig};
 use crate::diagnose::{self, Verdict};
 use crate::model::Term;
@@ -149,7 +149,7 @@ pub fn section(d: &DiagnosisPart<'_>) -> Result<String, ReportError> {
         "<figure>{}<figcaption>The recording (black) against the model's 95 % Monte-Carlo band (blue) and, \
          when the diagnosis changed the model, the updated model's band (green), on four statistics.\
          </figcaption></figure></section>",
-        super::html::inline_svg(&svg)
+        inline_svg(&svg)
     );
     Ok(h)
 }

@@ -7,32 +7,9 @@ use std::fmt::Write;
 use super::{
     Report, ReportError, allan_fig, davar_fig, diagnosis, fmt_sig, noise_fig, rate_fig, svg,
 };
+use super::markup::{esc, inline_svg};
 use crate::model::estimate::Coefficient;
 use crate::pipeline::Analysis;
-
-/// `s` escaped for HTML text and attributes.
-pub fn esc(s: &str) -> String {
-    let mut o = String::with_capacity(s.len());
-    for c in s.chars() {
-        match c {
-            '&' => o.push_str("&amp;"),
-            '<' => o.push_str("&lt;"),
-            '>' => o.push_str("&gt;"),
-            '"' => o.push_str("&quot;"),
-            '\'' => o.push_str("&#39;"),
-            c => o.push(c),
-        }
-    }
-    o
-}
-
-/// An SVG document as an inline element (without an XML declaration).
-pub fn inline_svg(doc: &str) -> &str {
-    match doc.find("<svg") {
-        Some(i) => &doc[i..],
-        None => doc,
-    }
-}
 
 const STYLE: &str = "
 body{font-family:sans-serif;margin:24px auto;max-width:1200px;color:#222;line-height:1.4;padding:0 12px}
@@ -391,22 +368,5 @@ fn coef_cells(c: &Coefficient) -> (String, String) {
             format!("&lt; {} (upper bound)", fmt_sig(u, 3)),
         ),
         _ => ("n/a".into(), "\u{2013}".into()),
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn escaping_and_inline_svg() {
-        assert_eq!(
-            esc("a<b & \"c\" 'd'>"),
-            "a&lt;b &amp; &quot;c&quot; &#39;d&#39;&gt;"
-        );
-        assert_eq!(
-            inline_svg("<?xml version=\"1.0\"?>\n<svg a=\"1\"/>"),
-            "<svg a=\"1\"/>"
-        );
     }
 }

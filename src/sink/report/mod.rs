@@ -29,6 +29,7 @@ pub mod davar_fig;
 pub mod decimate;
 pub mod diagnosis;
 pub mod html;
+pub mod markup;
 pub mod noise_fig;
 pub mod plot;
 pub mod rate_fig;
