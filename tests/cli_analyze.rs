@@ -1,4 +1,4 @@
-//! `sagnac analyze`: the CLI contract of issue 4 (JSON shape, inputs, errors).
+//! `sagnac analyze`: the CLI contract (JSON shape, inputs, errors).
 
 use std::path::Path;
 use std::process::{Command, Output};
@@ -516,11 +516,11 @@ fn column_is_refused_for_frame_and_mcap_input() {
     }
 }
 
-/// Issue 13 ("no silent defaults"): a CSV file and a frame capture carry no
+/// A CSV file and a frame capture carry no
 /// sample rate and no pulse weight, so the flags are required (exit 2 naming
 /// the flag and the file), where 1000 Hz and 1.21" used to be assumed.
 #[test]
-fn issue_13_csv_and_frames_need_the_rate_and_pulse_flags() {
+fn csv_and_frames_need_the_rate_and_pulse_flags() {
     let dir = tempfile::tempdir().unwrap();
     let csv = simulate(dir.path(), "5");
     let c = csv.to_str().unwrap();
@@ -592,12 +592,12 @@ fn issue_13_csv_and_frames_need_the_rate_and_pulse_flags() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
 
-/// Issue 13: an MCAP recording from `simulate --format mcap` carries its rate and
+/// An MCAP recording from `simulate --format mcap` carries its rate and
 /// pulse weight in its metadata record; analysed without flags it uses them (the
 /// same result as with the matching flags, at the model's 400 Hz, not 1000), and
 /// a flag that contradicts it is an error naming the flag, the file and both values.
 #[test]
-fn issue_13_an_mcap_recording_carries_its_rate_and_pulse_weight() {
+fn an_mcap_recording_carries_its_rate_and_pulse_weight() {
     let dir = tempfile::tempdir().unwrap();
     let model = dir.path().join("m.toml");
     std::fs::write(
@@ -705,10 +705,10 @@ fn issue_13_an_mcap_recording_carries_its_rate_and_pulse_weight() {
     }
 }
 
-/// Issue 13: an MCAP recording without the metadata record (made before it
+/// An MCAP recording without the metadata record (made before it
 /// existed) gives its rate by its sample period; the pulse weight must be given.
 #[test]
-fn issue_13_an_mcap_recording_without_metadata_needs_the_pulse_flag() {
+fn an_mcap_recording_without_metadata_needs_the_pulse_flag() {
     use sagnac::recording::messages::{RawBatch, SinkMessage};
     use sagnac::recording::writer::{Recorder, RecorderConfig};
     let dir = tempfile::tempdir().unwrap();

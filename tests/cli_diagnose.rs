@@ -1,5 +1,5 @@
 //! `sagnac diagnose` end to end: the binary on recordings made by
-//! `sagnac simulate` (CSV, MCAP, frame capture), the JSON contract of issue 6
+//! `sagnac simulate` (CSV, MCAP, frame capture), the JSON contract
 //! (keys, types, term names that are model-file keys), the SVG report and the
 //! updated model file; and clear errors (exit code 2) on bad inputs.
 

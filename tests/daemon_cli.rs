@@ -598,12 +598,12 @@ fn duration_limit_ends_the_run_and_logs_are_json() {
     assert_eq!(v["raw_samples"], 3000);
 }
 
-/// Issue 13: a replayed MCAP recording says its rate and pulse weight in its
+/// A replayed MCAP recording says its rate and pulse weight in its
 /// metadata record; the daemon uses them, a flag that contradicts them exits 2
 /// naming the flag, the file and both values, and the daemon's own recording
 /// carries the metadata record too (rate, pulse weight, its config).
 #[test]
-fn issue_13_a_replayed_recording_supplies_its_rate_and_pulse_weight() {
+fn a_replayed_recording_supplies_its_rate_and_pulse_weight() {
     let dir = tempfile::tempdir().unwrap();
     let model = dir.path().join("m.toml");
     std::fs::write(&model, "[gyro]\nsample_rate_hz = 500.0\npulse_arcsec = 0.9\ninput_rate_dph = 12.3\n[noise]\narw_dpsh = 0.002\n").unwrap();

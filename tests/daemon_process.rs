@@ -155,7 +155,7 @@ fn the_stage_is_chunking_invariant_keeps_gaps_and_matches_the_pipeline() {
     assert_eq!(t1.estimator_updates.get(), 9);
 
     // The batch reference: one push of the whole gap-filled series, with the
-    // filled samples marked (issue 13).
+    // filled samples marked.
     let mut series = sagnac::input::frame::FilledSeries::default();
     for &(c, l) in &decoded {
         series.push(c, l);

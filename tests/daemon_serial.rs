@@ -1,4 +1,4 @@
-//! Issue 5 end to end over a real pseudo-terminal: a bench emulator (a simulated
+//! The serial source end to end over a real pseudo-terminal: a bench emulator (a simulated
 //! paper gyro with known truth, encoded into frames and corrupted by the seeded
 //! injector, whose ledger says exactly what a decoder must count) writes into one
 //! end of a socat pty pair; the real `sagnac` binary reads the other end through
@@ -458,14 +458,14 @@ fn serial_overload_drops_are_counted_recorded_and_lose_no_angle() {
     assert_eq!(v["time_mismatches"], 0);
 }
 
-/// Issue 13: a burst within the queue budget loses nothing. 600 s of 1 kHz frames
+/// A burst within the queue budget loses nothing. 600 s of 1 kHz frames
 /// written into the pty at full speed (the bytes arrive in a fraction of a
 /// second, far faster than the pipeline runs its estimator) are all held in the
 /// default 16 MiB queue: zero samples dropped, the queue gauge back to 0 once the
 /// pipeline has caught up, and the final live estimates equal `sagnac analyze
 /// --format frames` on the same bytes.
 #[test]
-fn issue_13_a_600_s_burst_at_full_speed_drops_nothing_and_equals_analyze() {
+fn a_600_s_burst_at_full_speed_drops_nothing_and_equals_analyze() {
     let dir = tempfile::tempdir().unwrap();
     let emu = BenchEmulator::simulate(&paper_model(), 24, 600.0, 1_000, u32::MAX - 500).unwrap();
     let bytes = emu.inject(&FaultPlan::none()).bytes;

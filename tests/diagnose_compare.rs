@@ -1,4 +1,4 @@
-//! Issue 14, items 1-2: detection by model comparison. A Gauss-Markov bias
+//! Detection by model comparison. A Gauss-Markov bias
 //! (sigma 0.03 deg/h, Tc 5 s) on the paper's 1 h, 1 kHz gyro lifts four
 //! adjacent wavelet levels (10-100 s) by 2-3 sigma each and stays below the
 //! per-point Bonferroni gate (max |z| 3.83 against 4.04 at the issue's seed);
@@ -79,7 +79,7 @@ fn gm_intervals(d: &Diagnosis) -> Option<([f64; 2], [f64; 2])> {
 /// sigma = 0.03 and Tc = 5 s (measured at seeds 1-5: named at 5 only; Tc
 /// interval covers 5 s at 1-4, 6.3..228 s at 5).
 #[test]
-fn issue_14_gauss_markov_below_the_point_gate_is_detected_and_named() {
+fn gauss_markov_below_the_point_gate_is_detected_and_named() {
     let model = paper("");
     let truth = paper("[[noise.gauss_markov]]\nsigma_dph = 0.03\ntau_c_s = 5.0\n");
     let (mut below_gate, mut named) = (0, 0);

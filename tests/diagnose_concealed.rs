@@ -1,4 +1,4 @@
-//! Issue 6: the diagnosis proved on recordings where the left-out effect is
+//! The diagnosis proved on recordings where the left-out effect is
 //! concealed, i.e. invisible in the raw Allan deviation within its band, yet
 //! real. Each case simulates a "real" gyro (the model plus the effect) with
 //! `model::sim`, diagnoses it against the model, and asserts that

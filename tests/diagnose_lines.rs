@@ -1,4 +1,4 @@
-//! Issue 14: spectral lines at the whole record's resolution
+//! Spectral lines at the whole record's resolution
 //! (`diagnose::line_search`): located to the Fisher bound, intervals that
 //! cover, and no lines on matched recordings.
 
@@ -147,7 +147,7 @@ fn bench_coverage_and_false_alarms() {
 /// a new sinusoid of period 40 s, its 95 % interval well under 1 % wide and
 /// covering the truth, the amplitude's too, and the written model carries it.
 #[test]
-fn issue_14_forty_second_line_is_located_to_well_under_one_percent() {
+fn forty_second_line_is_located_to_well_under_one_percent() {
     let model = gyro(1000.0, "");
     let truth = gyro(1000.0, &sine(0.03, 40.0));
     let rec = common::simulated_recording(&truth, 1, 3600.0);

@@ -1,4 +1,4 @@
-//! Issue 6, null honesty: on recordings simulated from the model itself the
+//! Null honesty: on recordings simulated from the model itself the
 //! diagnosis must say "consistent" (nothing added, nothing changed) in all but
 //! a few cases. Measured over 40 seeds spread over eight matched models that
 //! differ in sample rate (100 Hz .. 1 kHz), duration (60 .. 300 s), quantization,
@@ -305,7 +305,7 @@ fn matched_rate() -> Vec<(GyroModel, f64)> {
 }
 
 /// Null honesty on rate-output gyros: 40 matched recordings over five rate
-/// models (issue 14: false alarms at most 5 % over at least 40 matched seeds):
+/// models (false alarms at most 5 % over at least 40 matched seeds):
 /// at most two. Measured: 2/40, at that bound (seed 34, a quantization change
 /// on the 400 Hz gyro behind its 150 Hz filter; seed 38, one broadband point
 /// at 4.25 against the threshold 4.16), so the rate-output false-alarm rate is

@@ -1,4 +1,4 @@
-//! Issue 14, item 3: the power of the diagnosis, measured. For each catalog
+//! The power of the diagnosis, measured. For each catalog
 //! effect, on its own gyro (200 Hz .. 2 kHz, pulse 0.5 .. 2", 20 min .. 2 h,
 //! counts output, and a rate-output gyro for the readout filter), at three effect sizes from "the raw Allan deviation misses
 //! it" to "plainly visible", over N seeds: how often the diagnosis names the

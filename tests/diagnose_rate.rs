@@ -1,4 +1,4 @@
-//! Issue 14 item 3: rate-output gyros and readout filters in the diagnosis.
+//! Rate-output gyros and readout filters in the diagnosis.
 //! A rate-output model without a filter against recordings simulated with a
 //! first-order filter and with a moving average: the catalog entry
 //! `readout_filter` is named with the truth's corner inside its 95 %
@@ -259,7 +259,7 @@ fn the_filter_quadrature_matches_the_exact_lag_domain_columns() {
     }
 }
 
-/// Issue 14: the coverage of the `readout_filter` entry's corner interval and
+/// The coverage of the `readout_filter` entry's corner interval and
 /// of the refitted ARW's interval, over seeds and gyros (an ignored bench:
 /// `cargo test --release --test diagnose_rate -- --ignored bench_corner_coverage
 /// --nocapture`; `SAGNAC_BENCH_SEEDS`, default 20). Prints a markdown table

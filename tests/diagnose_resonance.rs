@@ -1,4 +1,4 @@
-//! Issue 14: a resonance the model leaves out is located (the narrowband
+//! A resonance the model leaves out is located (the narrowband
 //! check), named as the catalog's `resonance` with its centre, width and
 //! sigma inside their 95 % intervals, and the updated model fits (chi2/dof
 //! about 1). The gyro is the ADIS16405's datasheet model with a 19 Hz mode;

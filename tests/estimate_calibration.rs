@@ -1,4 +1,4 @@
-//! Issue 4: the estimator's 95 % intervals are calibrated. Over 40 seeded
+//! The estimator's 95 % intervals are calibrated. Over 40 seeded
 //! simulations of the paper's gyro (physical counter readout, pulse weight
 //! 1.21", Q 0.35", ARW, flicker bias instability) the intervals must cover the
 //! truth at least 85 % of the time, and the point estimates must be accurate.

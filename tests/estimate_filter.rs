@@ -1,4 +1,4 @@
-//! Readout filters and rate-output gyros (issue 13): the filtered white-rate
+//! Readout filters and rate-output gyros: the filtered white-rate
 //! term's exact signatures against independent lag-domain references, the
 //! simulator's filter and rate word, and the estimator on filtered recordings
 //! (ARW of the unfiltered band, the filter's kind and corner, no filter on

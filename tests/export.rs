@@ -1,4 +1,4 @@
-//! Exports (issue 15): Kalibr's imu.yaml gyroscope fields and the Allan
+//! Exports: Kalibr's imu.yaml gyroscope fields and the Allan
 //! curves as CSV, from the library and through `analyze --kalibr/--allan-csv`
 //! and `allan --csv`.
 

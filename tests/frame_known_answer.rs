@@ -1,4 +1,4 @@
-//! Known-answer tests of the gyro frame format (issue 5): CRC, field layout,
+//! Known-answer tests of the gyro frame format: CRC, field layout,
 //! counter-wrap increments, encoder output.
 
 use sagnac::input::frame::{

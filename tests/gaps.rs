@@ -1,4 +1,4 @@
-//! Issue 13: gap-aware statistics. Samples made up by the gap fill keep the
+//! Gap-aware statistics. Samples made up by the gap fill keep the
 //! angle continuous but are not measurements: the wavelet levels leave out
 //! every coefficient whose support touches one, the Allan sums every second
 //! difference with one of its three phase points inside a gap. Checked against
@@ -432,7 +432,7 @@ fn estimates_cover_the_truth_with_burst_loss() {
 /// The reported case: 600 s at 1 kHz, 20 % lost in 60 bursts of up to 4000
 /// frames. Before gap-aware statistics: QN 0.644 [0.627, 0.661]", truth 0.610.
 #[test]
-fn issue_13_sixty_bursts_keep_qn_within_its_interval() {
+fn sixty_bursts_keep_qn_within_its_interval() {
     let text = std::fs::read_to_string(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/config/paper_gyro.toml"

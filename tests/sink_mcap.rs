@@ -607,11 +607,11 @@ fn python_mcap_reader_agrees() {
     }
 }
 
-/// Issue 13: the `sagnac` metadata record of `simulate --format mcap` is read by
+/// The `sagnac` metadata record of `simulate --format mcap` is read by
 /// the Python `mcap` reader too (through the summary's metadata index), with
 /// the values the Rust reader gives.
 #[test]
-fn issue_13_python_reads_the_metadata_record() {
+fn python_reads_the_metadata_record() {
     let dir = tempfile::tempdir().unwrap();
     let model = dir.path().join("m.toml");
     let text = "[gyro]\nsample_rate_hz = 400.0\npulse_arcsec = 0.9\n[noise]\narw_dpsh = 0.002\n";

@@ -1,4 +1,4 @@
-//! Issue 17, acceptance testing: the spec file (parsing, errors naming keys),
+//! Acceptance testing: the spec file (parsing, errors naming keys),
 //! the anytime-valid rule under optional stopping, the JSON contract of
 //! `sagnac analyze --spec`, the live run's `--stop-when-decided` with its
 //! `/gyro/verdict` channel and metrics, and the Prometheus alert rules.
@@ -242,7 +242,7 @@ fn signed_one_look(seed: u64, truth: f64, se: f64, limit: f64, runs: u32) -> (f6
     (pass as f64 / runs as f64, fail as f64 / runs as f64)
 }
 
-/// Issue 17: the limit is on the ramp's magnitude, so a gyro inside it can be
+/// The limit is on the ramp's magnitude, so a gyro inside it can be
 /// failed from either side. With a standard error much larger than the limit
 /// (a short record) the one-sided quantile failed it in up to 2 alpha of the
 /// records (the bench's early fails just inside the limit); the fail quantile
