@@ -339,7 +339,13 @@ impl SpikeFilter {
             if r.start >= n {
                 break;
             }
-            out.filled.push(r.start + base..r.end + base);
+            // a span running past the window was emitted whole with the last
+            // window: its remainder continues it, not a span of its own
+            let span = r.start + base..r.end + base;
+            match out.filled.last_mut() {
+                Some(last) if last.end >= span.start => last.end = last.end.max(span.end),
+                _ => out.filled.push(span),
+            }
         }
         self.filled.retain_mut(|r| {
             r.start = r.start.saturating_sub(n);
@@ -536,6 +542,43 @@ mod tests {
         let mut spans2 = out.filled.clone();
         spans2.dedup();
         assert_eq!(spans2, whole.filled);
+    }
+
+    #[test]
+    fn a_gap_across_windows_is_one_span_however_the_pushes_cut_it() {
+        let mut r = ChaCha8Rng::seed_from_u64(3);
+        let c: Vec<i64> = (0..40_000)
+            .map(|_| i64::from(r.random::<f64>() < 0.3))
+            .collect();
+        // a gap of 10 000 samples over three windows, pushed whole and in pieces
+        let gap = 5_000..15_000;
+        for block in [40_000usize, 7_000, 4_096, 333] {
+            let mut f = SpikeFilter::new(Series::Counts);
+            let (mut emitted, mut covered) = (Vec::new(), 0);
+            // what the pipeline counts of each push: its spans clipped to it
+            let mut take = |e: Emitted| {
+                let n = e.counts.len();
+                covered += e.filled.iter().map(|r| r.end.min(n) - r.start.min(n)).sum::<usize>();
+                emitted.extend(e.counts);
+            };
+            let mut spans = Vec::new();
+            for at in (0..c.len()).step_by(block) {
+                let end = (at + block).min(c.len());
+                spans.clear();
+                if gap.start < end && gap.end > at {
+                    // as FilledSeries::filled_in gives it: whole, relative to the push
+                    spans.push(gap.start.max(at) - at..gap.end - at);
+                }
+                let mut e = Emitted::default();
+                f.push_counts(&c[at..end], &spans, &mut e);
+                take(e);
+            }
+            let mut e = Emitted::default();
+            f.finish(&mut e);
+            take(e);
+            assert_eq!(covered, gap.len(), "blocks of {block}");
+            assert_eq!(emitted, c);
+        }
     }
 
     #[test]
