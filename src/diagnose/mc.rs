@@ -137,6 +137,7 @@ fn one_run(job: &McJob, seed: u64) -> Result<StatSet, ModelError> {
     }
     // duration rounding can in principle differ by one sample: pad or cut
     counts.resize(n, counts.last().copied().unwrap_or(0));
+    stats::refill(&mut counts, &job.layout.filled, job.layout.rate_words);
     let mut s = if job.full {
         let mut s = stats::compute(job.layout, &counts, job.temp_c, job.lp_cutoffs_hz);
         if !job.sine_probes.is_empty() {

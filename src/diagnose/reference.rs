@@ -101,6 +101,8 @@ impl Reference {
         let n = rec.counts.len();
         let temp = rec.temp_c.as_deref();
         let mut layout = StatLayout::new(n, rec.sample_rate_hz, rec.pulse_arcsec);
+        layout.filled = rec.filled.clone();
+        layout.rate_words = rec.output == OutputKind::Rate;
         let ks = kurtosis_scales(model);
         let cutoffs_hz: Vec<f64> = ks.iter().map(|k| k.0).collect();
         let kurt_taus: Vec<(f64, f64)> = ks.iter().map(|k| k.1).collect();

@@ -19,6 +19,7 @@
 //! and [`welch`] are checked against closed forms in `tests/diagnose_stats.rs`.
 
 use std::f64::consts::PI;
+use std::ops::Range;
 use std::sync::Arc;
 
 use rustfft::num_complex::Complex64;
@@ -265,6 +266,43 @@ pub struct StatLayout {
     pub hi: Vec<f64>,
     /// The low-frequency periodogram rows below the deepest level ([`super::lowfreq`]).
     pub lf: LfLayout,
+    /// The recording's made-up samples (gap fill, replaced glitches): every
+    /// Monte-Carlo run makes up the same ones the same way ([`refill`]).
+    pub filled: Vec<Range<usize>>,
+    /// The record is of rate words (made-up samples interpolated), not pulse
+    /// increments (made-up samples share their span's total).
+    pub rate_words: bool,
+}
+
+/// Make up a simulated run's samples in `filled` as the recording's were: a
+/// counter's increments over a span share its total (the angle at its end
+/// kept, as the gap fill and the glitch replacement do), rate words are
+/// interpolated between the span's neighbours (a single glitch: their mean).
+/// The recording and its Monte-Carlo runs then hold made-up samples at the
+/// same places, made the same way, and every statistic compares like with like.
+pub fn refill(counts: &mut [i64], filled: &[Range<usize>], rate_words: bool) {
+    let n = counts.len();
+    for r in filled {
+        let (a, b) = (r.start.min(n), r.end.min(n));
+        if a >= b {
+            continue;
+        }
+        if rate_words {
+            let left = if a > 0 { counts[a - 1] } else { counts[b.min(n - 1)] };
+            let right = if b < n { counts[b] } else { left };
+            let len = (b - a + 1) as f64;
+            for (j, c) in counts[a..b].iter_mut().enumerate() {
+                let w = (j + 1) as f64 / len;
+                *c = ((1.0 - w) * left as f64 + w * right as f64).round() as i64;
+            }
+        } else {
+            let total: i64 = counts[a..b].iter().sum();
+            let shares = crate::dsp::gaps::spread_increment(total, (b - a) as u32);
+            for (c, s) in counts[a..b].iter_mut().zip(shares) {
+                *c = s;
+            }
+        }
+    }
 }
 
 /// Smallest count of valid coefficients for a wavelet level to be compared.
@@ -315,6 +353,8 @@ impl StatLayout {
             lo,
             hi,
             lf,
+            filled: Vec::new(),
+            rate_words: false,
         };
         lay.rebuild_bands();
         lay
