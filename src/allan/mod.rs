@@ -29,11 +29,11 @@ pub mod streaming;
 pub mod sums;
 
 pub use batch::{AllanOptions, all_tau_progression, compute, compute_at, max_m, tau_ms};
-pub use sums::deviation;
 pub use edf::{chi2_interval, edf_for_stat, edf_greenhall, edf_simple, edf_totdev};
 pub use noise_id::{
     Lag1, NoiseId, NoiseIdMethod, noise_id, noise_id_b1_rn, noise_id_lag1, noise_id_lag1_series,
 };
+pub use sums::deviation;
 
 use serde::{Deserialize, Serialize};
 

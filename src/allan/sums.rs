@@ -259,4 +259,3 @@ fn sum_sq_totdev<T: PhaseValue>(x: &[T], m: usize) -> f64 {
         acc.sum()
     }
 }
-

@@ -496,7 +496,9 @@ impl Run<'_> {
             }
             Err(RecordError::QueueFull { .. }) => {
                 if self.recorder_dropped == 0 {
-                    tracing::warn!("MCAP recorder queue full: dropping statistics messages (counted)");
+                    tracing::warn!(
+                        "MCAP recorder queue full: dropping statistics messages (counted)"
+                    );
                 }
                 self.recorder_dropped += n;
                 self.unreported_drops += n;

@@ -117,7 +117,9 @@ impl LiveQuality {
             quantization_arcsec: est.quantization_arcsec.value.unwrap_or(0.0),
         };
         let (mut dq, _) = quality::assess(spikes, &series, fine);
-        dq.stationary = pipe.davar().and_then(|d| d.stationarity(fine.quantization_arcsec));
+        dq.stationary = pipe
+            .davar()
+            .and_then(|d| d.stationarity(fine.quantization_arcsec));
         let elapsed_s = pipe.samples_in() as f64 * self.tau0_s;
         let settled = dq
             .warmup

@@ -289,7 +289,13 @@ impl SerialSource {
 
 /// The device went away: drop the partial frame (counted), keep the
 /// decoder's state, log it and record the event.
-fn went_away<W: Axes>(lanes: &mut Lanes<W>, buf: &mut BytesMut, device: &str, reason: String, now: u64) {
+fn went_away<W: Axes>(
+    lanes: &mut Lanes<W>,
+    buf: &mut BytesMut,
+    device: &str,
+    reason: String,
+    now: u64,
+) {
     while lanes.decode_one(buf, true, now) {}
     lanes.sync_stats();
     tracing::warn!(

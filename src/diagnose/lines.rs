@@ -26,10 +26,10 @@ use super::findings::{Edit, Finding, fmt_g};
 use super::line_search::{self as lines, Detection, LineFit};
 use super::narrowband;
 use super::reference::{Reference, counter_lines, rate_wander};
-use crate::model::spectrum::model_psd;
 use super::stats::{self, StatLayout};
 use super::{ALPHA_LINES, AddedTerm, ParameterChange, Recording};
 use crate::model::config::SinusoidParams;
+use crate::model::spectrum::model_psd;
 use crate::model::{GyroModel, Term};
 use crate::units;
 

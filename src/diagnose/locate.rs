@@ -60,4 +60,3 @@ pub fn locate(r: &Reference, alpha: f64) -> Located {
         before,
     }
 }
-

@@ -133,7 +133,6 @@ impl LfLayout {
     }
 }
 
-
 /// The periodic Hann taper over the blocks.
 fn hann() -> Vec<f64> {
     (0..LF_BLOCKS)

@@ -52,8 +52,8 @@
 pub mod broadband;
 pub mod candidates;
 pub mod compare;
-pub mod golden;
 pub(crate) mod findings;
+pub mod golden;
 pub mod line_search;
 pub mod lines;
 pub mod locate;
@@ -86,10 +86,10 @@ use crate::units;
 
 pub use self::lines::{LineScan, line_scan};
 pub use self::read::ReadError;
-pub use crate::model::spectrum::{model_psd, model_spectral_terms};
 pub use self::report::{
     AddedTerm, DiagnosisReport, FitQuality, MismatchRegion, ParameterChange, Verdict,
 };
+pub use crate::model::spectrum::{model_psd, model_spectral_terms};
 
 /// A recording to diagnose: integer increments (and optionally a temperature
 /// per sample) with the readout's sample rate and the angle of one increment.
@@ -841,7 +841,9 @@ mod tests {
         let d = diagnose(&m, &rec(filled), &opts).unwrap();
         let r = &d.report;
         assert!(
-            r.verdict != Verdict::Mismatch && r.added_terms.is_empty() && r.parameter_changes.is_empty(),
+            r.verdict != Verdict::Mismatch
+                && r.added_terms.is_empty()
+                && r.parameter_changes.is_empty(),
             "{:?} {:?} {:?}",
             r.verdict,
             r.added_terms,

@@ -18,8 +18,8 @@
 //! by golden section; Q^2's 95 % interval is where the profile deviance stays
 //! below the chi-square(1) point. Three parameters in all.
 
-use super::readout::{self, FilterFit};
 use super::golden::golden_max;
+use super::readout::{self, FilterFit};
 use super::wvar_fit::{self, Basis, CI_DEVIANCE, LevelData};
 use crate::model::filter::ReadoutFilter;
 

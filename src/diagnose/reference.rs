@@ -16,8 +16,8 @@
 use std::f64::consts::PI;
 
 use super::compare::Point;
-use super::points::{KTerm, all_points, kurtosis_scales};
 use super::mc::Progress;
+use super::points::{KTerm, all_points, kurtosis_scales};
 use super::stats::{self, StatLayout, StatSet};
 use super::{DiagnoseError, DiagnoseOptions, Recording, check_recording, mc};
 use crate::model::GyroModel;

@@ -17,11 +17,11 @@ use statrs::distribution::{ContinuousCDF, Normal};
 
 use super::findings::{Edit, Finding, fmt_g, with_findings};
 use super::reference::Reference;
-use crate::model::spectrum::model_spectral_terms;
 use super::stats;
 use super::telegraph::mean_sd;
 use super::{ALPHA_SLOPE, Recording};
 use crate::model::config::ThermalParams;
+use crate::model::spectrum::model_spectral_terms;
 use crate::model::{GyroModel, Term};
 use crate::units;
 

@@ -288,7 +288,11 @@ pub fn refill(counts: &mut [i64], filled: &[Range<usize>], rate_words: bool) {
             continue;
         }
         if rate_words {
-            let left = if a > 0 { counts[a - 1] } else { counts[b.min(n - 1)] };
+            let left = if a > 0 {
+                counts[a - 1]
+            } else {
+                counts[b.min(n - 1)]
+            };
             let right = if b < n { counts[b] } else { left };
             let len = (b - a + 1) as f64;
             for (j, c) in counts[a..b].iter_mut().enumerate() {
@@ -772,4 +776,3 @@ pub fn centred_rate(counts: &[i64], pulse_arcsec: f64, fs_hz: f64) -> Vec<f64> {
     let m = rate.iter().sum::<f64>() / rate.len().max(1) as f64;
     rate.into_iter().map(|v| v - m).collect()
 }
-

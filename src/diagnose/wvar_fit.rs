@@ -660,4 +660,3 @@ pub fn append_rows(data: &mut LevelData, layout: &LfLayout, y: &[f64], runs: &[&
         data.nu.push(2.0 / (sd * sd * (1.0 + 1.0 / r)));
     }
 }
-

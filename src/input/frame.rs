@@ -122,13 +122,13 @@ mod fill;
 pub mod inject;
 pub mod triad;
 
+pub use crate::dsp::gaps::spread_increment;
 pub use axes::Axes;
 pub use decoder::{
     DecodeEvent, Decoded, DecoderConfig, DecoderStats, FrameDecoder, RunEnd, Sample, WireDecoded,
     increment_between,
 };
 pub use encoder::{FrameEncoder, FrameWriter, encode_increments};
-pub use crate::dsp::gaps::spread_increment;
 pub use fill::{FilledSeries, GapFiller, UniformSample, fill_gap};
 pub use triad::{TRIAD_FRAME_LEN, TRIAD_SYNC, Triad, TriadEncoder, encode_triad_frame};
 

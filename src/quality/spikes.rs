@@ -558,7 +558,11 @@ mod tests {
             // what the pipeline counts of each push: its spans clipped to it
             let mut take = |e: Emitted| {
                 let n = e.counts.len();
-                covered += e.filled.iter().map(|r| r.end.min(n) - r.start.min(n)).sum::<usize>();
+                covered += e
+                    .filled
+                    .iter()
+                    .map(|r| r.end.min(n) - r.start.min(n))
+                    .sum::<usize>();
                 emitted.extend(e.counts);
             };
             let mut spans = Vec::new();

@@ -410,10 +410,19 @@ mod tests {
         let f = white_for(sd, 15.0);
         let low = analyse(&s, f).unwrap();
         let w = low.warmup.expect("the warm-up");
-        assert!(w.amplitude_dph.ci95[0] <= 5.0 && 5.0 <= w.amplitude_dph.ci95[1], "{w:?}");
-        assert!(w.tau_s.ci95[0] <= 300.0 && 300.0 <= w.tau_s.ci95[1], "{w:?}");
+        assert!(
+            w.amplitude_dph.ci95[0] <= 5.0 && 5.0 <= w.amplitude_dph.ci95[1],
+            "{w:?}"
+        );
+        assert!(
+            w.tau_s.ci95[0] <= 300.0 && 300.0 <= w.tau_s.ci95[1],
+            "{w:?}"
+        );
         assert!(low.steps.is_empty());
         let clean = analyse(&series(160, 15.0, sd, 2, |_| 0.0), f).unwrap();
-        assert!(clean.warmup.is_none() && clean.steps.is_empty(), "{clean:?}");
+        assert!(
+            clean.warmup.is_none() && clean.steps.is_empty(),
+            "{clean:?}"
+        );
     }
 }

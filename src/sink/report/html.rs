@@ -4,10 +4,10 @@
 
 use std::fmt::Write;
 
+use super::markup::{esc, inline_svg};
 use super::{
     Report, ReportError, allan_fig, davar_fig, diagnosis, fmt_sig, noise_fig, rate_fig, svg,
 };
-use super::markup::{esc, inline_svg};
 use crate::model::estimate::Coefficient;
 use crate::pipeline::Analysis;
 
