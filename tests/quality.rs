@@ -230,7 +230,12 @@ fn clean_runs_report_nothing() {
             "{name}: {dq}"
         );
         assert_eq!(dq["steps"].as_array().unwrap().len(), 0, "{name}: {dq}");
-        assert_eq!(dq["stationary"]["ok"], true, "{name}: {dq}");
+        // null: no octave testable (a counter's quantization dominates every
+        // tau the windows resolve); never "not stationary"
+        assert_ne!(dq["stationary"]["ok"], false, "{name}: {dq}");
+        if name == "rate" {
+            assert_eq!(dq["stationary"]["ok"], true, "{name}: {dq}");
+        }
         assert!(!err.contains("warning"), "{name}: {err}");
         // nothing handled: the estimates are the raw statistics' (to floating-point sums)
         let (raw, _) = analyze(&csv, &[flags, &["--raw-statistics"]].concat());
