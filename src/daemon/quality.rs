@@ -10,12 +10,12 @@
 //!   the block means, against the pipeline's current ARW and QN) at the first
 //!   estimator boundary [`LOWFREQ_EVERY_S`] seconds of samples after the
 //!   previous assessment, or an eighth of the statistics' length once that is
-//!   longer, and at the final update. One assessment costs about a second of
-//!   CPU (0.8-1.8 s measured on a loaded 2-core machine; the block means are
-//!   at most 160 blocks, so it does not grow with the record): about 2 % of a
-//!   core at real-time pace in the first minutes, less and less after, and a
-//!   replay as fast as it can go makes about 8 ln(T / 8 min) + 8 of them for
-//!   a record of T (some 50 for 24 h). The schedule is by sample count, not
+//!   longer, and at the final update. One assessment costs about 0.3 s of
+//!   CPU (the block means are at most 160 blocks, so it does not grow with
+//!   the record): 0.1 % of a core at real-time pace in the first 40 minutes,
+//!   less and less after, and a replay as fast as it can go makes about
+//!   8 ln(T / 40 min) + 8 of them for
+//!   a record of T (some 40 for 24 h). The schedule is by sample count, not
 //!   wall time, so the findings (and the restart below) do not depend on the
 //!   pace or on skipped estimator updates; nor do the assessments count
 //!   against the estimator updates' budget;
@@ -42,7 +42,7 @@ use crate::quality::{self, DataQuality, Outliers, StepFit, Warmup};
 use crate::sink::metrics::GyroMetrics;
 
 /// Least seconds of samples between assessments of the slow effects.
-pub const LOWFREQ_EVERY_S: f64 = 60.0;
+pub const LOWFREQ_EVERY_S: f64 = 300.0;
 /// Past `LOWFREQ_EVERY_S * LOWFREQ_GROWTH` of statistics, assessments are
 /// this fraction of the statistics' length apart.
 pub const LOWFREQ_GROWTH: f64 = 8.0;
@@ -248,21 +248,21 @@ mod tests {
     }
 
     #[test]
-    fn assessments_come_every_minute_then_every_eighth_of_the_record() {
+    fn assessments_come_every_five_minutes_then_every_eighth_of_the_record() {
         // 200 Hz, estimator boundaries every 5 s
         let mut q = LiveQuality::new(0.005);
-        let at: Vec<u64> = (1..=160)
+        let at: Vec<u64> = (1..=800)
             .map(|k| k * 1000)
             .filter(|&n| q.due(n))
             .map(|n| n / 200)
             .collect();
-        let mut want: Vec<u64> = (1..=8).map(|k| 60 * k).collect();
-        want.extend([540, 610, 690, 780]);
+        let mut want: Vec<u64> = (1..=8).map(|k| 300 * k).collect();
+        want.extend([2700, 3040, 3420, 3850]);
         assert_eq!(at, want);
-        // a day at 1 kHz, boundaries every second: some 50 assessments
+        // a day at 1 kHz, boundaries every second: some 40 assessments
         let mut q = LiveQuality::new(0.001);
         let n = (1..=86_400u64).filter(|&s| q.due(s * 1000)).count();
-        assert!((40..60).contains(&n), "{n}");
+        assert!((30..45).contains(&n), "{n}");
     }
 
     #[test]

@@ -322,6 +322,11 @@ impl Analysis<'_> {
                 let Some((i, lr)) = grid.best(&scan, &self.c.y) else {
                     continue;
                 };
+                // the threshold is at least one chi-square(1) test's: below
+                // it the scan's maximum cannot pass, whatever the replicas say
+                if lr <= scan::floor(ALPHA) {
+                    continue;
+                }
                 let seed = 0x5D_A7A ^ ((round as u64) << 8) ^ u64::from(kind);
                 let limit = grid.threshold(&scan, &fitted.chol, ALPHA, seed);
                 let ratio = lr / limit;

@@ -200,7 +200,8 @@ fn best_scale(f: impl Fn(f64) -> f64, scale: f64) -> f64 {
     let g = 0.618_033_988_749_894_9;
     let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
     let (mut fc, mut fd) = (f(scale * c.exp()), f(scale * d.exp()));
-    for _ in 0..24 {
+    // 14 steps leave a bracket 1e-3 of a grid step wide (0.1 % in the variance)
+    for _ in 0..14 {
         if fc < fd {
             b = d;
             d = c;

@@ -153,6 +153,14 @@ impl NoiseGrid {
     }
 }
 
+/// The lowest threshold [`NoiseGrid::threshold`] can return: one chi-square(1)
+/// test at level `alpha` (its effective number of tests is at least 1).
+pub fn floor(alpha: f64) -> f64 {
+    ChiSquared::new(1.0)
+        .expect("one degree of freedom")
+        .inverse_cdf(1.0 - alpha)
+}
+
 fn point(noise: &Noise, x: &[Vec<f64>], b2: f64, k2: f64) -> Option<Point> {
     let chol = Cholesky::new(&noise.covariance(b2, k2), noise.len())?;
     let mut basis = Basis::default();
