@@ -3,17 +3,11 @@
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
 use sagnac::allan::{self, AllanOptions, DataKind, Phase, Stat, TauSet};
 use serde_json::Value;
 
-fn sagnac(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_sagnac"))
-        .args(args)
-        .output()
-        .expect("run sagnac")
-}
+use crate::support::sagnac;
 
 fn p(path: &Path) -> &str {
     path.to_str().unwrap()

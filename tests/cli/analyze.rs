@@ -1,40 +1,11 @@
 //! `sagnac analyze`: the CLI contract (JSON shape, inputs, errors).
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Command;
 
 use serde_json::Value;
 
-fn sagnac(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_sagnac"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn simulate(dir: &Path, seconds: &str) -> std::path::PathBuf {
-    let model = dir.join("m.toml");
-    std::fs::write(
-        &model,
-        "[gyro]\nsample_rate_hz = 1000.0\npulse_arcsec = 1.21\ninput_rate_dph = 12.3\n\
-         [noise]\nquantization_arcsec = 0.35\narw_dpsh = 0.0015\n",
-    )
-    .unwrap();
-    let csv = dir.join("run.csv");
-    let o = sagnac(&[
-        "simulate",
-        "--model",
-        model.to_str().unwrap(),
-        "--duration-s",
-        seconds,
-        "--seed",
-        "5",
-        "--out",
-        csv.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    csv
-}
+use crate::support::{PAPER_GYRO, sagnac, simulated_csv};
 
 fn check_coefficient(c: &Value, name: &str) {
     let obj = c
@@ -58,7 +29,7 @@ fn check_coefficient(c: &Value, name: &str) {
 #[test]
 fn json_contract_and_values_on_a_simulated_run() {
     let dir = tempfile::tempdir().unwrap();
-    let csv = simulate(dir.path(), "600");
+    let csv = simulated_csv(dir.path(), "600");
     let out = dir.path().join("a.json");
     let o = sagnac(&[
         "analyze",
@@ -181,7 +152,7 @@ fn rate_columns_in_every_unit_give_the_same_estimates() {
 #[test]
 fn bad_inputs_exit_2_with_a_clear_message() {
     let dir = tempfile::tempdir().unwrap();
-    let csv = simulate(dir.path(), "5");
+    let csv = simulated_csv(dir.path(), "5");
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (
             vec![
@@ -240,7 +211,7 @@ fn json_to_a_failing_stdout_is_an_error_not_a_panic() {
     let dir = tempfile::tempdir().unwrap();
     let csv = dir.path().join("c.csv");
     let bin = env!("CARGO_BIN_EXE_sagnac");
-    let model = concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml");
+    let model = PAPER_GYRO;
     let sim = std::process::Command::new(bin)
         .args([
             "simulate",
@@ -392,7 +363,7 @@ fn damaged_inputs_are_reported_not_silently_dropped() {
         "{err}"
     );
     // ... and the same error from diagnose, which reads the recording itself
-    let model = concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml");
+    let model = PAPER_GYRO;
     let r = Command::new(bin)
         .args([
             "diagnose", "--model", model, "--format", "mcap", "--json", "-", "--input",
@@ -409,11 +380,7 @@ fn damaged_inputs_are_reported_not_silently_dropped() {
     // 3. A frame capture with lost frames: the decoder's counts on stderr.
     let cap = dir.path().join("cap.bin");
     let sim = Command::new(bin)
-        .args([
-            "simulate",
-            "--model",
-            concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml"),
-        ])
+        .args(["simulate", "--model", PAPER_GYRO])
         .args([
             "--duration-s",
             "2",
@@ -522,7 +489,7 @@ fn column_is_refused_for_frame_and_mcap_input() {
 #[test]
 fn csv_and_frames_need_the_rate_and_pulse_flags() {
     let dir = tempfile::tempdir().unwrap();
-    let csv = simulate(dir.path(), "5");
+    let csv = simulated_csv(dir.path(), "5");
     let c = csv.to_str().unwrap();
     let cap = dir.path().join("cap.bin");
     let model = dir.path().join("m.toml");
@@ -873,7 +840,7 @@ fn analyze_json(path: &Path, extra: &[&str]) -> Result<Value, String> {
 fn the_format_is_found_by_content_and_a_contradicting_format_is_an_error() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let csv = simulate(d, "60");
+    let csv = simulated_csv(d, "60");
     let model = d.join("m.toml");
     let sim = |format: &str, out: &Path, models: &str| {
         let o = sagnac(&[

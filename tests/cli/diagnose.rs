@@ -8,11 +8,7 @@ use std::process::{Command, Output};
 
 use serde_json::Value;
 
-use crate::support;
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_sagnac"))
-}
+use crate::support::{self, PAPER_GYRO, bin};
 
 const MODEL: &str = "[gyro]\nsample_rate_hz = 500.0\npulse_arcsec = 1.21\ninput_rate_dph = 12.3\n\
 [noise]\nquantization_arcsec = 0.35\narw_dpsh = 0.001\n";
@@ -265,8 +261,7 @@ fn a_model_is_written_only_when_it_fits_better() {
     // original's and above an acceptable fit.
     let dir = tempfile::tempdir().unwrap();
     let csv = dir.path().join("c10.csv");
-    let paper = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/paper_gyro.toml");
-    simulate(&paper, &csv, "csv", "10", "1");
+    simulate(Path::new(PAPER_GYRO), &csv, "csv", "10", "1");
     let model = dir.path().join("g.toml");
     std::fs::write(
         &model,
@@ -319,12 +314,7 @@ fn a_constant_recording_is_refused_not_called_consistent() {
     }
     std::fs::write(&csv, text).unwrap();
     let r = bin()
-        .args([
-            "diagnose",
-            "--model",
-            concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml"),
-            "--input",
-        ])
+        .args(["diagnose", "--model", PAPER_GYRO, "--input"])
         .arg(&csv)
         .args(["--json", "-"])
         .output()

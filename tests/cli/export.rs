@@ -3,18 +3,12 @@
 //! and `allan --csv`.
 
 use std::path::Path;
-use std::process::{Command, Output};
 
 use sagnac::allan::AllanPoint;
 use sagnac::model::estimate::{Coefficient, NoiseEstimates};
 use sagnac::sink::export::{ExportError, allan_csv, kalibr};
 
-fn sagnac(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_sagnac"))
-        .args(args)
-        .output()
-        .unwrap()
-}
+use crate::support::{sagnac, simulated_csv};
 
 fn found(v: f64, lo: f64, hi: f64) -> Coefficient {
     Coefficient {
@@ -190,30 +184,6 @@ fn allan_csv_text_is_exact() {
     assert!(e.to_string().contains("no/such/dir"), "{e}");
 }
 
-fn simulate(dir: &Path) -> std::path::PathBuf {
-    let model = dir.join("m.toml");
-    std::fs::write(
-        &model,
-        "[gyro]\nsample_rate_hz = 1000.0\npulse_arcsec = 1.21\ninput_rate_dph = 12.3\n\
-         [noise]\nquantization_arcsec = 0.35\narw_dpsh = 0.0015\n",
-    )
-    .unwrap();
-    let csv = dir.join("run.csv");
-    let o = sagnac(&[
-        "simulate",
-        "--model",
-        model.to_str().unwrap(),
-        "--duration-s",
-        "120",
-        "--seed",
-        "5",
-        "--out",
-        csv.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    csv
-}
-
 /// CSV rows as (first cell, the rest parsed as f64).
 fn rows(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
     let mut r = csv::Reader::from_path(path).unwrap();
@@ -228,7 +198,7 @@ fn rows(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
 #[test]
 fn analyze_writes_kalibr_and_the_three_allan_channels() {
     let dir = tempfile::tempdir().unwrap();
-    let csv = simulate(dir.path());
+    let csv = simulated_csv(dir.path(), "120");
     let (json, yaml, acsv) = (
         dir.path().join("a.json"),
         dir.path().join("imu.yaml"),
@@ -321,7 +291,7 @@ fn analyze_writes_kalibr_and_the_three_allan_channels() {
 #[test]
 fn allan_csv_equals_its_json() {
     let dir = tempfile::tempdir().unwrap();
-    let csv = simulate(dir.path());
+    let csv = simulated_csv(dir.path(), "120");
     for engine in ["batch", "streaming"] {
         let (json, out) = (dir.path().join("b.json"), dir.path().join("b.csv"));
         let o = sagnac(&[

@@ -6,16 +6,10 @@
 //! runs report nothing, and `--raw-statistics` turns the stage off.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use serde_json::Value;
 
-fn sagnac(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_sagnac"))
-        .args(args)
-        .output()
-        .unwrap()
-}
+use crate::support::sagnac;
 
 /// Simulate `model` (TOML text) for `secs` seconds into `dir/name.csv`.
 fn simulate(dir: &Path, name: &str, model: &str, secs: u32, seed: u32) -> PathBuf {

@@ -8,12 +8,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-fn sagnac(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_sagnac"))
-        .args(args)
-        .output()
-        .unwrap()
-}
+use crate::support::{PAPER_GYRO, sagnac};
 
 fn ok(o: &Output) {
     assert!(
@@ -27,9 +22,8 @@ fn ok(o: &Output) {
 /// The paper's gyro with a thermal model, as a frame capture (which carries
 /// temperatures and gives decoder counts).
 fn simulate(dir: &Path, seconds: &str) -> (PathBuf, PathBuf) {
-    let paper = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/paper_gyro.toml");
     let model = dir.join("thermal.toml");
-    let text = std::fs::read_to_string(paper).unwrap()
+    let text = std::fs::read_to_string(PAPER_GYRO).unwrap()
         + "\n[thermal]\ntemp_c0 = 25.0\nramp_c_per_h = 6.0\nsine_amplitude_c = 0.5\nsine_period_s = 100.0\n\
            bias_sensitivity_dph_per_c = 0.01\n";
     std::fs::write(&model, text).unwrap();
@@ -458,7 +452,7 @@ fn report_rejects_bad_input_flags() {
                 "--out",
                 out_s,
                 "--model",
-                concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml"),
+                PAPER_GYRO,
             ],
             "the model is a pulse counter",
         ),

@@ -1,16 +1,9 @@
 //! `sagnac simulate`: CSV output on config/paper_gyro.toml, the thermal column,
 //! determinism, and errors (exit code 2 naming the key).
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::Path;
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_sagnac"))
-}
-
-fn paper() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("config/paper_gyro.toml")
-}
+use crate::support::{PAPER_GYRO, bin};
 
 fn simulate(
     model: &Path,
@@ -33,7 +26,7 @@ fn simulate(
 fn csv_on_the_paper_gyro_has_header_and_one_row_per_sample() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("sim.csv");
-    let r = simulate(&paper(), "2.5", "7", &out, &[]);
+    let r = simulate(Path::new(PAPER_GYRO), "2.5", "7", &out, &[]);
     assert!(
         r.status.success(),
         "stderr: {}",
@@ -60,13 +53,23 @@ fn csv_on_the_paper_gyro_has_header_and_one_row_per_sample() {
     // same seed, same bytes; another seed, another stream
     let out2 = dir.path().join("sim2.csv");
     assert!(
-        simulate(&paper(), "2.5", "7", &out2, &["--format", "csv"])
-            .status
-            .success()
+        simulate(
+            Path::new(PAPER_GYRO),
+            "2.5",
+            "7",
+            &out2,
+            &["--format", "csv"]
+        )
+        .status
+        .success()
     );
     assert_eq!(std::fs::read(&out).unwrap(), std::fs::read(&out2).unwrap());
     let out3 = dir.path().join("sim3.csv");
-    assert!(simulate(&paper(), "2.5", "8", &out3, &[]).status.success());
+    assert!(
+        simulate(Path::new(PAPER_GYRO), "2.5", "8", &out3, &[])
+            .status
+            .success()
+    );
     assert_ne!(std::fs::read(&out).unwrap(), std::fs::read(&out3).unwrap());
 }
 
@@ -74,7 +77,7 @@ fn csv_on_the_paper_gyro_has_header_and_one_row_per_sample() {
 fn thermal_model_adds_a_temperature_column() {
     let dir = tempfile::tempdir().unwrap();
     let model = dir.path().join("thermal.toml");
-    let text = std::fs::read_to_string(paper()).unwrap()
+    let text = std::fs::read_to_string(PAPER_GYRO).unwrap()
         + "\n[thermal]\ntemp_c0 = 25.0\nramp_c_per_h = 36.0\nbias_sensitivity_dph_per_c = 0.001\n";
     std::fs::write(&model, text).unwrap();
     let out = dir.path().join("t.csv");
@@ -128,7 +131,13 @@ fn bad_model_exits_2_naming_the_key() {
 fn bad_durations_exit_2() {
     // (--format frames / mcap are tested in tests/daemon/simulate.rs)
     let dir = tempfile::tempdir().unwrap();
-    let r = simulate(&paper(), "0", "1", &dir.path().join("x.csv"), &[]);
+    let r = simulate(
+        Path::new(PAPER_GYRO),
+        "0",
+        "1",
+        &dir.path().join("x.csv"),
+        &[],
+    );
     assert_eq!(r.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&r.stderr).contains("duration_s = 0"));
 }
@@ -137,7 +146,7 @@ fn bad_durations_exit_2() {
 fn mcap_output_only_replaces_a_regular_file_in_an_existing_directory() {
     let dir = tempfile::tempdir().unwrap();
     let bin = env!("CARGO_BIN_EXE_sagnac");
-    let model = concat!(env!("CARGO_MANIFEST_DIR"), "/config/paper_gyro.toml");
+    let model = PAPER_GYRO;
     let sim = |out: &std::path::Path| {
         std::process::Command::new(bin)
             .args([

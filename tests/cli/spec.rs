@@ -11,7 +11,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
 use crate::support::daemon::{DaemonProc, only_recording, promtool, read_mcap_py};
-use crate::support::repo;
+use crate::support::{PAPER_GYRO, repo};
 use sagnac::model::estimate::{Coefficient, NoiseEstimates};
 use sagnac::model::spec::{SequentialSpec, Spec, SpecCoefficient, Verdict};
 use sagnac::recording::messages::SinkMessage;
@@ -338,7 +338,7 @@ fn analyze_spec_json_contract() {
     let r = sagnac(&[
         "simulate",
         "--model",
-        repo().join("config/paper_gyro.toml").to_str().unwrap(),
+        PAPER_GYRO,
         "--duration-s",
         "300",
         "--seed",
@@ -469,7 +469,7 @@ fn run_stops_when_decided_with_a_finished_recording_holding_the_verdicts() {
     );
     let rec = dir.path().join("rec");
     let log = dir.path().join("run.log");
-    let model = repo().join("config/paper_gyro.toml");
+    let model = Path::new(PAPER_GYRO);
     let mut d = DaemonProc::start(
         &[
             "run",

@@ -8,6 +8,8 @@
 use std::path::Path;
 use std::process::Command;
 
+use crate::support::PAPER_GYRO;
+
 const SAGNAC: &str = env!("CARGO_BIN_EXE_sagnac");
 
 /// Run `args` with stderr on a pseudo-terminal 80 columns wide (stdout
@@ -214,8 +216,7 @@ fn run_without_a_terminal_writes_plain_log_lines() {
 #[test]
 fn offline_commands_show_progress_on_a_terminal_only() {
     let dir = tempfile::tempdir().unwrap();
-    let model = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/paper_gyro.toml");
-    let model = model.to_str().unwrap();
+    let model = PAPER_GYRO;
     // long enough to pass the bar's 0.7 s delay on this machine (about 2 s)
     let sim = [
         "simulate",

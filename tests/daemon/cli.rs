@@ -8,7 +8,7 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 
 use crate::support::daemon::*;
-use crate::support::{free_addr, repo};
+use crate::support::{PAPER_GYRO, free_addr};
 
 fn run(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_sagnac"))
@@ -196,7 +196,7 @@ fn raw_sources_need_the_rate_and_pulse_weight_given() {
     let bin = dir.path().join("cap.bin");
     let sim = Command::new(env!("CARGO_BIN_EXE_sagnac"))
         .args(["simulate", "--model"])
-        .arg(repo().join("config/paper_gyro.toml"))
+        .arg(PAPER_GYRO)
         .args([
             "--duration-s",
             "2",
@@ -298,7 +298,7 @@ fn short_and_cut_captures_end_cleanly() {
     let full = dir.path().join("full.bin");
     let sim = Command::new(env!("CARGO_BIN_EXE_sagnac"))
         .args(["simulate", "--model"])
-        .arg(repo().join("config/paper_gyro.toml"))
+        .arg(PAPER_GYRO)
         .args([
             "--duration-s",
             "2",
@@ -548,7 +548,7 @@ fn duration_limit_ends_the_run_and_logs_are_json() {
         "--config",
         cfg.to_str().unwrap(),
         "--simulate",
-        repo().join("config/paper_gyro.toml").to_str().unwrap(),
+        PAPER_GYRO,
         "--speed",
         "0",
         "--duration-s",

@@ -32,13 +32,13 @@ use sagnac::recording::messages::{Gap, SinkMessage};
 use sagnac::recording::reader::read_recording;
 use sagnac::recording::writer::{Recorder, RecorderConfig};
 
+use crate::support::PAPER_GYRO;
+
 const N: usize = 60_000;
 
 /// Decoded samples (gaps folded as the decoder does) and the gap-filled series.
 fn stream() -> (Vec<(i64, u64)>, Vec<i64>) {
-    let model =
-        GyroModel::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("config/paper_gyro.toml"))
-            .unwrap();
+    let model = GyroModel::load(Path::new(PAPER_GYRO)).unwrap();
     let mut truth = Vec::new();
     Simulator::new(&model, 4, None)
         .unwrap()

@@ -14,8 +14,8 @@
 use std::path::Path;
 use std::time::{Duration, Instant};
 
+use crate::support::PAPER_GYRO;
 use crate::support::daemon::*;
-use crate::support::repo;
 use sagnac::daemon::bench::BenchEmulator;
 use sagnac::input::frame::inject::{FaultPlan, InjectorConfig};
 
@@ -159,7 +159,7 @@ fn speed_paces_an_mcap_replay() {
     let mcap = dir.path().join("sim.mcap");
     let r = std::process::Command::new(env!("CARGO_BIN_EXE_sagnac"))
         .args(["simulate", "--model"])
-        .arg(repo().join("config/paper_gyro.toml"))
+        .arg(PAPER_GYRO)
         .args([
             "--duration-s",
             "10",

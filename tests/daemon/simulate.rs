@@ -13,17 +13,13 @@ use std::process::Command;
 use std::time::Duration;
 
 use crate::support::daemon::*;
-use crate::support::free_addr;
+use crate::support::{PAPER_GYRO, free_addr};
 use sagnac::input::frame::{DecodeEvent, Decoded, DecoderConfig, FrameDecoder};
-
-fn paper() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("config/paper_gyro.toml")
-}
 
 fn simulate(out: &Path, format: &str, duration: &str) {
     let r = Command::new(env!("CARGO_BIN_EXE_sagnac"))
         .args(["simulate", "--model"])
-        .arg(paper())
+        .arg(PAPER_GYRO)
         .args([
             "--duration-s",
             duration,
@@ -134,7 +130,7 @@ fn mcap_carries_exactly_the_csv_stream() {
 fn mcap_to_stdout_is_refused_with_exit_2() {
     let r = Command::new(env!("CARGO_BIN_EXE_sagnac"))
         .args(["simulate", "--model"])
-        .arg(paper())
+        .arg(PAPER_GYRO)
         .args([
             "--duration-s",
             "1",

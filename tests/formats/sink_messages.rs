@@ -392,9 +392,7 @@ fn json_round_trip_is_exact() {
         assert_eq!(back, m.recorded());
     }
     let mut rng = ChaCha8Rng::seed_from_u64(13);
-    let mut values: Vec<f64> = (0..20_000)
-        .map(|_| sink::awkward_f64(&mut rng))
-        .collect();
+    let mut values: Vec<f64> = (0..20_000).map(|_| sink::awkward_f64(&mut rng)).collect();
     values.extend([f64::MIN_POSITIVE, 5e-324, f64::MAX, -0.0, 0.1 + 0.2, 1e-300]);
     values.extend([2.25e12, -2.26e12, 1e13, 1e15, 0.5e-3, 1.5e-3, -2.5e-3]);
     let m = SinkMessage::Clean(RateBatch {
@@ -464,9 +462,7 @@ fn recorder_json_equals_serde_json() {
     // rate batches: equal JSON values, see rates_are_written_with_three_decimals).
     let mut rng = ChaCha8Rng::seed_from_u64(17);
     let mut msgs = sink::stream(21, 3000);
-    let mut values: Vec<f64> = (0..5_000)
-        .map(|_| sink::awkward_f64(&mut rng))
-        .collect();
+    let mut values: Vec<f64> = (0..5_000).map(|_| sink::awkward_f64(&mut rng)).collect();
     values.extend([
         f64::MIN_POSITIVE,
         5e-324,

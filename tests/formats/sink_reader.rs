@@ -63,9 +63,7 @@ fn stream(seed: u64, n: usize) -> Vec<SinkMessage> {
         };
         seq += periods;
         out.push(SinkMessage::Raw(b));
-        out.push(SinkMessage::Clean(sink::rate_batch(
-            &mut rng, i as u64, 50,
-        )));
+        out.push(SinkMessage::Clean(sink::rate_batch(&mut rng, i as u64, 50)));
         if i % 5 == 0 {
             out.push(SinkMessage::Event(sink::event(&mut rng, i as u64)));
         }

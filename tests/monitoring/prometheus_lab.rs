@@ -17,7 +17,7 @@ use std::time::Duration;
 
 use crate::support::daemon::DaemonProc;
 use crate::support::prom::{Prometheus, have, label, target_group, time_of, value_of};
-use crate::support::{free_addr, repo};
+use crate::support::{PAPER_GYRO, free_addr, repo};
 
 struct Unit {
     bench: &'static str,
@@ -53,7 +53,7 @@ const UNITS: [Unit; 3] = [
 ];
 
 fn start_unit(dir: &Path, u: &Unit, addr: std::net::SocketAddr) -> DaemonProc {
-    let paper = std::fs::read_to_string(repo().join("config/paper_gyro.toml")).unwrap();
+    let paper = std::fs::read_to_string(PAPER_GYRO).unwrap();
     assert!(
         paper.contains("\narw_dpsh = 0.001\n"),
         "config/paper_gyro.toml changed"

@@ -16,6 +16,8 @@ use sagnac::model::fit::LevelObs;
 use sagnac::model::sim::Simulator;
 use sagnac::pipeline::{Analysis, Pipeline, PipelineConfig, PipelineOutput};
 
+use crate::support::PAPER_GYRO;
+
 struct Rng(u64);
 impl Rng {
     fn next(&mut self) -> u64 {
@@ -433,11 +435,7 @@ fn estimates_cover_the_truth_with_burst_loss() {
 /// frames. Before gap-aware statistics: QN 0.644 [0.627, 0.661]", truth 0.610.
 #[test]
 fn sixty_bursts_keep_qn_within_its_interval() {
-    let text = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/config/paper_gyro.toml"
-    ))
-    .unwrap();
+    let text = std::fs::read_to_string(PAPER_GYRO).unwrap();
     let model = text.replace("quantization_arcsec = 0.35", "quantization_arcsec = 0.61");
     assert_ne!(model, text);
     let truth = 0.61;

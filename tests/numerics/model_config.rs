@@ -6,9 +6,7 @@ use sagnac::model::ModelError;
 use sagnac::model::config::{GyroModel, ThermalParams};
 use sagnac::model::terms::Term;
 
-fn paper_path() -> std::path::PathBuf {
-    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/paper_gyro.toml")
-}
+use crate::support::PAPER_GYRO;
 
 const BASE: &str = r#"
 [gyro]
@@ -43,7 +41,7 @@ fn err_of(text: &str) -> String {
 
 #[test]
 fn paper_gyro_parses_with_the_papers_numbers() {
-    let m = GyroModel::load(&paper_path()).unwrap();
+    let m = GyroModel::load(std::path::Path::new(PAPER_GYRO)).unwrap();
     assert_eq!(m.gyro.sample_rate_hz, 1000.0);
     assert_eq!(m.gyro.pulse_arcsec, 1.21);
     assert_eq!(m.gyro.input_rate_dph, 12.3);
@@ -224,7 +222,7 @@ fn out_of_range_values_name_key_and_value() {
 
 #[test]
 fn model_round_trips_through_toml() {
-    let paper = GyroModel::load(&paper_path()).unwrap();
+    let paper = GyroModel::load(std::path::Path::new(PAPER_GYRO)).unwrap();
     let mut models = vec![
         paper.clone(),
         GyroModel::from_toml_str(BASE, "base").unwrap(),

@@ -20,6 +20,8 @@ use sagnac::model::config::GyroModel;
 use sagnac::model::sim::{Simulator, Truth};
 use sagnac::model::terms::{self, Term};
 
+use crate::support::PAPER_GYRO;
+
 const TAU0: f64 = 1e-3;
 const N_1H: usize = 3_600_000;
 
@@ -561,10 +563,7 @@ fn composite_model_through_the_counter_is_the_sum_of_the_terms() {
     // The paper's noise terms with a smaller pulse weight (0.5 arcsec), so that the dither
     // residual (0.64 d) makes the quantization white: the Allan variance of the pulse
     // stream must be the sum of all closed forms (flicker: the generator's exact curve).
-    let mut m = GyroModel::load(
-        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/paper_gyro.toml"),
-    )
-    .unwrap();
+    let mut m = GyroModel::load(std::path::Path::new(PAPER_GYRO)).unwrap();
     m.gyro.pulse_arcsec = 0.5;
     m.validate().unwrap();
     let bank = Simulator::new(&m, 0, None)
@@ -613,10 +612,7 @@ fn composite_model_through_the_counter_is_the_sum_of_the_terms() {
 // ---------------------------------------------------------------------------
 
 fn paper_with_thermal() -> GyroModel {
-    let text = std::fs::read_to_string(
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/paper_gyro.toml"),
-    )
-    .unwrap();
+    let text = std::fs::read_to_string(PAPER_GYRO).unwrap();
     let text = format!(
         "{text}\n[thermal]\ntemp_c0 = 25.0\nramp_c_per_h = 0.5\nsine_amplitude_c = 0.3\nsine_period_s = 60.0\nbias_sensitivity_dph_per_c = 0.01\n"
     );
@@ -1125,10 +1121,7 @@ fn a_spike_on_a_pulse_counter_is_a_plus_minus_pair() {
 #[test]
 fn spikes_leave_the_true_angle_and_the_other_terms_alone() {
     // the paper gyro (counter, dither, every noise) with and without spikes, same seed
-    let paper = GyroModel::load(
-        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/paper_gyro.toml"),
-    )
-    .unwrap();
+    let paper = GyroModel::load(std::path::Path::new(PAPER_GYRO)).unwrap();
     let mut spiky = paper.clone();
     spiky.noise.spikes = Some(sagnac::model::config::SpikesParams {
         rate_per_h: 36_000.0,

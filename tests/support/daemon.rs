@@ -15,7 +15,7 @@ use sagnac::recording::reader::read_recording;
 use super::repo;
 
 pub fn paper_model() -> sagnac::model::GyroModel {
-    sagnac::model::GyroModel::load(&repo().join("config/paper_gyro.toml")).unwrap()
+    sagnac::model::GyroModel::load(Path::new(super::PAPER_GYRO)).unwrap()
 }
 
 /// The corruption a serial stream gets in the pty tests (single and triad
