@@ -10,12 +10,13 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
-use crate::support::daemon::{DaemonProc, only_recording, promtool, read_mcap_py};
-use crate::support::{PAPER_GYRO, repo};
 use sagnac::model::estimate::{Coefficient, NoiseEstimates};
 use sagnac::model::spec::{SequentialSpec, Spec, SpecCoefficient, Verdict};
 use sagnac::recording::messages::SinkMessage;
 use sagnac::sink::metrics::{GyroInfo, Metrics};
+
+use crate::support::daemon::{DaemonProc, only_recording, promtool, read_mcap_py};
+use crate::support::{PAPER_GYRO, repo};
 
 fn sagnac(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_sagnac"))

@@ -14,10 +14,11 @@
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use crate::support::PAPER_GYRO;
-use crate::support::daemon::*;
 use sagnac::daemon::bench::BenchEmulator;
 use sagnac::input::frame::inject::{FaultPlan, InjectorConfig};
+
+use crate::support::PAPER_GYRO;
+use crate::support::daemon::*;
 
 fn run_replay(input: &Path, rec_dir: &Path, log: &Path, extra: &[&str]) -> Duration {
     let start = Instant::now();

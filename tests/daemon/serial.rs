@@ -11,10 +11,11 @@
 use std::path::Path;
 use std::time::Duration;
 
-use crate::support::daemon::*;
-use crate::support::free_addr;
 use sagnac::daemon::bench::{BenchEmulator, write_paced};
 use sagnac::input::frame::inject::{FaultPlan, FrameAction, Ledger};
+
+use crate::support::daemon::*;
+use crate::support::free_addr;
 
 /// Frame rate of the emulated gyro, Hz, and the emulator's speed-up over real time.
 const RATE_HZ: f64 = 1000.0;

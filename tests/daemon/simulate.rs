@@ -12,9 +12,10 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
 
+use sagnac::input::frame::{DecodeEvent, Decoded, DecoderConfig, FrameDecoder};
+
 use crate::support::daemon::*;
 use crate::support::{PAPER_GYRO, free_addr};
-use sagnac::input::frame::{DecodeEvent, Decoded, DecoderConfig, FrameDecoder};
 
 fn simulate(out: &Path, format: &str, duration: &str) {
     let r = Command::new(env!("CARGO_BIN_EXE_sagnac"))

@@ -8,13 +8,14 @@
 
 use std::time::Duration;
 
-use crate::support::daemon::*;
-use crate::support::free_addr;
 use sagnac::daemon::bench::write_paced;
 use sagnac::input::frame::inject::{FaultPlan, FrameAction, inject_wire};
 use sagnac::input::frame::{Triad, TriadEncoder, triad::encode_triad_increments};
 use sagnac::model::{GyroModel, Simulator};
 use sagnac::recording::reader::RawReader;
+
+use crate::support::daemon::*;
+use crate::support::free_addr;
 
 const RATE_HZ: f64 = 1000.0;
 const SPEEDUP: f64 = 20.0;

@@ -13,13 +13,13 @@
 //! added. `bench_table` (ignored; `scripts/bench-diagnose` runs it) prints the
 //! table of all cases.
 
-use crate::support;
-
 use std::time::Instant;
 
 use sagnac::diagnose::compare::{Family, bonferroni_z};
 use sagnac::diagnose::{self, DiagnoseOptions, Diagnosis, Verdict};
 use sagnac::model::GyroModel;
+
+use crate::support;
 
 /// What the diagnosis must find.
 #[derive(Debug, Clone, Copy)]

@@ -2,11 +2,11 @@
 //! (`diagnose::line_search`): located to the Fisher bound, intervals that
 //! cover, and no lines on matched recordings.
 
-use crate::support;
-
 use sagnac::diagnose;
 use sagnac::diagnose::line_search::SearchParams;
 use sagnac::model::GyroModel;
+
+use crate::support;
 
 /// The gyro: pulse 1.21", dither residual 0.5" (Q = sqrt(d^2/12 + 0.5^2)),
 /// Earth-rate input, ARW 0.002 deg/sqrt(h), BI 0.003 deg/h, plus `extra`.

@@ -7,12 +7,12 @@
 //! (at most one alarm in 40). The design alpha is about 2 % (1 % broadband,
 //! 0.1 % lines, 2 x 0.25 % slopes, the kurtosis test).
 
-use crate::support;
-
 use std::time::Instant;
 
 use sagnac::diagnose::{self, DiagnoseOptions, Verdict};
 use sagnac::model::GyroModel;
+
+use crate::support;
 
 fn model(fs: f64, input_dph: f64, q: f64, n: f64, extra: &str) -> GyroModel {
     let text = format!(

@@ -17,14 +17,14 @@
 //! right change reported (the new term, or the change of the model's
 //! parameter). `scripts/bench-diagnose --power [--quick]` runs it.
 
-use crate::support;
-
 use std::time::Instant;
 
 use sagnac::diagnose::compare::{Family, Point, bonferroni_z};
 use sagnac::diagnose::reference::points_against;
 use sagnac::diagnose::{self, DiagnoseOptions, DiagnosisReport, Verdict};
 use sagnac::model::GyroModel;
+
+use crate::support;
 
 struct Effect {
     name: &'static str,

@@ -7,10 +7,10 @@
 //! error that says so; a filter with white angle noise after it is named
 //! with both (the filter and Q fitted together).
 
-use crate::support;
-
 use sagnac::diagnose::{self, DiagnoseError, DiagnoseOptions, Recording, Verdict};
 use sagnac::model::{GyroModel, Simulator};
+
+use crate::support;
 
 /// A MEMS-like rate gyro at 200 Hz: ARW 0.5 deg/sqrt(h), bias instability
 /// 5 deg/h, rate word LSB 0.01 deg/s (the white noise per sample is

@@ -9,10 +9,10 @@
 //! leaves a white tail that looks like angle random walk: the mode is named,
 //! and the ARW is not changed (or, if changed, its interval holds the truth).
 
-use crate::support;
-
 use sagnac::diagnose::{self, DiagnoseOptions, Verdict};
 use sagnac::model::GyroModel;
+
+use crate::support;
 
 const RESONANCE: (f64, f64, f64) = (1200.0, 19.0, 1.5);
 

@@ -8,11 +8,11 @@
 //! where the most powerful test there is names it in 100 %,
 //! `scripts/telegraph-oracle`). The seeds here are not the bench's.
 
-use crate::support;
-
 use sagnac::diagnose::report::AddedTerm;
 use sagnac::diagnose::{self, DiagnoseOptions, Verdict};
 use sagnac::model::GyroModel;
+
+use crate::support;
 
 const BASE: &str = "[gyro]\nsample_rate_hz = 200.0\npulse_arcsec = 1.0\ninput_rate_dph = 10.0\n\
                     [noise]\nquantization_arcsec = 0.5773502691896257\narw_dpsh = 0.002\n";

@@ -3,8 +3,6 @@
 //! independent reader (scripts/read-mcap.py, Python `mcap`) agreeing with what
 //! was written.
 
-use crate::support::sink;
-
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -20,6 +18,8 @@ use sagnac::recording::reader::{
 use sagnac::recording::writer::{
     RecordError, Recorder, RecorderConfig, format_utc_compact, recording_file_name,
 };
+
+use crate::support::sink;
 
 fn config(dir: &Path) -> RecorderConfig {
     RecorderConfig {

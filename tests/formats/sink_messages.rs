@@ -4,8 +4,6 @@
 //! the validator rejects broken messages, JSON round-trips exactly, and messages
 //! JSON cannot carry are refused.
 
-use crate::support::sink;
-
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use sagnac::recording::messages::{
@@ -13,6 +11,8 @@ use sagnac::recording::messages::{
     Topic, quantize_rate, recordable_quality,
 };
 use serde_json::{Value, json};
+
+use crate::support::sink;
 
 /// Structural JSON Schema check: type, properties, required, additionalProperties
 /// (bool or schema), items, oneOf (exactly one), enum, const, minimum. Returns the

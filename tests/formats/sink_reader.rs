@@ -8,8 +8,6 @@
 //!   pushes into its pipeline, and both equal what was recorded;
 //! * a recording of several gyros yields each gyro's batches under its label.
 
-use crate::support::sink;
-
 use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, SystemTime};
@@ -27,6 +25,8 @@ use sagnac::recording::reader::{
     RawReader, RecordingReader, Selection, read_recording, recover_recording,
 };
 use sagnac::recording::writer::{Recorder, RecorderConfig};
+
+use crate::support::sink;
 
 const DT_NS: u64 = 1_000_000;
 

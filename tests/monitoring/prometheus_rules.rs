@@ -10,10 +10,11 @@
 use std::collections::BTreeSet;
 use std::path::Path;
 
-use crate::support::prom::{dashboard_exprs, have, promtool};
-use crate::support::repo;
 use sagnac::daemon::telemetry::Telemetry;
 use sagnac::sink::metrics::GyroInfo;
+
+use crate::support::prom::{dashboard_exprs, have, promtool};
+use crate::support::repo;
 
 const RULE_FILES: [&str; 3] = [
     "sagnac-rules.yml",

@@ -14,14 +14,14 @@
 //! The data are third-party (LGPL) and read in place; without them these
 //! tests print a notice and pass, except under CI=true.
 
-use crate::support;
-
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use sagnac::allan::{self, AllanOptions, DataKind, NoiseIdMethod, Phase, Stat};
 use sagnac::input::Format;
 use sagnac::input::plain::read_all;
+
+use crate::support;
 
 const CONF: f64 = 0.683; // Stable32's confidence factor
 

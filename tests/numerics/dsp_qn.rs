@@ -6,11 +6,12 @@
 //! Simulated gyro (tests/support/dsp.rs): 28 cm RLG, 1 kHz, pulse weight 1.21", input
 //! 12.3 deg/h (Earth rate), Q, N, B as stated per run; seeds fixed.
 
-use crate::support::dsp::{GyroSim, oadev};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sagnac::dsp::qn::{EXTRA_LEVELS, default_levels, qn_energy_factors};
 use sagnac::dsp::{DspError, QnConfig, QnEstimate, QnRule, QnSplitter, StreamingAnalysis, Wavelet};
+
+use crate::support::dsp::{GyroSim, oadev};
 
 const TAU0: f64 = 1e-3;
 
