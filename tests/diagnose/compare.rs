@@ -6,59 +6,11 @@
 //! its threshold calibrated on the model's own runs, must find it and name it
 //! with intervals that cover the truth.
 
-use sagnac::diagnose::{self, DiagnoseOptions, Diagnosis, Recording, Verdict};
-use sagnac::model::{GyroModel, Simulator};
+use sagnac::diagnose::{self, DiagnoseOptions, Diagnosis, Verdict};
 
-/// The paper's gyro: pulse 1.21", dither residual 0.5", Earth rate ~10 deg/h.
-fn paper(extra: &str) -> GyroModel {
-    let q = (1.21f64.powi(2) / 12.0 + 0.25).sqrt();
-    let text = format!(
-        "[gyro]\nsample_rate_hz = 1000.0\npulse_arcsec = 1.21\ninput_rate_dph = 10.0\n\
-         [noise]\nquantization_arcsec = {q}\narw_dpsh = 0.002\nbias_instability_dph = 0.003\n{extra}"
-    );
-    GyroModel::from_toml_str(&text, "paper").unwrap()
-}
+mod shared;
 
-fn simulate(m: &GyroModel, seed: u64, dur_s: f64) -> Recording {
-    let mut sim = Simulator::new(m, seed, Some(dur_s)).unwrap();
-    let mut counts = Vec::new();
-    sim.next_block(usize::MAX >> 1, &mut counts);
-    Recording {
-        counts,
-        filled: Vec::new(),
-        temp_c: None,
-        sample_rate_hz: m.gyro.sample_rate_hz,
-        pulse_arcsec: m.gyro.pulse_arcsec,
-        output: Default::default(),
-    }
-}
-
-fn summary(d: &Diagnosis) -> String {
-    let c = d.model_comparison.as_ref();
-    format!(
-        "max|z| {:.2}/{:.2}, LR {:.1} ({}) / crit {:.1}, null max {:?}, added {:?}, changes {:?}",
-        d.max_abs_z,
-        d.z_crit,
-        c.map_or(f64::NAN, |c| c.max_lr),
-        c.map_or("-", |c| c.best.as_str()),
-        c.map_or(f64::NAN, |c| c.lr_crit),
-        c.map(|c| c
-            .null_max
-            .iter()
-            .map(|v| (v * 10.0).round() / 10.0)
-            .collect::<Vec<_>>()),
-        d.report
-            .added_terms
-            .iter()
-            .map(|a| (&a.term, &a.params, &a.ci95))
-            .collect::<Vec<_>>(),
-        d.report
-            .parameter_changes
-            .iter()
-            .map(|c| (&c.term, c.fitted, c.ci95))
-            .collect::<Vec<_>>()
-    )
-}
+use shared::{paper, simulate, summary};
 
 /// The fitted new Gauss-Markov candidate's 95 % intervals (sigma, Tc).
 fn gm_intervals(d: &Diagnosis) -> Option<([f64; 2], [f64; 2])> {
@@ -123,75 +75,4 @@ fn gauss_markov_below_the_point_gate_is_detected_and_named() {
     eprintln!(
         "{below_gate} of 3 seeds below the per-point gate; gauss_markov named at {named} of 3"
     );
-}
-
-#[test]
-#[ignore]
-fn debug_candidates() {
-    use sagnac::diagnose::candidates;
-    use sagnac::diagnose::compare::Family;
-    use sagnac::diagnose::stats::StatLayout;
-    use sagnac::diagnose::wvar_fit::{Basis, LevelData};
-    let model = paper("");
-    let truth = paper("[[noise.gauss_markov]]\nsigma_dph = 0.03\ntau_c_s = 5.0\n");
-    let seeds: Vec<u64> = std::env::var("SEEDS").map_or(vec![1], |s| {
-        s.split(',').map(|x| x.parse().unwrap()).collect()
-    });
-    for seed in seeds {
-        eprintln!("=== seed {seed}");
-        let rec = simulate(&truth, seed, 3600.0);
-        let d = diagnose::diagnose(&model, &rec, &DiagnoseOptions::default()).unwrap();
-        let layout = StatLayout::new(rec.counts.len(), 1000.0, 1.21);
-        let w: Vec<_> = d
-            .before
-            .iter()
-            .filter(|p| p.family == Family::Wavelet)
-            .collect();
-        for p in &w {
-            eprintln!(
-                "level {:>2} tau {:8.3}-{:8.3} obs/model {:.3} sd {:.3} z {:.2}",
-                layout.levels[p.index],
-                p.tau_lo_s,
-                p.tau_hi_s,
-                p.obs / p.model_mean,
-                p.sd_log,
-                p.z
-            );
-        }
-        for p in d.before.iter().filter(|p| p.family == Family::Mdev) {
-            eprintln!(
-                "mdev tau {:8.3} obs/model {:.3} sd {:.3} z {:.2}",
-                p.tau_lo_s,
-                p.obs / p.model_mean,
-                p.sd_log,
-                p.z
-            );
-        }
-        let data = LevelData {
-            levels: layout.levels.clone(),
-            y: w.iter().map(|p| p.obs).collect(),
-            e0: w.iter().map(|p| p.model_mean).collect(),
-            nu: w
-                .iter()
-                .map(|p| 2.0 / (p.sd_log * p.sd_log * (1.0 + 1.0 / p.runs as f64)))
-                .collect(),
-        };
-        let basis = Basis::new(&layout.lo, &layout.hi, 1e-3, &layout.levels);
-        let l0 = data.loglik(&data.e0);
-        for c in candidates::candidates(&data, &basis, &model, 3600.0) {
-            eprintln!(
-                "{:30} LR {:7.2} theta {:.4e} ci {:?} shape {:?} {:?}",
-                c.name,
-                2.0 * (c.fit.loglik - l0),
-                c.fit.theta,
-                c.fit.theta_ci,
-                c.fit.shape,
-                c.fit.shape_ci
-            );
-        }
-        eprintln!("{}", summary(&d));
-        for n in &d.notes {
-            eprintln!("note: {n}");
-        }
-    }
 }

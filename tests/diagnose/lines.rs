@@ -4,142 +4,15 @@
 
 use sagnac::diagnose;
 use sagnac::diagnose::line_search::SearchParams;
-use sagnac::model::GyroModel;
 
 use crate::support;
 
-/// The issue's gyro: pulse 1.21", dither residual 0.5" (Q = sqrt(d^2/12 + 0.5^2)),
-/// Earth-rate input, ARW 0.002 deg/sqrt(h), BI 0.003 deg/h, plus `extra`.
-fn gyro(fs: f64, extra: &str) -> GyroModel {
-    let q = (1.21f64 * 1.21 / 12.0 + 0.25).sqrt();
-    let text = format!(
-        "[gyro]\nsample_rate_hz = {fs}\npulse_arcsec = 1.21\ninput_rate_dph = 12.3\n\
-         [noise]\nquantization_arcsec = {q}\narw_dpsh = 0.002\nbias_instability_dph = 0.003\n{extra}"
-    );
-    GyroModel::from_toml_str(&text, "lines").unwrap()
-}
+mod shared;
+
+use shared::{coverage, gyro, null_alarms, paper_gyro};
 
 fn sine(amp_dph: f64, period_s: f64) -> String {
     format!("[[noise.sinusoid]]\namplitude_dph = {amp_dph}\nperiod_s = {period_s}\n")
-}
-
-/// The paper's gyro as in `config/paper_gyro.toml` (Q 0.35: the counter's
-/// sawtooth is not white), ARW 0.001, BI 0.002.
-fn paper_gyro(fs: f64, extra: &str) -> GyroModel {
-    let text = format!(
-        "[gyro]\nsample_rate_hz = {fs}\npulse_arcsec = 1.21\ninput_rate_dph = 12.3\n\
-         [noise]\nquantization_arcsec = 0.35\narw_dpsh = 0.001\nbias_instability_dph = 0.002\n{extra}"
-    );
-    GyroModel::from_toml_str(&text, "lines").unwrap()
-}
-
-/// Coverage of the 95 % period and amplitude intervals over `seeds` records:
-/// (period covered, amplitude covered, detected).
-fn coverage(
-    model: &GyroModel,
-    amp: f64,
-    period: f64,
-    dur: f64,
-    seeds: u64,
-    base: u64,
-) -> (usize, usize, usize) {
-    let mut truth = model.clone();
-    truth
-        .noise
-        .sinusoid
-        .push(sagnac::model::config::SinusoidParams {
-            amplitude_dph: amp,
-            period_s: period,
-        });
-    let (mut cp, mut ca, mut det) = (0, 0, 0);
-    for s in 0..seeds {
-        let rec = support::simulated_recording(&truth, base + s, dur);
-        let scan = diagnose::line_scan(model, &rec, &SearchParams::default());
-        let Some((_, f)) = scan
-            .lines
-            .iter()
-            .find(|(_, f)| (1.0 / f.f_hz - period).abs() < 0.05 * period)
-        else {
-            continue;
-        };
-        det += 1;
-        let p = f.period_ci95();
-        let a = f.amp_ci95();
-        cp += (p[0] <= period && period <= p[1]) as usize;
-        ca += (a[0] <= amp && amp <= a[1]) as usize;
-    }
-    (cp, ca, det)
-}
-
-/// Records with any line, over `seeds` matched simulations, at family-wise `alpha`.
-fn null_alarms(model: &GyroModel, dur: f64, seeds: u64, base: u64, alpha: f64) -> usize {
-    let params = SearchParams {
-        alpha,
-        ..SearchParams::default()
-    };
-    (0..seeds)
-        .filter(|s| {
-            let rec = support::simulated_recording(model, base + s, dur);
-            let scan = diagnose::line_scan(model, &rec, &params);
-            if let Some((d, _)) = scan.lines.first() {
-                eprintln!(
-                    "seed {}: line at {} Hz, ratio {:.1}, p {:.2e}",
-                    base + s,
-                    d.f_hz,
-                    d.ratio,
-                    d.p
-                );
-            }
-            !scan.lines.is_empty()
-        })
-        .count()
-}
-
-/// The numbers of the report: coverage and false alarms over many seeds.
-#[test]
-#[ignore]
-fn bench_coverage_and_false_alarms() {
-    let seeds: u64 = std::env::var("SAGNAC_BENCH_SEEDS")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(40);
-    for (name, m, amp, per, dur) in [
-        ("issue gyro, 10 s line", gyro(1000.0, ""), 0.08, 10.0, 600.0),
-        (
-            "issue gyro, 40 s line",
-            gyro(1000.0, ""),
-            0.06,
-            40.0,
-            1200.0,
-        ),
-        (
-            "issue gyro, 0.5 s line under QN",
-            gyro(1000.0, ""),
-            0.12,
-            0.5,
-            1200.0,
-        ),
-        (
-            "paper gyro, 0.8 s line",
-            paper_gyro(250.0, ""),
-            0.05,
-            0.8,
-            1200.0,
-        ),
-    ] {
-        let (cp, ca, det) = coverage(&m, amp, per, dur, seeds, 5000);
-        println!(
-            "coverage {name} (A {amp}, T {dur} s): detected {det}/{seeds}, period {cp}/{det}, amplitude {ca}/{det}"
-        );
-    }
-    for (name, m, dur) in [
-        ("issue gyro 1 kHz", gyro(1000.0, ""), 600.0),
-        ("paper gyro 1 kHz", paper_gyro(1000.0, ""), 600.0),
-        ("paper gyro 250 Hz", paper_gyro(250.0, ""), 1200.0),
-    ] {
-        let a = null_alarms(&m, dur, seeds, 7000, 0.05);
-        println!("null {name}, {dur} s: records with a line at alpha 5 %: {a}/{seeds}");
-    }
 }
 
 /// The issue's case: a 1 h, 1 kHz record of the issue's gyro with a 0.03 deg/h
@@ -190,7 +63,7 @@ fn forty_second_line_is_located_to_well_under_one_percent() {
 }
 
 /// The truth lies inside the 95 % interval widened by half around its centre
-/// (about +-3 sigma; as in `tests/diagnose/concealed.rs`): one fixed-seed case
+/// (about +-3 sigma; as in `concealed/shared.rs`): one fixed-seed case
 /// may miss a 95 % interval one time in twenty, a 3-sigma interval one time in
 /// 370. The coverage of the 95 % intervals themselves is measured over seeds.
 fn covers(ci: [f64; 2], v: f64) -> bool {
@@ -231,7 +104,7 @@ fn no_line_on_matched_recordings() {
 }
 
 /// Over a handful of seeds the 95 % intervals cover about 95 % of the time
-/// (`bench_coverage_and_false_alarms` measures more); at least 8 of 10 here
+/// (`bench_diagnose lines` measures more); at least 8 of 10 here
 /// (a 95 % coverage gives 8 or more with probability 0.99).
 #[test]
 fn intervals_cover_over_seeds() {

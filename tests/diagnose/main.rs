@@ -1,5 +1,5 @@
 //! The diagnosis: model comparison, concealed effects, spectral lines, null
-//! honesty, power, rate-output gyros, resonances, its statistics and random
+//! honesty, rate-output gyros, resonances, its statistics and random
 //! telegraph noise.
 
 #[path = "../support/mod.rs"]
@@ -9,7 +9,6 @@ mod compare;
 mod concealed;
 mod lines;
 mod null;
-mod power;
 mod rate;
 mod resonance;
 mod stats;

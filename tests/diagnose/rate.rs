@@ -7,10 +7,14 @@
 //! error that says so; a filter with white angle noise after it is named
 //! with both (the filter and Q fitted together).
 
-use sagnac::diagnose::{self, DiagnoseError, DiagnoseOptions, Recording, Verdict};
+use sagnac::diagnose::{self, DiagnoseError, Recording, Verdict};
 use sagnac::model::{GyroModel, Simulator};
 
 use crate::support;
+
+mod shared;
+
+use shared::{named_filter, opts};
 
 /// A MEMS-like rate gyro at 200 Hz: ARW 0.5 deg/sqrt(h), bias instability
 /// 5 deg/h, rate word LSB 0.01 deg/s (the white noise per sample is
@@ -24,28 +28,6 @@ fn model(filter: &str) -> GyroModel {
 }
 
 const DUR_S: f64 = 1200.0;
-
-fn opts(seed: u64) -> DiagnoseOptions {
-    DiagnoseOptions {
-        seed,
-        ..DiagnoseOptions::default()
-    }
-}
-
-/// The `readout_filter` entry of a diagnosis: (kind, corner, its ci95).
-fn named_filter(d: &diagnose::Diagnosis) -> Option<(String, f64, [f64; 2], Option<f64>)> {
-    let a = d
-        .report
-        .added_terms
-        .iter()
-        .find(|a| a.term == "readout_filter")?;
-    Some((
-        a.kind.clone()?,
-        a.params["corner_hz"],
-        a.ci95["corner_hz"],
-        a.params.get("length").copied(),
-    ))
-}
 
 fn check_named(truth_filter: &str, kind: &str, corner_hz: f64, seed: u64) {
     let truth = model(truth_filter);
@@ -255,111 +237,6 @@ fn the_filter_quadrature_matches_the_exact_lag_domain_columns() {
             e1.abs() < 1e-4 && e2.abs() < 1e-4,
             "level {}: {e1:e} {e2:e}",
             levels[j]
-        );
-    }
-}
-
-/// The coverage of the `readout_filter` entry's corner interval and
-/// of the refitted ARW's interval, over seeds and gyros (an ignored bench:
-/// `cargo test --release --test diagnose -- --ignored rate::bench_corner_coverage
-/// --nocapture`; `SAGNAC_BENCH_SEEDS`, default 20). Prints a markdown table
-/// (docs/diagnose.md).
-#[test]
-#[ignore]
-fn bench_corner_coverage() {
-    let seeds: u64 = std::env::var("SAGNAC_BENCH_SEEDS")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(20);
-    let ma5 = sagnac::model::filter::ReadoutFilter::moving_average(5)
-        .unwrap()
-        .corner_hz(1.0 / 200.0);
-    // (label, model text without the filter, filter, truth corner Hz, truth ARW, duration s)
-    let mems = |fs: f64, lsb: f64, n: f64, b: f64| {
-        format!(
-            "[gyro]\nsample_rate_hz = {fs}\noutput = \"rate\"\nrate_lsb_dps = {lsb}\ninput_rate_dph = 10.0\n\
-             [noise]\narw_dpsh = {n}\nbias_instability_dph = {b}\n"
-        )
-    };
-    let cases = [
-        (
-            "first order 15 Hz, 200 Hz, 20 min",
-            mems(200.0, 0.01, 0.5, 5.0),
-            "[readout_filter]\nkind = \"first_order\"\ncorner_hz = 15.0\n",
-            15.0,
-            0.5,
-            1200.0,
-        ),
-        (
-            "moving average of 5, 200 Hz, 20 min",
-            mems(200.0, 0.01, 0.5, 5.0),
-            "[readout_filter]\nkind = \"moving_average\"\nlength = 5\n",
-            ma5,
-            0.5,
-            1200.0,
-        ),
-        (
-            "first order 60 Hz, 500 Hz, 10 min",
-            mems(500.0, 0.005, 0.2, 2.0),
-            "[readout_filter]\nkind = \"first_order\"\ncorner_hz = 60.0\n",
-            60.0,
-            0.2,
-            600.0,
-        ),
-    ];
-    println!(
-        "| case | seeds | filter named | right kind | corner in its 95 % interval | ARW in its 95 % interval | median corner interval width |"
-    );
-    println!("|---|---:|---:|---:|---:|---:|---:|");
-    let only = std::env::var("SAGNAC_BENCH_ONLY").unwrap_or_default();
-    for (label, base, filter, corner, arw, dur) in cases {
-        if !label.contains(&only) {
-            continue;
-        }
-        let truth = GyroModel::from_toml_str(&format!("{base}{filter}"), "truth").unwrap();
-        let model = GyroModel::from_toml_str(&base, "model").unwrap();
-        let kind = truth.readout_filter().unwrap().kind();
-        let (mut named, mut right_kind, mut corner_in, mut arw_in) = (0, 0, 0, 0);
-        let mut widths = Vec::new();
-        for s in 0..seeds {
-            let rec = support::simulated_recording(&truth, 3000 + 17 * s, dur);
-            let d = diagnose::diagnose(&model, &rec, &opts(5000 + 13 * s)).unwrap();
-            let Some((k, _, ci, _)) = named_filter(&d) else {
-                continue;
-            };
-            named += 1;
-            right_kind += usize::from(k == kind.name());
-            corner_in += usize::from(ci[0] <= corner && corner <= ci[1]);
-            widths.push((ci[1] - ci[0]) / corner);
-            if let Some(c) = d
-                .report
-                .parameter_changes
-                .iter()
-                .find(|c| c.term == "arw_dpsh")
-            {
-                arw_in += usize::from(c.ci95[0] <= arw && arw <= c.ci95[1]);
-                if std::env::var_os("BENCH_DEBUG").is_some() {
-                    eprintln!(
-                        "{label} seed {s}: corner {:.3} {ci:?}, arw {:.5} {:?}, notes {:?}",
-                        named_filter(&d).unwrap().1,
-                        c.fitted,
-                        c.ci95,
-                        d.notes
-                    );
-                }
-            }
-        }
-        widths.sort_by(f64::total_cmp);
-        let pct = |k: usize| format!("{:.0} %", 100.0 * k as f64 / seeds as f64);
-        println!(
-            "| {label} | {seeds} | {} | {} | {} | {} | {} |",
-            pct(named),
-            pct(right_kind),
-            pct(corner_in),
-            pct(arw_in),
-            widths
-                .get(widths.len() / 2)
-                .map_or("-".into(), |w| format!("{:.1} % of the corner", 100.0 * w))
         );
     }
 }

@@ -1,4 +1,5 @@
-//! Recordings simulated from a model, for the diagnosis tests.
+//! Recordings simulated from a model, for the diagnosis tests (and for
+//! `examples/bench_diagnose`, which includes this file as its `support`).
 
 /// A recording of `m` simulated for `dur_s` seconds with `seed`: rate words
 /// for a rate-output model, counts (with the temperature when the model has a

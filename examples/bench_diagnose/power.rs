@@ -15,7 +15,8 @@
 //! Allan deviation cannot see the effect even with the band of the simulator
 //! that made the recording); `detected` = verdict mismatch; `named` = the
 //! right change reported (the new term, or the change of the model's
-//! parameter). `scripts/bench-diagnose --power [--quick]` runs it.
+//! parameter). `scripts/bench-diagnose --power [--quick]` runs it
+//! (`bench_diagnose power`).
 
 use std::time::Instant;
 
@@ -251,26 +252,21 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
-#[test]
-#[ignore]
-fn bench_power() {
-    let seeds: u64 = std::env::var("SAGNAC_BENCH_SEEDS").map_or(10, |s| s.parse().unwrap());
-    let only = std::env::var("SAGNAC_BENCH_ONLY").ok();
-    // one size of the effects kept (for a rerun of one row)
-    let size_only: Option<f64> = std::env::var("SAGNAC_BENCH_SIZE")
-        .ok()
-        .and_then(|v| v.parse().ok());
+/// The power table over `seeds` seeds per row; `only`: the effects whose name
+/// contains it; `size_only`: that size of each effect alone (for a rerun of one
+/// row; one of its three sizes or any other).
+pub fn table(seeds: u64, only: Option<&str>, size_only: Option<f64>) {
     let t_all = Instant::now();
     println!(
         "| effect | gyro | size | sigma_w | raw z/crit (median) | concealed | raw sep/crit | detected | named | named as (seeds) |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|");
     for e in effects() {
-        if only.as_deref().is_some_and(|o| !e.name.contains(o)) {
+        if only.is_some_and(|o| !e.name.contains(o)) {
             continue;
         }
         let model = gyro(&e, e.arw, "");
-        // SAGNAC_BENCH_SIZE runs that size alone, one of the three or another
+        // --size runs that size alone, one of the three or another
         let sizes = size_only.map_or(e.sizes.to_vec(), |v| vec![v]);
         for &size in &sizes {
             let extra = (e.truth)(size);
