@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Independent reader of a sagnac MCAP recording (the Python `mcap` package, zstd
-via `zstandard`); prints a JSON summary that tests/sink_mcap.rs compares with what
+via `zstandard`); prints a JSON summary that tests/formats/sink_mcap.rs compares with what
 the Rust recorder wrote.
 
 Usage: scripts/read-mcap.py [--no-schema] [--summary] RECORDING.mcap

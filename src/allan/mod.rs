@@ -15,7 +15,7 @@
 //!   memory, equal to the batch OADEV up to a full-overlap cap, strided beyond.
 //!
 //! The definitions follow NIST SP 1065 and IEEE Std 952 and are checked
-//! against Stable32 result files and AllanTools (see `tests/allan_*.rs`).
+//! against Stable32 result files and AllanTools (see `tests/numerics/allan_*.rs`).
 //!
 //! Conventions: `alpha` is the exponent of the fractional-frequency (rate) PSD,
 //! `S_y(f) ~ f^alpha`: 2 white PM (quantization noise), 1 flicker PM, 0 white

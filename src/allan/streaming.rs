@@ -3,7 +3,7 @@
 //! daemon feeds sample by sample (or block by block) and snapshots at any moment.
 //! Its batch counterpart is the plain NIST SP 1065 definition
 //! `sigma^2(m) = sum_{i=0}^{N-2m-1} (x[i+2m] - 2 x[i+m] + x[i])^2 / (2 m^2 tau0^2 (N-2m))`
-//! on `N` phase points, which `tests/allan_streaming.rs` evaluates naively and compares.
+//! on `N` phase points, which `tests/numerics/allan_streaming.rs` evaluates naively and compares.
 //!
 //! # Inputs
 //! * [`OctaveAllan::phase`]: phase samples `x` (f64).

@@ -46,7 +46,7 @@
 //!    (`var A = 2 s2 sum w^2 / (sum w)^2`,
 //!    `var omega = 2 s2 sum m^2 w^2 / (A_s^2 (sum m^2 w)^2)`).
 //!    The coverage of the 95 % intervals `+-1.96 sd` is checked by simulation
-//!    in `tests/diagnose_lines.rs`.
+//!    in `tests/diagnose/lines.rs`.
 
 use std::f64::consts::PI;
 

@@ -16,7 +16,7 @@
 //!   rate on the recording's temperature when there is one.
 //!
 //! Everything here is plain batch code on whole records; [`dwt_level_mean_squares`]
-//! and [`welch`] are checked against closed forms in `tests/diagnose_stats.rs`.
+//! and [`welch`] are checked against closed forms in `tests/diagnose/stats.rs`.
 
 use std::f64::consts::PI;
 use std::ops::Range;

@@ -14,7 +14,7 @@
 //! `pywt.wavedec(x, w, mode='zero', level=J)[-j][i]` for every `i` pywt returns
 //! (the tail ones once the stream has been flushed with zeros), and `a_J[i]` equals
 //! `[0][i]`. Coefficient `i` of level `j` is emitted as soon as input sample
-//! `2^j (i+1) - 1` has been pushed. (`tests/dsp_pywt_golden.rs`.)
+//! `2^j (i+1) - 1` has been pushed. (`tests/numerics/dsp_pywt_golden.rs`.)
 //!
 //! Synthesis inverts each level with `rec_lo`/`rec_hi`. It runs once per *frame* of
 //! `2^J` input samples (one deepest coefficient). The detail coefficients of level
@@ -32,7 +32,7 @@
 //! zeros so every input sample comes out. With unmodified coefficients the output
 //! equals the input to rounding (perfect reconstruction). With coefficients
 //! modified through a [`CoeffHook`], output sample `n` equals
-//! `pywt.waverec(modified, w, mode='zero')[n]` (`tests/dsp_pywt_golden.rs`).
+//! `pywt.waverec(modified, w, mode='zero')[n]` (`tests/numerics/dsp_pywt_golden.rs`).
 //!
 //! # Cost
 //! Per input sample, about `2L` multiply-adds for analysis and `2L` for synthesis

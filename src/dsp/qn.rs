@@ -46,7 +46,7 @@
 //! from the finest level then predicts far too little QN in the mid levels. Even
 //! at Q = 0.5" (dither residual 0.3 d) the residual lines defeat it.
 //!
-//! Measured by `tests/dsp_qn_rules.rs` (1-hour runs of the paper's gyro, 1 kHz,
+//! Measured by `tests/numerics/dsp_qn_rules.rs` (1-hour runs of the paper's gyro, 1 kHz,
 //! d = 1.21"; ratio of the clean ADEV to the ADEV of the run's own non-QN part;
 //! worst case over four runs: Q 0.35" at 12.3 and at 3 deg/h, Q 0.5", Q 0.6"):
 //!
@@ -60,7 +60,7 @@
 //! | WhiteModel / Wiener, Soft, Hard | > 1100 % | > 500 % | |
 //!
 //! Thresholds cannot separate two Gaussian-like noises of comparable size: there
-//! is no sparsity to exploit. On 4-hour runs (`tests/dsp_qn.rs`) the default's
+//! is no sparsity to exploit. On 4-hour runs (`tests/numerics/dsp_qn.rs`) the default's
 //! clean ADEV lies within 4 % of the true ARW + BI curve at 2, 8 and 32 s and
 //! within 2 % of the run's own non-QN ADEV, while the raw ADEV is 4-12x above.
 //! The running integral of `noise` has sd = Q (the angle error) and does not grow

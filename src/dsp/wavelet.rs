@@ -20,7 +20,7 @@
 //! dec_hi[k] = rec_hi[L-1-k]
 //! ```
 //!
-//! Tests (`tests/dsp_pywt_golden.rs`) check the tables bit for bit against the
+//! Tests (`tests/numerics/dsp_pywt_golden.rs`) check the tables bit for bit against the
 //! derivation, against `pywt.Wavelet(name)` (bit for bit for haar/db, within 1e-12
 //! for sym), and, independently of both, against the defining identities (unit
 //! norm, double-shift orthogonality, vanishing moments; unit tests below).

@@ -1119,7 +1119,7 @@ fn finite_slice(topic: &'static str, field: &str, values: &[f64]) -> Result<(), 
     }
 }
 
-// ---- JSON Schemas (hand-written; tests/sink_messages.rs checks them against the structs) ----
+// ---- JSON Schemas (hand-written; tests/formats/sink_messages.rs checks them against the structs) ----
 
 fn uint(description: &str) -> Value {
     json!({"type": "integer", "minimum": 0, "description": description})

@@ -173,7 +173,7 @@ const COARSE_FO_STEP: usize = 3;
 /// the full profile. The likelihood is smooth in the corner, and a filter
 /// strong enough to be reported beats no filter by far more than
 /// [`COARSE_LR`] at the coarse candidate nearest to it
-/// (`tests/estimate_filter.rs`, `coarse_pass_never_hides_a_reported_filter`;
+/// (`tests/numerics/estimate_filter.rs`, `coarse_pass_never_hides_a_reported_filter`;
 /// [`FitOptions::full_filter_search`] turns the pass off).
 fn coarse_pass(eval: &dyn Fn(ReadoutFilter) -> Candidate, l_none: f64) -> bool {
     let ma = COARSE_MA

@@ -1,0 +1,244 @@
+//! The data-quality stage through `sagnac analyze`: the bench defects a real
+//! static run carries (a warm-up, a bias step, glitches, a temperature
+//! response) are found with intervals that hold the simulated truth, the
+//! estimates are those of the handled record (no rate random walk or ramp
+//! invented), a gyro that meets its spec passes despite its warm-up, clean
+//! runs report nothing, and `--raw-statistics` turns the stage off.
+
+use std::path::{Path, PathBuf};
+
+use serde_json::Value;
+
+use crate::support::sagnac;
+
+/// Simulate `model` (TOML text) for `secs` seconds into `dir/name.csv`.
+fn simulate(dir: &Path, name: &str, model: &str, secs: u32, seed: u32) -> PathBuf {
+    let m = dir.join(format!("{name}.toml"));
+    std::fs::write(&m, model).unwrap();
+    let csv = dir.join(format!("{name}.csv"));
+    let o = sagnac(&[
+        "simulate",
+        "--model",
+        m.to_str().unwrap(),
+        "--duration-s",
+        &secs.to_string(),
+        "--seed",
+        &seed.to_string(),
+        "--out",
+        csv.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    csv
+}
+
+fn analyze(csv: &Path, extra: &[&str]) -> (Value, String) {
+    let mut args = vec!["analyze", "--input", csv.to_str().unwrap(), "--json", "-"];
+    args.extend_from_slice(extra);
+    let o = sagnac(&args);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{err}");
+    (serde_json::from_slice(&o.stdout).unwrap(), err)
+}
+
+const RLG: &[&str] = &["--sample-rate-hz", "1000", "--pulse-arcsec", "1.21"];
+const RATE: &[&str] = &[
+    "--sample-rate-hz",
+    "200",
+    "--column",
+    "rate_dps",
+    "--unit",
+    "dps",
+];
+
+fn rlg(extra: &str) -> String {
+    format!(
+        "[gyro]\nsample_rate_hz = 1000.0\npulse_arcsec = 1.21\ninput_rate_dph = 12.3\n\
+         [noise]\nquantization_arcsec = 0.61\narw_dpsh = 0.002\nbias_instability_dph = 0.003\n{extra}"
+    )
+}
+
+fn rate_gyro(extra: &str) -> String {
+    format!(
+        "[gyro]\nsample_rate_hz = 200.0\noutput = \"rate\"\nrate_lsb_dps = 0.0005\ninput_rate_dph = 10.0\n\
+         [noise]\narw_dpsh = 0.05\nbias_instability_dph = 0.5\n{extra}"
+    )
+}
+
+/// `v` inside `obj.ci95`.
+fn covers(obj: &Value, v: f64) -> bool {
+    let ci = obj["ci95"].as_array().unwrap();
+    ci[0].as_f64().unwrap() <= v && v <= ci[1].as_f64().unwrap()
+}
+
+fn not_found(j: &Value, key: &str) -> bool {
+    j["estimates"][key]["value"].is_null()
+}
+
+#[test]
+fn a_warm_up_is_modelled_with_intervals_and_invents_no_random_walk() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = simulate(
+        dir.path(),
+        "warm",
+        &rlg("[noise.warmup]\namplitude_dph = -0.3\ntau_s = 600.0\n"),
+        3600,
+        31,
+    );
+    let (j, err) = analyze(&csv, RLG);
+    let w = &j["data_quality"]["warmup"];
+    assert!(covers(&w["amplitude_dph"], -0.3), "{w}");
+    assert!(covers(&w["tau_s"], 600.0), "{w}");
+    assert_eq!(w["handled"], "modelled");
+    assert!(
+        not_found(&j, "rrw_dphsh") && not_found(&j, "rate_ramp_dphh"),
+        "{}",
+        j["estimates"]
+    );
+    assert!(covers(&j["estimates"]["arw_dpsh"], 0.002));
+    assert!(
+        err.contains("warning:") && err.contains("warm-up:"),
+        "{err}"
+    );
+    // the raw statistics read the warm-up as noise
+    let (raw, _) = analyze(&csv, &[RLG, &["--raw-statistics"]].concat());
+    assert!(raw.get("data_quality").is_none());
+    assert!(!not_found(&raw, "rrw_dphsh") || !not_found(&raw, "rate_ramp_dphh"));
+    // a gyro that meets its spec passes despite its warm-up; the verdict says what was handled
+    let spec = dir.path().join("spec.toml");
+    std::fs::write(
+        &spec,
+        "[spec]\nrrw_dphsh_max = 0.06\narw_dpsh_max = 0.003\nconfidence = 0.95\n",
+    )
+    .unwrap();
+    let spec_args = [RLG, &["--spec", spec.to_str().unwrap()]].concat();
+    let (v, _) = analyze(&csv, &spec_args);
+    assert_eq!(v["spec"]["verdict"], "pass", "{}", v["spec"]);
+    assert!(
+        v["spec"]["handled"][0]
+            .as_str()
+            .unwrap()
+            .contains("warm-up")
+    );
+    let (v, _) = analyze(&csv, &[&spec_args[..], &["--raw-statistics"]].concat());
+    assert_ne!(v["spec"]["verdict"], "pass", "{}", v["spec"]);
+}
+
+#[test]
+fn a_bias_step_is_found_where_it_is_and_invents_no_random_walk() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut amplitude_covered, mut time_covered) = (0, 0);
+    for seed in [32, 42, 52] {
+        let csv = simulate(
+            dir.path(),
+            "step",
+            &rate_gyro("[[noise.bias_step]]\nat_s = 1100.0\namplitude_dph = 5.0\n"),
+            2400,
+            seed,
+        );
+        let (j, _) = analyze(&csv, RATE);
+        let steps = j["data_quality"]["steps"].as_array().unwrap();
+        assert_eq!(steps.len(), 1, "seed {seed}: {steps:?}");
+        time_covered += usize::from(covers(&steps[0]["at_s"], 1100.0));
+        amplitude_covered += usize::from(covers(&steps[0]["amplitude_dph"], 5.0));
+        assert!(
+            not_found(&j, "rrw_dphsh"),
+            "seed {seed}: {}",
+            j["estimates"]
+        );
+    }
+    // 95 % intervals: each at least two of three
+    assert!(
+        amplitude_covered >= 2 && time_covered >= 2,
+        "{amplitude_covered}/3, {time_covered}/3"
+    );
+}
+
+#[test]
+fn glitches_are_excluded_as_gaps_and_the_white_noise_is_the_gyros() {
+    let dir = tempfile::tempdir().unwrap();
+    // 150 spikes per hour, 0.5-5 deg/s, in 40 min: about 100
+    let csv = simulate(
+        dir.path(),
+        "spikes",
+        &rate_gyro("[noise.spikes]\nrate_per_h = 150.0\namplitude_dph = 18000.0\n"),
+        2400,
+        33,
+    );
+    let (j, _) = analyze(&csv, RATE);
+    let o = &j["data_quality"]["outliers"];
+    let n = o["count"].as_u64().unwrap();
+    assert!((60..=140).contains(&n), "{o}");
+    assert_eq!(o["excluded"], true);
+    assert_eq!(o["at_s"].as_array().unwrap().len() as u64, n);
+    // the rate word's own rounding adds (0.0005 * 3600)^2 / 12 / 200 / 3600 to N^2
+    let n_true = (0.05f64.powi(2) + 1.8f64.powi(2) / 12.0 / 200.0 / 3600.0).sqrt();
+    assert!(
+        covers(&j["estimates"]["arw_dpsh"], n_true),
+        "{}",
+        j["estimates"]["arw_dpsh"]
+    );
+    let (raw, _) = analyze(&csv, &[RATE, &["--raw-statistics"]].concat());
+    let raw_n = raw["estimates"]["arw_dpsh"]["value"].as_f64().unwrap();
+    assert!(
+        raw_n > 2.0 * n_true,
+        "the glitches inflate the raw ARW: {raw_n}"
+    );
+}
+
+#[test]
+fn a_temperature_response_is_measured_and_compensated() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = simulate(
+        dir.path(),
+        "thermal",
+        &rlg(
+            "[thermal]\ntemp_c0 = 25.0\nsine_amplitude_c = 2.0\nsine_period_s = 600.0\n\
+             bias_sensitivity_dph_per_c = 0.05\nlag_s = 30.0\n",
+        ),
+        3600,
+        34,
+    );
+    let (j, _) = analyze(&csv, RLG);
+    let t = &j["data_quality"]["thermal"];
+    assert_eq!(t["compensated"], true, "{t}");
+    assert!(covers(&t["bias_sensitivity_dph_per_c"], 0.05), "{t}");
+    assert!(covers(&t["lag_s"], 30.0), "{t}");
+    assert!(
+        not_found(&j, "rrw_dphsh") && not_found(&j, "rate_ramp_dphh"),
+        "{}",
+        j["estimates"]
+    );
+}
+
+#[test]
+fn clean_runs_report_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, model, flags, seed) in [("rlg", rlg(""), RLG, 35), ("rate", rate_gyro(""), RATE, 36)]
+    {
+        let csv = simulate(dir.path(), name, &model, 2400, seed);
+        let (j, err) = analyze(&csv, flags);
+        let dq = &j["data_quality"];
+        assert_eq!(dq["outliers"]["count"], 0, "{name}: {dq}");
+        assert!(
+            dq["warmup"].is_null() && dq["thermal"].is_null(),
+            "{name}: {dq}"
+        );
+        assert_eq!(dq["steps"].as_array().unwrap().len(), 0, "{name}: {dq}");
+        // null: no octave testable (a counter's quantization dominates every
+        // tau the windows resolve); never "not stationary"
+        assert_ne!(dq["stationary"]["ok"], false, "{name}: {dq}");
+        if name == "rate" {
+            assert_eq!(dq["stationary"]["ok"], true, "{name}: {dq}");
+        }
+        assert!(!err.contains("warning"), "{name}: {err}");
+        // nothing handled: the estimates are the raw statistics' (to floating-point sums)
+        let (raw, _) = analyze(&csv, &[flags, &["--raw-statistics"]].concat());
+        for k in ["quantization_arcsec", "arw_dpsh"] {
+            let (a, b) = (&j["estimates"][k]["value"], &raw["estimates"][k]["value"]);
+            match (a.as_f64(), b.as_f64()) {
+                (Some(a), Some(b)) => assert!((a / b - 1.0).abs() < 1e-9, "{name} {k}: {a} {b}"),
+                _ => assert_eq!(a, b),
+            }
+        }
+    }
+}
