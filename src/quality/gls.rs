@@ -48,9 +48,7 @@ impl Cholesky {
     pub fn color(&self, z: &[f64]) -> Vec<f64> {
         let n = self.n;
         (0..n)
-            .map(|i| {
-                dot(&self.l[i * n..i * n + i + 1], z)
-            })
+            .map(|i| dot(&self.l[i * n..i * n + i + 1], z))
             .collect()
     }
 

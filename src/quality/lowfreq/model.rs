@@ -196,28 +196,39 @@ fn best_scale(f: impl Fn(f64) -> f64, scale: f64) -> f64 {
     let i = (0..vals.len())
         .min_by(|&a, &b| vals[a].total_cmp(&vals[b]))
         .unwrap_or(0);
-    let (mut a, mut b) = (grid[i.saturating_sub(1)], grid[(i + 1).min(grid.len() - 1)]);
+    let (a, b) = (grid[i.saturating_sub(1)], grid[(i + 1).min(grid.len() - 1)]);
+    // 14 steps leave a bracket 1e-3 of a grid step wide (0.1 % in the variance)
+    let (u, fu) = golden_min(|u| f(scale * u.exp()), a, b, 14);
+    if f(0.0) <= fu { 0.0 } else { scale * u.exp() }
+}
+
+/// Golden-section search for the minimum of a unimodal `f` on `[a, b]`:
+/// after `iters` steps, the better of the last two interior points and its value.
+pub fn golden_min(
+    mut f: impl FnMut(f64) -> f64,
+    mut a: f64,
+    mut b: f64,
+    iters: usize,
+) -> (f64, f64) {
     let g = 0.618_033_988_749_894_9;
     let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
-    let (mut fc, mut fd) = (f(scale * c.exp()), f(scale * d.exp()));
-    // 14 steps leave a bracket 1e-3 of a grid step wide (0.1 % in the variance)
-    for _ in 0..14 {
+    let (mut fc, mut fd) = (f(c), f(d));
+    for _ in 0..iters {
         if fc < fd {
             b = d;
             d = c;
             fd = fc;
             c = b - g * (b - a);
-            fc = f(scale * c.exp());
+            fc = f(c);
         } else {
             a = c;
             c = d;
             fc = fd;
             d = a + g * (b - a);
-            fd = f(scale * d.exp());
+            fd = f(d);
         }
     }
-    let (u, fu) = if fc < fd { (c, fc) } else { (d, fd) };
-    if f(0.0) <= fu { 0.0 } else { scale * u.exp() }
+    if fc < fd { (c, fc) } else { (d, fd) }
 }
 
 /// Sample variance (n - 1).

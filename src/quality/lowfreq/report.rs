@@ -2,6 +2,7 @@
 //! profile-likelihood intervals, and the correction of the rate.
 
 use super::super::gls::{Cholesky, GlsFit, gls};
+use super::model::golden_min;
 use super::{
     Analysis, CHI2_95, Correction, Effect, Interval, LowFreq, StepFit, ThermalCorrection,
     ThermalFit, WarmupFit, Z_975, lag_grid, log_grid,
@@ -93,7 +94,7 @@ impl Analysis<'_> {
         let Some(k) = (0..prof.len()).min_by(|&a, &b| prof[a].rss.total_cmp(&prof[b].rss)) else {
             return effects[i];
         };
-        let (mut a, mut b) = (
+        let (a, b) = (
             prof[k.saturating_sub(1)].param,
             prof[(k + 1).min(prof.len() - 1)].param,
         );
@@ -102,25 +103,7 @@ impl Analysis<'_> {
             es[i] = effects[i].with(p);
             self.gls(chol, &es).map_or(f64::INFINITY, |g| g.rss)
         };
-        let g = 0.618_033_988_749_894_9;
-        let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
-        let (mut fc, mut fd) = (f(c), f(d));
-        for _ in 0..30 {
-            if fc < fd {
-                b = d;
-                d = c;
-                fd = fc;
-                c = b - g * (b - a);
-                fc = f(c);
-            } else {
-                a = c;
-                c = d;
-                fc = fd;
-                d = a + g * (b - a);
-                fd = f(d);
-            }
-        }
-        let best = if fc < fd { c } else { d };
+        let (best, _) = golden_min(&mut f, a, b, 30);
         if f(best) <= prof[k].rss {
             effects[i].with(best)
         } else {
