@@ -911,7 +911,7 @@ impl Run<'_> {
         curves.insert("raw".to_string(), curve(&a.allan.raw));
         curves.insert("clean".to_string(), curve(&a.allan.clean));
         curves.insert("noise".to_string(), curve(&a.allan.noise));
-        self.record(SinkMessage::Allan(AllanUpdate { t_ns, curves }));
+        self.record(SinkMessage::Allan(AllanUpdate::new(t_ns, curves)));
         if let Some(st) = &self.out.status {
             st.set_estimate(StatusEstimate {
                 quantization_arcsec: e.quantization_arcsec,

@@ -343,6 +343,36 @@ pub struct AllanUpdate {
     pub t_ns: u64,
     /// Channel (`raw`, `clean`) -> curve.
     pub curves: BTreeMap<String, AllanCurve>,
+    /// The unit of each column of the curves, as `analyze --json` has it in
+    /// its `units` map ([`AllanUpdate::column_units`]; absent in recordings
+    /// made before it was written).
+    #[serde(default)]
+    pub units: BTreeMap<String, String>,
+}
+
+impl AllanUpdate {
+    /// The curves at `t_ns`, with their columns' units.
+    pub fn new(t_ns: u64, curves: BTreeMap<String, AllanCurve>) -> Self {
+        AllanUpdate {
+            t_ns,
+            curves,
+            units: Self::column_units(),
+        }
+    }
+
+    /// `tau_s`: s; `dev`, `ci_lo`, `ci_hi`: deg/h; `n`: 1.
+    pub fn column_units() -> BTreeMap<String, String> {
+        [
+            ("tau_s", "s"),
+            ("dev", "deg/h"),
+            ("ci_lo", "deg/h"),
+            ("ci_hi", "deg/h"),
+            ("n", "1"),
+        ]
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect()
+    }
 }
 
 /// `/gyro/events`: something noteworthy happened at `t_ns`.
@@ -1349,6 +1379,8 @@ fn allan_update_schema() -> Value {
         json!({
             "t_ns": uint("time of the update, ns since the Unix epoch"),
             "curves": {"type": "object", "additionalProperties": curve, "description": "channel -> curve"},
+            "units": {"type": "object", "additionalProperties": {"type": "string"},
+                      "description": "column -> its unit (tau_s: s; dev, ci_lo, ci_hi: deg/h; n: 1), as analyze --json's units"},
         }),
     )
 }

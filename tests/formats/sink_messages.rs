@@ -649,9 +649,9 @@ fn unrecordable_messages_are_refused() {
         err.to_string(),
         "/gyro/noise: field `values[1]` holds a non-finite number (inf)"
     );
-    let ragged = SinkMessage::Allan(AllanUpdate {
-        t_ns: 0,
-        curves: [(
+    let ragged = SinkMessage::Allan(AllanUpdate::new(
+        0,
+        [(
             "raw".to_string(),
             AllanCurve {
                 tau_s: vec![1.0, 2.0],
@@ -662,7 +662,7 @@ fn unrecordable_messages_are_refused() {
             },
         )]
         .into(),
-    });
+    ));
     assert!(matches!(
         ragged.validate(),
         Err(MessageError::RaggedCurve { ci_lo: 1, .. })

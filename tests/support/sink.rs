@@ -176,10 +176,7 @@ pub fn allan(rng: &mut ChaCha8Rng, i: u64) -> AllanUpdate {
             },
         );
     }
-    AllanUpdate {
-        t_ns: T0_NS + i * 1_000_000_000,
-        curves,
-    }
+    AllanUpdate::new(T0_NS + i * 1_000_000_000, curves)
 }
 
 /// One event of each kind, in order, then random ones.
