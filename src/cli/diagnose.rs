@@ -172,7 +172,8 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
                 .file_name()
                 .map_or("".into(), |f| f.to_string_lossy().into_owned())
         );
-        let svg = diagnose::svg::render(&diag, &title).context("drawing the report")?;
+        let svg = crate::sink::report::diagnosis_fig::render(&diag, &title)
+            .context("drawing the report")?;
         std::fs::write(path, svg).with_context(|| format!("writing {}", path.display()))?;
     }
     if let Some(path) = &args.write_model {

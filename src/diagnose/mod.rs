@@ -36,7 +36,8 @@
 //!    points (chi2/dof before and after); a new Gauss-Markov term tested
 //!    against a random telegraph; the broadband parameters refitted about the
 //!    updated model's own runs until they stop moving.
-//! 7. [`report`]: the JSON document and the notes; [`svg`] draws the figure.
+//! 7. [`report`]: the JSON document and the notes (the figure is drawn by
+//!    [`crate::sink::report::diagnosis_fig`], outside the numerics).
 //!
 //! The vocabulary the phases share (an [`findings::Edit`] of the model and the
 //! finding that reports it) is in [`findings`]. When nothing exceeds the
@@ -71,7 +72,6 @@ pub mod report;
 pub mod resonance;
 pub mod slopes;
 pub mod stats;
-pub mod svg;
 pub mod telegraph;
 pub mod two_level;
 pub mod wvar_fit;

@@ -1,5 +1,5 @@
 //! The diagnosis part of the page: the diagnosis SVG
-//! ([`crate::diagnose::svg`]) and its findings in words: the verdict,
+//! ([`super::diagnosis_fig`]) and its findings in words: the verdict,
 //! where the recording leaves the model, and each changed or added term
 //! named with what it means physically.
 
@@ -7,7 +7,7 @@ use std::fmt::Write;
 
 use super::markup::{esc, inline_svg};
 use super::{DiagnosisPart, ReportError, fmt_sig};
-use crate::diagnose::{self, Verdict};
+use crate::diagnose::Verdict;
 use crate::model::Term;
 
 /// The term a model-file key belongs to (`arw_dpsh`, `gauss_markov[0].tau_c_s`, ...),
@@ -55,7 +55,7 @@ pub fn section(d: &DiagnosisPart<'_>) -> Result<String, ReportError> {
     let diag = d.diagnosis;
     let r = &diag.report;
     let mut h = String::new();
-    let svg = diagnose::svg::render(diag, &format!("diagnosis against {}", d.model))
+    let svg = super::diagnosis_fig::render(diag, &format!("diagnosis against {}", d.model))
         .map_err(|e| ReportError::Draw(e.to_string()))?;
     let _ = write!(
         h,

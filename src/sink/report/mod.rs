@@ -28,6 +28,7 @@ pub mod collect;
 pub mod davar_fig;
 pub mod decimate;
 pub mod diagnosis;
+pub mod diagnosis_fig;
 pub mod html;
 pub mod markup;
 pub mod noise_fig;

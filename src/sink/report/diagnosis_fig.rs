@@ -16,9 +16,9 @@
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::compare::{Family, Point};
-use super::findings::fmt_g;
-use super::{Diagnosis, DiagnosisReport, Verdict};
+use crate::diagnose::compare::{Family, Point};
+use crate::diagnose::findings::fmt_g;
+use crate::diagnose::{Diagnosis, DiagnosisReport, Verdict};
 
 /// Errors of the SVG writer.
 #[derive(Debug, thiserror::Error)]
