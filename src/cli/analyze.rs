@@ -27,7 +27,7 @@ use crate::input::{Format, Input, StreamReport};
 use crate::model::estimate::Coefficient;
 use crate::model::spec::{Spec, SpecReport};
 use crate::pipeline::{Analysis, feed};
-use crate::sink::provenance::{Provenance, analysis_units};
+use crate::sink::provenance::{InputSettings, Provenance, analysis_units};
 
 /// Arguments of `sagnac analyze`.
 #[derive(Debug, Args)]
@@ -86,6 +86,18 @@ pub(crate) fn stream_notes(r: &StreamReport) -> Vec<(&'static str, String)> {
             st.out_of_sequence
         )));
     }
+    if let Some(s) = &r.stamps
+        && s.out_of_order + s.duplicates + s.gaps > 0
+    {
+        notes.push((
+            "note",
+            format!(
+                "topic {}: {} messages; {} out of order (sorted by header.stamp), {} duplicates dropped; \
+                 {} samples missing in {} holes (filled, left out of the statistics)",
+                s.topic, s.messages, s.out_of_order, s.duplicates, s.lost_samples, s.gaps
+            ),
+        ));
+    }
     if let Some(b) = &r.break_at {
         notes.push((
             "warning",
@@ -116,6 +128,7 @@ fn describe(input: &Input) -> String {
     let what = match input.meta().format {
         Format::Frames | Format::TriadFrames => "frame capture ",
         Format::Mcap => "recording ",
+        Format::Ros2 => "bag ",
         _ => "",
     };
     format!("{what}{}", input.path().display())
@@ -146,7 +159,11 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
         .as_ref()
         .map(|s| s.evaluate_fixed(&analysis.estimates, analysis.duration_s));
     match &args.json {
-        Some(out) => write_json(out, &analysis, verdict.as_ref(), &input, &args.input.input),
+        Some(out) => {
+            let mut settings = input_args::settings(&input, &args.input.input);
+            settings.stamps = fed.report.stamps.clone();
+            write_json(out, &analysis, verdict.as_ref(), settings)
+        }
         None => {
             print_table(&analysis)?;
             if let Some(v) = &verdict {
@@ -217,8 +234,7 @@ fn write_json(
     out: &Path,
     analysis: &Analysis,
     verdict: Option<&SpecReport>,
-    input: &Input,
-    given_path: &Path,
+    settings: InputSettings,
 ) -> Result<()> {
     let mut value = serde_json::to_value(analysis).context("serialising the analysis")?;
     if let (Some(v), Some(obj)) = (verdict, value.as_object_mut()) {
@@ -229,8 +245,7 @@ fn write_json(
         }
         obj.insert("spec".into(), spec);
     }
-    Provenance::new(input_args::settings(input, given_path), analysis_units())
-        .insert_into(&mut value);
+    Provenance::new(settings, analysis_units()).insert_into(&mut value);
     let text = serde_json::to_string_pretty(&value).context("serialising the analysis")?;
     if out.as_os_str() == "-" {
         super::write_stdout(&text)

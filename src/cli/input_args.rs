@@ -14,7 +14,8 @@ use crate::sink::provenance::InputSettings;
 #[derive(Debug, Clone, Args)]
 pub struct InputArgs {
     /// The recording: CSV or text (plain or .gz), a raw frame capture (single
-    /// or triad frames), or an MCAP recording; the format is found by content.
+    /// or triad frames), an MCAP recording, or a ROS 2 bag (MCAP file or
+    /// rosbag2 directory); the format is found by content.
     #[arg(long, value_name = "FILE", alias = "recording")]
     pub input: PathBuf,
     /// Read the file as this format (an error when the content says otherwise;
@@ -35,9 +36,14 @@ pub struct InputArgs {
     #[arg(long, value_name = "D", allow_negative_numbers = true)]
     pub pulse_arcsec: Option<f64>,
     /// Which gyro of an MCAP recording of several gyros or of a triad capture
-    /// (its label, e.g. `x`): required for such a file, refused for one gyro.
+    /// (its label, e.g. `x`), or which axis of a ROS 2 bag (`gyro_x`,
+    /// `gyro_y`, `gyro_z`): required for such a file, refused for one gyro.
     #[arg(long, value_name = "LABEL")]
     pub gyro: Option<String>,
+    /// The sensor_msgs/msg/Imu topic of a ROS 2 bag: required when the bag
+    /// has several (the error lists them).
+    #[arg(long, value_name = "TOPIC")]
+    pub topic: Option<String>,
     /// CSV column to read (default `counts`, or the only column).
     #[arg(long, value_name = "NAME")]
     pub column: Option<String>,
@@ -60,6 +66,7 @@ pub enum FormatArg {
     Frames,
     TriadFrames,
     Mcap,
+    Ros2,
 }
 
 impl From<FormatArg> for Format {
@@ -71,6 +78,7 @@ impl From<FormatArg> for Format {
             FormatArg::Frames => Format::Frames,
             FormatArg::TriadFrames => Format::TriadFrames,
             FormatArg::Mcap => Format::Mcap,
+            FormatArg::Ros2 => Format::Ros2,
         }
     }
 }
@@ -106,6 +114,7 @@ impl InputArgs {
             sample_rate_hz: self.sample_rate_hz,
             pulse_arcsec: self.pulse_arcsec,
             gyro: self.gyro.clone(),
+            topic: self.topic.clone(),
             values_only: false,
         }
     }
@@ -132,5 +141,6 @@ pub fn settings(input: &Input, path: &Path) -> InputSettings {
     }
     s.origin = Some(m.origin.clone());
     s.gyro = m.gyro.clone();
+    s.topic = m.bag.as_ref().map(|b| b.topic.clone());
     s
 }

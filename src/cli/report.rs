@@ -129,6 +129,11 @@ fn metadata(input: &Input, fed: &crate::pipeline::feed::Fed, c: &Collector) -> M
             m.gyro.as_deref().unwrap_or("?")
         ),
         Format::Mcap => "MCAP recording (/gyro/raw)".into(),
+        Format::Ros2 => format!(
+            "ROS 2 bag, topic {}, axis {} (rad/s)",
+            m.bag.as_ref().map_or("?", |b| b.topic.as_str()),
+            m.gyro.as_deref().unwrap_or("?")
+        ),
     };
     let mut meta = Metadata {
         input: input.path().display().to_string(),

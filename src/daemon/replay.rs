@@ -70,6 +70,12 @@ pub enum ReplayError {
         sample_rate_hz: f64,
         recorded_hz: f64,
     },
+    /// A ROS 2 bag: rate samples with stamps, not a gyro's frames.
+    #[error(
+        "{}: a ROS 2 bag; the daemon replays raw frame captures and recordings made by `sagnac run`: \
+         analyse a bag with `sagnac analyze --input BAG --gyro gyro_x`", path.display()
+    )]
+    Ros2Bag { path: PathBuf },
     /// The capture holds no sample at all (no valid frame, or no `/gyro/raw`).
     #[error(
         "{}: no samples in this capture ({bytes_read} bytes read): is it a raw frame \
@@ -106,6 +112,11 @@ pub enum CaptureKind {
 
 /// What `path` is, by its content ([`crate::input::detect`]).
 pub fn probe(path: &Path) -> Result<CaptureKind, ReplayError> {
+    if path.is_dir() {
+        return Err(ReplayError::Ros2Bag {
+            path: path.to_path_buf(),
+        });
+    }
     let d = crate::input::detect::detect(path).map_err(|source| ReplayError::Io {
         path: path.to_path_buf(),
         offset: 0,
@@ -113,6 +124,11 @@ pub fn probe(path: &Path) -> Result<CaptureKind, ReplayError> {
     })?;
     Ok(match d.format {
         Some(Format::Mcap) => CaptureKind::Mcap,
+        Some(Format::Ros2) => {
+            return Err(ReplayError::Ros2Bag {
+                path: path.to_path_buf(),
+            });
+        }
         Some(Format::Frames) if !d.gzip => CaptureKind::Frames,
         Some(Format::TriadFrames) if !d.gzip => CaptureKind::TriadFrames,
         _ => CaptureKind::Unknown,

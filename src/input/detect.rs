@@ -37,6 +37,9 @@ pub enum Format {
     TriadFrames,
     /// An MCAP recording made by `sagnac run`.
     Mcap,
+    /// A ROS 2 bag: an MCAP file of profile `ros2` or a rosbag2 directory
+    /// (an sqlite3 bag is recognised, to say how to convert it).
+    Ros2,
 }
 
 impl Format {
@@ -49,6 +52,7 @@ impl Format {
             Format::Frames => "frames",
             Format::TriadFrames => "triad-frames",
             Format::Mcap => "mcap",
+            Format::Ros2 => "ros2",
         }
     }
 
@@ -61,6 +65,7 @@ impl Format {
             Format::Frames => "a raw capture of 16-byte gyro frames",
             Format::TriadFrames => "a raw capture of 24-byte triad frames",
             Format::Mcap => "an MCAP recording",
+            Format::Ros2 => "a ROS 2 bag",
         }
     }
 
@@ -79,6 +84,7 @@ impl Format {
             Format::Frames | Format::TriadFrames => 1,
             Format::Mcap => 2,
             Format::F64le => 3,
+            Format::Ros2 => 4,
         };
         kind(self) == kind(other)
     }
@@ -100,12 +106,13 @@ impl std::str::FromStr for Format {
             Format::Frames,
             Format::TriadFrames,
             Format::Mcap,
+            Format::Ros2,
         ]
         .into_iter()
         .find(|f| f.name() == s)
         .ok_or_else(|| {
             format!(
-                "unknown format {s:?} (expected csv, text, f64le, frames, triad-frames or mcap)"
+                "unknown format {s:?} (expected csv, text, f64le, frames, triad-frames, mcap or ros2)"
             )
         })
     }
@@ -166,7 +173,15 @@ pub fn has_f64_extension(path: &Path) -> bool {
 /// The format `head` (a file's first bytes, decompressed) shows, if any.
 pub fn sniff(head: &[u8]) -> Option<Format> {
     if head.starts_with(::mcap::MAGIC) {
-        return Some(Format::Mcap);
+        return Some(if mcap_profile(head) == Some("ros2") {
+            Format::Ros2
+        } else {
+            Format::Mcap
+        });
+    }
+    if head.starts_with(super::ros2::bag::SQLITE_MAGIC) {
+        // a rosbag2 file in sqlite3 storage: opening it says how to convert it
+        return Some(Format::Ros2);
     }
     let single = valid_frames::<Single>(head);
     let triad = valid_frames::<Triad>(head);
@@ -179,6 +194,16 @@ pub fn sniff(head: &[u8]) -> Option<Format> {
         });
     }
     sniff_text(head)
+}
+
+/// The profile of an MCAP file's Header record (right after the magic).
+fn mcap_profile(head: &[u8]) -> Option<&str> {
+    let rest = head.get(::mcap::MAGIC.len()..)?;
+    if *rest.first()? != ::mcap::records::op::HEADER {
+        return None;
+    }
+    let len = u32::from_le_bytes(rest.get(9..13)?.try_into().ok()?) as usize;
+    std::str::from_utf8(rest.get(13..13 + len)?).ok()
 }
 
 /// Positions in `head` where a whole frame of wire `W` with a valid CRC starts.

@@ -14,7 +14,9 @@
 //! - raw frame captures (single and triad frames) and their sans-IO decoder:
 //!   [`capture`], [`frame`];
 //! - MCAP recordings made by `sagnac run`: [`crate::recording`], read through
-//!   `recorded` here.
+//!   `recorded` here;
+//! - ROS 2 bags (an MCAP file of profile `ros2`, or a rosbag2 directory) of
+//!   `sensor_msgs/msg/Imu`: [`ros2`].
 //!
 //! Nothing here imports the numerics, the sinks or the daemon; the daemon's
 //! async sources (serial port, replay, simulated bench) are in
@@ -27,6 +29,7 @@ pub mod detect;
 pub mod frame;
 pub mod plain;
 mod recorded;
+pub mod ros2;
 mod stream;
 
 pub use detect::{Format, FormatOrigin};
@@ -105,8 +108,11 @@ pub struct Request {
     pub sample_rate_hz: Option<f64>,
     /// `--pulse-arcsec`.
     pub pulse_arcsec: Option<f64>,
-    /// `--gyro`: one gyro of a recording of several, or of a triad capture.
+    /// `--gyro`: one gyro of a recording of several, of a triad capture, or
+    /// an axis of a ROS 2 bag (`gyro_x`, ...).
     pub gyro: Option<String>,
+    /// `--topic`: the Imu topic of a ROS 2 bag (needed when it has several).
+    pub topic: Option<String>,
     /// Hand out the numbers of a text, CSV or f64le file as they are, without
     /// checking up front whether they are whole pulse counts (`sagnac allan`
     /// on phase or frequency data). Counters still stream counts.
@@ -143,6 +149,8 @@ pub struct Meta {
     pub integral: bool,
     /// Number of samples, when known without reading them all.
     pub len_hint: Option<u64>,
+    /// A ROS 2 bag's topic and the timing of its stamps.
+    pub bag: Option<ros2::BagMeta>,
 }
 
 /// An opened input: its [`Meta`], and a stream of its samples on demand.
@@ -170,6 +178,8 @@ pub enum InputError {
     Recording(#[from] ReadError),
     #[error(transparent)]
     Contradiction(#[from] Contradiction),
+    #[error(transparent)]
+    Ros2(#[from] ros2::Ros2Error),
     /// A value the input does not carry and no flag gave.
     #[error("{flag} is required: {} carries no {what}", path.display())]
     FlagRequired {
@@ -252,10 +262,18 @@ impl Input {
                 return Err(InputError::NotPositive { flag, value: v });
             }
         }
-        let detected = detect::detect(path).map_err(|source| InputError::Open {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let detected = if path.is_dir() {
+            // a directory can only be a rosbag2 bag (ros2 says when it is not)
+            detect::Detected {
+                format: Some(Format::Ros2),
+                gzip: false,
+            }
+        } else {
+            detect::detect(path).map_err(|source| InputError::Open {
+                path: path.to_path_buf(),
+                source,
+            })?
+        };
         let (format, format_origin) = detect::settle(path, detected, req.format)?;
         let mut meta = Meta {
             format,
@@ -271,11 +289,21 @@ impl Input {
             column: None,
             integral: false,
             len_hint: None,
+            bag: None,
         };
+        if req.topic.is_some() && format != Format::Ros2 {
+            return Err(not_applicable(
+                "--topic",
+                path,
+                format,
+                " (topics are a ROS 2 bag's)",
+            ));
+        }
         match format {
             Format::Csv | Format::Text | Format::F64le => open_plain(path, req, &mut meta)?,
             Format::Frames | Format::TriadFrames => open_frames(path, req, &mut meta)?,
             Format::Mcap => recorded::open(path, req, &mut meta)?,
+            Format::Ros2 => ros2::open(path, req, &mut meta)?,
         }
         Ok(Input {
             path: path.to_path_buf(),
@@ -351,7 +379,7 @@ impl Input {
     }
 }
 
-fn not_applicable(
+pub(crate) fn not_applicable(
     flag: &'static str,
     path: &Path,
     format: Format,

@@ -16,6 +16,7 @@ use super::capture::{CaptureError, CaptureReader};
 use super::frame::{Axes, DecoderConfig, DecoderStats, FilledSeries, Single, Triad};
 use super::plain::SampleReader;
 use super::recorded::RecordedStream;
+use super::ros2::{Ros2Stream, StampReport};
 use super::{Format, InputError, Meta};
 use crate::recording::reader::Break;
 
@@ -71,6 +72,8 @@ pub struct StreamReport {
     pub frames: Option<DecoderStats>,
     /// Where a cut or damaged recording stopped being readable.
     pub break_at: Option<Break>,
+    /// A ROS 2 bag's stamps: out of order, duplicates.
+    pub stamps: Option<StampReport>,
 }
 
 type AnyRead = Box<dyn Read + Send>;
@@ -80,6 +83,7 @@ enum Source {
     Single(Box<CaptureReader<AnyRead, Single>>),
     Triad(Box<CaptureReader<AnyRead, Triad>>),
     Recorded(Box<RecordedStream>),
+    Bag(Box<Ros2Stream>),
 }
 
 /// A pass over an input's samples.
@@ -111,6 +115,7 @@ impl Stream {
             Format::Mcap => {
                 Source::Recorded(Box::new(RecordedStream::open(path, meta.gyro.as_deref())?))
             }
+            Format::Ros2 => Source::Bag(Box::new(Ros2Stream::open(path, meta)?)),
         };
         Ok(Stream {
             path: path.to_path_buf(),
@@ -133,6 +138,7 @@ impl Stream {
             Source::Single(r) => capture_block(r, block)?,
             Source::Triad(r) => capture_block(r, block)?,
             Source::Recorded(r) => r.next_block(block)?,
+            Source::Bag(r) => r.next_block(block)?,
         };
         self.report.samples += block.len() as u64;
         self.report.gaps += block.gaps;
@@ -155,6 +161,7 @@ impl Stream {
             Source::Single(r) => self.report.frames = Some(no_frames(r, &path)?),
             Source::Triad(r) => self.report.frames = Some(no_frames(r, &path)?),
             Source::Recorded(r) => self.report.break_at = r.break_at(),
+            Source::Bag(r) => self.report.stamps = Some(r.report().clone()),
             Source::Plain(..) => {}
         }
         if self.report.samples > 0 {

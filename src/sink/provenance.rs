@@ -53,6 +53,12 @@ pub struct InputSettings {
     /// The gyro read from a recording of several gyros (`--gyro`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gyro: Option<String>,
+    /// A ROS 2 bag's Imu topic (`--topic`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub topic: Option<String>,
+    /// A ROS 2 bag's stamps: messages, out of order, duplicates, holes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stamps: Option<crate::input::ros2::StampReport>,
 }
 
 impl InputSettings {
@@ -68,6 +74,8 @@ impl InputSettings {
             origin: None,
             model: None,
             gyro: None,
+            topic: None,
+            stamps: None,
         }
     }
 }

@@ -1,5 +1,5 @@
 //! Formats: the frame codecs and decoder (single and triad), frame captures,
-//! and the recording sinks' messages, MCAP writer and reader.
+//! the recording sinks' messages, MCAP writer and reader, and ROS 2 bags.
 
 #[path = "../support/mod.rs"]
 mod support;
@@ -10,6 +10,7 @@ mod frame_decoder;
 mod frame_known_answer;
 mod frame_prop;
 mod frame_triad;
+mod ros2_bag;
 mod sink_mcap;
 mod sink_messages;
 mod sink_reader;

@@ -1,0 +1,259 @@
+//! ROS 2 bags as input, written by independent writers (mcap-ros2-support,
+//! rosbags; `scripts/make-ros2-bag.py`): the same samples read from a bag
+//! (one MCAP file, zstd or lz4 chunks; a rosbag2 directory, its files plain or
+//! zstd-compressed whole; one split over two files) give the same analysis as read from CSV; holes, out-of-order and
+//! duplicate stamps are counted exactly; topics and sqlite3 bags get clear
+//! errors.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use serde_json::Value;
+
+use crate::support::{repo, sagnac};
+
+/// Write a bag with `scripts/make-ros2-bag.py` (and its samples as CSV).
+fn make_bag(dir: &Path, name: &str, args: &[&str]) -> (PathBuf, PathBuf) {
+    let out = dir.join(name);
+    let csv = dir.join(format!("{name}.csv"));
+    let o = Command::new("python3")
+        .arg(repo().join("scripts/make-ros2-bag.py"))
+        .args([
+            "--out",
+            out.to_str().unwrap(),
+            "--csv",
+            csv.to_str().unwrap(),
+        ])
+        .args(args)
+        .output()
+        .unwrap_or_else(|e| panic!("python3 is required (scripts/install-peers): {e}"));
+    assert!(
+        o.status.success(),
+        "make-ros2-bag.py (needs mcap-ros2-support and rosbags from scripts/install-peers): {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    (out, csv)
+}
+
+fn analyze(args: &[&str]) -> Value {
+    let mut all = vec!["analyze", "--json", "-"];
+    all.extend_from_slice(args);
+    let o = sagnac(&all);
+    assert!(
+        o.status.success(),
+        "sagnac {all:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+fn fails(args: &[&str]) -> String {
+    let mut all = vec!["analyze"];
+    all.extend_from_slice(args);
+    let o = sagnac(&all);
+    assert!(!o.status.success(), "sagnac {all:?} should fail");
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+const N: &str = "20000";
+
+/// Every number of `a` within `rel` of the one at the same place in `b`
+/// (block sizes differ between formats: sums agree to the last bits only).
+fn assert_close(a: &Value, b: &Value, rel: f64, at: &str) {
+    match (a, b) {
+        (Value::Number(x), Value::Number(y)) => {
+            let (x, y) = (x.as_f64().unwrap(), y.as_f64().unwrap());
+            assert!(
+                (x - y).abs() <= rel * y.abs().max(1e-300),
+                "{at}: {x} against {y}"
+            );
+        }
+        (Value::Array(x), Value::Array(y)) => {
+            assert_eq!(x.len(), y.len(), "{at}: lengths");
+            for (i, (p, q)) in x.iter().zip(y).enumerate() {
+                assert_close(p, q, rel, &format!("{at}[{i}]"));
+            }
+        }
+        (Value::Object(x), Value::Object(y)) => {
+            assert_eq!(
+                x.keys().collect::<Vec<_>>(),
+                y.keys().collect::<Vec<_>>(),
+                "{at}: keys"
+            );
+            for (k, p) in x {
+                assert_close(p, &y[k], rel, &format!("{at}.{k}"));
+            }
+        }
+        _ => assert_eq!(a, b, "{at}"),
+    }
+}
+
+#[test]
+fn a_bag_reads_as_the_same_samples_as_csv() {
+    let d = tempfile::tempdir().unwrap();
+    let (bag, csv) = make_bag(d.path(), "run.mcap", &["--n", N, "--seed", "11"]);
+    for (axis, column) in [("gyro_x", "gyro_x"), ("gyro_z", "gyro_z")] {
+        let b = analyze(&["--input", bag.to_str().unwrap(), "--gyro", axis]);
+        let c = analyze(&[
+            "--input",
+            csv.to_str().unwrap(),
+            "--column",
+            column,
+            "--unit",
+            "rad_s",
+            "--sample-rate-hz",
+            "200",
+        ]);
+        assert_close(&b["estimates"], &c["estimates"], 1e-9, axis);
+        assert_close(&b["allan"], &c["allan"], 1e-9, axis);
+        assert_eq!(b["samples"], 20000);
+        let input = &b["input"];
+        assert_eq!(input["format"], "ros2");
+        assert_eq!(input["topic"], "/imu");
+        assert_eq!(input["gyro"], axis);
+        assert_eq!(input["unit"], "rad_s");
+        assert_eq!(input["sample_rate_hz"], 200.0);
+        let s = &input["stamps"];
+        assert_eq!(
+            (s["messages"].as_u64(), s["gaps"].as_u64()),
+            (Some(20000), Some(0))
+        );
+    }
+    // the truth: white rate noise of 1e-4 rad/s/sqrt(Hz) on gyro_x = 0.3438 deg/sqrt(h)
+    let b = analyze(&["--input", bag.to_str().unwrap(), "--gyro", "gyro_x"]);
+    let arw = &b["estimates"]["arw_dpsh"];
+    let truth = 1e-4_f64.to_degrees() * 60.0;
+    assert!(
+        arw["ci95"][0].as_f64().unwrap() < truth && truth < arw["ci95"][1].as_f64().unwrap(),
+        "ARW {arw} against {truth}"
+    );
+}
+
+#[test]
+fn compression_directories_and_split_bags_read_alike() {
+    let d = tempfile::tempdir().unwrap();
+    let common = ["--n", N, "--seed", "12"];
+    let (zstd, _) = make_bag(d.path(), "zstd.mcap", &common);
+    let reference = analyze(&["--input", zstd.to_str().unwrap(), "--gyro", "gyro_y"]);
+    for (name, extra) in [
+        ("lz4.mcap", vec!["--compression", "lz4"]),
+        (
+            "plain.mcap",
+            vec!["--compression", "none", "--dep-form", "long"],
+        ),
+        ("dir", vec!["--kind", "dir"]),
+        ("dir-zstd", vec!["--kind", "dir-zstd"]),
+        ("split", vec!["--kind", "split"]),
+    ] {
+        let mut args = common.to_vec();
+        args.extend(extra);
+        let (bag, _) = make_bag(d.path(), name, &args);
+        let b = analyze(&["--input", bag.to_str().unwrap(), "--gyro", "gyro_y"]);
+        assert_eq!(b["estimates"], reference["estimates"], "{name}");
+        assert_eq!(b["samples"], reference["samples"], "{name}");
+        assert_eq!(b["input"]["stamps"]["messages"], 20000, "{name}");
+    }
+}
+
+#[test]
+fn holes_disorder_duplicates_and_jitter_are_counted() {
+    let d = tempfile::tempdir().unwrap();
+    let (bag, csv) = make_bag(
+        d.path(),
+        "rough.mcap",
+        &[
+            "--n",
+            N,
+            "--seed",
+            "13",
+            "--holes",
+            "1000:3",
+            "5000:1",
+            "12000:40",
+            "--swaps",
+            "25",
+            "--dups",
+            "7",
+            "--jitter-ns",
+            "500000",
+            "--second-topic",
+        ],
+    );
+    let p = bag.to_str().unwrap();
+    let e = fails(&["--input", p, "--gyro", "gyro_x"]);
+    assert!(
+        e.contains("several sensor_msgs/msg/Imu topics") && e.contains("/imu/filtered"),
+        "{e}"
+    );
+    let e = fails(&["--input", p, "--gyro", "gyro_x", "--topic", "/odom"]);
+    assert!(
+        e.contains("--topic /odom") && e.contains("no such topic"),
+        "{e}"
+    );
+    let b = analyze(&["--input", p, "--gyro", "gyro_x", "--topic", "/imu"]);
+    let s = &b["input"]["stamps"];
+    assert_eq!(s["messages"], 20000 - 44 + 7);
+    assert_eq!(s["out_of_order"], 25);
+    assert_eq!(s["duplicates"], 7);
+    assert_eq!(
+        (s["gaps"].as_u64(), s["lost_samples"].as_u64()),
+        (Some(3), Some(44))
+    );
+    assert_eq!(b["samples"], 20000);
+    let rate = b["input"]["sample_rate_hz"].as_f64().unwrap();
+    assert!((rate - 200.0).abs() < 0.01, "{rate}");
+    // the estimates stay those of the complete samples, within their intervals
+    let c = analyze(&[
+        "--input",
+        csv.to_str().unwrap(),
+        "--column",
+        "gyro_x",
+        "--unit",
+        "rad_s",
+        "--sample-rate-hz",
+        "200",
+    ]);
+    let (bv, cv) = (&b["estimates"]["arw_dpsh"], &c["estimates"]["arw_dpsh"]);
+    let rel = (bv["value"].as_f64().unwrap() / cv["value"].as_f64().unwrap() - 1.0).abs();
+    assert!(rel < 0.01, "ARW {bv} against {cv}");
+}
+
+#[test]
+fn sqlite_bags_and_misplaced_flags_get_clear_errors() {
+    let d = tempfile::tempdir().unwrap();
+    let (bag, csv) = make_bag(d.path(), "sq", &["--n", "2000", "--kind", "sqlite"]);
+    for p in [bag.clone(), bag.join("sq.db3")] {
+        let e = fails(&["--input", p.to_str().unwrap(), "--gyro", "gyro_x"]);
+        assert!(
+            e.contains("sqlite3 storage") && e.contains("rosbags-convert"),
+            "{e}"
+        );
+    }
+    let e = fails(&["--input", csv.to_str().unwrap(), "--topic", "/imu"]);
+    assert!(e.contains("--topic does not apply"), "{e}");
+    let (mcap, _) = make_bag(d.path(), "m.mcap", &["--n", "2000"]);
+    let e = fails(&["--input", mcap.to_str().unwrap()]);
+    assert!(e.contains("gyro_x, gyro_y, gyro_z"), "{e}");
+    let e = fails(&[
+        "--input",
+        mcap.to_str().unwrap(),
+        "--gyro",
+        "gyro_x",
+        "--pulse-arcsec",
+        "1",
+    ]);
+    assert!(e.contains("--pulse-arcsec does not apply"), "{e}");
+    let e = fails(&[
+        "--input",
+        mcap.to_str().unwrap(),
+        "--gyro",
+        "gyro_x",
+        "--sample-rate-hz",
+        "100",
+    ]);
+    assert!(e.contains("--sample-rate-hz"), "{e}");
+    let empty = d.path().join("empty");
+    std::fs::create_dir(&empty).unwrap();
+    let e = fails(&["--input", empty.to_str().unwrap()]);
+    assert!(e.contains("no metadata.yaml"), "{e}");
+}
