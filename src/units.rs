@@ -24,6 +24,104 @@ pub const COEFFICIENTS: [(&str, &str, &str); 5] = [
     ("rate_ramp_dphh", "deg/h/h", "rate ramp R"),
 ];
 
+/// What an axis measures: the numerics are the same for both; an
+/// accelerometer's samples go through them in m/s^2 where a gyro's are in
+/// deg/h (= arcsec/s), so "arcsec" reads m/s, and every output renames and
+/// rescales its coefficients ([`ACCEL_COEFFICIENTS`], [`accel_key`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Quantity {
+    AngularRate,
+    Acceleration,
+}
+
+/// Standard gravity, m/s^2 (`--unit g`).
+pub const STANDARD_GRAVITY_MPS2: f64 = 9.80665;
+
+/// The accelerometer's IEEE 1293/2700 coefficients, each beside the gyro
+/// coefficient it is computed as: (gyro key, accelerometer key, unit, what
+/// it is, factor from the gyro-named value). With m/s^2 in the place of
+/// deg/h: Q in "arcsec" is m/s; N in deg/sqrt(h) = 60 arcsec/sqrt(s) reads
+/// 60 m/s/sqrt(s) = 3600 m/s/sqrt(h); B, K and R keep their numbers in
+/// m/s^2, m/s^2/sqrt(h) and m/s^2/h.
+pub const ACCEL_COEFFICIENTS: [(&str, &str, &str, &str, f64); 5] = [
+    (
+        "quantization_arcsec",
+        "quantization_mps",
+        "m/s",
+        "velocity quantization",
+        1.0,
+    ),
+    (
+        "arw_dpsh",
+        "vrw_mpssh",
+        "m/s/sqrt(h)",
+        "velocity random walk",
+        3600.0,
+    ),
+    (
+        "bias_instability_dph",
+        "bias_instability_mps2",
+        "m/s^2",
+        "bias instability",
+        1.0,
+    ),
+    (
+        "rrw_dphsh",
+        "accel_rw_mps2sh",
+        "m/s^2/sqrt(h)",
+        "acceleration random walk",
+        1.0,
+    ),
+    (
+        "rate_ramp_dphh",
+        "accel_ramp_mps2h",
+        "m/s^2/h",
+        "acceleration ramp",
+        1.0,
+    ),
+];
+
+/// Other gyro-unit name suffixes and what they become on an accelerometer
+/// axis (longest first): suffix, accelerometer suffix, factor.
+const ACCEL_SUFFIXES: [(&str, &str, f64); 6] = [
+    ("_dph_per_c", "_mps2_per_c", 1.0),
+    ("_dphsh", "_mps2sh", 1.0),
+    ("_dphh", "_mps2h", 1.0),
+    ("_dpsh", "_mpssh", 3600.0),
+    ("_dph", "_mps2", 1.0),
+    ("_arcsec", "_mps", 1.0),
+];
+
+/// Gyro units and what they read on an accelerometer axis.
+const ACCEL_UNITS: [(&str, &str); 6] = [
+    ("deg/h/sqrt(h)", "m/s^2/sqrt(h)"),
+    ("deg/h/h", "m/s^2/h"),
+    ("deg/h/degC", "m/s^2/degC"),
+    ("deg/sqrt(h)", "m/s/sqrt(h)"),
+    ("deg/h", "m/s^2"),
+    ("arcsec", "m/s"),
+];
+
+/// A field name as an accelerometer axis has it, and the factor its value
+/// takes; `None` for a name that carries no gyro unit.
+pub fn accel_key(key: &str) -> Option<(String, f64)> {
+    if let Some((_, a, _, _, f)) = ACCEL_COEFFICIENTS.iter().find(|c| c.0 == key) {
+        return Some((a.to_string(), *f));
+    }
+    ACCEL_SUFFIXES
+        .iter()
+        .find_map(|(g, a, f)| key.strip_suffix(g).map(|stem| (format!("{stem}{a}"), *f)))
+}
+
+/// A gyro unit as an accelerometer axis reads it (other units unchanged).
+pub fn accel_unit(unit: &str) -> String {
+    ACCEL_UNITS
+        .iter()
+        .find(|(g, _)| *g == unit)
+        .map_or_else(|| unit.to_string(), |(_, a)| a.to_string())
+}
+
 /// The unit of the coefficient `key` of [`COEFFICIENTS`].
 pub fn coefficient_unit(key: &str) -> Option<&'static str> {
     COEFFICIENTS
@@ -117,5 +215,26 @@ mod tests {
         }
         // 1.21 arcsec pulses, 1 count per ms = 1210 arcsec/s = 1210 deg/h.
         assert!((counts_to_dph(1.0, 1.21, 1e-3) - 1210.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn accelerometer_names_and_factors() {
+        // white acceleration noise of 1e-3 m/s^2/sqrt(Hz) = 1e-3 m/s/sqrt(s) = 0.06 m/s/sqrt(h):
+        // through the numerics in the place of deg/h it reads N = 1e-3 / 60 "deg/sqrt(h)"
+        let (key, f) = accel_key("arw_dpsh").unwrap();
+        assert_eq!(key, "vrw_mpssh");
+        assert!((1e-3 / 60.0 * f - 0.06).abs() < 1e-15);
+        assert_eq!(
+            accel_key("amplitude_dph").unwrap(),
+            ("amplitude_mps2".into(), 1.0)
+        );
+        assert_eq!(
+            accel_key("bias_sensitivity_dph_per_c").unwrap().0,
+            "bias_sensitivity_mps2_per_c"
+        );
+        assert_eq!(accel_key("rrw_dphsh").unwrap().0, "accel_rw_mps2sh");
+        assert_eq!(accel_key("tau_s"), None);
+        assert_eq!(accel_unit("deg/h/sqrt(h)"), "m/s^2/sqrt(h)");
+        assert_eq!(accel_unit("s"), "s");
     }
 }

@@ -23,11 +23,13 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 
 use super::input_args::{self, InputArgs};
-use crate::input::{Format, Input, StreamReport};
-use crate::model::estimate::Coefficient;
+use crate::input::{Format, Input, InputError, StreamReport};
+use crate::model::estimate::{Coefficient, NoiseEstimates};
 use crate::model::spec::{Spec, SpecReport};
 use crate::pipeline::{Analysis, feed};
-use crate::sink::provenance::{InputSettings, Provenance, analysis_units};
+use crate::sink::export::kalibr::KalibrAxis;
+use crate::sink::provenance::{self, InputSettings, Provenance, analysis_units};
+use crate::units::{ACCEL_COEFFICIENTS, Quantity};
 
 /// Arguments of `sagnac analyze`.
 #[derive(Debug, Args)]
@@ -138,8 +140,12 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
     check_exports(&args)?;
     // a bad spec file fails before the (long) analysis
     let spec = args.spec.as_deref().map(Spec::load).transpose()?;
-    let input = args.input.open()?;
+    let (input, rostopic) = open(&args)?;
+    if !input.axes().is_empty() {
+        return super::analyze_axes::run(&args, &input, rostopic.as_deref());
+    }
     let path = input.path().to_path_buf();
+    let quantity = input.meta().unit.quantity();
     let fed = feed_input(&input, args.input.raw_statistics, None)?;
     for (kind, note) in stream_notes(&fed.report) {
         eprintln!("{kind}: {}: {note}", path.display());
@@ -149,12 +155,23 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
         print_quality(dq, &path);
     }
     warn_about(&analysis, &path);
-    write_exports(
-        &args,
-        &analysis,
-        fed.pipeline.config().sample_rate_hz,
-        &path,
-    )?;
+    let rate = fed.pipeline.config().sample_rate_hz;
+    if let Some(out) = &args.kalibr {
+        let label = input.meta().gyro.clone().unwrap_or_else(|| match quantity {
+            Quantity::AngularRate => "gyro".into(),
+            Quantity::Acceleration => "accel".into(),
+        });
+        let axis = KalibrAxis {
+            label: &label,
+            quantity,
+            estimates: &analysis.estimates,
+        };
+        write_kalibr(out, &[axis], rate, &path, rostopic.as_deref())?;
+    }
+    if let Some(out) = &args.allan_csv {
+        crate::sink::export::allan_csv::write_channels(out, &analysis.allan)
+            .context("writing the Allan CSV")?;
+    }
     let verdict = spec
         .as_ref()
         .map(|s| s.evaluate_fixed(&analysis.estimates, analysis.duration_s));
@@ -162,16 +179,53 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
         Some(out) => {
             let mut settings = input_args::settings(&input, &args.input.input);
             settings.stamps = fed.report.stamps.clone();
-            write_json(out, &analysis, verdict.as_ref(), settings)
+            let mut value = analysis_json(&analysis, verdict.as_ref(), settings, quantity)?;
+            if quantity == Quantity::Acceleration && verdict.is_some() {
+                bail!("--spec holds gyro limits: it does not apply to an accelerometer axis");
+            }
+            write_value(out, &mut value)
         }
         None => {
-            print_table(&analysis)?;
+            print_table(&analysis, quantity)?;
             if let Some(v) = &verdict {
                 print_verdict(v, analysis.data_quality.as_ref())?;
             }
             Ok(())
         }
     }
+}
+
+/// Open the input, every axis of a multi-axis one unless `--gyro` picks
+/// one; `--topic` on an input that is not a bag only names the Kalibr
+/// file's `rostopic`. Returns the input and the rostopic.
+fn open(args: &AnalyzeArgs) -> Result<(Input, Option<String>)> {
+    let mut req = args.input.request();
+    req.all_axes = true;
+    match Input::open(&args.input.input, &req) {
+        Ok(input) => {
+            let topic = input.meta().bag.as_ref().map(|b| b.topic.clone());
+            Ok((input, topic))
+        }
+        Err(InputError::FlagNotApplicable {
+            flag: "--topic", ..
+        }) if args.kalibr.is_some() => {
+            let topic = req.topic.take();
+            Ok((Input::open(&args.input.input, &req)?, topic))
+        }
+        Err(e) => Err(e.into()),
+    }
+}
+
+/// Write the Kalibr file of `axes`.
+pub(crate) fn write_kalibr(
+    out: &Path,
+    axes: &[KalibrAxis],
+    rate: f64,
+    path: &Path,
+    rostopic: Option<&str>,
+) -> Result<()> {
+    crate::sink::export::kalibr::write(out, axes, rate, &path.display().to_string(), rostopic)
+        .context("writing the Kalibr file")
 }
 
 /// One line per data-quality finding on stderr, and a warning when anything
@@ -195,7 +249,7 @@ pub(crate) fn print_quality(dq: &crate::quality::DataQuality, path: &Path) {
     }
 }
 
-fn warn_about(analysis: &Analysis, path: &Path) {
+pub(crate) fn warn_about(analysis: &Analysis, path: &Path) {
     if !analysis.allan.raw.is_empty() && analysis.allan.raw.iter().all(|p| p.dev == 0.0) {
         eprintln!(
             "warning: {}: the raw Allan deviation is 0 at every tau (every increment equal: a stuck counter \
@@ -208,34 +262,14 @@ fn warn_about(analysis: &Analysis, path: &Path) {
     }
 }
 
-fn write_exports(
-    args: &AnalyzeArgs,
-    analysis: &Analysis,
-    sample_rate_hz: f64,
-    path: &Path,
-) -> Result<()> {
-    if let Some(out) = &args.kalibr {
-        crate::sink::export::kalibr::write(
-            out,
-            &analysis.estimates,
-            sample_rate_hz,
-            &path.display().to_string(),
-        )
-        .context("writing the Kalibr file")?;
-    }
-    if let Some(out) = &args.allan_csv {
-        crate::sink::export::allan_csv::write_channels(out, &analysis.allan)
-            .context("writing the Allan CSV")?;
-    }
-    Ok(())
-}
-
-fn write_json(
-    out: &Path,
+/// The JSON of one axis's analysis: its numbers (an accelerometer's under
+/// its own names), `spec`, and the provenance keys.
+pub(crate) fn analysis_json(
     analysis: &Analysis,
     verdict: Option<&SpecReport>,
     settings: InputSettings,
-) -> Result<()> {
+    quantity: Quantity,
+) -> Result<serde_json::Value> {
     let mut value = serde_json::to_value(analysis).context("serialising the analysis")?;
     if let (Some(v), Some(obj)) = (verdict, value.as_object_mut()) {
         let mut spec = serde_json::to_value(v).context("serialising the verdict")?;
@@ -245,8 +279,18 @@ fn write_json(
         }
         obj.insert("spec".into(), spec);
     }
-    Provenance::new(settings, analysis_units()).insert_into(&mut value);
-    let text = serde_json::to_string_pretty(&value).context("serialising the analysis")?;
+    let mut units = analysis_units();
+    if quantity == Quantity::Acceleration {
+        provenance::accel_view(&mut value);
+        units = provenance::accel_units(units);
+    }
+    Provenance::new(settings, units).insert_into(&mut value);
+    Ok(value)
+}
+
+/// Write a JSON value to `out` ("-": stdout).
+pub(crate) fn write_value(out: &Path, value: &mut serde_json::Value) -> Result<()> {
+    let text = serde_json::to_string_pretty(value).context("serialising the analysis")?;
     if out.as_os_str() == "-" {
         super::write_stdout(&text)
     } else {
@@ -318,9 +362,34 @@ fn misfit_message(a: &Analysis) -> String {
     )
 }
 
-fn print_table(a: &Analysis) -> Result<()> {
+/// The five coefficients as the table prints them: name with unit, and the
+/// coefficient in that unit (an accelerometer's renamed and rescaled).
+pub(crate) fn coefficient_rows(e: &NoiseEstimates, q: Quantity) -> Vec<(String, Coefficient)> {
+    let gyro = [
+        ("quantization Q, arcsec", &e.quantization_arcsec),
+        ("angle random walk N, deg/sqrt(h)", &e.arw_dpsh),
+        ("bias instability B, deg/h", &e.bias_instability_dph),
+        ("rate random walk K, deg/h/sqrt(h)", &e.rrw_dphsh),
+        ("rate ramp R, deg/h/h", &e.rate_ramp_dphh),
+    ];
+    gyro.iter()
+        .zip(ACCEL_COEFFICIENTS)
+        .map(|((name, c), (_, _, unit, what, f))| match q {
+            Quantity::AngularRate => (name.to_string(), (*c).clone()),
+            Quantity::Acceleration => (
+                format!("{what}, {unit}"),
+                Coefficient {
+                    value: c.value.map(|v| v * f),
+                    ci95: c.ci95.map(|[lo, hi]| [lo * f, hi * f]),
+                    upper95: c.upper95.map(|u| u * f),
+                },
+            ),
+        })
+        .collect()
+}
+
+pub(crate) fn print_table(a: &Analysis, q: Quantity) -> Result<()> {
     let mut o = std::io::stdout().lock();
-    let e = &a.estimates;
     writeln!(
         o,
         "{} samples, {:.1} s; fit chi2/dof {:.2}",
@@ -343,15 +412,16 @@ fn print_table(a: &Analysis) -> Result<()> {
         )?,
         None => writeln!(o, "readout filter: none found")?,
     }
-    writeln!(o, "{:<32} {:<12} 95 % interval", "coefficient", "value")?;
-    for (name, c) in [
-        ("quantization Q, arcsec", &e.quantization_arcsec),
-        ("angle random walk N, deg/sqrt(h)", &e.arw_dpsh),
-        ("bias instability B, deg/h", &e.bias_instability_dph),
-        ("rate random walk K, deg/h/sqrt(h)", &e.rrw_dphsh),
-        ("rate ramp R, deg/h/h", &e.rate_ramp_dphh),
-    ] {
-        writeln!(o, "{name:<32} {}", fmt_coef(c))?;
+    let rows = coefficient_rows(&a.estimates, q);
+    let w = rows
+        .iter()
+        .map(|(n, _)| n.len())
+        .max()
+        .unwrap_or(32)
+        .max(32);
+    writeln!(o, "{:<w$} {:<12} 95 % interval", "coefficient", "value")?;
+    for (name, c) in &rows {
+        writeln!(o, "{name:<w$} {}", fmt_coef(c))?;
     }
     writeln!(o)?;
     writeln!(
@@ -371,7 +441,11 @@ fn print_table(a: &Analysis) -> Result<()> {
             f(find(&a.allan.noise))
         )?;
     }
-    writeln!(o, "(Allan deviations in deg/h)")?;
+    let unit = match q {
+        Quantity::AngularRate => "deg/h",
+        Quantity::Acceleration => "m/s^2",
+    };
+    writeln!(o, "(Allan deviations in {unit})")?;
     Ok(())
 }
 

@@ -48,7 +48,8 @@ pub struct InputArgs {
     #[arg(long, value_name = "NAME")]
     pub column: Option<String>,
     /// Unit of a CSV or text column (default counts): pulse counts per sample,
-    /// deg/h, deg/s or rad/s.
+    /// deg/h, deg/s or rad/s for a gyro; m/s^2 or g (9.80665 m/s^2) for an
+    /// accelerometer.
     #[arg(long, value_enum)]
     pub unit: Option<UnitArg>,
     /// Turn the data-quality stage off: no glitch exclusion, no warm-up, step
@@ -91,6 +92,10 @@ pub enum UnitArg {
     Dps,
     #[value(name = "rad_s")]
     RadS,
+    /// m/s^2 (an accelerometer column).
+    Mps2,
+    /// standard gravities, 9.80665 m/s^2 (an accelerometer column).
+    G,
 }
 
 impl From<UnitArg> for Unit {
@@ -100,6 +105,8 @@ impl From<UnitArg> for Unit {
             UnitArg::Dph => Unit::Dph,
             UnitArg::Dps => Unit::Dps,
             UnitArg::RadS => Unit::RadS,
+            UnitArg::Mps2 => Unit::Mps2,
+            UnitArg::G => Unit::G,
         }
     }
 }
@@ -115,6 +122,7 @@ impl InputArgs {
             pulse_arcsec: self.pulse_arcsec,
             gyro: self.gyro.clone(),
             topic: self.topic.clone(),
+            all_axes: false,
             values_only: false,
         }
     }

@@ -6,6 +6,7 @@ use clap::{Parser, Subcommand};
 
 pub mod allan;
 pub mod analyze;
+mod analyze_axes;
 pub mod completions;
 pub mod diagnose;
 pub mod input_args;

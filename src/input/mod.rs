@@ -34,7 +34,7 @@ mod stream;
 
 pub use detect::{Format, FormatOrigin};
 pub use recorded::{RecordedGyro, recorded_gyros};
-pub use stream::{Block, Stream, StreamReport};
+pub use stream::{Block, BlockSource, Stream, StreamReport};
 
 use crate::recording::meta::Contradiction;
 use crate::recording::reader::ReadError;
@@ -59,6 +59,10 @@ pub enum Unit {
     Dps,
     /// rad/s.
     RadS,
+    /// m/s^2 (an accelerometer).
+    Mps2,
+    /// Standard gravities, 9.80665 m/s^2 (an accelerometer).
+    G,
 }
 
 impl Unit {
@@ -69,6 +73,8 @@ impl Unit {
             Unit::Dph => "dph",
             Unit::Dps => "dps",
             Unit::RadS => "rad_s",
+            Unit::Mps2 => "mps2",
+            Unit::G => "g",
         }
     }
 
@@ -79,17 +85,30 @@ impl Unit {
             Unit::Dph => "deg/h",
             Unit::Dps => "deg/s",
             Unit::RadS => "rad/s",
+            Unit::Mps2 => "m/s^2",
+            Unit::G => "g (9.80665 m/s^2)",
+        }
+    }
+
+    /// What a sample in this unit measures.
+    pub fn quantity(self) -> units::Quantity {
+        match self {
+            Unit::Mps2 | Unit::G => units::Quantity::Acceleration,
+            _ => units::Quantity::AngularRate,
         }
     }
 
     /// A sample in this unit as deg/h (`pulse_arcsec`, `tau0_s`: the
-    /// counter's pulse weight and sample period, for `Counts`).
+    /// counter's pulse weight and sample period, for `Counts`); an
+    /// accelerometer's as m/s^2, which the numerics carry in deg/h's place
+    /// ([`units::Quantity`]).
     pub fn to_dph(self, v: f64, pulse_arcsec: f64, tau0_s: f64) -> f64 {
         match self {
             Unit::Counts => units::counts_to_dph(v, pulse_arcsec, tau0_s),
-            Unit::Dph => v,
+            Unit::Dph | Unit::Mps2 => v,
             Unit::Dps => units::dps_to_dph(v),
             Unit::RadS => units::rad_s_to_dph(v),
+            Unit::G => v * units::STANDARD_GRAVITY_MPS2,
         }
     }
 }
@@ -113,6 +132,10 @@ pub struct Request {
     pub gyro: Option<String>,
     /// `--topic`: the Imu topic of a ROS 2 bag (needed when it has several).
     pub topic: Option<String>,
+    /// Open a multi-axis input (a ROS 2 bag, a triad capture, a recording of
+    /// several gyros) without `--gyro`: its axes are then read one by one
+    /// ([`Input::axes`], [`Input::for_axis`]) instead of the error asking for one.
+    pub all_axes: bool,
     /// Hand out the numbers of a text, CSV or f64le file as they are, without
     /// checking up front whether they are whole pulse counts (`sagnac allan`
     /// on phase or frequency data). Counters still stream counts.
@@ -158,6 +181,7 @@ pub struct Meta {
 pub struct Input {
     path: PathBuf,
     meta: Meta,
+    request: Request,
 }
 
 /// Errors of the input layer; each names the file.
@@ -308,7 +332,44 @@ impl Input {
         Ok(Input {
             path: path.to_path_buf(),
             meta,
+            request: req.clone(),
         })
+    }
+
+    /// The axes still to choose: every gyro (or bag axis) of a multi-axis
+    /// input opened with [`Request::all_axes`] and no `--gyro`; empty once one
+    /// is chosen, or for an input of one axis.
+    pub fn axes(&self) -> Vec<String> {
+        if self.meta.gyro.is_some() {
+            return Vec::new();
+        }
+        self.meta.gyros.clone()
+    }
+
+    /// This input read for one of its [`Input::axes`]: a bag's axis at once
+    /// (its timing is the topic's), another input opened again for that gyro
+    /// (each gyro of a recording has its own settings).
+    pub fn for_axis(&self, label: &str) -> Result<Input, InputError> {
+        if self.meta.format == Format::Ros2 {
+            let mut one = self.clone();
+            one.meta.gyro = pick_gyro(
+                &self.path,
+                &self.meta.gyros,
+                &Request {
+                    gyro: Some(label.to_string()),
+                    ..Request::default()
+                },
+            )?;
+            one.meta.unit = ros2::axis_unit(label);
+            one.request.gyro = Some(label.to_string());
+            return Ok(one);
+        }
+        let req = Request {
+            gyro: Some(label.to_string()),
+            all_axes: false,
+            ..self.request.clone()
+        };
+        Input::open(&self.path, &req)
     }
 
     /// The file.
@@ -350,6 +411,14 @@ impl Input {
     /// A new pass over the samples, from the first.
     pub fn stream(&self) -> Result<Stream, InputError> {
         Stream::open(&self.path, &self.meta)
+    }
+
+    /// Every axis of a bag opened with [`Request::all_axes`] in one pass (one
+    /// block per axis at a time); `None` for other inputs, whose gyros are
+    /// read each in its own pass.
+    pub fn stream_all_axes(&self) -> Option<Result<ros2::Ros2Stream, InputError>> {
+        (self.meta.format == Format::Ros2 && self.meta.gyro.is_none())
+            .then(|| ros2::Ros2Stream::open(&self.path, &self.meta))
     }
 
     /// Every sample at once: one [`Block`] holding the whole input (its
@@ -468,7 +537,7 @@ fn open_frames(path: &Path, req: &Request, meta: &mut Meta) -> Result<(), InputE
     } else {
         16
     };
-    meta.gyro = pick_gyro(path, &meta.gyros, req.gyro.as_deref())?;
+    meta.gyro = pick_gyro(path, &meta.gyros, req)?;
     if !meta.gzip {
         meta.len_hint = std::fs::metadata(path).ok().map(|m| m.len() / frame_len);
     }
@@ -476,15 +545,11 @@ fn open_frames(path: &Path, req: &Request, meta: &mut Meta) -> Result<(), InputE
 }
 
 /// Which of `labels` to read, given `--gyro`: none for a file of one gyro
-/// (and no `--gyro`), the label for one of several; an error naming the
-/// labels otherwise.
-fn pick_gyro(
-    path: &Path,
-    labels: &[String],
-    gyro: Option<&str>,
-) -> Result<Option<String>, InputError> {
-    match gyro {
-        None if labels.is_empty() => Ok(None),
+/// (and no `--gyro`) or when every axis is read, the label for one of
+/// several; an error naming the labels otherwise.
+fn pick_gyro(path: &Path, labels: &[String], req: &Request) -> Result<Option<String>, InputError> {
+    match req.gyro.as_deref() {
+        None if labels.is_empty() || req.all_axes => Ok(None),
         None => Err(InputError::ChooseGyro {
             path: path.to_path_buf(),
             labels: labels.to_vec(),

@@ -88,7 +88,7 @@ pub(super) fn open(path: &Path, req: &Request, meta: &mut Meta) -> Result<(), In
     }
     let gyros = recorded_gyros(path)?;
     meta.gyros = gyros.iter().filter_map(|g| g.label.clone()).collect();
-    meta.gyro = pick_gyro(path, &meta.gyros, req.gyro.as_deref())?;
+    meta.gyro = pick_gyro(path, &meta.gyros, req)?;
     let gyro = gyros
         .into_iter()
         .find(|g| g.label == meta.gyro)

@@ -50,7 +50,7 @@ impl Block {
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
-    fn clear(&mut self) {
+    pub(crate) fn clear(&mut self) {
         self.counts.clear();
         self.values.clear();
         self.filled.clear();
@@ -84,6 +84,24 @@ enum Source {
     Triad(Box<CaptureReader<AnyRead, Triad>>),
     Recorded(Box<RecordedStream>),
     Bag(Box<Ros2Stream>),
+}
+
+/// Anything that hands out one axis's blocks: a [`Stream`], or one axis of
+/// a pass that reads several at once.
+pub trait BlockSource {
+    /// The next block into `block`; `false` at the end.
+    fn next_block(&mut self, block: &mut Block) -> Result<bool, InputError>;
+    /// What the pass met so far (all of it once it ended).
+    fn report(&self) -> StreamReport;
+}
+
+impl BlockSource for Stream {
+    fn next_block(&mut self, block: &mut Block) -> Result<bool, InputError> {
+        Stream::next_block(self, block)
+    }
+    fn report(&self) -> StreamReport {
+        Stream::report(self)
+    }
 }
 
 /// A pass over an input's samples.

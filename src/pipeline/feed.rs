@@ -15,7 +15,7 @@
 //! result ([`crate::quality`]).
 
 use super::{Analysis, Pipeline, PipelineConfig, PipelineError, PipelineOutput};
-use crate::input::{Block, Input, InputError, StreamReport, Unit};
+use crate::input::{Block, BlockSource, Input, InputError, StreamReport, Unit};
 use crate::quality::davar::DavarMap;
 use crate::quality::lowfreq::{Correction, FineNoise};
 use crate::quality::{self, DataQuality};
@@ -91,7 +91,21 @@ pub fn run(
     progress: Progress,
     tap: Option<Tap>,
 ) -> Result<Fed, PipelineError> {
-    let (pipe, report) = pass(input, cfg, progress, tap, None)?;
+    let mut stream = input.stream()?;
+    run_from(input, &mut stream, cfg, progress, tap)
+}
+
+/// [`run`], the first pass taking its blocks from `first` (one axis of a
+/// pass that reads several at once); a second pass, when the data-quality
+/// stage corrects the rate, reads `input` again.
+pub fn run_from(
+    input: &Input,
+    first: &mut dyn BlockSource,
+    cfg: &PipelineConfig,
+    progress: Progress,
+    tap: Option<Tap>,
+) -> Result<Fed, PipelineError> {
+    let (pipe, report) = pass(input, first, cfg, progress, tap, None)?;
     if !cfg.data_quality {
         return Ok(Fed {
             pipeline: pipe,
@@ -114,7 +128,16 @@ pub fn run(
     let final_pipe = if correction.is_empty() {
         pipe
     } else {
-        pass(input, cfg, &mut |_, _| {}, None, Some(&correction))?.0
+        let mut again = input.stream()?;
+        pass(
+            input,
+            &mut again,
+            cfg,
+            &mut |_, _| {},
+            None,
+            Some(&correction),
+        )?
+        .0
     };
     let q = final_pipe
         .estimator_output()
@@ -135,6 +158,7 @@ pub fn run(
 /// corrected rate.
 fn pass(
     input: &Input,
+    stream: &mut dyn BlockSource,
     cfg: &PipelineConfig,
     progress: Progress,
     mut tap: Option<Tap>,
@@ -147,7 +171,6 @@ fn pass(
         c.pulse_arcsec = None;
     }
     let mut pipe = Pipeline::new(&c)?;
-    let mut stream = input.stream()?;
     let mut block = Block::default();
     let mut out = PipelineOutput::default();
     let mut rates = Vec::new();

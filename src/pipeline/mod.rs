@@ -42,6 +42,7 @@ use crate::quality::blocks::BlockMeans;
 use crate::quality::davar::Davar;
 use crate::quality::spikes::{Emitted, Series, SpikeFilter};
 
+pub mod axes;
 pub mod feed;
 
 /// Errors building or running the pipeline.

@@ -108,6 +108,65 @@ impl Provenance {
     }
 }
 
+/// An analysis's JSON as an accelerometer axis reads it: every field whose
+/// name carries a gyro unit renamed to its accelerometer name and its numbers
+/// rescaled ([`crate::units::accel_key`]); the Allan deviations are in m/s^2
+/// as they are.
+pub fn accel_view(v: &mut Value) {
+    match v {
+        Value::Object(map) => {
+            let old = std::mem::take(map);
+            for (k, mut val) in old {
+                accel_view(&mut val);
+                match crate::units::accel_key(&k) {
+                    Some((key, f)) => {
+                        scale(&mut val, f);
+                        map.insert(key, val);
+                    }
+                    None => {
+                        map.insert(k, val);
+                    }
+                }
+            }
+        }
+        Value::Array(a) => a.iter_mut().for_each(accel_view),
+        _ => {}
+    }
+}
+
+fn scale(v: &mut Value, f: f64) {
+    if f == 1.0 {
+        return;
+    }
+    match v {
+        Value::Number(n) => {
+            if let Some(x) = n.as_f64().and_then(|x| serde_json::Number::from_f64(x * f)) {
+                *n = x;
+            }
+        }
+        Value::Array(a) => a.iter_mut().for_each(|x| scale(x, f)),
+        Value::Object(m) => m.values_mut().for_each(|x| scale(x, f)),
+        _ => {}
+    }
+}
+
+/// A `units` list as an accelerometer axis has it: each dotted key's parts
+/// renamed, each gyro unit replaced.
+pub fn accel_units(units: Vec<(String, String)>) -> Vec<(String, String)> {
+    units
+        .into_iter()
+        .map(|(k, u)| {
+            let key: Vec<String> = k
+                .split('.')
+                .map(|part| {
+                    crate::units::accel_key(part).map_or_else(|| part.to_string(), |(a, _)| a)
+                })
+                .collect();
+            (key.join("."), crate::units::accel_unit(&u))
+        })
+        .collect()
+}
+
 /// The units of `sagnac analyze --json` ([`crate::pipeline::Analysis`], and
 /// `spec` with `--spec`).
 pub fn analysis_units() -> Vec<(String, String)> {
@@ -145,6 +204,32 @@ pub fn analysis_units() -> Vec<(String, String)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn accelerometer_view_renames_and_rescales() {
+        let mut v = serde_json::json!({
+            "estimates": {"arw_dpsh": {"value": 0.5, "ci95": [0.25, 0.75]},
+                          "rrw_dphsh": {"value": null, "upper95": 2.0}},
+            "data_quality": {"warmup": {"amplitude_dph": {"value": 0.5}, "tau_s": {"value": 300.0}}},
+            "samples": 10
+        });
+        accel_view(&mut v);
+        assert_eq!(
+            v,
+            serde_json::json!({
+                "estimates": {"vrw_mpssh": {"value": 1800.0, "ci95": [900.0, 2700.0]},
+                              "accel_rw_mps2sh": {"value": null, "upper95": 2.0}},
+                "data_quality": {"warmup": {"amplitude_mps2": {"value": 0.5}, "tau_s": {"value": 300.0}}},
+                "samples": 10
+            })
+        );
+        let u = accel_units(vec![
+            ("estimates.arw_dpsh".into(), "deg/sqrt(h)".into()),
+            ("allan.*.dev, ci_lo, ci_hi".into(), "deg/h".into()),
+        ]);
+        assert_eq!(u[0], ("estimates.vrw_mpssh".into(), "m/s/sqrt(h)".into()));
+        assert_eq!(u[1].1, "m/s^2");
+    }
 
     #[test]
     fn added_to_an_object_only() {

@@ -887,13 +887,19 @@ fn the_format_is_found_by_content_and_a_contradicting_format_is_an_error() {
         cj["samples"].as_u64().unwrap() + 1,
         fr["samples"].as_u64().unwrap()
     );
-    // a triad capture: one of its gyros, by label
-    let e = analyze_json(&triad, &flags).unwrap_err();
-    assert!(e.contains("several gyros") && e.contains("x, y, z"), "{e}");
+    // a triad capture: one of its gyros, by label; all three without --gyro
     let tj = analyze_json(&triad, &[&flags[..], &["--gyro", "y"]].concat()).unwrap();
     assert_eq!(tj["input"]["format"], "triad-frames");
     assert_eq!(tj["input"]["gyro"], "y");
     assert!(tj["samples"].as_u64().unwrap() > 59_000);
+    let all = analyze_json(&triad, &flags).unwrap();
+    let axes: Vec<&String> = all["axes"].as_object().unwrap().keys().collect();
+    assert_eq!(axes, ["x", "y", "z"]);
+    assert_eq!(all["axes"]["y"]["estimates"], tj["estimates"]);
+    assert_eq!(all["axes"]["y"]["input"], tj["input"]);
+    assert_eq!(all["input"]["format"], "triad-frames");
+    let e = analyze_json(&triad, &[&flags[..], &["--gyro", "w"]].concat()).unwrap_err();
+    assert!(e.contains("--gyro w") && e.contains("x, y, z"), "{e}");
     // --format overrides only what agrees with the content
     let e = analyze_json(&mcap, &["--format", "csv"]).unwrap_err();
     assert!(

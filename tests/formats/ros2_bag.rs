@@ -232,8 +232,18 @@ fn sqlite_bags_and_misplaced_flags_get_clear_errors() {
     let e = fails(&["--input", csv.to_str().unwrap(), "--topic", "/imu"]);
     assert!(e.contains("--topic does not apply"), "{e}");
     let (mcap, _) = make_bag(d.path(), "m.mcap", &["--n", "2000"]);
-    let e = fails(&["--input", mcap.to_str().unwrap()]);
-    assert!(e.contains("gyro_x, gyro_y, gyro_z"), "{e}");
+    let e = fails(&["--input", mcap.to_str().unwrap(), "--gyro", "x"]);
+    assert!(
+        e.contains("gyro_x, gyro_y, gyro_z, accel_x, accel_y, accel_z"),
+        "{e}"
+    );
+    let e = fails(&[
+        "--input",
+        mcap.to_str().unwrap(),
+        "--spec",
+        "config/spec_example.toml",
+    ]);
+    assert!(e.contains("--spec takes one axis"), "{e}");
     let e = fails(&[
         "--input",
         mcap.to_str().unwrap(),
@@ -256,4 +266,146 @@ fn sqlite_bags_and_misplaced_flags_get_clear_errors() {
     std::fs::create_dir(&empty).unwrap();
     let e = fails(&["--input", empty.to_str().unwrap()]);
     assert!(e.contains("no metadata.yaml"), "{e}");
+}
+
+/// `sagnac analyze` on a bag without `--gyro`: every axis in one pass,
+/// `axes` in the JSON, each axis with the single-axis structure; the
+/// accelerometer's terms under their own names and units; a full Kalibr file.
+#[test]
+fn six_axes_in_one_pass_and_a_complete_kalibr_file() {
+    let d = tempfile::tempdir().unwrap();
+    // densities per axis: gyro rad/s/sqrt(Hz), accel m/s^2/sqrt(Hz)
+    let (gyro_d, accel_d) = ([1e-4, 2e-4, 3e-4], [1e-3, 2e-3, 3e-3]);
+    let (bag, csv) = make_bag(
+        d.path(),
+        "six.mcap",
+        &[
+            "--n",
+            "60000",
+            "--seed",
+            "21",
+            "--gyro-density",
+            "1e-4",
+            "2e-4",
+            "3e-4",
+            "--accel-density",
+            "1e-3",
+            "2e-3",
+            "3e-3",
+            "--holes",
+            "30000:5",
+        ],
+    );
+    let yaml = d.path().join("imu.yaml");
+    let j = analyze(&[
+        "--input",
+        bag.to_str().unwrap(),
+        "--kalibr",
+        yaml.to_str().unwrap(),
+    ]);
+    let axes = j["axes"].as_object().unwrap();
+    let labels: Vec<&str> = axes.keys().map(String::as_str).collect();
+    assert_eq!(
+        labels,
+        [
+            "accel_x", "accel_y", "accel_z", "gyro_x", "gyro_y", "gyro_z"
+        ]
+    );
+    assert_eq!(j["input"]["topic"], "/imu");
+    assert_eq!(j["input"]["stamps"]["lost_samples"], 5);
+    for (i, g) in ["gyro_x", "gyro_y", "gyro_z"].iter().enumerate() {
+        let a = &axes[*g];
+        assert_eq!(a["input"]["gyro"], *g);
+        assert_eq!(a["units"]["estimates.arw_dpsh"], "deg/sqrt(h)");
+        let truth = f64::to_degrees(gyro_d[i]) * 60.0;
+        let c = &a["estimates"]["arw_dpsh"]["ci95"];
+        assert!(
+            c[0].as_f64().unwrap() < truth && truth < c[1].as_f64().unwrap(),
+            "{g}: {c} vs {truth}"
+        );
+    }
+    for (i, g) in ["accel_x", "accel_y", "accel_z"].iter().enumerate() {
+        let a = &axes[*g];
+        assert_eq!(a["input"]["unit"], "mps2");
+        assert_eq!(a["units"]["estimates.vrw_mpssh"], "m/s/sqrt(h)");
+        assert_eq!(a["units"]["allan.*.dev, ci_lo, ci_hi"], "m/s^2");
+        assert!(a["estimates"].get("arw_dpsh").is_none(), "{g}");
+        // VRW in m/s/sqrt(h): density (m/s/sqrt(s)) * 60
+        let truth = accel_d[i] * 60.0;
+        let c = &a["estimates"]["vrw_mpssh"]["ci95"];
+        assert!(
+            c[0].as_f64().unwrap() < truth && truth < c[1].as_f64().unwrap(),
+            "{g}: {c} vs {truth}"
+        );
+        // (the constant 1 g on accel_z is a bias: its VRW holds the truth like the others')
+    }
+    // each axis is what it is read alone (one pass, same numbers)
+    let alone = analyze(&["--input", bag.to_str().unwrap(), "--gyro", "accel_y"]);
+    assert_eq!(alone["estimates"], axes["accel_y"]["estimates"]);
+    assert_eq!(alone["allan"], axes["accel_y"]["allan"]);
+    // and the same samples as a CSV column in m/s^2 (no hole)
+    let c = analyze(&[
+        "--input",
+        csv.to_str().unwrap(),
+        "--column",
+        "accel_x",
+        "--unit",
+        "mps2",
+        "--sample-rate-hz",
+        "200",
+    ]);
+    let v = |j: &Value| j["estimates"]["vrw_mpssh"]["value"].as_f64().unwrap();
+    assert!((v(&c) / v(&axes["accel_x"]) - 1.0).abs() < 0.01);
+
+    let y = std::fs::read_to_string(&yaml).unwrap();
+    let field = |k: &str| -> f64 {
+        let l = y
+            .lines()
+            .find(|l| l.starts_with(&format!("{k}:")))
+            .unwrap_or_else(|| panic!("{k} in\n{y}"));
+        l[k.len() + 1..].trim().parse().unwrap()
+    };
+    // the largest axis, against its truth (Kalibr's units: continuous-time densities)
+    let nd = field("gyroscope_noise_density");
+    assert!((nd / 3e-4 - 1.0).abs() < 0.03, "{nd}\n{y}");
+    let ad = field("accelerometer_noise_density");
+    assert!((ad / 3e-3 - 1.0).abs() < 0.03, "{ad}\n{y}");
+    assert!(field("gyroscope_random_walk") > 0.0 && field("accelerometer_random_walk") > 0.0);
+    assert_eq!(field("update_rate"), 200.0);
+    assert!(y.contains("rostopic: /imu\n"), "{y}");
+    assert!(
+        y.contains("the largest of the 3 axes (the conservative choice)"),
+        "{y}"
+    );
+    assert!(
+        y.contains("NOT FOUND"),
+        "white noise only: the random walks are bounds\n{y}"
+    );
+    // a gyro-only input says the accelerometer fields are absent
+    let gy = d.path().join("gyro.yaml");
+    let o = sagnac(&[
+        "analyze",
+        "--input",
+        csv.to_str().unwrap(),
+        "--column",
+        "gyro_x",
+        "--unit",
+        "rad_s",
+        "--sample-rate-hz",
+        "200",
+        "--kalibr",
+        gy.to_str().unwrap(),
+        "--topic",
+        "/imu0",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let g = std::fs::read_to_string(&gy).unwrap();
+    assert!(
+        g.contains("accelerometer_noise_density and accelerometer_random_walk absent"),
+        "{g}"
+    );
+    assert!(
+        g.contains("rostopic: /imu0\n") && g.contains("gyroscope_noise_density: "),
+        "{g}"
+    );
 }

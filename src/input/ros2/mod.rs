@@ -5,8 +5,8 @@
 //! Opening reads the bag once for its topics and the `header.stamp`s of the
 //! Imu topic read (`--topic`, needed when there are several): the sample
 //! rate, the messages out of order, the duplicates and the holes
-//! ([`timing`]). A stream then hands out one axis (`--gyro gyro_x`, ...) in
-//! rad/s: sorted by stamp in a window as long as the latest message is late,
+//! ([`timing`]). A stream then hands out one axis (`--gyro gyro_x`, ...,
+//! `accel_z`; rad/s and m/s^2), or all six at once: sorted by stamp in a window as long as the latest message is late,
 //! duplicates dropped, holes filled by linear interpolation and marked
 //! filled, so the statistics leave them out.
 //!
@@ -33,8 +33,17 @@ use timing::{Place, Placer, Timing};
 pub const AXES: [&str; 6] = [
     "gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z",
 ];
-/// The axes read today: the gyroscope's.
+/// The gyroscope's axes come first.
 pub const GYRO_AXES: usize = 3;
+
+/// The unit of an axis's samples: rad/s for the gyroscope, m/s^2 for the
+/// accelerometer.
+pub fn axis_unit(label: &str) -> Unit {
+    match AXES.iter().position(|a| *a == label) {
+        Some(i) if i >= GYRO_AXES => Unit::Mps2,
+        _ => Unit::RadS,
+    }
+}
 /// Samples per block handed out.
 const BLOCK: usize = 1 << 14;
 /// How far a flag may be from the rate of the stamps.
@@ -184,9 +193,9 @@ pub(super) fn open(path: &Path, req: &Request, meta: &mut Meta) -> Result<(), In
         topic: topic.clone(),
         messages: st.len() as u64,
     })?;
-    meta.gyros = AXES[..GYRO_AXES].iter().map(|s| s.to_string()).collect();
-    meta.gyro = pick_gyro(path, &meta.gyros, req.gyro.as_deref())?;
-    meta.unit = Unit::RadS;
+    meta.gyros = AXES.iter().map(|s| s.to_string()).collect();
+    meta.gyro = pick_gyro(path, &meta.gyros, req)?;
+    meta.unit = axis_unit(meta.gyro.as_deref().unwrap_or(AXES[0]));
     meta.integral = false;
     meta.len_hint = Some(timing.samples);
     let origin = "in the bag's header stamps";
@@ -234,7 +243,7 @@ fn pick_topic(
 struct Pending {
     stamp_ns: i64,
     arrival: u64,
-    value: f64,
+    axes: [f64; 6],
 }
 impl Eq for Pending {}
 impl Ord for Pending {
@@ -264,35 +273,42 @@ pub struct StampReport {
     pub lost_samples: u64,
 }
 
-/// One axis of a bag's topic, sorted, deduplicated and gap-filled.
+/// Axes of a bag's topic, sorted, deduplicated and gap-filled: one block
+/// per axis read, all with the same samples filled.
 pub struct Ros2Stream {
     path: PathBuf,
     msgs: ImuMessages,
-    axis: usize,
+    /// Indices into [`AXES`] of the axes handed out.
+    axes: Vec<usize>,
     max_lateness_ns: i64,
     window: BinaryHeap<Reverse<Pending>>,
     newest: i64,
     arrivals: u64,
     placer: Placer,
-    last: Option<(i64, f64)>,
+    last: Option<[f64; 6]>,
     ended: bool,
     report: StampReport,
 }
 
 impl Ros2Stream {
+    /// The axis `meta.gyro` of the bag, or every axis when none is chosen.
     pub fn open(path: &Path, meta: &Meta) -> Result<Ros2Stream, InputError> {
         let bm = meta
             .bag
             .as_ref()
             .expect("a bag's meta has its topic and timing");
-        let axis = AXES
-            .iter()
-            .position(|a| Some(*a) == meta.gyro.as_deref())
-            .expect("a bag is read for one of its axes");
+        let axes = match &meta.gyro {
+            Some(g) => vec![
+                AXES.iter()
+                    .position(|a| a == g)
+                    .expect("one of the bag's axes"),
+            ],
+            None => (0..AXES.len()).collect(),
+        };
         Ok(Ros2Stream {
             path: path.to_path_buf(),
             msgs: ImuMessages::new(Bag::open(path)?, Some(bm.topic.clone())),
-            axis,
+            axes,
             max_lateness_ns: bm.timing.max_lateness_ns,
             window: BinaryHeap::new(),
             newest: i64::MIN,
@@ -312,15 +328,29 @@ impl Ros2Stream {
         &self.report
     }
 
-    /// The next block; `false` once every message has been handed out.
+    /// The labels of the axes handed out, in the order of the blocks.
+    pub fn labels(&self) -> Vec<&'static str> {
+        self.axes.iter().map(|&a| AXES[a]).collect()
+    }
+
+    /// The next block of the one axis read; `false` once every message has
+    /// been handed out.
     pub fn next_block(&mut self, block: &mut Block) -> Result<bool, InputError> {
-        while block.len() < BLOCK {
+        self.next_blocks(std::slice::from_mut(block))
+    }
+
+    /// The next block of each axis read (cleared first); `false` once every
+    /// message has been handed out.
+    pub fn next_blocks(&mut self, blocks: &mut [Block]) -> Result<bool, InputError> {
+        assert_eq!(blocks.len(), self.axes.len(), "one block per axis read");
+        blocks.iter_mut().for_each(Block::clear);
+        while blocks[0].len() < BLOCK {
             if let Some(Reverse(p)) = self.window.peek()
                 && (self.ended || p.stamp_ns <= self.newest.saturating_sub(self.max_lateness_ns))
             {
                 let p = *p;
                 self.window.pop();
-                self.emit(p, block)?;
+                self.emit(p, blocks)?;
                 continue;
             }
             if self.ended {
@@ -337,17 +367,17 @@ impl Ros2Stream {
                     self.window.push(Reverse(Pending {
                         stamp_ns: s.stamp_ns,
                         arrival: self.arrivals,
-                        value: s.axes[self.axis],
+                        axes: s.axes,
                     }));
                     self.arrivals += 1;
                 }
             }
         }
-        Ok(!block.is_empty())
+        Ok(!blocks[0].is_empty())
     }
 
     /// Place one sorted message: dropped, or after the samples its hole needs.
-    fn emit(&mut self, p: Pending, block: &mut Block) -> Result<(), InputError> {
+    fn emit(&mut self, p: Pending, blocks: &mut [Block]) -> Result<(), InputError> {
         match self.placer.place(p.stamp_ns) {
             Place::Duplicate => {
                 self.report.duplicates += 1;
@@ -362,21 +392,26 @@ impl Ros2Stream {
                         lost,
                     });
                 }
-                let (_, v0) = self.last.expect("a hole comes after a sample");
-                let start = block.values.len();
-                block
-                    .values
-                    .extend((1..k).map(|i| v0 + (p.value - v0) * i as f64 / k as f64));
-                block.filled.push(start..block.values.len());
-                block.gaps += 1;
-                block.lost_samples += lost;
+                let v0 = self.last.expect("a hole comes after a sample");
+                for (block, &a) in blocks.iter_mut().zip(&self.axes) {
+                    let start = block.values.len();
+                    let (from, to) = (v0[a], p.axes[a]);
+                    block
+                        .values
+                        .extend((1..k).map(|i| from + (to - from) * i as f64 / k as f64));
+                    block.filled.push(start..block.values.len());
+                    block.gaps += 1;
+                    block.lost_samples += lost;
+                }
                 self.report.gaps += 1;
                 self.report.lost_samples += lost;
             }
             _ => {}
         }
-        block.values.push(p.value);
-        self.last = Some((p.stamp_ns, p.value));
+        for (block, &a) in blocks.iter_mut().zip(&self.axes) {
+            block.values.push(p.axes[a]);
+        }
+        self.last = Some(p.axes);
         Ok(())
     }
 }
