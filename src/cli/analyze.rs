@@ -28,7 +28,7 @@ use crate::model::estimate::{Coefficient, NoiseEstimates};
 use crate::model::spec::{Spec, SpecReport};
 use crate::pipeline::{Analysis, feed};
 use crate::sink::export::kalibr::KalibrAxis;
-use crate::sink::provenance::{self, InputSettings, Provenance, analysis_units};
+use crate::sink::provenance::{self, analysis_json};
 use crate::units::{ACCEL_COEFFICIENTS, Quantity};
 
 /// Arguments of `sagnac analyze`.
@@ -262,32 +262,6 @@ pub(crate) fn warn_about(analysis: &Analysis, path: &Path) {
     }
 }
 
-/// The JSON of one axis's analysis: its numbers (an accelerometer's under
-/// its own names), `spec`, and the provenance keys.
-pub(crate) fn analysis_json(
-    analysis: &Analysis,
-    verdict: Option<&SpecReport>,
-    settings: InputSettings,
-    quantity: Quantity,
-) -> Result<serde_json::Value> {
-    let mut value = serde_json::to_value(analysis).context("serialising the analysis")?;
-    if let (Some(v), Some(obj)) = (verdict, value.as_object_mut()) {
-        let mut spec = serde_json::to_value(v).context("serialising the verdict")?;
-        // the verdict is decided on the handled record: say what was handled
-        if let (Some(s), Some(dq)) = (spec.as_object_mut(), &analysis.data_quality) {
-            s.insert("handled".into(), serde_json::to_value(handled_lines(dq))?);
-        }
-        obj.insert("spec".into(), spec);
-    }
-    let mut units = analysis_units();
-    if quantity == Quantity::Acceleration {
-        provenance::accel_view(&mut value);
-        units = provenance::accel_units(units);
-    }
-    Provenance::new(settings, units).insert_into(&mut value);
-    Ok(value)
-}
-
 /// Write a JSON value to `out` ("-": stdout).
 pub(crate) fn write_value(out: &Path, value: &mut serde_json::Value) -> Result<()> {
     let text = serde_json::to_string_pretty(value).context("serialising the analysis")?;
@@ -298,15 +272,6 @@ pub(crate) fn write_value(out: &Path, value: &mut serde_json::Value) -> Result<(
     }
 }
 
-/// The findings the record was handled for (the verdict's basis).
-fn handled_lines(dq: &crate::quality::DataQuality) -> Vec<String> {
-    if dq.handled_anything() {
-        dq.lines()
-    } else {
-        Vec::new()
-    }
-}
-
 fn print_verdict(r: &SpecReport, dq: Option<&crate::quality::DataQuality>) -> Result<()> {
     let mut o = std::io::stdout().lock();
     writeln!(o)?;
@@ -314,7 +279,7 @@ fn print_verdict(r: &SpecReport, dq: Option<&crate::quality::DataQuality>) -> Re
         writeln!(
             o,
             "spec verdict on the handled record ({}):",
-            handled_lines(dq).join("; ")
+            provenance::handled_lines(dq).join("; ")
         )?;
     }
     writeln!(

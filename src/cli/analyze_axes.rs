@@ -11,15 +11,14 @@ use std::path::Path;
 use anyhow::{Context, Result, bail};
 
 use super::analyze::{
-    AnalyzeArgs, analysis_json, print_quality, print_table, stream_notes, warn_about, write_kalibr,
-    write_value,
+    AnalyzeArgs, print_quality, print_table, stream_notes, warn_about, write_kalibr, write_value,
 };
 use super::input_args;
 use crate::input::Input;
 use crate::pipeline::Analysis;
 use crate::pipeline::axes::{AxisRun, run_axes};
 use crate::sink::export::kalibr::KalibrAxis;
-use crate::sink::provenance::Provenance;
+use crate::sink::provenance::{Provenance, analysis_json};
 
 /// Analyse every axis of `input`.
 pub(super) fn run(args: &AnalyzeArgs, input: &Input, rostopic: Option<&str>) -> Result<()> {

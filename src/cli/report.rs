@@ -129,6 +129,7 @@ fn metadata(input: &Input, fed: &crate::pipeline::feed::Fed, c: &Collector) -> M
             m.gyro.as_deref().unwrap_or("?")
         ),
         Format::Mcap => "MCAP recording (/gyro/raw)".into(),
+        Format::Array => format!("array in memory, unit {}", m.unit.describe()),
         Format::Ros2 => format!(
             "ROS 2 bag, topic {}, axis {} (rad/s)",
             m.bag.as_ref().map_or("?", |b| b.topic.as_str()),

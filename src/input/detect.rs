@@ -40,6 +40,9 @@ pub enum Format {
     /// A ROS 2 bag: an MCAP file of profile `ros2` or a rosbag2 directory
     /// (an sqlite3 bag is recognised, to say how to convert it).
     Ros2,
+    /// Samples handed over in memory (the Python package's arrays): never
+    /// found in a file.
+    Array,
 }
 
 impl Format {
@@ -53,6 +56,7 @@ impl Format {
             Format::TriadFrames => "triad-frames",
             Format::Mcap => "mcap",
             Format::Ros2 => "ros2",
+            Format::Array => "array",
         }
     }
 
@@ -66,6 +70,7 @@ impl Format {
             Format::TriadFrames => "a raw capture of 24-byte triad frames",
             Format::Mcap => "an MCAP recording",
             Format::Ros2 => "a ROS 2 bag",
+            Format::Array => "an array in memory",
         }
     }
 
@@ -85,6 +90,7 @@ impl Format {
             Format::Mcap => 2,
             Format::F64le => 3,
             Format::Ros2 => 4,
+            Format::Array => 5,
         };
         kind(self) == kind(other)
     }

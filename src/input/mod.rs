@@ -182,6 +182,8 @@ pub struct Input {
     path: PathBuf,
     meta: Meta,
     request: Request,
+    /// The samples of an input in memory ([`Input::from_values`]).
+    memory: Option<std::sync::Arc<Vec<f64>>>,
 }
 
 /// Errors of the input layer; each names the file.
@@ -328,11 +330,17 @@ impl Input {
             Format::Frames | Format::TriadFrames => open_frames(path, req, &mut meta)?,
             Format::Mcap => recorded::open(path, req, &mut meta)?,
             Format::Ros2 => ros2::open(path, req, &mut meta)?,
+            Format::Array => {
+                return Err(InputError::Format(detect::FormatError::Unknown {
+                    path: path.to_path_buf(),
+                }));
+            }
         }
         Ok(Input {
             path: path.to_path_buf(),
             meta,
             request: req.clone(),
+            memory: None,
         })
     }
 
@@ -370,6 +378,64 @@ impl Input {
             ..self.request.clone()
         };
         Input::open(&self.path, &req)
+    }
+
+    /// Samples in memory as an input (the Python package): `values` in
+    /// `unit` at `sample_rate_hz` (`pulse_arcsec` for pulse counts, which
+    /// take the exact integer path when every value is whole); `name` stands
+    /// for the file in messages and the JSON.
+    pub fn from_values(
+        name: &str,
+        values: Vec<f64>,
+        unit: Unit,
+        sample_rate_hz: f64,
+        pulse_arcsec: Option<f64>,
+    ) -> Result<Input, InputError> {
+        for (flag, v) in [
+            ("sample_rate_hz", Some(sample_rate_hz)),
+            ("pulse_arcsec", pulse_arcsec),
+        ] {
+            if let Some(v) = v
+                && !(v.is_finite() && v > 0.0)
+            {
+                return Err(InputError::NotPositive { flag, value: v });
+            }
+        }
+        let path = PathBuf::from(name);
+        if values.is_empty() {
+            return Err(InputError::Empty { path });
+        }
+        if unit == Unit::Counts && pulse_arcsec.is_none() {
+            return Err(InputError::FlagRequired {
+                flag: "pulse_arcsec",
+                path,
+                what: "pulse weight (pulse counts)".into(),
+            });
+        }
+        let integral =
+            unit == Unit::Counts && values.iter().all(|v| v.fract() == 0.0 && v.abs() < 9e15);
+        let meta = Meta {
+            format: Format::Array,
+            format_origin: FormatOrigin::Given,
+            gzip: false,
+            sample_rate_hz: Some(sample_rate_hz),
+            pulse_arcsec,
+            rate_lsb_dps: None,
+            unit,
+            origin: "given as arguments".into(),
+            gyros: Vec::new(),
+            gyro: None,
+            column: None,
+            integral,
+            len_hint: Some(values.len() as u64),
+            bag: None,
+        };
+        Ok(Input {
+            path,
+            meta,
+            request: Request::default(),
+            memory: Some(std::sync::Arc::new(values)),
+        })
     }
 
     /// The file.
@@ -410,7 +476,14 @@ impl Input {
 
     /// A new pass over the samples, from the first.
     pub fn stream(&self) -> Result<Stream, InputError> {
-        Stream::open(&self.path, &self.meta)
+        match &self.memory {
+            Some(values) => Ok(Stream::memory(
+                &self.path,
+                values.clone(),
+                self.meta.integral,
+            )),
+            None => Stream::open(&self.path, &self.meta),
+        }
     }
 
     /// Every axis of a bag opened with [`Request::all_axes`] in one pass (one

@@ -248,7 +248,7 @@ impl SampleReader {
                 st.csv = Some(read_csv_header(&mut st, &p, column, side)?);
                 Inner::Lines(st)
             }
-            Format::Frames | Format::TriadFrames | Format::Mcap | Format::Ros2 => {
+            Format::Frames | Format::TriadFrames | Format::Mcap | Format::Ros2 | Format::Array => {
                 unreachable!("SampleReader reads text, CSV and f64le, not {format}")
             }
             Format::F64le => Inner::Binary(BinState {

@@ -84,6 +84,8 @@ enum Source {
     Triad(Box<CaptureReader<AnyRead, Triad>>),
     Recorded(Box<RecordedStream>),
     Bag(Box<Ros2Stream>),
+    /// Samples in memory, and the next one to hand out.
+    Memory(std::sync::Arc<Vec<f64>>, usize),
 }
 
 /// Anything that hands out one axis's blocks: a [`Stream`], or one axis of
@@ -134,6 +136,7 @@ impl Stream {
                 Source::Recorded(Box::new(RecordedStream::open(path, meta.gyro.as_deref())?))
             }
             Format::Ros2 => Source::Bag(Box::new(Ros2Stream::open(path, meta)?)),
+            Format::Array => unreachable!("an array in memory is streamed by Stream::memory"),
         };
         Ok(Stream {
             path: path.to_path_buf(),
@@ -142,6 +145,17 @@ impl Stream {
             report: StreamReport::default(),
             done: false,
         })
+    }
+
+    /// A pass over samples in memory (`integral`: whole pulse counts).
+    pub(super) fn memory(path: &Path, values: std::sync::Arc<Vec<f64>>, integral: bool) -> Stream {
+        Stream {
+            path: path.to_path_buf(),
+            source: Source::Memory(values, 0),
+            integral,
+            report: StreamReport::default(),
+            done: false,
+        }
     }
 
     /// The next block into `block`; `false` at the end (and ever after). A
@@ -157,6 +171,17 @@ impl Stream {
             Source::Triad(r) => capture_block(r, block)?,
             Source::Recorded(r) => r.next_block(block)?,
             Source::Bag(r) => r.next_block(block)?,
+            Source::Memory(values, pos) => {
+                let end = (*pos + PLAIN_BLOCK).min(values.len());
+                let chunk = &values[*pos..end];
+                *pos = end;
+                if self.integral {
+                    block.counts.extend(chunk.iter().map(|&v| v as i64));
+                } else {
+                    block.values.extend_from_slice(chunk);
+                }
+                !chunk.is_empty()
+            }
         };
         self.report.samples += block.len() as u64;
         self.report.gaps += block.gaps;
@@ -180,7 +205,7 @@ impl Stream {
             Source::Triad(r) => self.report.frames = Some(no_frames(r, &path)?),
             Source::Recorded(r) => self.report.break_at = r.break_at(),
             Source::Bag(r) => self.report.stamps = Some(r.report().clone()),
-            Source::Plain(..) => {}
+            Source::Plain(..) | Source::Memory(..) => {}
         }
         if self.report.samples > 0 {
             return Ok(());

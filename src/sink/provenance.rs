@@ -167,6 +167,41 @@ pub fn accel_units(units: Vec<(String, String)>) -> Vec<(String, String)> {
         .collect()
 }
 
+/// The JSON of one axis's analysis: its numbers (an accelerometer's under
+/// its own names), `spec`, and the provenance keys.
+pub fn analysis_json(
+    analysis: &crate::pipeline::Analysis,
+    verdict: Option<&crate::model::spec::SpecReport>,
+    settings: InputSettings,
+    quantity: crate::units::Quantity,
+) -> Result<serde_json::Value, serde_json::Error> {
+    let mut value = serde_json::to_value(analysis)?;
+    if let (Some(v), Some(obj)) = (verdict, value.as_object_mut()) {
+        let mut spec = serde_json::to_value(v)?;
+        // the verdict is decided on the handled record: say what was handled
+        if let (Some(s), Some(dq)) = (spec.as_object_mut(), &analysis.data_quality) {
+            s.insert("handled".into(), serde_json::to_value(handled_lines(dq))?);
+        }
+        obj.insert("spec".into(), spec);
+    }
+    let mut units = analysis_units();
+    if quantity == crate::units::Quantity::Acceleration {
+        accel_view(&mut value);
+        units = accel_units(units);
+    }
+    Provenance::new(settings, units).insert_into(&mut value);
+    Ok(value)
+}
+
+/// The findings the record was handled for (the verdict's basis).
+pub fn handled_lines(dq: &crate::quality::DataQuality) -> Vec<String> {
+    if dq.handled_anything() {
+        dq.lines()
+    } else {
+        Vec::new()
+    }
+}
+
 /// The units of `sagnac analyze --json` ([`crate::pipeline::Analysis`], and
 /// `spec` with `--spec`).
 pub fn analysis_units() -> Vec<(String, String)> {
