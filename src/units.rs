@@ -114,6 +114,12 @@ pub fn accel_key(key: &str) -> Option<(String, f64)> {
         .find_map(|(g, a, f)| key.strip_suffix(g).map(|stem| (format!("{stem}{a}"), *f)))
 }
 
+/// A line of text written in a gyro's units (the data-quality findings) as
+/// an accelerometer axis reads it: deg/h is m/s^2, arcsec is m/s.
+pub fn accel_text(line: &str) -> String {
+    line.replace("deg/h", "m/s^2").replace("arcsec", "m/s")
+}
+
 /// A gyro unit as an accelerometer axis reads it (other units unchanged).
 pub fn accel_unit(unit: &str) -> String {
     ACCEL_UNITS

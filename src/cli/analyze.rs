@@ -152,7 +152,7 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
     }
     let analysis = fed.analysis();
     if let Some(dq) = &analysis.data_quality {
-        print_quality(dq, &path);
+        print_quality(dq, &path, quantity);
     }
     warn_about(&analysis, &path);
     let rate = fed.pipeline.config().sample_rate_hz;
@@ -230,7 +230,7 @@ pub(crate) fn write_kalibr(
 
 /// One line per data-quality finding on stderr, and a warning when anything
 /// was handled.
-pub(crate) fn print_quality(dq: &crate::quality::DataQuality, path: &Path) {
+pub(crate) fn print_quality(dq: &crate::quality::DataQuality, path: &Path, q: Quantity) {
     let lines = dq.lines();
     if lines.is_empty() {
         return;
@@ -245,7 +245,10 @@ pub(crate) fn print_quality(dq: &crate::quality::DataQuality, path: &Path) {
         eprintln!("note: {}:", path.display());
     }
     for l in lines {
-        eprintln!("  {l}");
+        match q {
+            Quantity::AngularRate => eprintln!("  {l}"),
+            Quantity::Acceleration => eprintln!("  {}", crate::units::accel_text(&l)),
+        }
     }
 }
 

@@ -74,7 +74,7 @@ fn report_findings(runs: &[AxisRun], analyses: &[Analysis], path: &Path) {
     for (r, a) in runs.iter().zip(analyses) {
         let named = Path::new(&format!("{} {}", path.display(), r.label)).to_path_buf();
         if let Some(dq) = &a.data_quality {
-            print_quality(dq, &named);
+            print_quality(dq, &named, r.input.meta().unit.quantity());
         }
         warn_about(a, &named);
     }

@@ -12,6 +12,7 @@ pub mod diagnose;
 pub mod input_args;
 pub mod progress;
 pub mod report;
+mod report_axes;
 pub mod run;
 pub mod simulate;
 

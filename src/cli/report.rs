@@ -56,20 +56,59 @@ pub fn run(args: ReportArgs) -> Result<()> {
         Some(p) => Some(crate::model::spec::Spec::load(p)?),
         None => None,
     };
-    let input = args.input.open()?;
-    if let Some(m) = &model {
+    let mut req = args.input.request();
+    req.all_axes = true;
+    let input = Input::open(&args.input.input, &req)?;
+    if !input.axes().is_empty() {
+        if args.model.is_some() || args.spec.is_some() {
+            bail!(
+                "--model and --spec take one axis: choose it with --gyro ({} has {})",
+                input.path().display(),
+                input.axes().join(", ")
+            );
+        }
+        return super::report_axes::run(&input, &args.out, args.input.raw_statistics);
+    }
+    let (written, _) = one(
+        &input,
+        &args.out,
+        model.as_ref(),
+        args.model.as_deref(),
+        spec.as_ref(),
+        args.input.raw_statistics,
+    )?;
+    let mut files = vec![
+        written.html.display().to_string(),
+        written.allan_png.display().to_string(),
+        written.noise_png.display().to_string(),
+    ];
+    files.extend(written.davar_png.map(|p| p.display().to_string()));
+    let last = files.pop().unwrap_or_default();
+    super::write_stdout(&format!("wrote {} and {last}", files.join(", ")))?;
+    Ok(())
+}
+
+/// The report of one axis into `out` (created); what was written.
+pub(super) fn one(
+    input: &Input,
+    out: &std::path::Path,
+    model: Option<&GyroModel>,
+    model_path: Option<&std::path::Path>,
+    spec: Option<&crate::model::spec::Spec>,
+    raw_statistics: bool,
+) -> Result<(report::Written, crate::pipeline::Analysis)> {
+    if let Some(m) = model {
         // a diagnosis of the wrong kind of sensor fails before the analysis
         diagnose::read::check_kind(m, input.meta().unit).context("--model")?;
     }
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let mut collector = Collector::new(input.sample_rate_hz()?);
     let mut tap = |b: &TapBlock<'_>| collector.tap(b);
-    let fed = super::analyze::feed_input(&input, args.input.raw_statistics, Some(&mut tap))?;
-    let meta = metadata(&input, &fed, &collector);
+    let fed = super::analyze::feed_input(input, raw_statistics, Some(&mut tap))?;
+    let meta = metadata(input, &fed, &collector);
     let analysis = fed.analysis();
     if let Some(dq) = &analysis.data_quality {
-        super::analyze::print_quality(dq, input.path());
+        super::analyze::print_quality(dq, input.path(), input.meta().unit.quantity());
     }
     if !analysis.fit.ok {
         eprintln!(
@@ -78,13 +117,11 @@ pub fn run(args: ReportArgs) -> Result<()> {
             analysis.fit.chi2_per_dof
         );
     }
-    let diagnosis = match (&model, &args.model) {
-        (Some(m), Some(path)) => Some((run_diagnosis(m, &input)?, path.display().to_string())),
+    let diagnosis = match (model, model_path) {
+        (Some(m), Some(path)) => Some((run_diagnosis(m, input)?, path.display().to_string())),
         _ => None,
     };
-    let verdict = spec
-        .as_ref()
-        .map(|s| s.evaluate_fixed(&analysis.estimates, analysis.duration_s));
+    let verdict = spec.map(|s| s.evaluate_fixed(&analysis.estimates, analysis.duration_s));
     let r = report::Report {
         meta: &meta,
         analysis: &analysis,
@@ -96,16 +133,8 @@ pub fn run(args: ReportArgs) -> Result<()> {
         spec: verdict.as_ref(),
         davar: fed.davar.as_ref(),
     };
-    let written = report::write(&args.out, &r).context("writing the report")?;
-    let mut files = vec![
-        written.html.display().to_string(),
-        written.allan_png.display().to_string(),
-        written.noise_png.display().to_string(),
-    ];
-    files.extend(written.davar_png.map(|p| p.display().to_string()));
-    let last = files.pop().unwrap_or_default();
-    super::write_stdout(&format!("wrote {} and {last}", files.join(", ")))?;
-    Ok(())
+    let written = report::write(out, &r).context("writing the report")?;
+    Ok((written, analysis))
 }
 
 /// What the report's metadata table says about the input.
@@ -145,6 +174,7 @@ fn metadata(input: &Input, fed: &crate::pipeline::feed::Fed, c: &Collector) -> M
             .then_some(m.pulse_arcsec)
             .flatten(),
         frame_stats: fed.report.frames,
+        units: report::Units::of(m.unit.quantity()),
         ..Metadata::default()
     };
     if m.format.holds_counts() {

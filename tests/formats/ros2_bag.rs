@@ -409,3 +409,52 @@ fn six_axes_in_one_pass_and_a_complete_kalibr_file() {
         "{g}"
     );
 }
+
+/// `sagnac report` on a bag without `--gyro`: a page per axis (the
+/// accelerometer's in its own units) and an index with every axis.
+#[test]
+fn a_report_of_the_six_axes() {
+    let d = tempfile::tempdir().unwrap();
+    let (bag, _) = make_bag(d.path(), "r.mcap", &["--n", "12000", "--seed", "31"]);
+    let out = d.path().join("rep");
+    let o = sagnac(&[
+        "report",
+        "--input",
+        bag.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let index = std::fs::read_to_string(out.join("index.html")).unwrap();
+    for axis in [
+        "gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z",
+    ] {
+        assert!(
+            index.contains(&format!("href=\"{axis}/index.html\"")),
+            "{axis}"
+        );
+        for f in ["index.html", "allan.png", "noise_integral.png"] {
+            assert!(out.join(axis).join(f).is_file(), "{axis}/{f}");
+        }
+    }
+    assert!(index.contains("velocity random walk") && index.contains("angle random walk"));
+    let accel = std::fs::read_to_string(out.join("accel_x/index.html")).unwrap();
+    assert!(accel.contains("velocity random walk") && accel.contains("m/s\u{b2}"));
+    assert!(
+        !accel.contains("deg/h"),
+        "an accelerometer's page speaks m/s^2"
+    );
+    let gyro = std::fs::read_to_string(out.join("gyro_x/index.html")).unwrap();
+    assert!(gyro.contains("angle random walk") && gyro.contains("deg/h"));
+    let o = sagnac(&[
+        "report",
+        "--input",
+        bag.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--model",
+        "config/paper_gyro.toml",
+    ]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--model and --spec take one axis"));
+}

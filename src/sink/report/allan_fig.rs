@@ -7,12 +7,16 @@ use plotters::prelude::*;
 
 use super::plot::{self, Area, LineKind, draw_err, font};
 use super::terms::{self, Asymptote};
-use super::{ReportError, fmt_sig};
+use super::{ReportError, Units, fmt_sig};
 use crate::allan::AllanPoint;
 use crate::pipeline::Analysis;
 
 /// Draw the figure on `area`.
-pub fn draw<DB: DrawingBackend>(area: &Area<DB>, a: &Analysis) -> Result<(), ReportError> {
+pub fn draw<DB: DrawingBackend>(
+    area: &Area<DB>,
+    a: &Analysis,
+    u: Units,
+) -> Result<(), ReportError> {
     crate::font::register()?;
     area.fill(&WHITE).map_err(draw_err)?;
     let (w, _) = area.dim_in_pixel();
@@ -48,7 +52,7 @@ pub fn draw<DB: DrawingBackend>(area: &Area<DB>, a: &Analysis) -> Result<(), Rep
     chart
         .configure_mesh()
         .x_desc("averaging time \u{3c4}, s")
-        .y_desc("Allan deviation, deg/h")
+        .y_desc(format!("Allan deviation, {}", u.rate))
         .axis_desc_style(font(plot::LABEL))
         .label_style(font(plot::TICK))
         .x_label_formatter(&|v| plot::log_tick(*v))
@@ -125,7 +129,7 @@ pub fn draw<DB: DrawingBackend>(area: &Area<DB>, a: &Analysis) -> Result<(), Rep
         }
     }
 
-    let rows = legend_rows(&asym);
+    let rows = legend_rows(&asym, u);
     let legend = right.margin(50, 10, 4, 4);
     plot::side_legend(&legend, &rows)
 }
@@ -148,7 +152,7 @@ fn bounds(curves: &[(&str, &[AllanPoint], RGBColor)]) -> (f64, f64, f64, f64) {
 }
 
 /// The legend column: the three curves, the total model and each term.
-fn legend_rows(asym: &[Asymptote]) -> Vec<(RGBColor, LineKind, String)> {
+fn legend_rows(asym: &[Asymptote], u: Units) -> Vec<(RGBColor, LineKind, String)> {
     let mut rows = vec![
         (
             plot::RAW,
@@ -167,14 +171,15 @@ fn legend_rows(asym: &[Asymptote]) -> Vec<(RGBColor, LineKind, String)> {
         (
             plot::MODEL,
             LineKind::Solid,
-            "total IEEE 952 model".to_string(),
+            format!(
+                "total IEEE {} model",
+                if u == Units::GYRO { "952" } else { "1293" }
+            ),
         ),
     ];
     for t in asym {
         let k = t.kind;
-        rows.push((
-            color_of(t),
-            LineKind::Dashed,
+        let text = if u == Units::GYRO {
             format!(
                 "{}, slope {}: {} | {} = {} {}",
                 k.abbrev(),
@@ -183,8 +188,16 @@ fn legend_rows(asym: &[Asymptote]) -> Vec<(RGBColor, LineKind, String)> {
                 k.symbol(),
                 fmt_sig(t.coefficient, 3),
                 k.unit()
-            ),
-        ));
+            )
+        } else {
+            let (_, sym, unit, f) = k.accel();
+            format!(
+                "{sym}, slope {}: {sym} = {} {unit}",
+                k.slope_text(),
+                fmt_sig(t.coefficient * f, 3)
+            )
+        };
+        rows.push((color_of(t), LineKind::Dashed, text));
     }
     if asym.is_empty() {
         rows.push((

@@ -183,6 +183,7 @@ pub fn draw<DB: DrawingBackend>(
     area: &Area<DB>,
     map: &DavarMap,
     duration_s: f64,
+    u: super::Units,
 ) -> Result<(), ReportError> {
     crate::font::register()?;
     area.fill(&WHITE).map_err(draw_err)?;
@@ -234,7 +235,7 @@ pub fn draw<DB: DrawingBackend>(
             )
         }))
         .map_err(draw_err)?;
-    color_bar(&left, &right, (c_lo, c_hi))
+    color_bar(&left, &right, (c_lo, c_hi), u)
 }
 
 /// The colour bar in `column`, its top level with the map's plot (below
@@ -243,6 +244,7 @@ fn color_bar<DB: DrawingBackend>(
     beside: &Area<DB>,
     column: &Area<DB>,
     (lo, hi): (f64, f64),
+    u: super::Units,
 ) -> Result<(), ReportError> {
     // the height plotters gives a caption: the text and twice its padding
     let (_, text_h) = beside
@@ -259,7 +261,7 @@ fn color_bar<DB: DrawingBackend>(
     bar.configure_mesh()
         .disable_mesh()
         .disable_x_axis()
-        .y_desc("ADEV, deg/h")
+        .y_desc(format!("ADEV, {}", u.rate))
         .axis_desc_style(font(plot::LABEL))
         .label_style(font(plot::TICK))
         .x_label_formatter(&|_| String::new())

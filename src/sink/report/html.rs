@@ -29,6 +29,55 @@ figcaption{font-size:.92em;color:#444;margin-top:4px}
 .muted{color:#666}
 ";
 
+/// One axis of a multi-axis input, as the index page lists it.
+#[derive(Debug, Clone, Copy)]
+pub struct AxisPage<'a> {
+    pub label: &'a str,
+    pub units: super::Units,
+    pub analysis: &'a Analysis,
+    /// Its own report, relative to the index (`gyro_x/index.html`).
+    pub link: &'a str,
+}
+
+/// The index of a multi-axis report: each axis's coefficients and fit, and a
+/// link to its own page (figures, data quality).
+pub fn index_page(input: &str, axes: &[AxisPage<'_>]) -> String {
+    let mut h = String::new();
+    let name = std::path::Path::new(input)
+        .file_name()
+        .map_or(input.to_string(), |f| f.to_string_lossy().into_owned());
+    let _ = write!(
+        h,
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\
+         <meta http-equiv=\"Content-Security-Policy\" content=\"default-src 'none'; style-src 'unsafe-inline'\">\
+         <meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\
+         <title>sagnac report: {0}</title><style>{STYLE}</style></head><body>\n\
+         <h1>IMU bench report: {0}</h1><p class=\"muted\">Written by sagnac {1} (<code>sagnac report</code>): \
+         {2} axes of {0}, each analysed as it would be alone; each axis's page has its figures and data-quality \
+         findings.</p>\n",
+        esc(&name),
+        env!("CARGO_PKG_VERSION"),
+        axes.len()
+    );
+    for a in axes {
+        let _ = write!(
+            h,
+            "<h2 id=\"{0}\"><a href=\"{1}\">{0}</a> ({2})</h2>",
+            esc(a.label),
+            esc(a.link),
+            a.units.rate_word
+        );
+        coefficients(&mut h, a.analysis, a.units);
+        if let Some(dq) = &a.analysis.data_quality {
+            for l in dq.lines() {
+                let _ = write!(h, "<p class=\"muted\">{}</p>", esc(&a.units.text(&l)));
+            }
+        }
+    }
+    h.push_str("</body></html>\n");
+    h
+}
+
 /// The whole page.
 pub fn page(r: &Report<'_>) -> Result<String, ReportError> {
     let a = r.analysis;
@@ -52,27 +101,35 @@ pub fn page(r: &Report<'_>) -> Result<String, ReportError> {
          wavelet (sym8) quantization-noise removal and Allan deviations of a static recording.</p>\n",
         env!("CARGO_PKG_VERSION")
     );
+    let u = r.meta.units;
     metadata(&mut h, r);
-    coefficients(&mut h, a);
-    quality_section(&mut h, a.data_quality.as_ref());
+    coefficients(&mut h, a, u);
+    quality_section(&mut h, a.data_quality.as_ref(), u);
     if let Some(v) = r.spec {
         spec_section(&mut h, v);
     }
-    let allan = svg(super::ALLAN_SIZE, |area| allan_fig::draw(area, a))?;
+    let allan = svg(super::ALLAN_SIZE, |area| allan_fig::draw(area, a, u))?;
+    let terms_in = if u == super::Units::GYRO {
+        "with Q in arcsec, N in deg/\u{221a}h, B in deg/h, K in deg/h/\u{221a}h, R in deg/h\u{b2}, \u{3c4} in s, \
+         deviations in deg/h"
+    } else {
+        "here the accelerometer's IEEE 1293 terms in their places (velocity quantization, velocity random \
+         walk, bias instability, acceleration random walk and ramp; values and units in the legend), \u{3c4} in s, \
+         deviations in m/s\u{b2}"
+    };
     let _ = write!(
         h,
         "<section id=\"allan\"><h2>Allan deviation</h2><figure>{}<figcaption>Overlapping Allan deviation of the raw \
          rate, of the clean rate (quantization noise removed by the wavelet bank) and of the extracted noise, \
          with their {} % confidence intervals (bars). Dashed: the IEEE 952 term of each coefficient found \
          (QN \u{221a}3\u{b7}Q/\u{3c4}, ARW N/\u{221a}\u{3c4}, BI 0.664\u{b7}B, RRW K\u{b7}\u{221a}(\u{3c4}/3), \
-         RR R\u{b7}\u{3c4}/\u{221a}2, with Q in arcsec, N in deg/\u{221a}h, B in deg/h, K in deg/h/\u{221a}h, R in \
-         deg/h\u{b2}, \u{3c4} in s, deviations in deg/h); grey: their total, the square root of the summed \
+         RR R\u{b7}\u{3c4}/\u{221a}2, {terms_in}); grey: their total, the square root of the summed \
          variances.</figcaption></figure></section>\n",
         inline_svg(&allan),
         fmt_sig(100.0 * crate::allan::DEFAULT_CONFIDENCE, 3)
     );
     let noise = svg(super::NOISE_SIZE, |area| {
-        noise_fig::draw(area, r.series, m.pulse_arcsec)
+        noise_fig::draw(area, r.series, m.pulse_arcsec, u)
     })?;
     let check = match (noise_fig::max_abs_angle(r.series), m.pulse_arcsec) {
         (Some(p), Some(d)) => format!(
@@ -106,7 +163,9 @@ pub fn page(r: &Report<'_>) -> Result<String, ReportError> {
 /// The rate figure, with what the data-quality stage handled marked on it.
 fn rate_section(h: &mut String, r: &Report<'_>) -> Result<(), ReportError> {
     let dq = r.analysis.data_quality.as_ref();
-    let rate = svg(super::RATE_SIZE, |area| rate_fig::draw(area, r.series, dq))?;
+    let rate = svg(super::RATE_SIZE, |area| {
+        rate_fig::draw(area, r.series, dq, r.meta.units)
+    })?;
     let temp = r.series.temperature().is_some();
     let marked = if dq.is_some_and(|d| d.handled_anything()) {
         " Marked on the rate: what the data-quality stage handled (excluded outliers as ticks along the \
@@ -137,7 +196,7 @@ fn davar_section(h: &mut String, r: &Report<'_>) -> Result<(), ReportError> {
     match davar_fig::drawable(r.davar) {
         Ok(m) => {
             let fig = svg(super::DAVAR_SIZE, |area| {
-                davar_fig::draw(area, m, r.analysis.duration_s)
+                davar_fig::draw(area, m, r.analysis.duration_s, r.meta.units)
             })?;
             let _ = write!(
                 h,
@@ -162,7 +221,7 @@ fn davar_section(h: &mut String, r: &Report<'_>) -> Result<(), ReportError> {
 
 /// What the data-quality stage found and did, one line per finding, and
 /// the stationarity test of what remains.
-fn quality_section(h: &mut String, dq: Option<&crate::quality::DataQuality>) {
+fn quality_section(h: &mut String, dq: Option<&crate::quality::DataQuality>, u: super::Units) {
     h.push_str("<section id=\"quality\"><h2>Data quality</h2>");
     let Some(dq) = dq else {
         h.push_str(
@@ -182,7 +241,7 @@ fn quality_section(h: &mut String, dq: Option<&crate::quality::DataQuality>) {
     } else {
         h.push_str("<ul>");
         for l in &lines {
-            let _ = write!(h, "<li>{}</li>", esc(l));
+            let _ = write!(h, "<li>{}</li>", esc(&u.text(l)));
         }
         h.push_str("</ul>");
     }
@@ -296,7 +355,7 @@ fn metadata(h: &mut String, r: &Report<'_>) {
     h.push_str("</table></section>\n");
 }
 
-fn coefficients(h: &mut String, a: &Analysis) {
+fn coefficients(h: &mut String, a: &Analysis, u: super::Units) {
     let e = &a.estimates;
     h.push_str("<section id=\"coefficients\"><h2>Noise coefficients</h2>");
     let (class, verdict) = if a.fit.ok {
@@ -323,14 +382,26 @@ fn coefficients(h: &mut String, a: &Analysis) {
         a.fit.ok
     );
     h.push_str("<table><tr><th>term</th><th>coefficient</th><th>value</th><th>95 % interval</th><th>unit</th></tr>");
-    for (name, sym, c, unit) in [
-        ("quantization noise", "Q", &e.quantization_arcsec, "arcsec"),
-        ("angle random walk", "N", &e.arw_dpsh, "deg/\u{221a}h"),
-        ("bias instability", "B", &e.bias_instability_dph, "deg/h"),
-        ("rate random walk", "K", &e.rrw_dphsh, "deg/h/\u{221a}h"),
-        ("rate ramp", "R", &e.rate_ramp_dphh, "deg/h\u{b2}"),
-    ] {
-        let (v, ci) = coef_cells(c);
+    let coefs = [
+        &e.quantization_arcsec,
+        &e.arw_dpsh,
+        &e.bias_instability_dph,
+        &e.rrw_dphsh,
+        &e.rate_ramp_dphh,
+    ];
+    for (k, c) in super::terms::Kind::ALL.into_iter().zip(coefs) {
+        let (name, sym, unit, c) = if u == super::Units::GYRO {
+            (k.name(), k.symbol(), k.unit(), c.clone())
+        } else {
+            let (name, sym, unit, f) = k.accel();
+            let scaled = crate::model::estimate::Coefficient {
+                value: c.value.map(|v| v * f),
+                ci95: c.ci95.map(|[lo, hi]| [lo * f, hi * f]),
+                upper95: c.upper95.map(|b| b * f),
+            };
+            (name, sym, unit, scaled)
+        };
+        let (v, ci) = coef_cells(&c);
         let _ = write!(
             h,
             "<tr><td>{name}</td><td>{sym}</td><td class=\"num\">{v}</td><td class=\"num\">{ci}</td><td>{unit}</td></tr>"

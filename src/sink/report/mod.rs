@@ -63,6 +63,52 @@ pub enum ReportError {
     Png { path: PathBuf, reason: String },
 }
 
+/// What a page's numbers are in: a gyro's rate (deg/h) and angle (arcsec),
+/// or an accelerometer's acceleration (m/s^2) and velocity (m/s), which the
+/// numerics carry in their place ([`crate::units::Quantity`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Units {
+    pub rate: &'static str,
+    pub angle: &'static str,
+    /// What the rate is called ("rate", "acceleration").
+    pub rate_word: &'static str,
+}
+
+impl Units {
+    pub const GYRO: Units = Units {
+        rate: "deg/h",
+        angle: "arcsec",
+        rate_word: "rate",
+    };
+    pub const ACCEL: Units = Units {
+        rate: "m/s\u{b2}",
+        angle: "m/s",
+        rate_word: "acceleration",
+    };
+
+    /// The units of an axis measuring `q`.
+    pub fn of(q: crate::units::Quantity) -> Units {
+        match q {
+            crate::units::Quantity::AngularRate => Units::GYRO,
+            crate::units::Quantity::Acceleration => Units::ACCEL,
+        }
+    }
+
+    /// A line written in a gyro's units (the data-quality findings), in these.
+    pub fn text(&self, line: &str) -> String {
+        if *self == Units::GYRO {
+            return line.to_string();
+        }
+        crate::units::accel_text(line).replace("m/s^2", self.rate)
+    }
+}
+
+impl Default for Units {
+    fn default() -> Self {
+        Units::GYRO
+    }
+}
+
 /// What the page says about the recording.
 #[derive(Debug, Clone, Default)]
 pub struct Metadata {
@@ -81,6 +127,8 @@ pub struct Metadata {
     pub frame_stats: Option<DecoderStats>,
     /// Anything else worth a line (a cut recording, ...).
     pub notes: Vec<String>,
+    /// The units of the axis shown.
+    pub units: Units,
 }
 
 /// A diagnosis to include.
@@ -164,13 +212,16 @@ pub fn write(dir: &Path, r: &Report<'_>) -> Result<Written, ReportError> {
         noise_png: dir.join("noise_integral.png"),
         davar_png: davar.map(|_| dir.join("davar.png")),
     };
-    png(&w.allan_png, ALLAN_SIZE, |a| allan_fig::draw(a, r.analysis))?;
+    let u = r.meta.units;
+    png(&w.allan_png, ALLAN_SIZE, |a| {
+        allan_fig::draw(a, r.analysis, u)
+    })?;
     png(&w.noise_png, NOISE_SIZE, |a| {
-        noise_fig::draw(a, r.series, r.meta.pulse_arcsec)
+        noise_fig::draw(a, r.series, r.meta.pulse_arcsec, u)
     })?;
     match (davar, &w.davar_png) {
         (Some(m), Some(p)) => png(p, DAVAR_SIZE, |a| {
-            davar_fig::draw(a, m, r.analysis.duration_s)
+            davar_fig::draw(a, m, r.analysis.duration_s, u)
         })?,
         _ => remove_if_present(&dir.join("davar.png"))?,
     }

@@ -22,6 +22,7 @@ pub fn draw<DB: DrawingBackend>(
     area: &Area<DB>,
     c: &Collector,
     pulse_arcsec: Option<f64>,
+    u: super::Units,
 ) -> Result<(), ReportError> {
     crate::font::register()?;
     area.fill(&WHITE).map_err(draw_err)?;
@@ -40,7 +41,7 @@ pub fn draw<DB: DrawingBackend>(
         caption_size: plot::TITLE,
         x_area: 42,
         y_area: 72,
-        y_desc: "noise, deg/h",
+        y_desc: &format!("noise, {}", u.rate),
     }
     .build(&top, axis, t_hi, (lo, hi))?;
     plot::draw_band(
@@ -68,8 +69,14 @@ pub fn draw<DB: DrawingBackend>(
             fmt_sig(d, 4)
         ),
         None => format!(
-            "running integral of the noise: max |angle| {} arcsec (rate input: no pulse weight)",
-            fmt_sig(peak, 3)
+            "running integral of the noise: max |{}| {} {} (rate input: no pulse weight)",
+            if u == super::Units::GYRO {
+                "angle"
+            } else {
+                "velocity"
+            },
+            fmt_sig(peak, 3),
+            u.angle
         ),
     };
     let mut chart = plot::TimeChart {
@@ -77,7 +84,7 @@ pub fn draw<DB: DrawingBackend>(
         caption_size: plot::LABEL + 2,
         x_area: 48,
         y_area: 72,
-        y_desc: "integrated noise, arcsec",
+        y_desc: &format!("integrated noise, {}", u.angle),
     }
     .build(&bottom, axis, t_hi, (lo, hi))?;
     if let Some(d) = pulse_arcsec {

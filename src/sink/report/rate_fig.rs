@@ -166,6 +166,7 @@ pub fn draw<DB: DrawingBackend>(
     area: &Area<DB>,
     c: &Collector,
     dq: Option<&DataQuality>,
+    u: super::Units,
 ) -> Result<(), ReportError> {
     crate::font::register()?;
     area.fill(&WHITE).map_err(draw_err)?;
@@ -207,7 +208,7 @@ pub fn draw<DB: DrawingBackend>(
         caption_size: plot::TITLE,
         x_area: 44,
         y_area: 80,
-        y_desc: "rate, deg/h",
+        y_desc: &format!("{}, {}", u.rate_word, u.rate),
     }
     .build(&body, axis, t_hi, (lo, hi))?;
     // the steps' intervals under the data

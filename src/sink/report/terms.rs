@@ -131,6 +131,17 @@ impl Kind {
             Kind::RateRamp => "deg/h\u{b2}",
         }
     }
+    /// The accelerometer's name of the term, its symbol, its unit and the
+    /// factor from the gyro-named coefficient ([`crate::units::ACCEL_COEFFICIENTS`]).
+    pub fn accel(self) -> (&'static str, &'static str, &'static str, f64) {
+        let i = Kind::ALL
+            .iter()
+            .position(|k| *k == self)
+            .expect("one of ALL");
+        let (_, _, unit, what, f) = crate::units::ACCEL_COEFFICIENTS[i];
+        let sym = ["VQ", "VRW", "B", "AcRW", "AR"][i];
+        (what, sym, unit, f)
+    }
     /// The deviation formula (tau in s, deviation in deg/h).
     pub fn formula(self) -> &'static str {
         match self {
