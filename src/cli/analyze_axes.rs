@@ -8,10 +8,10 @@
 
 use std::path::Path;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 
-use super::analyze::{
-    AnalyzeArgs, print_quality, print_table, stream_notes, warn_about, write_kalibr, write_value,
+use super::analyze_out::{
+    print_quality, print_table, stream_notes, warn_about, write_kalibr, write_value,
 };
 use super::input_args;
 use crate::input::Input;
@@ -20,27 +20,26 @@ use crate::pipeline::axes::{AxisRun, run_axes};
 use crate::sink::export::kalibr::KalibrAxis;
 use crate::sink::provenance::{Provenance, analysis_json};
 
+/// What the command asks of a multi-axis analysis.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct AxesJob<'a> {
+    pub kalibr: Option<&'a Path>,
+    pub json: Option<&'a Path>,
+    pub raw_statistics: bool,
+    /// `--input` as given (the JSON's `input.path`).
+    pub given_path: &'a Path,
+    /// Kalibr's `rostopic`.
+    pub rostopic: Option<&'a str>,
+}
+
 /// Analyse every axis of `input`.
-pub(super) fn run(args: &AnalyzeArgs, input: &Input, rostopic: Option<&str>) -> Result<()> {
-    let axes = input.axes();
-    for (flag, given) in [
-        ("--spec", args.spec.is_some()),
-        ("--allan-csv", args.allan_csv.is_some()),
-    ] {
-        if given {
-            bail!(
-                "{flag} takes one axis: choose it with --gyro ({} has {})",
-                input.path().display(),
-                axes.join(", ")
-            );
-        }
-    }
+pub(super) fn run(job: &AxesJob<'_>, input: &Input) -> Result<()> {
     let path = input.path();
-    let runs = run_axes(input, !args.input.raw_statistics)
+    let runs = run_axes(input, !job.raw_statistics)
         .with_context(|| format!("analysing {}", path.display()))?;
     let analyses: Vec<Analysis> = runs.iter().map(|r| r.fed.analysis()).collect();
     report_findings(&runs, &analyses, path);
-    if let Some(out) = &args.kalibr {
+    if let Some(out) = job.kalibr {
         let axes: Vec<KalibrAxis> = runs
             .iter()
             .zip(&analyses)
@@ -51,10 +50,13 @@ pub(super) fn run(args: &AnalyzeArgs, input: &Input, rostopic: Option<&str>) -> 
             })
             .collect();
         let rate = runs[0].fed.pipeline.config().sample_rate_hz;
-        write_kalibr(out, &axes, rate, path, rostopic)?;
+        write_kalibr(out, &axes, rate, path, job.rostopic)?;
     }
-    match &args.json {
-        Some(out) => write_value(out, &mut axes_json(args, input, &runs, &analyses)?),
+    match job.json {
+        Some(out) => write_value(
+            out,
+            &mut axes_json(job.given_path, input, &runs, &analyses)?,
+        ),
         None => {
             for (r, a) in runs.iter().zip(&analyses) {
                 println!("== {} ==", r.label);
@@ -82,20 +84,20 @@ fn report_findings(runs: &[AxisRun], analyses: &[Analysis], path: &Path) {
 
 /// `{"axes": {label: the axis's single-axis JSON}, "sagnac_version", "input"}`.
 fn axes_json(
-    args: &AnalyzeArgs,
+    given_path: &Path,
     input: &Input,
     runs: &[AxisRun],
     analyses: &[Analysis],
 ) -> Result<serde_json::Value> {
     let mut axes = serde_json::Map::new();
     for (r, a) in runs.iter().zip(analyses) {
-        let mut settings = input_args::settings(&r.input, &args.input.input);
+        let mut settings = input_args::settings(&r.input, given_path);
         settings.stamps = r.fed.report.stamps.clone();
         let v = analysis_json(a, None, settings, r.input.meta().unit.quantity())?;
         axes.insert(r.label.clone(), v);
     }
     let mut top = serde_json::json!({ "axes": axes });
-    let mut settings = input_args::settings(input, &args.input.input);
+    let mut settings = input_args::settings(input, given_path);
     settings.stamps = runs[0].fed.report.stamps.clone();
     settings.unit = None;
     Provenance::new(settings, Vec::new()).insert_into(&mut top);

@@ -7,12 +7,14 @@ use clap::{Parser, Subcommand};
 pub mod allan;
 pub mod analyze;
 mod analyze_axes;
+pub(crate) mod analyze_out;
 pub mod completions;
 pub mod diagnose;
 pub mod input_args;
 pub mod progress;
 pub mod report;
 mod report_axes;
+mod report_one;
 pub mod run;
 pub mod simulate;
 

@@ -28,7 +28,7 @@ pub(super) fn run(input: &Input, out: &Path, raw_statistics: bool) -> Result<()>
             .map(|(one, label)| {
                 let dir = out.join(label);
                 s.spawn(move || {
-                    super::report::one(one, &dir, None, None, None, raw_statistics)
+                    super::report_one::one(one, &dir, None, None, None, raw_statistics)
                         .map(|(_, a)| a)
                         .with_context(|| format!("the report of axis {label}"))
                 })

@@ -26,7 +26,6 @@ pub fn draw<DB: DrawingBackend>(
         ("clean", &a.allan.clean, plot::CLEAN),
         ("noise", &a.allan.noise, plot::NOISE),
     ];
-    let pos = |v: f64| v.is_finite() && v > 0.0;
     let (t_lo, t_hi, d_lo, d_hi) = bounds(&curves);
     if !(t_lo < t_hi && d_lo <= d_hi) {
         left.draw(&Text::new(
@@ -90,8 +89,21 @@ pub fn draw<DB: DrawingBackend>(
                 .map_err(draw_err)?;
         }
     }
-    // noise and clean first, the raw curve on top as open rings (it often
-    // coincides with one of them)
+    draw_curves(&mut chart, &curves, (d_lo, d_hi))?;
+
+    let rows = legend_rows(&asym, u);
+    let legend = right.margin(50, 10, 4, 4);
+    plot::side_legend(&legend, &rows)
+}
+
+/// The three curves with their interval bars: noise and clean first, the
+/// raw curve on top as open rings (it often coincides with one of them).
+fn draw_curves<DB: DrawingBackend>(
+    chart: &mut ChartContext<'_, DB, Cartesian2d<LogCoord<f64>, LogCoord<f64>>>,
+    curves: &[(&str, &[AllanPoint], RGBColor)],
+    (d_lo, d_hi): (f64, f64),
+) -> Result<(), ReportError> {
+    let pos = |v: f64| v.is_finite() && v > 0.0;
     for (name, pts, c) in curves.iter().rev() {
         let good: Vec<&AllanPoint> = pts.iter().filter(|p| pos(p.tau_s) && pos(p.dev)).collect();
         chart
@@ -129,9 +141,7 @@ pub fn draw<DB: DrawingBackend>(
         }
     }
 
-    let rows = legend_rows(&asym, u);
-    let legend = right.margin(50, 10, 4, 4);
-    plot::side_legend(&legend, &rows)
+    Ok(())
 }
 
 /// The span of tau and of the deviations (with their intervals) to plot.

@@ -372,7 +372,8 @@ mod tests {
         assert_eq!(color_range(&c), Some((0.0, 2.0)));
         // drawn: no NaN reaches the SVG, and one rectangle per cell besides the
         // bar's strips and the background
-        let svg = super::super::svg((600, 400), |a| draw(a, &m, 35.0)).unwrap();
+        let svg = super::super::svg((600, 400), |a| draw(a, &m, 35.0, super::super::Units::GYRO))
+            .unwrap();
         assert!(!svg.contains("NaN"));
         assert_eq!(svg.matches("<rect").count() - BAR_STRIPS, 7 + 1);
     }
