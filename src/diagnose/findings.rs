@@ -8,7 +8,7 @@
 
 use std::collections::BTreeMap;
 
-use super::{AddedTerm, ParameterChange};
+use super::types::{AddedTerm, ParameterChange};
 use crate::model::GyroModel;
 use crate::model::config::{
     BiasStepParams, GaussMarkovParams, RandomTelegraphParams, ResonanceParams, SinusoidParams,

@@ -21,7 +21,8 @@ use std::ops::Range;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 use super::findings::{Edit, Finding, fmt_g};
-use super::{AddedTerm, DiagnoseError, ParameterChange, Recording};
+use super::types::{AddedTerm, ParameterChange};
+use super::types::{DiagnoseError, Recording};
 use crate::model::GyroModel;
 use crate::model::config::{BiasStepParams, OutputKind, SpikesParams, WarmupParams};
 use crate::pipeline::{Pipeline, PipelineConfig, PipelineOutput};

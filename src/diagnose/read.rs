@@ -2,7 +2,7 @@
 //! when it carries information, and the sample rate and pulse weight the
 //! input says (an MCAP recording's own), else the model's `[gyro]`.
 
-use super::{DiagnoseError, Recording};
+use super::types::{DiagnoseError, Recording};
 use crate::input::{Input, InputError, Unit};
 use crate::model::GyroModel;
 use crate::model::config::OutputKind;

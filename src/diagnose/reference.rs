@@ -16,10 +16,11 @@
 use std::f64::consts::PI;
 
 use super::compare::Point;
+use super::mc;
 use super::mc::Progress;
 use super::points::{KTerm, all_points, kurtosis_scales};
 use super::stats::{self, StatLayout, StatSet};
-use super::{DiagnoseError, DiagnoseOptions, Recording, check_recording, mc};
+use super::types::{DiagnoseError, DiagnoseOptions, Recording, check_recording};
 use crate::model::GyroModel;
 use crate::model::config::OutputKind;
 use crate::units;

@@ -18,13 +18,14 @@ use super::compare::{self, Family, Point};
 use super::findings::{
     Edit, Finding, UnitConv, fitted_parameters, fmt_g, sqrt_ci, tidy, with_findings,
 };
+use super::mc;
 use super::points::{all_points, detect_points, floors, mean_stats};
 use super::readout;
 use super::reference::Reference;
 use super::stats::StatSet;
 use super::telegraph::{self, telegraph_alternative};
+use super::types::{DiagnoseError, DiagnoseOptions, Recording, TelegraphTest};
 use super::wvar_fit::{self, Basis, LevelData};
-use super::{DiagnoseError, DiagnoseOptions, Recording, TelegraphTest, mc};
 use crate::model::GyroModel;
 use crate::units;
 

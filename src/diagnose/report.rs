@@ -7,13 +7,12 @@
 //! chi2/dof before and after. Term names are model-file keys. The notes are
 //! the same findings as sentences, with what the tests saw.
 
-use std::collections::BTreeMap;
-
 use serde::{Deserialize, Serialize};
 
 use super::candidates::ModelComparison;
 use super::compare::Region;
 use super::findings::{Finding, fmt_g, merged_changes};
+pub use super::types::{AddedTerm, ParameterChange};
 
 /// `"consistent"` or `"mismatch"`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -29,87 +28,6 @@ pub struct MismatchRegion {
     pub tau_min_s: f64,
     pub tau_max_s: f64,
     pub max_z: f64,
-}
-
-/// A changed parameter of a term the model already has (JSON).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct ParameterChange {
-    /// Model-file key (`arw_dpsh`, `gauss_markov[0].tau_c_s`, ...).
-    pub term: String,
-    pub model: f64,
-    pub fitted: f64,
-    pub ci95: [f64; 2],
-}
-
-/// A term the model lacks (JSON).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(into = "AddedTermJson", try_from = "AddedTermJson")]
-pub struct AddedTerm {
-    /// Model-file key (`gauss_markov`, `sinusoid`, `random_telegraph`, `rrw_dphsh`, ...).
-    pub term: String,
-    /// Model-file parameter names and fitted values.
-    pub params: BTreeMap<String, f64>,
-    /// The term's kind when it has several (`readout_filter`: `moving_average`
-    /// or `first_order`); in the JSON it is `params.kind`.
-    pub kind: Option<String>,
-    pub explanation: String,
-    /// 95 % intervals of the parameters (same names as `params`).
-    pub ci95: BTreeMap<String, [f64; 2]>,
-}
-
-/// [`AddedTerm`] as written: the kind among the parameters.
-#[derive(Serialize, Deserialize)]
-struct AddedTermJson {
-    term: String,
-    params: BTreeMap<String, serde_json::Value>,
-    explanation: String,
-    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
-    ci95: BTreeMap<String, [f64; 2]>,
-}
-
-impl From<AddedTerm> for AddedTermJson {
-    fn from(a: AddedTerm) -> Self {
-        let mut params: BTreeMap<String, serde_json::Value> = a
-            .params
-            .into_iter()
-            .map(|(k, v)| (k, serde_json::Value::from(v)))
-            .collect();
-        if let Some(kind) = a.kind {
-            params.insert("kind".into(), serde_json::Value::String(kind));
-        }
-        AddedTermJson {
-            term: a.term,
-            params,
-            explanation: a.explanation,
-            ci95: a.ci95,
-        }
-    }
-}
-
-impl TryFrom<AddedTermJson> for AddedTerm {
-    type Error = String;
-    fn try_from(j: AddedTermJson) -> Result<Self, String> {
-        let mut params = BTreeMap::new();
-        let mut kind = None;
-        for (k, v) in j.params {
-            match (k.as_str(), v) {
-                ("kind", serde_json::Value::String(s)) => kind = Some(s),
-                (_, v) => {
-                    let x = v.as_f64().ok_or_else(|| {
-                        format!("added term {}: params.{k} is not a number", j.term)
-                    })?;
-                    params.insert(k, x);
-                }
-            }
-        }
-        Ok(AddedTerm {
-            term: j.term,
-            params,
-            kind,
-            explanation: j.explanation,
-            ci95: j.ci95,
-        })
-    }
 }
 
 /// Chi-square per degree of freedom over the compared points (JSON).

@@ -19,7 +19,7 @@ use super::findings::{Edit, Finding, fmt_g, with_findings};
 use super::reference::Reference;
 use super::stats;
 use super::telegraph::mean_sd;
-use super::{ALPHA_SLOPE, Recording};
+use super::types::{ALPHA_SLOPE, Recording};
 use crate::model::config::ThermalParams;
 use crate::model::spectrum::model_spectral_terms;
 use crate::model::{GyroModel, Term};

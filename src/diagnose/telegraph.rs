@@ -24,12 +24,14 @@ use statrs::distribution::{ContinuousCDF, StudentsT};
 use super::compare::{Family, Point};
 use super::findings::{Edit, Finding, fmt_g, sqrt_ci, with_findings};
 use super::locate::Located;
+use super::mc;
 use super::points::KTerm;
 use super::reference::Reference;
 use super::stats::{self, StatSet};
 use super::two_level::TwoLevelProbe;
+use super::types::{AddedTerm, ParameterChange};
+use super::types::{DiagnoseError, Recording, TelegraphTest};
 use super::wvar_fit::{self, Basis, LevelData};
-use super::{AddedTerm, DiagnoseError, ParameterChange, Recording, TelegraphTest, mc};
 use crate::model::{GyroModel, Term};
 use crate::units;
 

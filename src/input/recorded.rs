@@ -89,6 +89,10 @@ pub(super) fn open(path: &Path, req: &Request, meta: &mut Meta) -> Result<(), In
     let gyros = recorded_gyros(path)?;
     meta.gyros = gyros.iter().filter_map(|g| g.label.clone()).collect();
     meta.gyro = pick_gyro(path, &meta.gyros, req)?;
+    if meta.gyro.is_none() && !meta.gyros.is_empty() {
+        // every gyro, each opened on its own (`Input::for_axis`): its settings are its own
+        return Ok(());
+    }
     let gyro = gyros
         .into_iter()
         .find(|g| g.label == meta.gyro)

@@ -220,15 +220,6 @@ fn a_triad_over_a_pty_exact_per_gyro_counts_estimates_and_every_pulse_recorded()
     };
     let rec_s = rec.to_str().unwrap();
     let out = sagnac(&[
-        "analyze", "--input", rec_s, "--format", "mcap", "--json", "-",
-    ]);
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        err.contains("several gyros (x, y, z)") && err.contains("--gyro"),
-        "{err}"
-    );
-    let out = sagnac(&[
         "analyze", "--input", rec_s, "--format", "mcap", "--gyro", "z", "--json", "-",
     ]);
     assert!(
@@ -238,6 +229,21 @@ fn a_triad_over_a_pty_exact_per_gyro_counts_estimates_and_every_pulse_recorded()
     );
     let a: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(a["input"]["gyro"], "z", "the JSON says which gyro it read");
+    // without --gyro: every gyro, each as it is read alone
+    let out = sagnac(&["analyze", "--input", rec_s, "--json", "-"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let all: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let labels: Vec<&String> = all["axes"].as_object().unwrap().keys().collect();
+    assert_eq!(labels, ["x", "y", "z"]);
+    assert_eq!(all["axes"]["z"]["estimates"], a["estimates"]);
+    assert_eq!(all["axes"]["z"]["input"], a["input"]);
+    let out = sagnac(&["analyze", "--input", rec_s, "--gyro", "w"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("x, y, z"), "{err}");
     // `sagnac run --replay` of the recording: three gyros again, each with its
     // label; each one's raw channel holds the recorded samples and gaps, so
     // analyze reads the same gyro z from both recordings
