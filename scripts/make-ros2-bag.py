@@ -200,9 +200,12 @@ def main():
     p.add_argument("--jitter-ns", type=int, default=0)
     p.add_argument("--second-topic", action="store_true")
     p.add_argument("--dep-form", choices=["short", "long"], default="short")
+    p.add_argument("--nan-at", type=int, help="gyro_y of this grid index is NaN (a broken message)")
     p.add_argument("--csv", type=Path)
     args = p.parse_args()
     data = samples(args)
+    if args.nan_at is not None:
+        data["gyro_y"][args.nan_at] = float("nan")
     msgs, keep = schedule(args, np.random.default_rng(args.seed + 1))
     if args.kind == "mcap":
         write_mcap(args.out, msgs, data, args)

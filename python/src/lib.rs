@@ -83,6 +83,9 @@ fn phase_of(data: &[f64], data_type: &str, tau0: f64) -> PyResult<Phase> {
 
 /// Deviations of `stat` at the averaging factors `ms`: those with a value,
 /// their deviations and term counts. Length of the phase first.
+/// (phase length, averaging factors kept, deviations, term counts)
+type Deviations = (usize, Vec<u64>, Vec<f64>, Vec<u64>);
+
 #[pyfunction]
 fn deviations(
     data: PyReadonlyArray1<'_, f64>,
@@ -90,7 +93,7 @@ fn deviations(
     data_type: &str,
     stat: &str,
     ms: Vec<u64>,
-) -> PyResult<(usize, Vec<u64>, Vec<f64>, Vec<u64>)> {
+) -> PyResult<Deviations> {
     let phase = phase_of(data.as_slice()?, data_type, 1.0 / rate)?;
     let stat = stat_of(stat)?;
     let (mut kept, mut devs, mut ns) = (Vec::new(), Vec::new(), Vec::new());
@@ -118,6 +121,7 @@ fn phase_len(n: usize, data_type: &str) -> PyResult<usize> {
 /// the averaging factors.
 #[pyfunction]
 #[pyo3(signature = (data, tau0, data_type, stat, taus=None, ms=None, confidence=0.683))]
+#[allow(clippy::too_many_arguments)]
 fn allan_curve<'py>(
     py: Python<'py>,
     data: PyReadonlyArray1<'_, f64>,

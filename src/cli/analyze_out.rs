@@ -175,7 +175,7 @@ pub(crate) fn coefficient_rows(e: &NoiseEstimates, q: Quantity) -> Vec<(String, 
     gyro.iter()
         .zip(ACCEL_COEFFICIENTS)
         .map(|((name, c), (_, _, unit, what, f))| match q {
-            Quantity::AngularRate => (name.to_string(), (*c).clone()),
+            Quantity::AngularRate => (name.to_string(), **c),
             Quantity::Acceleration => (
                 format!("{what}, {unit}"),
                 Coefficient {

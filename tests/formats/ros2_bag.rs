@@ -262,6 +262,16 @@ fn sqlite_bags_and_misplaced_flags_get_clear_errors() {
         "100",
     ]);
     assert!(e.contains("--sample-rate-hz"), "{e}");
+    let (nan, _) = make_bag(d.path(), "nan.mcap", &["--n", "2000", "--nan-at", "700"]);
+    let e = fails(&["--input", nan.to_str().unwrap(), "--gyro", "gyro_y"]);
+    assert!(
+        e.contains("message #700 on /imu") && e.contains("gyro_y is not finite (NaN)"),
+        "{e}"
+    );
+    let e = fails(&["--input", nan.to_str().unwrap()]);
+    assert!(e.contains("gyro_y is not finite"), "{e}");
+    let ok = analyze(&["--input", nan.to_str().unwrap(), "--gyro", "gyro_x"]);
+    assert_eq!(ok["samples"], 2000);
     let empty = d.path().join("empty");
     std::fs::create_dir(&empty).unwrap();
     let e = fails(&["--input", empty.to_str().unwrap()]);

@@ -95,6 +95,15 @@ pub enum Ros2Error {
         topic: String,
         topics: BTreeMap<String, TopicInfo>,
     },
+    #[error("{}: message #{index} on {topic} (stamp {stamp_ns} ns): {axis} is not finite ({value})", path.display())]
+    NonFinite {
+        path: PathBuf,
+        topic: String,
+        index: u64,
+        stamp_ns: i64,
+        axis: &'static str,
+        value: f64,
+    },
     #[error("{}: topic {topic} has {messages} messages but fewer than two distinct stamps: no sample rate", path.display())]
     NoTiming {
         path: PathBuf,
@@ -359,6 +368,17 @@ impl Ros2Stream {
             match self.msgs.next_message()? {
                 None => self.ended = true,
                 Some((_, s)) => {
+                    if let Some(&a) = self.axes.iter().find(|&&a| !s.axes[a].is_finite()) {
+                        return Err(Ros2Error::NonFinite {
+                            path: self.path.clone(),
+                            topic: self.report.topic.clone(),
+                            index: self.report.messages,
+                            stamp_ns: s.stamp_ns,
+                            axis: AXES[a],
+                            value: s.axes[a],
+                        }
+                        .into());
+                    }
                     self.report.messages += 1;
                     if s.stamp_ns < self.newest {
                         self.report.out_of_order += 1;

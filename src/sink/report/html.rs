@@ -391,7 +391,7 @@ fn coefficients(h: &mut String, a: &Analysis, u: super::Units) {
     ];
     for (k, c) in super::terms::Kind::ALL.into_iter().zip(coefs) {
         let (name, sym, unit, c) = if u == super::Units::GYRO {
-            (k.name(), k.symbol(), k.unit(), c.clone())
+            (k.name(), k.symbol(), k.unit(), *c)
         } else {
             let (name, sym, unit, f) = k.accel();
             let scaled = crate::model::estimate::Coefficient {
