@@ -176,14 +176,7 @@ pub(crate) fn coefficient_rows(e: &NoiseEstimates, q: Quantity) -> Vec<(String, 
         .zip(ACCEL_COEFFICIENTS)
         .map(|((name, c), (_, _, unit, what, f))| match q {
             Quantity::AngularRate => (name.to_string(), **c),
-            Quantity::Acceleration => (
-                format!("{what}, {unit}"),
-                Coefficient {
-                    value: c.value.map(|v| v * f),
-                    ci95: c.ci95.map(|[lo, hi]| [lo * f, hi * f]),
-                    upper95: c.upper95.map(|u| u * f),
-                },
-            ),
+            Quantity::Acceleration => (format!("{what}, {unit}"), c.scaled(f)),
         })
         .collect()
 }

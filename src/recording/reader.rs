@@ -695,7 +695,7 @@ enum Inner {
 }
 
 /// Read up to `buf.len()` bytes, retrying on interruption; 0 means end of file.
-fn read_some(input: &mut impl Read, buf: &mut [u8]) -> io::Result<usize> {
+pub(crate) fn read_some(input: &mut impl Read, buf: &mut [u8]) -> io::Result<usize> {
     loop {
         match input.read(buf) {
             Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,

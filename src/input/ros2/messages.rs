@@ -14,6 +14,7 @@ use ::mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReader
 use super::Ros2Error;
 use super::bag::Bag;
 use super::imu::{self, IMU_NAMES, ImuSample};
+use crate::recording::reader::read_some;
 
 /// Bytes asked of a file at a time.
 const READ_BLOCK: usize = 1 << 16;
@@ -198,18 +199,4 @@ impl FileReader {
         }
         Ok(Step::More)
     }
-}
-
-/// Read into `buf` until it is full or the input ends.
-fn read_some(input: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
-    let mut n = 0;
-    while n < buf.len() {
-        match input.read(&mut buf[n..]) {
-            Ok(0) => break,
-            Ok(k) => n += k,
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-            Err(e) => return Err(e),
-        }
-    }
-    Ok(n)
 }

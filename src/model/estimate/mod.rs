@@ -198,6 +198,19 @@ pub struct Coefficient {
     pub upper95: Option<f64>,
 }
 
+impl Coefficient {
+    /// The coefficient in another unit: value, interval and bound times `f`
+    /// (an accelerometer's name for a gyro-named coefficient,
+    /// [`crate::units::ACCEL_COEFFICIENTS`]).
+    pub fn scaled(&self, f: f64) -> Coefficient {
+        Coefficient {
+            value: self.value.map(|v| v * f),
+            ci95: self.ci95.map(|[lo, hi]| [lo * f, hi * f]),
+            upper95: self.upper95.map(|u| u * f),
+        }
+    }
+}
+
 /// The five IEEE 952 coefficients.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -164,22 +164,13 @@ const FIELDS: [Field; 4] = [
     },
 ];
 
-/// A coefficient in its printed unit.
-fn printed(c: &Coefficient, f: f64) -> Coefficient {
-    Coefficient {
-        value: c.value.map(|v| v * f),
-        ci95: c.ci95.map(|[lo, hi]| [lo * f, hi * f]),
-        upper95: c.upper95.map(|u| u * f),
-    }
-}
-
 /// The lines of one field: its comments and `name: value`, the largest of
 /// the axes of its quantity; nothing when no axis measures that quantity.
 fn field_lines(f: &Field, axes: &[KalibrAxis], y: &mut String) -> Result<bool, ExportError> {
     let mut chosen: Option<(f64, String, &str)> = None;
     let mut notes = Vec::new();
     for a in axes.iter().filter(|a| a.quantity == f.quantity) {
-        let c = printed((f.pick)(a.estimates), f.to_printed);
+        let c = (f.pick)(a.estimates).scaled(f.to_printed);
         let (v, note) = describe(basis(&c, f.name, f.term)?, f.sym, f.unit);
         notes.push(format!("{}: {note}", a.label));
         if chosen.as_ref().is_none_or(|(best, _, _)| v > *best) {

@@ -394,12 +394,7 @@ fn coefficients(h: &mut String, a: &Analysis, u: super::Units) {
             (k.name(), k.symbol(), k.unit(), *c)
         } else {
             let (name, sym, unit, f) = k.accel();
-            let scaled = crate::model::estimate::Coefficient {
-                value: c.value.map(|v| v * f),
-                ci95: c.ci95.map(|[lo, hi]| [lo * f, hi * f]),
-                upper95: c.upper95.map(|b| b * f),
-            };
-            (name, sym, unit, scaled)
+            (name, sym, unit, c.scaled(f))
         };
         let (v, ci) = coef_cells(&c);
         let _ = write!(
