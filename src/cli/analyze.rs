@@ -152,6 +152,8 @@ pub fn run(args: AnalyzeArgs) -> Result<()> {
 fn open(args: &AnalyzeArgs) -> Result<(Input, Option<String>)> {
     let mut req = args.input.request();
     req.all_axes = true;
+    // the one pass of the analysis checks the rest of the counts
+    req.whole_on_first_samples = true;
     match Input::open(&args.input.input, &req) {
         Ok(input) => {
             let topic = input.meta().bag.as_ref().map(|b| b.topic.clone());

@@ -124,6 +124,7 @@ impl InputArgs {
             topic: self.topic.clone(),
             all_axes: false,
             values_only: false,
+            whole_on_first_samples: false,
         }
     }
 

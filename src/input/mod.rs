@@ -28,12 +28,14 @@ pub mod capture;
 pub mod detect;
 pub mod frame;
 pub mod plain;
+mod prefetch;
 mod recorded;
 pub mod ros2;
 mod stream;
 
 pub use detect::{Format, FormatOrigin};
 pub use recorded::{RecordedGyro, recorded_gyros};
+pub use prefetch::Prefetch;
 pub use stream::{Block, BlockSource, Stream, StreamReport};
 
 use crate::recording::meta::Contradiction;
@@ -140,6 +142,12 @@ pub struct Request {
     /// checking up front whether they are whole pulse counts (`sagnac allan`
     /// on phase or frequency data). Counters still stream counts.
     pub values_only: bool,
+    /// Judge whether the counts of a text, CSV or f64le file are whole
+    /// numbers on its first samples instead of reading it all up front: a
+    /// pass then stops at the first fraction ([`PlainError::NotInteger`]) and
+    /// [`crate::pipeline::feed::run`] reads the file again as rates
+    /// ([`Input::as_fractional`]). For the callers that read an input once.
+    pub whole_on_first_samples: bool,
 }
 
 /// What an input is, and the settings it is read with.
@@ -170,6 +178,10 @@ pub struct Meta {
     /// The samples are whole pulse counts: they stream as integers
     /// ([`Block::counts`]), for the exact integer path.
     pub integral: bool,
+    /// `integral` was judged on the first [`WHOLE_CHECK_SAMPLES`] samples
+    /// only ([`Request::whole_on_first_samples`]); a pass stops with
+    /// [`PlainError::NotInteger`] at a later fraction.
+    pub integral_tentative: bool,
     /// Number of samples, when known without reading them all.
     pub len_hint: Option<u64>,
     /// A ROS 2 bag's topic and the timing of its stamps.
@@ -314,6 +326,7 @@ impl Input {
             gyro: None,
             column: None,
             integral: false,
+            integral_tentative: false,
             len_hint: None,
             bag: None,
         };
@@ -427,6 +440,7 @@ impl Input {
             gyro: None,
             column: None,
             integral,
+            integral_tentative: false,
             len_hint: Some(values.len() as u64),
             bag: None,
         };
@@ -472,6 +486,27 @@ impl Input {
             path: self.path.clone(),
             what: format!("{what}{why}"),
         }
+    }
+
+    /// The input read as rate values (its counts not whole): where a pass
+    /// over an input whose counts were judged whole on their first samples
+    /// met a fraction ([`Meta::integral_tentative`]).
+    pub fn as_fractional(&self) -> Input {
+        let mut input = self.clone();
+        input.meta.integral = false;
+        input.meta.integral_tentative = false;
+        input
+    }
+
+    /// The input with its counts checked whole over the whole file, when they
+    /// were judged on their first samples only.
+    pub fn checked_whole(&self) -> Result<Input, InputError> {
+        let mut input = self.clone();
+        if input.meta.integral_tentative {
+            let meta = &mut input.meta;
+            (meta.integral, meta.integral_tentative) = whole_numbers(&self.path, meta, None)?;
+        }
+        Ok(input)
     }
 
     /// A new pass over the samples, from the first.
@@ -559,7 +594,8 @@ fn open_plain(path: &Path, req: &Request, meta: &mut Meta) -> Result<(), InputEr
         ));
     }
     if meta.unit == Unit::Counts && !req.values_only {
-        meta.integral = whole_numbers(path, meta)?;
+        let limit = req.whole_on_first_samples.then_some(WHOLE_CHECK_SAMPLES);
+        (meta.integral, meta.integral_tentative) = whole_numbers(path, meta, limit)?;
     }
     if meta.format == Format::F64le && !meta.gzip {
         meta.len_hint = std::fs::metadata(path).ok().map(|m| m.len() / 8);
@@ -567,21 +603,32 @@ fn open_plain(path: &Path, req: &Request, meta: &mut Meta) -> Result<(), InputEr
     Ok(())
 }
 
-/// Whether every value of the column is a whole number (read once, up front).
-fn whole_numbers(path: &Path, meta: &mut Meta) -> Result<bool, InputError> {
+/// Samples [`Request::whole_on_first_samples`] judges the counts on.
+pub const WHOLE_CHECK_SAMPLES: u64 = 1 << 16;
+
+/// Whether every value of the column (or of its first `limit`) is a whole
+/// number, and whether values are left unread after `limit`.
+fn whole_numbers(
+    path: &Path,
+    meta: &mut Meta,
+    limit: Option<u64>,
+) -> Result<(bool, bool), InputError> {
     let mut r = plain::SampleReader::open(path, meta.format, meta.column.as_deref())?
         .require_integers(true);
     let mut block = Vec::new();
     loop {
+        if limit.is_some_and(|l| r.samples_read() >= l) {
+            return Ok((true, true));
+        }
         match r.next_block(&mut block, 1 << 16) {
             Ok(0) => break,
             Ok(_) => {}
-            Err(PlainError::NotInteger { .. }) => return Ok(false),
+            Err(PlainError::NotInteger { .. }) => return Ok((false, false)),
             Err(e) => return Err(e.into()),
         }
     }
     meta.len_hint = Some(r.samples_read());
-    Ok(true)
+    Ok((true, false))
 }
 
 /// A raw frame capture: one gyro, or the `--gyro` of a triad.

@@ -120,8 +120,10 @@ impl Stream {
         let source = match meta.format {
             Format::Csv | Format::Text | Format::F64le => {
                 let side = (meta.format == Format::Csv).then_some(TEMPERATURE_COLUMN);
+                // a fraction after the counts judged whole stops the pass
                 let r =
-                    SampleReader::open_with_side(path, meta.format, meta.column.as_deref(), side)?;
+                    SampleReader::open_with_side(path, meta.format, meta.column.as_deref(), side)?
+                        .require_integers(meta.integral);
                 Source::Plain(r, Vec::with_capacity(PLAIN_BLOCK))
             }
             Format::Frames => Source::Single(Box::new(capture::<Single>(path, meta, 0)?)),
@@ -198,6 +200,11 @@ impl Stream {
         self.report.clone()
     }
 
+    /// The file read.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
     fn finish(&mut self) -> Result<(), InputError> {
         let path = self.path.clone();
         match &self.source {
@@ -272,7 +279,7 @@ fn plain_block(
         return Ok(false);
     }
     if integral {
-        // checked whole when the input was opened
+        // whole: checked when the input was opened, or by the reader
         block.counts.extend(buf.iter().map(|&v| v as i64));
     } else {
         std::mem::swap(&mut block.values, buf);

@@ -15,7 +15,8 @@
 //! result ([`crate::quality`]).
 
 use super::{Analysis, Pipeline, PipelineConfig, PipelineError, PipelineOutput};
-use crate::input::{Block, BlockSource, Input, InputError, StreamReport, Unit};
+use crate::input::plain::PlainError;
+use crate::input::{Block, BlockSource, Input, InputError, Prefetch, StreamReport, Unit};
 use crate::quality::davar::DavarMap;
 use crate::quality::lowfreq::{Correction, FineNoise};
 use crate::quality::{self, DataQuality};
@@ -72,27 +73,44 @@ pub struct Fed {
     /// The first pass's dynamic Allan deviation (glitches excluded, nothing
     /// else handled), for the report's figure.
     pub davar: Option<DavarMap>,
+    /// The final analysis (the pipeline's, with the data-quality findings),
+    /// computed once.
+    analysis: Analysis,
 }
 
 impl Fed {
     /// The final analysis, with the data-quality findings.
     pub fn analysis(&self) -> Analysis {
-        let mut a = self.pipeline.analysis();
-        a.data_quality = self.data_quality.clone();
-        a
+        self.analysis.clone()
     }
 }
 
 /// Run every sample of `input` through a pipeline configured by `cfg`,
-/// showing each push of the first pass to `tap`.
+/// showing each push of the first pass to `tap`. Counts judged whole on
+/// their first samples ([`crate::input::Meta::integral_tentative`]) that turn
+/// out to hold a fraction are read again as rates, the result of an input
+/// opened as not whole; with a `tap`, which must see one pass only, such an
+/// input is checked whole first.
 pub fn run(
     input: &Input,
     cfg: &PipelineConfig,
     progress: Progress,
     tap: Option<Tap>,
 ) -> Result<Fed, PipelineError> {
-    let mut stream = input.stream()?;
-    run_from(input, &mut stream, cfg, progress, tap)
+    let tentative = input.meta().integral_tentative;
+    if tentative && tap.is_some() {
+        let checked = input.checked_whole()?;
+        return run(&checked, cfg, progress, tap);
+    }
+    let mut stream = Prefetch::new(input.stream()?)?;
+    match run_from(input, &mut stream, cfg, progress, tap) {
+        Err(PipelineError::Input(InputError::Plain(PlainError::NotInteger { .. }))) if tentative => {
+            let rates = input.as_fractional();
+            let mut stream = Prefetch::new(rates.stream()?)?;
+            run_from(&rates, &mut stream, cfg, progress, None)
+        }
+        done => done,
+    }
 }
 
 /// [`run`], the first pass taking its blocks from `first` (one axis of a
@@ -106,18 +124,19 @@ pub fn run_from(
     tap: Option<Tap>,
 ) -> Result<Fed, PipelineError> {
     let (pipe, report) = pass(input, first, cfg, progress, tap, None)?;
+    let first = pipe.analysis();
     if !cfg.data_quality {
         return Ok(Fed {
             pipeline: pipe,
             report,
             data_quality: None,
             davar: None,
+            analysis: first,
         });
     }
-    let est = pipe.estimator_output().estimates;
     let fine = FineNoise {
-        arw_dpsh: est.arw_dpsh.value.unwrap_or(0.0),
-        quantization_arcsec: est.quantization_arcsec.value.unwrap_or(0.0),
+        arw_dpsh: first.estimates.arw_dpsh.value.unwrap_or(0.0),
+        quantization_arcsec: first.estimates.quantization_arcsec.value.unwrap_or(0.0),
     };
     let spikes = pipe.spike_report().cloned().unwrap_or_default();
     let series = pipe
@@ -125,11 +144,11 @@ pub fn run_from(
         .expect("the data-quality stage keeps block means");
     let davar = pipe.davar().map(|d| d.map());
     let (mut dq, correction) = quality::assess(&spikes, &series, fine);
-    let final_pipe = if correction.is_empty() {
-        pipe
+    let (final_pipe, mut analysis) = if correction.is_empty() {
+        (pipe, first)
     } else {
-        let mut again = input.stream()?;
-        pass(
+        let mut again = Prefetch::new(input.stream()?)?;
+        let p = pass(
             input,
             &mut again,
             cfg,
@@ -137,20 +156,19 @@ pub fn run_from(
             None,
             Some(&correction),
         )?
-        .0
+        .0;
+        let a = p.analysis();
+        (p, a)
     };
-    let q = final_pipe
-        .estimator_output()
-        .estimates
-        .quantization_arcsec
-        .value
-        .unwrap_or(0.0);
+    let q = analysis.estimates.quantization_arcsec.value.unwrap_or(0.0);
     dq.stationary = final_pipe.davar().and_then(|d| d.stationarity(q));
+    analysis.data_quality = Some(dq.clone());
     Ok(Fed {
         pipeline: final_pipe,
         report,
         data_quality: Some(dq),
         davar,
+        analysis,
     })
 }
 

@@ -1,6 +1,9 @@
 //! Dense linear algebra for the low-frequency analysis: the Cholesky factor
 //! of a block-mean covariance, whitening, and generalised least squares.
-//! Matrices are small (at most a few hundred blocks), so plain loops serve.
+//! Matrices are small (at most a few hundred blocks), so plain loops serve,
+//! compiled for the widest vectors the CPU has ([`Isa`]).
+
+use crate::dsp::isa::Isa;
 
 /// A symmetric positive-definite matrix's lower Cholesky factor, row-major.
 #[derive(Debug, Clone)]
@@ -15,23 +18,16 @@ impl Cholesky {
     /// positive definite.
     pub fn new(a: &[f64], n: usize) -> Option<Cholesky> {
         let mut l = vec![0.0; n * n];
-        let mut log_det = 0.0;
         for i in 0..n {
-            for j in 0..=i {
-                let s = dot(&l[i * n..i * n + j], &l[j * n..j * n + j]);
-                let v = a[i * n + j] - s;
-                if i == j {
-                    if !(v > 0.0) || !v.is_finite() {
-                        return None;
-                    }
-                    let d = v.sqrt();
-                    l[i * n + i] = d;
-                    log_det += 2.0 * d.ln();
-                } else {
-                    l[i * n + j] = v / l[j * n + j];
-                }
-            }
+            l[i * n..=i * n + i].copy_from_slice(&a[i * n..=i * n + i]);
         }
+        let log_det = match Isa::detect() {
+            // SAFETY: an `Avx2` or `Avx512` exists only on a CPU with the
+            // features the variant enables (crate::dsp::isa).
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 | Isa::Avx512 => unsafe { factor_avx2(&mut l, n) },
+            Isa::Baseline => factor(&mut l, n),
+        }?;
         Some(Cholesky { n, l, log_det })
     }
 
@@ -54,12 +50,66 @@ impl Cholesky {
 
     /// `L^-1 x` in place (forward substitution): the whitened `x`.
     pub fn whiten(&self, x: &mut [f64]) {
-        let n = self.n;
-        for i in 0..n {
-            let s = dot(&self.l[i * n..i * n + i], &x[..i]);
-            x[i] = (x[i] - s) / self.l[i * n + i];
+        match Isa::detect() {
+            // SAFETY: as in `Cholesky::new`.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 | Isa::Avx512 => unsafe { forward_avx2(&self.l, self.n, x) },
+            Isa::Baseline => forward(&self.l, self.n, x),
         }
     }
+}
+
+/// Right-looking Cholesky in place on the lower triangle of `l`: once a
+/// column of the factor is final, its outer product leaves the rows below
+/// it, each a contiguous update. `ln det`, or `None` when not definite.
+/// The variants perform the same IEEE operations lane by lane (no FMA), so
+/// they give the same bits.
+#[inline(always)]
+fn factor(l: &mut [f64], n: usize) -> Option<f64> {
+    let mut col = vec![0.0; n];
+    let mut log_det = 0.0;
+    for k in 0..n {
+        let v = l[k * n + k];
+        if !(v > 0.0) || !v.is_finite() {
+            return None;
+        }
+        let d = v.sqrt();
+        l[k * n + k] = d;
+        log_det += 2.0 * d.ln();
+        for i in k + 1..n {
+            l[i * n + k] /= d;
+            col[i] = l[i * n + k];
+        }
+        for i in k + 1..n {
+            let f = col[i];
+            let row = &mut l[i * n + k + 1..=i * n + i];
+            for (r, c) in row.iter_mut().zip(&col[k + 1..=i]) {
+                *r -= f * c;
+            }
+        }
+    }
+    Some(log_det)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn factor_avx2(l: &mut [f64], n: usize) -> Option<f64> {
+    factor(l, n)
+}
+
+/// Forward substitution `x <- L^-1 x`.
+#[inline(always)]
+fn forward(l: &[f64], n: usize, x: &mut [f64]) {
+    for i in 0..n {
+        let s = dot(&l[i * n..i * n + i], &x[..i]);
+        x[i] = (x[i] - s) / l[i * n + i];
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn forward_avx2(l: &[f64], n: usize, x: &mut [f64]) {
+    forward(l, n, x)
 }
 
 /// Whitened regressors, orthonormalised (modified Gram-Schmidt), to project
@@ -112,6 +162,7 @@ impl Basis {
 /// `a . b` over their common length, in four interleaved partial sums (so
 /// the compiler can vectorise it: the factorisations and whitenings of the
 /// slow-effect scans are nearly all dot products).
+#[inline(always)]
 pub fn dot(a: &[f64], b: &[f64]) -> f64 {
     let n = a.len().min(b.len());
     let (a, b) = (&a[..n], &b[..n]);

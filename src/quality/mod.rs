@@ -21,6 +21,7 @@ pub mod blocks;
 pub mod davar;
 pub mod gls;
 pub mod lowfreq;
+mod par;
 pub mod spikes;
 
 pub use lowfreq::{Interval, StepFit, ThermalFit};

@@ -922,3 +922,40 @@ fn the_format_is_found_by_content_and_a_contradicting_format_is_an_error() {
     std::fs::copy(&raw, &named).unwrap();
     assert_eq!(analyze_json(&named, &rate_flags).unwrap()["samples"], 5000);
 }
+
+/// Counts judged whole on their first samples that hold a fraction further
+/// on are analysed as the rates they are: the result of the same values
+/// given in deg/h (the rate path), not an error and not a truncation.
+#[test]
+fn a_fraction_after_the_first_samples_reads_the_counts_as_rates() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 3 * sagnac::input::WHOLE_CHECK_SAMPLES as usize;
+    let (rate_hz, pulse) = (200.0, 1.21);
+    let mut counts: Vec<f64> = (0..n).map(|i| ((i * 7919) % 5) as f64 - 2.0).collect();
+    counts[2 * n / 3] += 0.5;
+    let csv = |values: &mut dyn Iterator<Item = f64>| {
+        let mut s = String::from("counts\n");
+        for v in values {
+            s.push_str(&format!("{v:?}\n"));
+        }
+        s
+    };
+    let counts_csv = dir.path().join("counts.csv");
+    std::fs::write(&counts_csv, csv(&mut counts.iter().copied())).unwrap();
+    let dph_csv = dir.path().join("dph.csv");
+    let k = pulse * rate_hz;
+    std::fs::write(&dph_csv, csv(&mut counts.iter().map(|c| c * k))).unwrap();
+    let rate = ["--sample-rate-hz", "200", "--raw-statistics"];
+    let mut as_counts = rate.to_vec();
+    as_counts.extend(["--pulse-arcsec", "1.21"]);
+    let a = analyze_json(&counts_csv, &as_counts).unwrap();
+    let mut as_dph = rate.to_vec();
+    as_dph.extend(["--unit", "dph"]);
+    let b = analyze_json(&dph_csv, &as_dph).unwrap();
+    assert_eq!(a["samples"], n as u64);
+    for key in ["arw_dpsh", "bias_instability_dph"] {
+        let (x, y) = (a["estimates"][key]["value"].as_f64(), b["estimates"][key]["value"].as_f64());
+        let (x, y) = (x.unwrap(), y.unwrap());
+        assert!((x - y).abs() <= 1e-9 * y.abs(), "{key}: {x} vs {y}");
+    }
+}

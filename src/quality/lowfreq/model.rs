@@ -22,6 +22,7 @@
 //! on a log scale, each also tried at zero.
 
 use super::super::gls::{Basis, Cholesky, dot};
+use super::super::par::par_map;
 
 /// The block means the low-frequency analysis works on.
 #[derive(Debug, Clone, PartialEq)]
@@ -189,10 +190,10 @@ impl Noise {
 
 /// The value in `{0} U [1e-6, 1e4] * scale` minimising `f` (golden section on
 /// the log scale after a coarse grid).
-fn best_scale(f: impl Fn(f64) -> f64, scale: f64) -> f64 {
+fn best_scale(f: impl Fn(f64) -> f64 + Sync, scale: f64) -> f64 {
     let (lo, hi) = ((1e-6f64).ln(), (1e4f64).ln());
     let grid: Vec<f64> = (0..=20).map(|i| lo + (hi - lo) * i as f64 / 20.0).collect();
-    let vals: Vec<f64> = grid.iter().map(|&u| f(scale * u.exp())).collect();
+    let vals: Vec<f64> = par_map(&grid, |&u| f(scale * u.exp()));
     let i = (0..vals.len())
         .min_by(|&a, &b| vals[a].total_cmp(&vals[b]))
         .unwrap_or(0);

@@ -26,6 +26,7 @@ use rand_distr::{Distribution, StandardNormal};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 use super::super::gls::{Basis, Cholesky, dot};
+use super::super::par::par_map;
 use super::model::Noise;
 
 /// Null replicas per threshold.
@@ -72,14 +73,14 @@ impl NoiseGrid {
         };
         let bs = axis(b2, scale_b, 1e-3);
         let ks = axis(k2, scale_k, 1e-4);
-        let mut points = Vec::new();
-        for &b in &bs {
-            for &k in &ks {
-                if let Some(p) = point(noise, x, b, k) {
-                    points.push(p);
-                }
-            }
-        }
+        let pairs: Vec<(f64, f64)> = bs
+            .iter()
+            .flat_map(|&b| ks.iter().map(move |&k| (b, k)))
+            .collect();
+        let points = par_map(&pairs, |&(b, k)| point(noise, x, b, k))
+            .into_iter()
+            .flatten()
+            .collect();
         NoiseGrid {
             points,
             n: x.first().map_or(0, Vec::len),
@@ -88,9 +89,7 @@ impl NoiseGrid {
 
     /// Whiten and project every candidate regressor at every grid point.
     pub fn scan(&self, params: Vec<f64>, columns: Vec<Vec<f64>>) -> Scan {
-        let units = columns
-            .into_iter()
-            .map(|col| {
+        let units = par_map(&columns, |col| {
                 self.points
                     .iter()
                     .map(|p| {
@@ -107,8 +106,7 @@ impl NoiseGrid {
                         }
                     })
                     .collect()
-            })
-            .collect();
+            });
         Scan { params, units }
     }
 
@@ -137,13 +135,13 @@ impl NoiseGrid {
     pub fn threshold(&self, scan: &Scan, null: &Cholesky, alpha: f64, seed: u64) -> f64 {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let n = self.n;
-        let mut maxima: Vec<f64> = (0..REPLICAS)
-            .map(|_| {
-                let z: Vec<f64> = (0..n).map(|_| StandardNormal.sample(&mut rng)).collect();
-                let y = null.color(&z);
-                best_of(scan, &self.residuals(&y)).map_or(0.0, |b| b.1)
-            })
+        let draws: Vec<Vec<f64>> = (0..REPLICAS)
+            .map(|_| (0..n).map(|_| StandardNormal.sample(&mut rng)).collect())
             .collect();
+        let mut maxima = par_map(&draws, |z| {
+            let y = null.color(z);
+            best_of(scan, &self.residuals(&y)).map_or(0.0, |b| b.1)
+        });
         maxima.sort_by(f64::total_cmp);
         let q90 = maxima[(REPLICAS * 9) / 10].max(1e-6);
         let chi = ChiSquared::new(1.0).expect("one degree of freedom");
