@@ -183,7 +183,7 @@ impl AllanArgs {
 /// The next block's samples as numbers (`buf`), and as integers when the
 /// input streams counts (`ints`); `false` at the end.
 fn next_values(
-    stream: &mut crate::input::Stream,
+    stream: &mut dyn crate::input::BlockSource,
     block: &mut Block,
     buf: &mut Vec<f64>,
 ) -> Result<bool> {
@@ -265,8 +265,10 @@ fn run_streaming(args: &AllanArgs, kind: DataKind) -> Result<()> {
         bail!("--engine streaming computes --stat oadev at --taus octave only");
     }
     let input = args.open(kind)?;
+    // read (and parsed) on a second core while the accumulators run
     let mut stream = input
         .stream()
+        .and_then(crate::input::Prefetch::new)
         .with_context(|| format!("cannot read samples from {}", args.input.display()))?;
     let mut block = Block::default();
     let cfg = StreamConfig::with_tau0(args.tau0);
