@@ -953,7 +953,8 @@ impl Run<'_> {
         let Some(spec) = self.p.spec.as_mut() else {
             return;
         };
-        let seen = spec.monitor.observe(&a.estimates, a.duration_s);
+        let held = self.p.quality.as_ref().and_then(LiveQuality::held);
+        let seen = spec.monitor.observe_held(&a.estimates, a.duration_s, held);
         let report = spec.monitor.report();
         let all_decided = spec.monitor.all_decided();
         let m = &self.out.telemetry.gyro;

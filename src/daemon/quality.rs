@@ -74,6 +74,10 @@ pub struct LiveQuality {
     latest: Option<DataQuality>,
     /// The latest assessment found a warm-up that has not settled.
     settling: bool,
+    /// The slow effects the latest assessment found in the current
+    /// statistics, which the live estimates still hold (a warm-up before the
+    /// restart, bias steps, a thermal response), in words.
+    held: Option<String>,
     /// Counter values published.
     outliers_published: u64,
     steps_published: u64,
@@ -90,6 +94,7 @@ impl LiveQuality {
             excluded: None,
             latest: None,
             settling: false,
+            held: None,
             outliers_published: 0,
             steps_published: 0,
         }
@@ -116,7 +121,7 @@ impl LiveQuality {
             arw_dpsh: est.arw_dpsh.value.unwrap_or(0.0),
             quantization_arcsec: est.quantization_arcsec.value.unwrap_or(0.0),
         };
-        let (mut dq, _) = quality::assess(spikes, &series, fine);
+        let (mut dq, correction) = quality::assess(spikes, &series, fine);
         dq.stationary = pipe
             .davar()
             .and_then(|d| d.stationarity(fine.quantization_arcsec));
@@ -126,8 +131,17 @@ impl LiveQuality {
             .as_ref()
             .map(|w| elapsed_s >= SETTLED_TAUS * w.tau_s.ci95[1].max(w.tau_s.value));
         self.settling = self.excluded.is_none() && settled == Some(false);
+        let restart = !last && self.excluded.is_none() && settled == Some(true);
+        self.held = (!restart && !correction.is_empty()).then(|| held(&dq, &correction));
         self.latest = Some(self.joined(dq));
-        !last && self.excluded.is_none() && settled == Some(true)
+        restart
+    }
+
+    /// The slow effects the live estimates still hold, in words (`None`:
+    /// none found, or the statistics restarted after the warm-up): an
+    /// acceptance test does not fail a coefficient they inflate meanwhile.
+    pub fn held(&self) -> Option<&str> {
+        self.held.as_deref()
     }
 
     /// `dq` of the current statistics with times from the start of the run,
@@ -231,6 +245,21 @@ impl LiveQuality {
             });
         }
     }
+}
+
+/// The effects of `dq` that `correction` would remove, in words.
+fn held(dq: &DataQuality, correction: &quality::lowfreq::Correction) -> String {
+    let mut what = Vec::new();
+    if dq.warmup.is_some() {
+        what.push("a warm-up");
+    }
+    if !dq.steps.is_empty() {
+        what.push("bias steps");
+    }
+    if correction.has_thermal() {
+        what.push("a thermal response");
+    }
+    format!("{} in the live statistics", what.join(" and "))
 }
 
 #[cfg(test)]

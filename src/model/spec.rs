@@ -179,6 +179,15 @@ pub enum SpecCoefficient {
 }
 
 impl SpecCoefficient {
+    /// Bias instability, rate random walk and rate ramp: the terms a slow
+    /// effect (warm-up, step, temperature) inflates.
+    pub fn is_low_frequency(self) -> bool {
+        matches!(
+            self,
+            SpecCoefficient::BiasInstability | SpecCoefficient::Rrw | SpecCoefficient::RateRamp
+        )
+    }
+
     pub const ALL: [SpecCoefficient; 5] = [
         SpecCoefficient::Quantization,
         SpecCoefficient::Arw,
@@ -796,6 +805,22 @@ impl SequentialSpec {
     /// An estimator update on a record of `duration_s`: a look if it is the first
     /// update past a new scheduled length, else nothing changes.
     pub fn observe(&mut self, e: &NoiseEstimates, duration_s: f64) -> Observed {
+        self.observe_held(e, duration_s, None)
+    }
+
+    /// [`SequentialSpec::observe`] while the estimates still hold a slow
+    /// effect (`held`, in words: a warm-up not yet left out, a bias step, a
+    /// thermal response): a low-frequency coefficient (bias instability,
+    /// rate random walk, rate ramp) it inflates is not failed meanwhile, it
+    /// stays undecided with `held` as the reason; a pass (its upper bound
+    /// below the limit even with the effect) and the other coefficients are
+    /// decided as usual.
+    pub fn observe_held(
+        &mut self,
+        e: &NoiseEstimates,
+        duration_s: f64,
+        held: Option<&str>,
+    ) -> Observed {
         let Some(k) = self.schedule.look_at(duration_s) else {
             return Observed {
                 looked: false,
@@ -820,6 +845,10 @@ impl SequentialSpec {
                 Some(p) if p.verdict != Verdict::Undecided => p.clone(),
                 _ => {
                     let mut v = judge(c, c.of(e), limit, z, self.spec.systematic_rel(c));
+                    if let Some(why) = held.filter(|_| v.verdict == Verdict::Fail && c.is_low_frequency()) {
+                        v.verdict = Verdict::Undecided;
+                        v.reason = Some(format!("not failed while {why}"));
+                    }
                     if v.verdict == Verdict::Undecided {
                         v.eta_s = self.eta(c, c.of(e), limit, k, duration_s);
                     } else {

@@ -109,6 +109,11 @@ struct ThermalCorrection {
 }
 
 impl Correction {
+    /// Whether it corrects a thermal response.
+    pub fn has_thermal(&self) -> bool {
+        self.thermal.is_some()
+    }
+
     /// Nothing to correct.
     pub fn is_empty(&self) -> bool {
         self.warmup.is_none() && self.steps.is_empty() && self.thermal.is_none()
