@@ -50,31 +50,31 @@
 // `!(x > 0.0)` is used on purpose throughout: it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-pub mod broadband;
+pub(crate) mod broadband;
 pub mod candidates;
 pub mod compare;
 pub(crate) mod findings;
-pub mod golden;
+pub(crate) mod golden;
 pub mod line_search;
-pub mod lines;
-pub mod locate;
-pub mod lowfreq;
+pub(crate) mod lines;
+pub(crate) mod locate;
+pub(crate) mod lowfreq;
 pub mod mc;
-pub mod narrowband;
-pub mod points;
-pub mod quality;
-pub mod read;
-pub mod readout;
-pub mod readout_angle;
+pub(crate) mod narrowband;
+pub(crate) mod points;
+pub(crate) mod quality;
+pub(crate) mod read;
+pub(crate) mod readout;
+pub(crate) mod readout_angle;
 pub mod reference;
-pub mod refine;
+pub(crate) mod refine;
 pub mod report;
-pub mod resonance;
-pub mod slopes;
+pub(crate) mod resonance;
+pub(crate) mod slopes;
 pub mod stats;
-pub mod telegraph;
+pub(crate) mod telegraph;
 pub mod two_level;
-pub mod types;
+pub(crate) mod types;
 pub mod wvar_fit;
 
 use self::compare::{LineHit, Point};
