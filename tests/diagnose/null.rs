@@ -105,6 +105,13 @@ fn null_runs(
             .filter(|n| n.starts_with("Narrowband excess"))
             .collect();
         assert!(excess.is_empty(), "seed {s}: {excess:?}");
+        // no excess, so no resonance is fitted, and no note says one was tried
+        let tried: Vec<&String> = d
+            .notes
+            .iter()
+            .filter(|n| n.starts_with("A resonance fitted"))
+            .collect();
+        assert!(tried.is_empty(), "seed {s}: {tried:?}");
         if r.verdict == Verdict::Mismatch
             || !r.added_terms.is_empty()
             || !r.parameter_changes.is_empty()
