@@ -15,9 +15,7 @@
 //! * Model selection: backward elimination by likelihood ratio. A term stays
 //!   only if dropping it costs `2 dl >= 2.71`, the 5 % point of the
 //!   `0.5 chi2_0 + 0.5 chi2_1` mixture that applies to a variance on its
-//!   boundary; under correlated observations ([`fit_rows`]'s `corr`) the
-//!   deviance is first divided by the term's Godambe factor, as for its
-//!   interval. No term is forced in.
+//!   boundary. No term is forced in.
 //! * Intervals: profile likelihood. A kept term gets the set where
 //!   `2 (l_max - l_profile(theta_k)) <= 3.84` (95 %, two-sided); a dropped term
 //!   gets the one-sided 95 % upper bound where that deviance reaches 2.71.
@@ -407,16 +405,11 @@ pub fn fit_rows(
     // EDF depends on the spectrum: iterate fit -> EDF a few times
     let (prob, mut theta) = ml_with_edf(phi, y, edf0, edf, 4);
 
-    // backward elimination, each term's deviance read against its Godambe
-    // factor under correlated observations (as its interval is)
+    // backward elimination
     let mut active = vec![true; k];
     let mut lr = vec![0.0; k];
     loop {
         let l_act = prob.loglik(&theta);
-        let scale = match corr {
-            Some(c) => godambe_factors(&prob, &theta, &active, &c(&theta)),
-            None => vec![1.0; k],
-        };
         let mut worst: Option<(usize, f64, Vec<f64>)> = None;
         for i in 0..k {
             if !active[i] {
@@ -430,9 +423,8 @@ pub fn fit_rows(
             if opts.always_keep & (1 << i) != 0 {
                 continue;
             }
-            let adjusted = d / scale[i];
-            if worst.as_ref().is_none_or(|w| adjusted < w.1) {
-                worst = Some((i, adjusted, th));
+            if worst.as_ref().is_none_or(|w| d < w.1) {
+                worst = Some((i, d, th));
             }
         }
         match worst {
@@ -838,38 +830,6 @@ mod tests {
     /// Two observations of one level, each with EDF nu, correlated rho: the
     /// independent likelihood counts 2 nu, the truth is worth 2 nu / (1 +
     /// rho), so the deviance is (1 + rho) chi2_1. With rho = 0 nothing widens.
-    /// A term only two perfectly correlated observations carry: their
-    /// deviance counts its evidence twice, so it passes 2.71 read as
-    /// independent and fails once divided by its Godambe factor (2).
-    #[test]
-    fn selection_reads_the_deviance_against_the_godambe_factor() {
-        let phi = vec![
-            vec![1.0, 0.0],
-            vec![1.0, 0.0],
-            vec![1.0, 0.0],
-            vec![1.0, 0.0],
-            vec![1.0, 1.0],
-            vec![1.0, 1.0],
-        ];
-        let y = [1.0, 1.0, 1.0, 1.0, 1.6, 1.6];
-        let edf = [20.0; 6];
-        let opts = FitOptions::default();
-        let independent = fit_rows(&phi, &y, &edf, &|j, _| edf[j], &opts, None);
-        let lr = independent.terms[1].lr;
-        assert!(lr > 2.71 && lr < 2.0 * 2.71, "deviance {lr}");
-        assert!(independent.terms[1].included);
-        let mut corr = vec![vec![0.0; 6]; 6];
-        for (j, row) in corr.iter_mut().enumerate() {
-            row[j] = 1.0;
-        }
-        corr[4][5] = 1.0;
-        corr[5][4] = 1.0;
-        let c = |_: &[f64]| corr.clone();
-        let correlated = fit_rows(&phi, &y, &edf, &|j, _| edf[j], &opts, Some(&c));
-        assert!(!correlated.terms[1].included, "{:?}", correlated.terms[1]);
-        assert!(correlated.terms[0].included);
-    }
-
     #[test]
     fn the_godambe_factor_of_correlated_duplicates_is_one_plus_rho() {
         let phi = vec![vec![1.0], vec![1.0]];
