@@ -28,6 +28,7 @@ pub mod font;
 pub mod input;
 pub mod keys;
 pub mod model;
+pub(crate) mod par;
 pub mod pipeline;
 pub mod quality;
 pub mod recording;

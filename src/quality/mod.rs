@@ -21,7 +21,6 @@ pub mod blocks;
 pub mod davar;
 pub mod gls;
 pub mod lowfreq;
-mod par;
 pub mod spikes;
 
 pub use lowfreq::{Interval, StepFit, ThermalFit};

@@ -25,6 +25,7 @@ use super::standard_terms;
 use crate::model::filter::ReadoutFilter;
 use crate::model::fit::{FitOptions, ml_edf, ml_loglik_fixed_edf};
 use crate::model::wvar::SpectralTerm;
+use crate::par::par_map;
 
 /// Longest moving average searched, samples.
 pub const MAX_MA: u32 = 32;
@@ -111,14 +112,12 @@ pub(super) fn search(
     if !opts.full_filter_search && !coarse_pass(&eval, l_none) {
         return None;
     }
-    let mut cands: Vec<Candidate> = (2..=MAX_MA)
+    let ma: Vec<ReadoutFilter> = (2..=MAX_MA)
         .filter_map(|l| ReadoutFilter::moving_average(l).ok())
-        .map(eval)
         .collect();
-    let fo: Vec<Candidate> = fo_grid()
-        .into_iter()
-        .map(|p| eval(ReadoutFilter::FirstOrder { pole: p }))
-        .collect();
+    let mut cands = par_map(&ma, |&f| eval(f));
+    let poles = fo_grid();
+    let fo = par_map(&poles, |&p| eval(ReadoutFilter::FirstOrder { pole: p }));
     cands.extend(refine_first_order(&fo, &eval));
     cands.extend(fo);
     let best = *cands.iter().max_by(|a, b| a.loglik.total_cmp(&b.loglik))?;
@@ -175,7 +174,7 @@ const COARSE_FO_STEP: usize = 3;
 /// [`COARSE_LR`] at the coarse candidate nearest to it
 /// (`tests/numerics/estimate_filter.rs`, `coarse_pass_never_hides_a_reported_filter`;
 /// [`FitOptions::full_filter_search`] turns the pass off).
-fn coarse_pass(eval: &dyn Fn(ReadoutFilter) -> Candidate, l_none: f64) -> bool {
+fn coarse_pass(eval: &(dyn Fn(ReadoutFilter) -> Candidate + Sync), l_none: f64) -> bool {
     let ma = COARSE_MA
         .iter()
         .filter_map(|&l| ReadoutFilter::moving_average(l).ok());
@@ -183,8 +182,9 @@ fn coarse_pass(eval: &dyn Fn(ReadoutFilter) -> Candidate, l_none: f64) -> bool {
         .into_iter()
         .step_by(COARSE_FO_STEP)
         .map(|p| ReadoutFilter::FirstOrder { pole: p });
-    ma.chain(fo)
-        .map(|f| eval(f).loglik)
+    let filters: Vec<ReadoutFilter> = ma.chain(fo).collect();
+    par_map(&filters, |&f| eval(f).loglik)
+        .into_iter()
         .any(|l| 2.0 * (l - l_none) >= COARSE_LR)
 }
 

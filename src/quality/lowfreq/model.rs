@@ -22,7 +22,7 @@
 //! on a log scale, each also tried at zero.
 
 use super::super::gls::{Basis, Cholesky, dot};
-use super::super::par::par_map;
+use crate::par::par_map;
 
 /// The block means the low-frequency analysis works on.
 #[derive(Debug, Clone, PartialEq)]

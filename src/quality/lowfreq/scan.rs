@@ -26,7 +26,7 @@ use rand_distr::{Distribution, StandardNormal};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 use super::super::gls::{Basis, Cholesky, dot};
-use super::super::par::par_map;
+use crate::par::par_map;
 use super::model::Noise;
 
 /// Null replicas per threshold.

@@ -1,7 +1,7 @@
-//! The slow-effect analysis's independent evaluations (candidate
-//! regressors, noise-grid points, null replicas) split over the cores. Each
-//! item is computed exactly as it would be alone, so the results do not
-//! depend on the number of threads.
+//! Independent evaluations split over the cores: the slow-effect analysis's
+//! candidate regressors, noise-grid points and null replicas, the readout
+//! filter search's candidates. Each item is computed exactly as it would be
+//! alone, so the results do not depend on the number of threads.
 
 /// `items.iter().map(f).collect()`, the items shared out in contiguous runs
 /// over the available cores; the results in the items' order.
