@@ -270,8 +270,8 @@ fn read<'py>(
         pulse_arcsec,
         gyro,
         topic,
-        all_axes: false,
-        values_only: false,
+        // read_all hands out every sample at once: the counts checked whole up front
+        ..Request::default()
     };
     let input = Input::open(Path::new(path), &req).map_err(|e| match &e {
         sagnac::input::InputError::Open { .. } => PyOSError::new_err(e.to_string()),
