@@ -34,8 +34,8 @@ pub mod ros2;
 mod stream;
 
 pub use detect::{Format, FormatOrigin};
-pub use recorded::{RecordedGyro, recorded_gyros};
 pub use prefetch::Prefetch;
+pub use recorded::{RecordedGyro, recorded_gyros};
 pub use stream::{Block, BlockSource, Stream, StreamReport};
 
 use crate::recording::meta::Contradiction;

@@ -845,7 +845,9 @@ impl SequentialSpec {
                 Some(p) if p.verdict != Verdict::Undecided => p.clone(),
                 _ => {
                     let mut v = judge(c, c.of(e), limit, z, self.spec.systematic_rel(c));
-                    if let Some(why) = held.filter(|_| v.verdict == Verdict::Fail && c.is_low_frequency()) {
+                    if let Some(why) =
+                        held.filter(|_| v.verdict == Verdict::Fail && c.is_low_frequency())
+                    {
                         v.verdict = Verdict::Undecided;
                         v.reason = Some(format!("not failed while {why}"));
                     }

@@ -104,7 +104,9 @@ pub fn run(
     }
     let mut stream = Prefetch::new(input.stream()?)?;
     match run_from(input, &mut stream, cfg, progress, tap) {
-        Err(PipelineError::Input(InputError::Plain(PlainError::NotInteger { .. }))) if tentative => {
+        Err(PipelineError::Input(InputError::Plain(PlainError::NotInteger { .. })))
+            if tentative =>
+        {
             let rates = input.as_fractional();
             let mut stream = Prefetch::new(rates.stream()?)?;
             run_from(&rates, &mut stream, cfg, progress, None)

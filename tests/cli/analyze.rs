@@ -954,7 +954,10 @@ fn a_fraction_after_the_first_samples_reads_the_counts_as_rates() {
     let b = analyze_json(&dph_csv, &as_dph).unwrap();
     assert_eq!(a["samples"], n as u64);
     for key in ["arw_dpsh", "bias_instability_dph"] {
-        let (x, y) = (a["estimates"][key]["value"].as_f64(), b["estimates"][key]["value"].as_f64());
+        let (x, y) = (
+            a["estimates"][key]["value"].as_f64(),
+            b["estimates"][key]["value"].as_f64(),
+        );
         let (x, y) = (x.unwrap(), y.unwrap());
         assert!((x - y).abs() <= 1e-9 * y.abs(), "{key}: {x} vs {y}");
     }

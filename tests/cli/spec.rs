@@ -658,5 +658,8 @@ fn a_warm_up_does_not_fail_a_good_gyro_with_stop_when_decided() {
     assert!(!text.contains("verdict=\"fail\""), "{text}");
     assert!(text.contains("warm-up settled"), "{text}");
     // the coefficients the warm-up does not touch are decided all the same
-    assert!(text.contains("arw_dpsh=pass quantization_arcsec=pass"), "{text}");
+    assert!(
+        text.contains("arw_dpsh=pass quantization_arcsec=pass"),
+        "{text}"
+    );
 }

@@ -26,8 +26,8 @@ use rand_distr::{Distribution, StandardNormal};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 use super::super::gls::{Basis, Cholesky, dot};
-use crate::par::par_map;
 use super::model::Noise;
+use crate::par::par_map;
 
 /// Null replicas per threshold.
 const REPLICAS: usize = 160;
@@ -90,23 +90,23 @@ impl NoiseGrid {
     /// Whiten and project every candidate regressor at every grid point.
     pub fn scan(&self, params: Vec<f64>, columns: Vec<Vec<f64>>) -> Scan {
         let units = par_map(&columns, |col| {
-                self.points
-                    .iter()
-                    .map(|p| {
-                        let mut v = col.clone();
-                        p.chol.whiten(&mut v);
-                        p.basis.residual(&mut v);
-                        let n2 = dot(&v, &v);
-                        if n2 > 1e-18 {
-                            let s = n2.sqrt();
-                            v.iter_mut().for_each(|a| *a /= s);
-                            (n2.ln(), v)
-                        } else {
-                            (0.0, Vec::new())
-                        }
-                    })
-                    .collect()
-            });
+            self.points
+                .iter()
+                .map(|p| {
+                    let mut v = col.clone();
+                    p.chol.whiten(&mut v);
+                    p.basis.residual(&mut v);
+                    let n2 = dot(&v, &v);
+                    if n2 > 1e-18 {
+                        let s = n2.sqrt();
+                        v.iter_mut().for_each(|a| *a /= s);
+                        (n2.ln(), v)
+                    } else {
+                        (0.0, Vec::new())
+                    }
+                })
+                .collect()
+        });
         Scan { params, units }
     }
 
