@@ -183,8 +183,14 @@ fn analyze_values(
     name: &str,
 ) -> PyResult<String> {
     let unit = unit_of(unit)?;
-    let input = Input::from_values(name, values.as_slice()?.to_vec(), unit, sample_rate_hz, pulse_arcsec)
-        .map_err(value_error)?;
+    let input = Input::from_values(
+        name,
+        values.as_slice()?.to_vec(),
+        unit,
+        sample_rate_hz,
+        pulse_arcsec,
+    )
+    .map_err(value_error)?;
     py.detach(|| analyze_input(&input, raw_statistics))
 }
 
@@ -198,7 +204,11 @@ fn analyze_input(input: &Input, raw_statistics: bool) -> PyResult<String> {
         input.path(),
         m.format.name(),
         cfg.sample_rate_hz,
-        if m.unit == Unit::Counts { m.pulse_arcsec } else { None },
+        if m.unit == Unit::Counts {
+            m.pulse_arcsec
+        } else {
+            None
+        },
     );
     settings.unit = Some(m.unit.name().into());
     settings.origin = Some(m.origin.clone());
@@ -209,7 +219,12 @@ fn analyze_input(input: &Input, raw_statistics: bool) -> PyResult<String> {
 /// A simulated run of `model` (a TOML file's path or its text): the samples
 /// (`counts` or `rate_dps`), the temperature, and the metadata as JSON.
 #[pyfunction]
-fn simulate<'py>(py: Python<'py>, model: &str, duration_s: f64, seed: u64) -> PyResult<Bound<'py, PyDict>> {
+fn simulate<'py>(
+    py: Python<'py>,
+    model: &str,
+    duration_s: f64,
+    seed: u64,
+) -> PyResult<Bound<'py, PyDict>> {
     let gm = if Path::new(model).is_file() {
         GyroModel::load(Path::new(model))
     } else {
@@ -263,7 +278,10 @@ fn read<'py>(
     topic: Option<String>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let req = Request {
-        format: format.map(|f| f.parse()).transpose().map_err(PyValueError::new_err)?,
+        format: format
+            .map(|f| f.parse())
+            .transpose()
+            .map_err(PyValueError::new_err)?,
         column,
         unit: unit.map(unit_of).transpose()?,
         sample_rate_hz,
@@ -315,7 +333,8 @@ fn diagnose_cli(py: Python<'_>, args: Vec<String>, json_out: &str) -> PyResult<S
     let mut argv = vec!["sagnac".to_string(), "diagnose".to_string()];
     argv.extend(args);
     argv.extend(["--json".to_string(), json_out.to_string()]);
-    let cli = sagnac::cli::Cli::try_parse_from(argv).map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let cli =
+        sagnac::cli::Cli::try_parse_from(argv).map_err(|e| PyValueError::new_err(e.to_string()))?;
     let sagnac::cli::Command::Diagnose(a) = cli.command else {
         unreachable!("parsed as diagnose");
     };
