@@ -471,26 +471,8 @@ fn run_stops_when_decided_with_a_finished_recording_holding_the_verdicts() {
     let rec = dir.path().join("rec");
     let log = dir.path().join("run.log");
     let model = Path::new(PAPER_GYRO);
-    let mut d = DaemonProc::start(
-        &[
-            "run",
-            "--simulate",
-            model.to_str().unwrap(),
-            "--speed",
-            "0",
-            "--spec",
-            spec.to_str().unwrap(),
-            "--stop-when-decided",
-            "--record-dir",
-            rec.to_str().unwrap(),
-            "--metrics-addr",
-            "127.0.0.1:0",
-            // a safety net: the spec decides within minutes of record
-            "--duration-s",
-            "3600",
-        ],
-        &log,
-    );
+    // a safety net: the spec decides within minutes of record
+    let mut d = stop_when_decided(model, &spec, rec.to_str().unwrap(), "127.0.0.1:0", &log);
     let status = d.wait(std::time::Duration::from_secs(300));
     let text = d.log_text();
     assert!(status.success(), "exit {status:?}; log:\n{text}");
@@ -630,9 +612,31 @@ fn a_warm_up_does_not_fail_a_good_gyro_with_stop_when_decided() {
         "[spec]\nquantization_arcsec_max = 0.5\narw_dpsh_max = 0.0035\nrrw_dphsh_max = 0.04\n\
          confidence = 0.95\n",
     );
-    let run = || {
-        let log = dir.path().join("run.log");
-        let args = [
+    let log = dir.path().join("run.log");
+    let mut d = stop_when_decided(&model, &spec, "", "", &log);
+    let status = d.wait(std::time::Duration::from_secs(300));
+    let text = d.log_text();
+    assert!(status.success(), "exit {status:?}; log:\n{text}");
+    assert!(!text.contains("verdict=\"fail\""), "{text}");
+    assert!(text.contains("warm-up settled"), "{text}");
+    // the coefficients the warm-up does not touch are decided all the same
+    assert!(
+        text.contains("arw_dpsh=pass quantization_arcsec=pass"),
+        "{text}"
+    );
+}
+
+/// `sagnac run` of the simulated `model` as fast as it goes, judged against
+/// `spec` with `--stop-when-decided`, at most an hour of record.
+fn stop_when_decided(
+    model: &Path,
+    spec: &Path,
+    record_dir: &str,
+    metrics: &str,
+    log: &Path,
+) -> DaemonProc {
+    DaemonProc::start(
+        &[
             "run",
             "--simulate",
             model.to_str().unwrap(),
@@ -642,24 +646,12 @@ fn a_warm_up_does_not_fail_a_good_gyro_with_stop_when_decided() {
             spec.to_str().unwrap(),
             "--stop-when-decided",
             "--record-dir",
-            "",
+            record_dir,
             "--metrics-addr",
-            "",
+            metrics,
             "--duration-s",
             "3600",
-        ];
-        let mut d = DaemonProc::start(&args, &log);
-        let status = d.wait(std::time::Duration::from_secs(300));
-        let text = d.log_text();
-        assert!(status.success(), "exit {status:?}; log:\n{text}");
-        text
-    };
-    let text = run();
-    assert!(!text.contains("verdict=\"fail\""), "{text}");
-    assert!(text.contains("warm-up settled"), "{text}");
-    // the coefficients the warm-up does not touch are decided all the same
-    assert!(
-        text.contains("arw_dpsh=pass quantization_arcsec=pass"),
-        "{text}"
-    );
+        ],
+        log,
+    )
 }
