@@ -6,9 +6,7 @@
 /// `items.iter().map(f).collect()`, the items shared out in contiguous runs
 /// over the available cores; the results in the items' order.
 pub fn par_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
-    let threads = std::thread::available_parallelism()
-        .map_or(1, |n| n.get())
-        .min(items.len());
+    let threads = threads().min(items.len());
     if threads <= 1 {
         return items.iter().map(f).collect();
     }
@@ -26,6 +24,27 @@ pub fn par_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec
         }
         out
     })
+}
+
+/// Run `a` and `b`, `b` on a second thread when there is a second core;
+/// each computes exactly what it computes alone.
+pub fn join(a: impl FnOnce() + Send, b: impl FnOnce() + Send) {
+    if threads() <= 1 {
+        a();
+        b();
+        return;
+    }
+    std::thread::scope(|s| {
+        let h = s.spawn(b);
+        a();
+        h.join().unwrap_or_else(|p| std::panic::resume_unwind(p));
+    });
+}
+
+/// The cores available to this process (looked up once).
+fn threads() -> usize {
+    static THREADS: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+    *THREADS.get_or_init(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
 }
 
 #[cfg(test)]

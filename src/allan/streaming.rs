@@ -558,15 +558,21 @@ impl<P: PhaseValue> Accumulators<P> {
         if !filled.is_empty() && end > b0 {
             self.subtract_filled(buf, base, b0, end, filled);
         }
-        match Isa::detect() {
-            Isa::Baseline => self.process_body(g, buf, base, end, scratch, filled),
-            // SAFETY: an `Avx2` or `Avx512` exists only on a CPU with AVX2
-            // (crate::dsp::isa), the one feature the variant enables.
-            #[cfg(target_arch = "x86_64")]
-            Isa::Avx2 | Isa::Avx512 => unsafe {
-                self.process_avx2(g, buf, base, end, scratch, filled)
-            },
+        if end <= b0 {
+            return;
         }
+        let Self {
+            full, id, strided, ..
+        } = self;
+        let mut kernel = || full_overlap(full, buf, base, b0, end);
+        let mut cascade = || decimate(g, id, strided, buf, base, b0, end, scratch, filled);
+        if end - b0 >= PARALLEL_MIN_POINTS {
+            crate::par::join(kernel, cascade);
+        } else {
+            kernel();
+            cascade();
+        }
+        self.done = end;
     }
 
     /// Full-overlap octaves: sum, separately, the terms ending in `[b0, end)`
@@ -620,129 +626,200 @@ impl<P: PhaseValue> Accumulators<P> {
             self.bad_n[j] += n;
         }
     }
+}
 
-    /// The same code compiled for 256-bit vectors (no FMA: identical results).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn process_avx2(
-        &mut self,
-        g: &Geometry,
-        buf: &[P],
-        base: u64,
-        end: u64,
-        scratch: &mut Vec<P>,
-        filled: &[Range<u64>],
-    ) {
-        self.process_body(g, buf, base, end, scratch, filled)
+/// Blocks of at least this many phase points run the full-overlap kernel and
+/// the decimation cascade on two threads (each half computes exactly what it
+/// computes alone, so the bits do not depend on it).
+const PARALLEL_MIN_POINTS: u64 = 1 << 14;
+
+/// Full-overlap octaves: the terms ending in `[b0, end)` added to `full`
+/// (`buf[0]` is point `base`).
+fn full_overlap<P: PhaseValue>(full: &mut [P::Total], buf: &[P], base: u64, b0: u64, end: u64) {
+    match Isa::detect() {
+        Isa::Baseline => full_overlap_body(full, buf, base, b0, end),
+        // SAFETY: an `Avx2` or `Avx512` exists only on a CPU with AVX2
+        // (crate::dsp::isa), the one feature the variant enables.
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2 | Isa::Avx512 => unsafe { full_overlap_avx2(full, buf, base, b0, end) },
     }
+}
 
-    #[inline(always)]
-    fn process_body(
-        &mut self,
-        g: &Geometry,
-        buf: &[P],
-        base: u64,
-        end: u64,
-        scratch: &mut Vec<P>,
-        filled: &[Range<u64>],
-    ) {
-        let b0 = self.done;
-        if end <= b0 {
-            return;
+/// The same code compiled for 256-bit vectors (no FMA: identical results).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn full_overlap_avx2<P: PhaseValue>(
+    full: &mut [P::Total],
+    buf: &[P],
+    base: u64,
+    b0: u64,
+    end: u64,
+) {
+    full_overlap_body(full, buf, base, b0, end)
+}
+
+#[inline(always)]
+fn full_overlap_body<P: PhaseValue>(
+    full: &mut [P::Total],
+    buf: &[P],
+    base: u64,
+    b0: u64,
+    end: u64,
+) {
+    // In L1-sized tiles at absolute boundaries (b0 is a multiple of the
+    // block, hence of TILE): octave j reads x[i-2m], which octave j+1 reads
+    // next as x[i-m], so the tile's working set stays in cache.
+    let mut lanes = [P::Lanes::default(); MAX_FULL_OCTAVES];
+    let lanes = &mut lanes[..full.len()];
+    let mut t0 = b0;
+    while t0 < end {
+        let t1 = (t0 + TILE).min(end);
+        for (j, lane) in lanes.iter_mut().enumerate() {
+            let m = 1u64 << j;
+            let lo = t0.max(2 * m);
+            if lo >= t1 {
+                continue;
+            }
+            let (lo, hi, mu) = ((lo - base) as usize, (t1 - base) as usize, m as usize);
+            P::sq_acc(
+                &buf[lo - 2 * mu..hi - 2 * mu],
+                &buf[lo - mu..hi - mu],
+                &buf[lo..hi],
+                lane,
+            );
         }
-        // Full-overlap octaves, in L1-sized tiles at absolute boundaries (b0 is a
-        // multiple of the block, hence of TILE): octave j reads x[i-2m], which octave
-        // j+1 reads next as x[i-m], so the tile's working set stays in cache.
-        scratch.clear();
-        let mut lanes = [P::Lanes::default(); MAX_FULL_OCTAVES];
-        let lanes = &mut lanes[..self.full.len()];
-        let mut t0 = b0;
-        while t0 < end {
-            let t1 = (t0 + TILE).min(end);
-            for (j, lane) in lanes.iter_mut().enumerate() {
-                let m = 1u64 << j;
-                let lo = t0.max(2 * m);
-                if lo >= t1 {
-                    continue;
+        t0 = t1;
+    }
+    for (total, lane) in full.iter_mut().zip(lanes.iter()) {
+        P::total_add(total, P::lanes_partial(lane));
+    }
+}
+
+/// The decimation cascade of the points `[b0, end)`: the noise identification
+/// of every octave and the strided octaves' rings. `scratch` (capacity
+/// `block / 2`) holds the cascade.
+#[allow(clippy::too_many_arguments)]
+fn decimate<P: PhaseValue>(
+    g: &Geometry,
+    id: &mut [OctaveId<P>],
+    strided: &mut [Strided<P>],
+    buf: &[P],
+    base: u64,
+    b0: u64,
+    end: u64,
+    scratch: &mut Vec<P>,
+    filled: &[Range<u64>],
+) {
+    match Isa::detect() {
+        Isa::Baseline => decimate_body(g, id, strided, buf, base, b0, end, scratch, filled),
+        // SAFETY: as in `full_overlap`.
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2 | Isa::Avx512 => unsafe {
+            decimate_avx2(g, id, strided, buf, base, b0, end, scratch, filled)
+        },
+    }
+}
+
+/// The same code compiled for 256-bit vectors (no FMA: identical results).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+fn decimate_avx2<P: PhaseValue>(
+    g: &Geometry,
+    id: &mut [OctaveId<P>],
+    strided: &mut [Strided<P>],
+    buf: &[P],
+    base: u64,
+    b0: u64,
+    end: u64,
+    scratch: &mut Vec<P>,
+    filled: &[Range<u64>],
+) {
+    decimate_body(g, id, strided, buf, base, b0, end, scratch, filled)
+}
+
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn decimate_body<P: PhaseValue>(
+    g: &Geometry,
+    id: &mut [OctaveId<P>],
+    strided: &mut [Strided<P>],
+    buf: &[P],
+    base: u64,
+    b0: u64,
+    end: u64,
+    scratch: &mut Vec<P>,
+    filled: &[Range<u64>],
+) {
+    // Level 0 (the noise identification of m = 1) and the level-1 decimation,
+    // tile by tile (t0 is even).
+    scratch.clear();
+    let mut t0 = b0;
+    while t0 < end {
+        let t1 = (t0 + TILE).min(end);
+        let tile = &buf[(t0 - base) as usize..(t1 - base) as usize];
+        id[0].feed(tile);
+        if g.max_oct >= 1 {
+            scratch.extend(tile.iter().step_by(2).copied());
+        }
+        t0 = t1;
+    }
+    // Decimation cascade: level L holds the points at multiples of 2^L in
+    // [b0, end). It feeds the noise identification of octave 2^L and the strided
+    // octave whose stride is 2^L (octave L + log2 P; never level 0, as P <= cap).
+    // Level 0 was fed tile by tile above, level 1 gathered there. While
+    // 2^L <= block, b0 is a multiple of 2^L and level L + 1 is every other point of
+    // level L (compacted in place); beyond, a level has at most one point.
+    let p_oct = g.p.trailing_zeros();
+    // filled spans that reach into this block (for the strided octaves' flags)
+    let touching = filled
+        .iter()
+        .skip_while(|r| r.end <= b0)
+        .take_while(|r| r.start < end);
+    let touching: Vec<Range<u64>> = touching.cloned().collect();
+    let mut flags: Vec<bool> = Vec::new();
+    for level in 1..=g.max_oct {
+        let step = 1u64 << level;
+        let single;
+        let first = if step <= g.block {
+            b0
+        } else {
+            b0.next_multiple_of(step)
+        };
+        let values: &[P] = if step <= g.block {
+            if level >= 2 {
+                let n = scratch.len().div_ceil(2);
+                for k in 0..n {
+                    scratch[k] = scratch[2 * k];
                 }
-                let (lo, hi, mu) = ((lo - base) as usize, (t1 - base) as usize, m as usize);
-                P::sq_acc(
-                    &buf[lo - 2 * mu..hi - 2 * mu],
-                    &buf[lo - mu..hi - mu],
-                    &buf[lo..hi],
-                    lane,
-                );
+                scratch.truncate(n);
             }
-            // While the tile is in L1: noise identification of m = 1 (level 0 of the
-            // cascade below) and the level-1 decimation (t0 is even).
-            let tile = &buf[(t0 - base) as usize..(t1 - base) as usize];
-            self.id[0].feed(tile);
-            if g.max_oct >= 1 {
-                scratch.extend(tile.iter().step_by(2).copied());
+            scratch
+        } else {
+            let first = b0.next_multiple_of(step);
+            if first >= end {
+                continue;
             }
-            t0 = t1;
-        }
-        for (total, lane) in self.full.iter_mut().zip(lanes.iter()) {
-            P::total_add(total, P::lanes_partial(lane));
-        }
-        // Decimation cascade: level L holds the points at multiples of 2^L in
-        // [b0, end). It feeds the noise identification of octave 2^L and the strided
-        // octave whose stride is 2^L (octave L + log2 P; never level 0, as P <= cap).
-        // Level 0 was fed tile by tile above, level 1 gathered there. While
-        // 2^L <= block, b0 is a multiple of 2^L and level L + 1 is every other point of
-        // level L (compacted in place); beyond, a level has at most one point.
-        let p_oct = g.p.trailing_zeros();
-        // filled spans that reach into this block (for the strided octaves' flags)
-        let touching = filled
-            .iter()
-            .skip_while(|r| r.end <= b0)
-            .take_while(|r| r.start < end);
-        let touching: Vec<Range<u64>> = touching.cloned().collect();
-        let mut flags: Vec<bool> = Vec::new();
-        for level in 1..=g.max_oct {
-            let step = 1u64 << level;
-            let single;
-            let first = if step <= g.block {
-                b0
+            single = [buf[(first - base) as usize]];
+            &single
+        };
+        id[level as usize].feed(values);
+        let j = level + p_oct;
+        if j > g.cap_oct && j <= g.max_oct {
+            let fl = if touching.is_empty() {
+                None
             } else {
-                b0.next_multiple_of(step)
+                flags.clear();
+                let mut r = touching.iter().peekable();
+                flags.extend((0..values.len() as u64).map(|k| {
+                    let p = first + k * step;
+                    while r.next_if(|s| s.end <= p).is_some() {}
+                    r.peek().is_some_and(|s| s.start <= p)
+                }));
+                Some(&flags[..])
             };
-            let values: &[P] = if step <= g.block {
-                if level >= 2 {
-                    let n = scratch.len().div_ceil(2);
-                    for k in 0..n {
-                        scratch[k] = scratch[2 * k];
-                    }
-                    scratch.truncate(n);
-                }
-                scratch
-            } else {
-                let first = b0.next_multiple_of(step);
-                if first >= end {
-                    continue;
-                }
-                single = [buf[(first - base) as usize]];
-                &single
-            };
-            self.id[level as usize].feed(values);
-            let j = level + p_oct;
-            if j > g.cap_oct && j <= g.max_oct {
-                let fl = if touching.is_empty() {
-                    None
-                } else {
-                    flags.clear();
-                    let mut r = touching.iter().peekable();
-                    flags.extend((0..values.len() as u64).map(|k| {
-                        let p = first + k * step;
-                        while r.next_if(|s| s.end <= p).is_some() {}
-                        r.peek().is_some_and(|s| s.start <= p)
-                    }));
-                    Some(&flags[..])
-                };
-                self.strided[(j - g.cap_oct - 1) as usize].feed(values, fl);
-            }
+            strided[(j - g.cap_oct - 1) as usize].feed(values, fl);
         }
-        self.done = end;
     }
 }
 
