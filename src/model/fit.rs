@@ -15,7 +15,9 @@
 //! * Model selection: backward elimination by likelihood ratio. A term stays
 //!   only if dropping it costs `2 dl >= 2.71`, the 5 % point of the
 //!   `0.5 chi2_0 + 0.5 chi2_1` mixture that applies to a variance on its
-//!   boundary. No term is forced in.
+//!   boundary (`3.84`, the 2.5 % point, for the terms in
+//!   [`FitOptions::strict`]). At each step the term furthest below its own
+//!   threshold goes. No term is forced in.
 //! * Intervals: profile likelihood. A kept term gets the set where
 //!   `2 (l_max - l_profile(theta_k)) <= 3.84` (95 %, two-sided); a dropped term
 //!   gets the one-sided 95 % upper bound where that deviance reaches 2.71.
@@ -71,6 +73,11 @@ pub struct LevelFit {
 pub struct FitOptions {
     /// Deviance a term must explain to be kept (default 2.71).
     pub keep_lr: f64,
+    /// Terms held to [`FitOptions::keep_lr_strict`] instead (bit mask).
+    pub strict: u64,
+    /// Deviance a term in `strict` must explain to be kept (default 3.84, the
+    /// 2.5 % point of the boundary mixture).
+    pub keep_lr_strict: f64,
     /// Deviance defining the two-sided interval (default 3.84).
     pub ci_lr: f64,
     /// Deviance defining the one-sided upper bound (default 2.71).
@@ -93,11 +100,24 @@ impl Default for FitOptions {
     fn default() -> Self {
         FitOptions {
             keep_lr: 2.705_543_454_095_404,
+            strict: 0,
+            keep_lr_strict: 3.841_458_820_694_124,
             ci_lr: 3.841_458_820_694_124,
             upper_lr: 2.705_543_454_095_404,
             always_keep: 0,
             signed_in_profile: 0,
             full_filter_search: false,
+        }
+    }
+}
+
+impl FitOptions {
+    /// The deviance term `i` must explain to be kept.
+    pub fn keep_threshold(&self, i: usize) -> f64 {
+        if i < 64 && self.strict & (1 << i) != 0 {
+            self.keep_lr_strict
+        } else {
+            self.keep_lr
         }
     }
 }
@@ -423,12 +443,13 @@ pub fn fit_rows(
             if opts.always_keep & (1 << i) != 0 {
                 continue;
             }
-            if worst.as_ref().is_none_or(|w| d < w.1) {
-                worst = Some((i, d, th));
+            let margin = d - opts.keep_threshold(i);
+            if worst.as_ref().is_none_or(|w| margin < w.1) {
+                worst = Some((i, margin, th));
             }
         }
         match worst {
-            Some((i, d, th)) if d < opts.keep_lr => {
+            Some((i, margin, th)) if margin < 0.0 => {
                 active[i] = false;
                 theta = th;
             }
