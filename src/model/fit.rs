@@ -848,6 +848,42 @@ mod tests {
         assert_eq!((lo2, hi2), (lo3, hi3));
     }
 
+    /// A term whose deviance lies between the two thresholds stays at the
+    /// default one and goes when it is held to the strict one; the other
+    /// term's selection does not change.
+    #[test]
+    fn a_strict_term_needs_the_stricter_deviance() {
+        let shape = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 2.0, 4.0, 8.0];
+        let phi: Vec<Vec<f64>> = shape.iter().map(|&s| vec![1.0, s]).collect();
+        let edf = vec![1.0e3; shape.len()];
+        let fit = |rise: f64, strict: u64| {
+            let y: Vec<f64> = shape.iter().map(|&s| 1.0 + rise * s).collect();
+            let opts = FitOptions {
+                strict,
+                ..FitOptions::default()
+            };
+            fit_rows(&phi, &y, &edf, &|j, _| edf[j], &opts, None)
+        };
+        // the rise whose deviance is about 3.3 (bisection on the default fit)
+        let (mut a, mut b) = (0.0, 0.05);
+        for _ in 0..60 {
+            let m = 0.5 * (a + b);
+            if fit(m, 0).terms[1].lr < 3.3 {
+                a = m;
+            } else {
+                b = m;
+            }
+        }
+        let loose = fit(a, 0);
+        let strict = fit(a, 0b10);
+        let lr = loose.terms[1].lr;
+        assert!((3.2..3.4).contains(&lr), "deviance {lr}");
+        assert!(loose.terms[1].included && loose.terms[0].included);
+        assert!(!strict.terms[1].included && strict.terms[0].included);
+        assert_eq!(strict.terms[1].theta, 0.0);
+        assert!(strict.terms[1].upper95.is_some());
+    }
+
     /// Two observations of one level, each with EDF nu, correlated rho: the
     /// independent likelihood counts 2 nu, the truth is worth 2 nu / (1 +
     /// rho), so the deviance is (1 + rho) chi2_1. With rho = 0 nothing widens.
