@@ -34,7 +34,7 @@ use crate::dsp::qn::{QnConfig, QnSplitter};
 use crate::dsp::wavelet::Wavelet;
 use crate::model::baseline::{self, AdevPoint, BaselineEstimates};
 use crate::model::estimate::{
-    self, AllanObs, EstimatorInput, EstimatorOutput, FilterEstimate, NoiseEstimates,
+    self, AllanObs, Counter, EstimatorInput, EstimatorOutput, FilterEstimate, NoiseEstimates,
     RampAccumulator,
 };
 use crate::model::fit::{FitOptions, LevelObs};
@@ -817,6 +817,10 @@ impl Pipeline {
             angle_blocks: &angle_blocks,
             allan: &allan_obs,
             ramp: Some(self.ramp),
+            counter: self.cfg.pulse_arcsec.map(|d| Counter {
+                pulse_arcsec: d,
+                pulses_per_sample: self.ramp.mean() * self.tau0_s / d,
+            }),
         };
         estimate::estimate(&input, opts)
     }

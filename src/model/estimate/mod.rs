@@ -43,6 +43,9 @@ use crate::units;
 pub mod filter_search;
 mod lf;
 mod quantization;
+mod sawtooth;
+
+pub use sawtooth::Counter;
 
 /// One overlapping Allan variance point of the raw rate.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -243,6 +246,9 @@ pub struct EstimatorInput<'a> {
     /// level are used.
     pub allan: &'a [AllanObs],
     pub ramp: Option<RampAccumulator>,
+    /// The pulse counter the angle comes from (`None` for rate words): its
+    /// sawtooth readout error is told apart from white quantization noise.
+    pub counter: Option<Counter>,
 }
 
 /// Full result: the coefficients plus the fit behind them.

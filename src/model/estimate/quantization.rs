@@ -7,7 +7,7 @@
 //! counter) or the sawtooth of a slowly moving angle read by an integer
 //! counter, whose Allan variance oscillates around `3Q^2/tau^2`.
 
-use super::{Coefficient, EstimatorInput, MIN_BATCHES, usable};
+use super::{Coefficient, EstimatorInput, MIN_BATCHES, sawtooth, usable};
 use crate::model::fit::LevelObs;
 use crate::model::wvar::{Domain, LevelBasis, SpectralTerm};
 
@@ -72,7 +72,30 @@ pub(super) fn q_from_angle(
         })
         .collect();
     var = var.max(batch_means_var(per_block));
-    (q2 / norm, var.sqrt() / norm)
+    let q2 = q2 / norm;
+    let q2 = match &input.counter {
+        // the counter's sawtooth lines, which q2 counts as if white;
+        // sawtooth::excess depends on q2 (the dither): a few fixed-point steps
+        Some(c) => {
+            let th = |k: usize| theta_lf.get(k).copied().unwrap_or(0.0).max(0.0);
+            let tau0 = input.tau0_s;
+            let step_var = th(1) * tau0;
+            // the rate's wander over one sawtooth period (arcsec/s): bias
+            // instability, and random walk over the period
+            let rate = c.pulses_per_sample.abs() * c.pulse_arcsec / tau0;
+            let period_s = tau0 / c.pulses_per_sample.abs().max(1e-300);
+            let wander = th(2).sqrt() + (th(3) * period_s / 3.0).sqrt();
+            let add_back = wander <= sawtooth::MAX_WANDER * rate;
+            let (n, lo) = (input.n_samples, input.dec_lo);
+            let mut q = q2;
+            for _ in 0..4 {
+                q = q2 - sawtooth::excess(c, q, step_var, jmax, lo, n, add_back);
+            }
+            q
+        }
+        None => q2,
+    };
+    (q2, var.sqrt() / norm)
 }
 
 /// Flyvbjerg-Petersen blocking: the batch-means variance of the mean grows
