@@ -35,6 +35,9 @@
 //!   all octaves per tile (octave `j`'s `x[i-2m]` is octave `j+1`'s `x[i-m]`), by a
 //!   16-lane kernel (AVX2 or portable, chosen at run time; no FMA, so both give
 //!   identical bits).
+//!   A block of at least `PARALLEL_MIN_POINTS` (2^14) points runs this kernel on one
+//!   thread and the decimation cascade below on another when there is a second
+//!   core: the two halves share no state, so the bits do not depend on it.
 //! * **Strided octaves** (`m > cap`) keep only every `s`-th phase point,
 //!   `s = m / P` with `P` = [`StreamConfig::strided_terms_per_tau`] (default `2^12`),
 //!   in a ring of `2P + 1` values, and use the second differences starting at every
