@@ -32,6 +32,7 @@
 //! are harmonics that close to zero frequency.
 
 use std::f64::consts::PI;
+use std::sync::{Arc, Mutex};
 
 /// The pulse counter behind the angle-domain levels.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -86,7 +87,7 @@ pub fn excess(
     let spread = step_var.max(0.0) / d2;
     let nu0 = c.pulses_per_sample.abs();
     let white = 1.0 - 0.5f64.powi(levels as i32);
-    let mut grid: Option<Vec<f64>> = None;
+    let mut grid: Option<Arc<Vec<f64>>> = None;
     let mut total = 0.0;
     for k in 1..=MAX_HARMONICS {
         let k2 = f64::from(k * k);
@@ -102,7 +103,7 @@ pub fn excess(
         let held = if (1.0 - rho) / (2.0 * PI) < 2.0 / GRID as f64 {
             capture(f, levels, lo)
         } else {
-            let g = grid.get_or_insert_with(|| capture_grid(levels, lo));
+            let g = grid.get_or_insert_with(|| cached_grid(levels, lo));
             spread_capture(g, f, rho)
         };
         let over = held / white - 1.0;
@@ -130,6 +131,24 @@ pub fn capture(f: f64, levels: u32, lo: &[f64]) -> f64 {
         x = (2.0 * x).rem_euclid(1.0);
     }
     1.0 - low
+}
+
+/// [`capture_grid`], computed once per filter and level count (the
+/// estimator runs many times on one record, and on the next update).
+fn cached_grid(levels: u32, lo: &[f64]) -> Arc<Vec<f64>> {
+    type Key = (u32, Vec<u64>);
+    static CACHE: Mutex<Vec<(Key, Arc<Vec<f64>>)>> = Mutex::new(Vec::new());
+    let key: Key = (levels, lo.iter().map(|h| h.to_bits()).collect());
+    let mut cache = CACHE.lock().unwrap_or_else(|p| p.into_inner());
+    if let Some((_, g)) = cache.iter().find(|(k, _)| *k == key) {
+        return Arc::clone(g);
+    }
+    let g = Arc::new(capture_grid(levels, lo));
+    if cache.len() >= 32 {
+        cache.remove(0);
+    }
+    cache.push((key, Arc::clone(&g)));
+    g
 }
 
 /// [`capture`] on the midpoints of [`GRID`] cells of one cycle.
