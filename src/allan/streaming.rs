@@ -568,7 +568,18 @@ impl<P: PhaseValue> Accumulators<P> {
             full, id, strided, ..
         } = self;
         let mut kernel = || full_overlap(full, buf, base, b0, end);
-        let mut cascade = || decimate(g, id, strided, buf, base, b0, end, scratch, filled);
+        let cascade = Cascade {
+            g,
+            id,
+            strided,
+            buf,
+            base,
+            b0,
+            end,
+            scratch,
+            filled,
+        };
+        let cascade = || decimate(cascade);
         if end - b0 >= PARALLEL_MIN_POINTS {
             crate::par::join(kernel, cascade);
         } else {
@@ -698,62 +709,52 @@ fn full_overlap_body<P: PhaseValue>(
     }
 }
 
-/// The decimation cascade of the points `[b0, end)`: the noise identification
-/// of every octave and the strided octaves' rings. `scratch` (capacity
-/// `block / 2`) holds the cascade.
-#[allow(clippy::too_many_arguments)]
-fn decimate<P: PhaseValue>(
-    g: &Geometry,
-    id: &mut [OctaveId<P>],
-    strided: &mut [Strided<P>],
-    buf: &[P],
+/// One block's decimation cascade: the points `[b0, end)` of `buf` (`buf[0]`
+/// is point `base`), the noise identification of every octave and the
+/// strided octaves' rings they feed, and `scratch` (capacity `block / 2`)
+/// for the cascade.
+struct Cascade<'a, P: PhaseValue> {
+    g: &'a Geometry,
+    id: &'a mut [OctaveId<P>],
+    strided: &'a mut [Strided<P>],
+    buf: &'a [P],
     base: u64,
     b0: u64,
     end: u64,
-    scratch: &mut Vec<P>,
-    filled: &[Range<u64>],
-) {
+    scratch: &'a mut Vec<P>,
+    filled: &'a [Range<u64>],
+}
+
+/// Run the cascade.
+fn decimate<P: PhaseValue>(c: Cascade<'_, P>) {
     match Isa::detect() {
-        Isa::Baseline => decimate_body(g, id, strided, buf, base, b0, end, scratch, filled),
+        Isa::Baseline => decimate_body(c),
         // SAFETY: as in `full_overlap`.
         #[cfg(target_arch = "x86_64")]
-        Isa::Avx2 | Isa::Avx512 => unsafe {
-            decimate_avx2(g, id, strided, buf, base, b0, end, scratch, filled)
-        },
+        Isa::Avx2 | Isa::Avx512 => unsafe { decimate_avx2(c) },
     }
 }
 
 /// The same code compiled for 256-bit vectors (no FMA: identical results).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-#[allow(clippy::too_many_arguments)]
-fn decimate_avx2<P: PhaseValue>(
-    g: &Geometry,
-    id: &mut [OctaveId<P>],
-    strided: &mut [Strided<P>],
-    buf: &[P],
-    base: u64,
-    b0: u64,
-    end: u64,
-    scratch: &mut Vec<P>,
-    filled: &[Range<u64>],
-) {
-    decimate_body(g, id, strided, buf, base, b0, end, scratch, filled)
+fn decimate_avx2<P: PhaseValue>(c: Cascade<'_, P>) {
+    decimate_body(c)
 }
 
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn decimate_body<P: PhaseValue>(
-    g: &Geometry,
-    id: &mut [OctaveId<P>],
-    strided: &mut [Strided<P>],
-    buf: &[P],
-    base: u64,
-    b0: u64,
-    end: u64,
-    scratch: &mut Vec<P>,
-    filled: &[Range<u64>],
-) {
+fn decimate_body<P: PhaseValue>(c: Cascade<'_, P>) {
+    let Cascade {
+        g,
+        id,
+        strided,
+        buf,
+        base,
+        b0,
+        end,
+        scratch,
+        filled,
+    } = c;
     // Level 0 (the noise identification of m = 1) and the level-1 decimation,
     // tile by tile (t0 is even).
     scratch.clear();
