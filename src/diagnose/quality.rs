@@ -364,17 +364,26 @@ fn thermal_finding(model: &GyroModel, t: &quality::ThermalFit, rec: &Recording) 
     let tau0 = 1.0 / rec.sample_rate_hz;
     let mut th = super::slopes::fit_temperature_profile(temps, tau0, s.value);
     th.lag_s = lag.value;
+    let behind = if t.confounded_with_ramp {
+        "the lag not identified (the temperature changed linearly over the record, so a lag only shifts the \
+         bias's constant, and a rate ramp of the gyro's own cannot be told from this response)"
+            .to_string()
+    } else {
+        format!(
+            "{} s [{}, {}] behind it",
+            fmt_g(lag.value),
+            fmt_g(lag.ci95[0]),
+            fmt_g(lag.ci95[1])
+        )
+    };
     let note = format!(
         "Thermal bias sensitivity: the bias follows the recorded temperature with {} deg/h per deg C [{}, {}], \
-         {} s [{}, {}] behind it (a regression of the block means on the delayed temperature against the \
+         {behind} (a regression of the block means on the delayed temperature against the \
          recording's own fitted noise); the measured cause is preferred over a sinusoid or a ramp that only mimics \
          it, and it is added to the model the recording is compared with (the recorded temperature's profile).",
         fmt_g(s.value),
         fmt_g(s.ci95[0]),
         fmt_g(s.ci95[1]),
-        fmt_g(lag.value),
-        fmt_g(lag.ci95[0]),
-        fmt_g(lag.ci95[1])
     );
     Some(match &model.thermal {
         Some(m) => Finding {

@@ -143,10 +143,12 @@ impl DataQuality {
                 t.lag_s.value,
                 t.lag_s.ci95[0],
                 t.lag_s.ci95[1],
-                if t.compensated {
-                    "compensated"
-                } else {
-                    "not significant, not compensated"
+                match (t.compensated, t.confounded_with_ramp) {
+                    (true, false) => "compensated",
+                    (true, true) =>
+                        "compensated; the temperature changed linearly, so a rate ramp of the gyro's own \
+                         cannot be told from this response and is attributed to it (lag not identified)",
+                    (false, _) => "not significant, not compensated",
                 }
             ));
         }

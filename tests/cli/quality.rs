@@ -210,6 +210,37 @@ fn a_temperature_response_is_measured_and_compensated() {
     );
 }
 
+/// A chamber that ramps instead of cycling: the response is a rate ramp, and
+/// the recorded temperature is preferred as its cause.
+#[test]
+fn a_response_to_a_temperature_ramp_is_the_thermal_term_not_a_rate_ramp() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = simulate(
+        dir.path(),
+        "thermal_ramp",
+        &rlg(
+            "[thermal]\ntemp_c0 = 25.0\nramp_c_per_h = 3.0\n\
+             bias_sensitivity_dph_per_c = 0.05\nlag_s = 60.0\n",
+        ),
+        3600,
+        37,
+    );
+    let (raw, _) = analyze(&csv, &[RLG, &["--raw-statistics"]].concat());
+    assert!(!not_found(&raw, "rate_ramp_dphh"), "{}", raw["estimates"]);
+    let (j, err) = analyze(&csv, RLG);
+    let t = &j["data_quality"]["thermal"];
+    assert_eq!(t["compensated"], true, "{t}");
+    assert_eq!(t["confounded_with_ramp"], true, "{t}");
+    assert!(covers(&t["bias_sensitivity_dph_per_c"], 0.05), "{t}");
+    assert!(covers(&t["lag_s"], 60.0), "{t}");
+    assert!(
+        not_found(&j, "rrw_dphsh") && not_found(&j, "rate_ramp_dphh"),
+        "{}",
+        j["estimates"]
+    );
+    assert!(err.contains("changed linearly"), "{err}");
+}
+
 #[test]
 fn clean_runs_report_nothing() {
     let dir = tempfile::tempdir().unwrap();

@@ -111,6 +111,13 @@ fn thermal_sensitivity_is_found_from_the_temperature_channel() {
     check("thermal");
 }
 
+/// Under a chamber ramp the response is a rate ramp; the recorded
+/// temperature is named as its cause, not a ramp.
+#[test]
+fn a_temperature_ramp_is_named_as_the_cause_of_a_rate_ramp() {
+    check("thermal_ramp");
+}
+
 #[test]
 fn rate_ramp_is_found_by_the_slope_test() {
     check("rate_ramp");

@@ -136,6 +136,7 @@ pub fn data_quality(i: u64) -> Option<DataQuality> {
             bias_sensitivity_dph_per_c: interval(&mut rng),
             lag_s: interval(&mut rng),
             compensated: rng.random_bool(0.5),
+            confounded_with_ramp: rng.random_bool(0.5),
         }),
         stationary: rng.random_bool(0.7).then(|| Stationarity {
             ok: rng.random_bool(0.5),

@@ -22,6 +22,14 @@
 //! Rate random walk and a ramp stay in the null model, so a random walk or a
 //! ramp of the gyro's own is not taken for a step or a warm-up; and a step or
 //! a warm-up is found against them, so it is not read as a random walk.
+//!
+//! A temperature that is a line in time ([`LINEAR_TEMP`]) makes the thermal
+//! response a rate ramp: the two are one regressor, and the lag only shifts
+//! the constant. The response is then tested in place of the ramp (against
+//! the mean model without it, at lag 0), and when it passes the recorded
+//! cause is preferred: the ramp is attributed to the temperature, the lag's
+//! interval is the whole range searched, and the fit says so
+//! ([`ThermalFit::confounded_with_ramp`]).
 
 use serde::{Deserialize, Serialize};
 
@@ -46,6 +54,9 @@ pub const MAX_STEPS: usize = 5;
 const CHI2_95: f64 = 3.841_458_820_694_124;
 /// The standard normal's 97.5 % point.
 const Z_975: f64 = 1.959_963_984_540_054;
+/// A temperature whose block means a straight line in time explains to
+/// within this share of their variance is treated as a line.
+pub const LINEAR_TEMP: f64 = 0.05;
 
 /// A value with its 95 % interval.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -76,6 +87,11 @@ pub struct ThermalFit {
     pub lag_s: Interval,
     /// The response is significant, and the rate is compensated for it.
     pub compensated: bool,
+    /// The temperature changed linearly over the record: its response and a
+    /// rate ramp of the gyro's own cannot be told apart, the response was
+    /// fitted in place of the ramp, and the lag is not identified.
+    #[serde(default)]
+    pub confounded_with_ramp: bool,
 }
 
 /// What the analysis found.
@@ -172,6 +188,8 @@ struct Analysis<'a> {
     c: Coarse,
     noise: Noise,
     temp: Option<Temperature>,
+    /// The temperature is a line in time ([`LINEAR_TEMP`]).
+    temp_linear: bool,
     series: &'a BlockSeries,
     span_s: f64,
 }
@@ -188,11 +206,15 @@ pub fn analyse(series: &BlockSeries, fine: FineNoise) -> Option<LowFreq> {
             block_s: series.block_s,
             values: t.clone(),
         });
+    let temp_linear = temp
+        .as_ref()
+        .is_some_and(|t| unexplained_by_line(&t.values) < LINEAR_TEMP);
     let a = Analysis {
         noise: Noise::new(&c, fine),
         span_s: c.len() as f64 * c.block_s,
         c,
         temp,
+        temp_linear,
         series,
     };
     let effects = a.select()?;
@@ -235,16 +257,47 @@ fn coarsen(s: &BlockSeries) -> Option<Coarse> {
     })
 }
 
+/// The share of the variance of `v` (equally spaced) a straight line leaves
+/// unexplained: 0 for a line, 1 for anything orthogonal to one.
+fn unexplained_by_line(v: &[f64]) -> f64 {
+    let n = v.len() as f64;
+    let (tm, vm) = ((n - 1.0) / 2.0, v.iter().sum::<f64>() / n);
+    let (mut stt, mut stv, mut svv) = (0.0, 0.0, 0.0);
+    for (i, &x) in v.iter().enumerate() {
+        let (dt, dv) = (i as f64 - tm, x - vm);
+        stt += dt * dt;
+        stv += dt * dv;
+        svv += dv * dv;
+    }
+    if !(svv > 0.0) || !(stt > 0.0) {
+        return 1.0;
+    }
+    (1.0 - stv * stv / (stt * svv)).max(0.0)
+}
+
 impl Analysis<'_> {
+    /// Whether the mean model with `effects` has the ramp column: always,
+    /// unless a thermal response of a linear temperature took its place.
+    fn has_ramp(&self, effects: &[Effect]) -> bool {
+        !(self.temp_linear && effects.iter().any(|e| matches!(e, Effect::Thermal { .. })))
+    }
+
+    /// How many columns come before the effects' (the constant, the ramp).
+    fn base(&self, effects: &[Effect]) -> usize {
+        1 + usize::from(self.has_ramp(effects))
+    }
+
     /// Columns of the mean model with `effects`.
     fn columns(&self, effects: &[Effect]) -> Vec<Vec<f64>> {
         let n = self.c.len();
-        let mut cols = vec![
-            vec![1.0; n],
-            (0..n)
-                .map(|b| (b as f64 + 0.5) * self.c.block_s / 3600.0)
-                .collect(),
-        ];
+        let mut cols = vec![vec![1.0; n]];
+        if self.has_ramp(effects) {
+            cols.push(
+                (0..n)
+                    .map(|b| (b as f64 + 0.5) * self.c.block_s / 3600.0)
+                    .collect(),
+            );
+        }
         cols.extend(effects.iter().map(|e| self.regressor(*e)));
         cols
     }
@@ -305,7 +358,8 @@ impl Analysis<'_> {
             let ats = (2..n - 2).map(|b| b as f64 * t).collect();
             add(1, ats, &|at_s| Effect::Step { at_s });
         }
-        if self.temp.is_some() && !effects.iter().any(|e| matches!(e, Effect::Thermal { .. })) {
+        let thermal = effects.iter().any(|e| matches!(e, Effect::Thermal { .. }));
+        if self.temp.is_some() && !self.temp_linear && !thermal {
             add(2, lag_grid(t, self.span_s), &|lag_s| Effect::Thermal {
                 lag_s,
             });
@@ -345,12 +399,48 @@ impl Analysis<'_> {
                     best = Some((ratio, effect));
                 }
             }
+            if let Some((ratio, effect)) = self.linear_thermal(&effects, round, (scale_b, scale_k))
+                && ratio > 1.0
+                && best.is_none_or(|b| ratio > b.0)
+            {
+                best = Some((ratio, effect));
+            }
             match best {
                 Some((_, e)) => effects.push(e),
                 None => break,
             }
         }
         Some(effects)
+    }
+}
+
+impl Analysis<'_> {
+    /// The thermal response of a linear temperature, tested in place of the
+    /// ramp: the likelihood ratio against the mean model of `effects` without
+    /// the ramp, over its threshold; `None` when there is nothing to test.
+    fn linear_thermal(
+        &self,
+        effects: &[Effect],
+        round: usize,
+        (scale_b, scale_k): (f64, f64),
+    ) -> Option<(f64, Effect)> {
+        let thermal = effects.iter().any(|e| matches!(e, Effect::Thermal { .. }));
+        if !self.temp_linear || thermal {
+            return None;
+        }
+        let effect = Effect::Thermal { lag_s: 0.0 };
+        let mut x = self.columns(&[effects, &[effect]].concat());
+        let col = x.pop()?;
+        let fitted = self.noise.fit(&self.c.y, &x, self.span_s)?;
+        let grid = NoiseGrid::new(&self.noise, &x, fitted.b2, fitted.k2, scale_b, scale_k);
+        let scan = grid.scan(vec![0.0], vec![col]);
+        let (_, lr) = grid.best(&scan, &self.c.y)?;
+        if lr <= scan::floor(ALPHA) {
+            return None;
+        }
+        let seed = 0x5D_A7A ^ ((round as u64) << 8) ^ 3;
+        let limit = grid.threshold(&scan, &fitted.chol, ALPHA, seed);
+        Some((lr / limit, effect))
     }
 }
 
@@ -434,5 +524,78 @@ mod tests {
             clean.warmup.is_none() && clean.steps.is_empty(),
             "{clean:?}"
         );
+    }
+
+    #[test]
+    fn a_line_leaves_nothing_and_a_symmetric_curve_everything() {
+        let line: Vec<f64> = (0..50).map(|i| 3.0 - 0.2 * i as f64).collect();
+        assert!(unexplained_by_line(&line) < 1e-12);
+        // a parabola symmetric about the middle is orthogonal to a line
+        let bowl: Vec<f64> = (0..51).map(|i| ((i as f64) - 25.0).powi(2)).collect();
+        assert!((unexplained_by_line(&bowl) - 1.0).abs() < 1e-12);
+        // a line plus a full sine period: the sine's share of the variance
+        // minus its correlation with the line, in closed form
+        let n = 400;
+        let v: Vec<f64> = (0..n)
+            .map(|i| {
+                let x = (i as f64 + 0.5) / n as f64;
+                x + 0.1 * (2.0 * std::f64::consts::PI * x).sin()
+            })
+            .collect();
+        let f = unexplained_by_line(&v);
+        // var(x) = 1/12, var(sine) = 0.005, cov(x, sine) = -0.1/(2 pi):
+        // 1 - r^2 with r^2 = (1/12 - 0.1/(2 pi))^2 / (1/12 (1/12 + 0.005 - 0.2/(2 pi)))
+        let (vx, vs, c) = (1.0 / 12.0, 0.005, -0.1 / (2.0 * std::f64::consts::PI));
+        let want = 1.0 - (vx + c).powi(2) / (vx * (vx + vs + 2.0 * c));
+        assert!((f - want).abs() < 1e-3 * want, "{f} {want}");
+    }
+
+    /// A chamber ramp of 2 deg C over the record: the temperature of each
+    /// block of `s`, also recorded in `s`.
+    fn ramp_temperature(s: &mut BlockSeries) -> Vec<f64> {
+        let n = s.rate_dph.len();
+        let temp: Vec<f64> = (0..n)
+            .map(|b| 25.0 + 2.0 * (b as f64 + 0.5) / n as f64)
+            .collect();
+        s.temp_c = Some(temp.clone());
+        temp
+    }
+
+    #[test]
+    fn the_response_to_a_linear_temperature_replaces_the_ramp() {
+        let (sd, block_s, sens) = (0.8, 15.0, 2.0);
+        let mut s = series(160, block_s, sd, 3, |_| 0.0);
+        let temp = ramp_temperature(&mut s);
+        for (y, t) in s.rate_dph.iter_mut().zip(&temp) {
+            *y += sens * (t - 25.0);
+        }
+        let low = analyse(&s, white_for(sd, block_s)).unwrap();
+        let t = low.thermal.expect("a thermal fit");
+        let c = t.bias_sensitivity_dph_per_c.ci95;
+        assert!(t.compensated && t.confounded_with_ramp, "{t:?}");
+        assert!(c[0] <= sens && sens <= c[1] && c[1] - c[0] < sens, "{t:?}");
+        // the lag is not identified: its interval is the range searched
+        assert_eq!(t.lag_s.ci95[0], 0.0);
+        assert!(t.lag_s.ci95[1] >= 0.25 * 160.0 * block_s - block_s, "{t:?}");
+        // the correction takes the ramp out
+        let mut y = s.rate_dph.clone();
+        low.correction.apply_to_blocks(&s.t0_s, block_s, &mut y);
+        let slope = |v: &[f64]| 1.0 - unexplained_by_line(v);
+        assert!(slope(&y) < 0.05, "r^2 of what remains on time {}", slope(&y));
+    }
+
+    #[test]
+    fn a_linear_temperature_without_a_response_is_not_compensated() {
+        let (sd, block_s) = (0.8, 15.0);
+        for seed in 4..8 {
+            let mut s = series(160, block_s, sd, seed, |_| 0.0);
+            ramp_temperature(&mut s);
+            let low = analyse(&s, white_for(sd, block_s)).unwrap();
+            let t = low.thermal.expect("a temperature gets a fit");
+            let c = t.bias_sensitivity_dph_per_c.ci95;
+            assert!(!t.compensated && t.confounded_with_ramp, "{seed}: {t:?}");
+            assert!(c[0] <= 0.0 && 0.0 <= c[1], "{seed}: {t:?}");
+            assert!(low.correction.is_empty(), "{seed}");
+        }
     }
 }

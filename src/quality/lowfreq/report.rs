@@ -53,17 +53,25 @@ impl Analysis<'_> {
                 (at_s + 1.5 * t).min(self.span_s - t),
                 false,
             ),
-            Effect::Thermal { .. } => {
-                let g = lag_grid(t, self.span_s);
-                (0.0, *g.last().unwrap_or(&0.0), false)
-            }
+            // the lag of a linear temperature's response is not identified: held at 0
+            Effect::Thermal { .. } if self.temp_linear => (0.0, 0.0, false),
+            Effect::Thermal { .. } => (0.0, self.lag_top(), false),
         }
+    }
+
+    /// The largest lag searched.
+    fn lag_top(&self) -> f64 {
+        *lag_grid(self.c.block_s, self.span_s)
+            .last()
+            .unwrap_or(&0.0)
     }
 
     /// The profile of effect `i` over its range, the others held.
     fn profile(&self, chol: &Cholesky, effects: &[Effect], i: usize) -> Vec<Point> {
         let (lo, hi, log) = self.range(effects[i]);
-        let grid = if log {
+        let grid = if hi <= lo {
+            vec![lo]
+        } else if log {
             log_grid(lo, hi, PROFILE_POINTS)
         } else {
             (0..PROFILE_POINTS)
@@ -75,7 +83,7 @@ impl Analysis<'_> {
             .filter_map(|p| {
                 es[i] = effects[i].with(p);
                 let f = self.gls(chol, &es)?;
-                let k = 2 + i;
+                let k = self.base(&es) + i;
                 let p_all = f.beta.len();
                 Some(Point {
                     param: p,
@@ -127,8 +135,10 @@ impl Analysis<'_> {
             rrw_dphsh: fitted.k2.sqrt(),
             ..LowFreq::default()
         };
+        let base = self.base(&effects);
         for (i, e) in effects.iter().enumerate() {
-            let (param, amp) = intervals(&self.profile(chol, &effects, i), *e, fit.beta[2 + i]);
+            let (param, amp) =
+                intervals(&self.profile(chol, &effects, i), *e, fit.beta[base + i]);
             match e {
                 Effect::Warmup { .. } => {
                     out.warmup = Some(WarmupFit {
@@ -147,8 +157,9 @@ impl Analysis<'_> {
                 Effect::Thermal { .. } => {
                     out.thermal = Some(ThermalFit {
                         bias_sensitivity_dph_per_c: amp,
-                        lag_s: param,
+                        lag_s: self.lag_interval(param),
                         compensated: true,
+                        confounded_with_ramp: self.temp_linear,
                     });
                     out.correction.thermal = self.thermal_correction(amp.value, param.value);
                 }
@@ -174,9 +185,23 @@ impl Analysis<'_> {
         let (lag, amp) = intervals(&prof, es[i], best.amp);
         Some(ThermalFit {
             bias_sensitivity_dph_per_c: amp,
-            lag_s: lag,
+            lag_s: self.lag_interval(lag),
             compensated: false,
+            confounded_with_ramp: self.temp_linear,
         })
+    }
+
+    /// The lag's interval as reported: the whole range searched when the
+    /// lag is not identified (a linear temperature).
+    fn lag_interval(&self, lag: Interval) -> Interval {
+        if self.temp_linear {
+            Interval {
+                value: lag.value,
+                ci95: [0.0, self.lag_top()],
+            }
+        } else {
+            lag
+        }
     }
 
     fn thermal_correction(&self, sensitivity: f64, lag_s: f64) -> Option<ThermalCorrection> {

@@ -161,6 +161,22 @@ pub fn cases() -> Vec<Case> {
             expect: Expect::Added("thermal", &[("bias_sensitivity_dph_per_c", 0.005)]),
         },
         Case {
+            name: "thermal_ramp",
+            what: "bias 0.01 deg/h per deg C; temp_c 25 C + 2 C/h (a chamber ramp: the response is a rate ramp of 0.02 deg/h/h); model has no thermal term",
+            fs: 200.0,
+            dur_s: 3600.0,
+            seed: 909,
+            model: gyro(200.0, 12.3, 0.35, 0.001, ""),
+            truth: gyro(
+                200.0,
+                12.3,
+                0.35,
+                0.001,
+                "[thermal]\ntemp_c0 = 25.0\nramp_c_per_h = 2.0\nbias_sensitivity_dph_per_c = 0.01\n",
+            ),
+            expect: Expect::Added("thermal", &[("bias_sensitivity_dph_per_c", 0.01)]),
+        },
+        Case {
             name: "rate_ramp",
             what: "rate ramp 0.02 deg/h/h",
             fs: 200.0,
