@@ -25,7 +25,7 @@ use super::compare::{self, LineHit};
 use super::findings::{Edit, Finding, fmt_g};
 use super::line_search::{self as lines, Detection, LineFit};
 use super::narrowband;
-use super::reference::{Reference, counter_lines, rate_wander};
+use super::reference::{Reference, counter_line_hz, counter_lines, rate_wander};
 use super::stats::{self, StatLayout};
 use super::types::{ALPHA_LINES, Recording};
 use super::types::{AddedTerm, ParameterChange};
@@ -96,8 +96,9 @@ pub(crate) fn excess(
     let df = p.spectrum.df();
     let masked = counter_lines(model, p.mean_rate, r.wander(), fs, d, df);
     let spectrum = p.spectrum.clone().rewhitened(&model_psd(model), &masked);
+    let counter_hz = counter_line_hz(model, p.mean_rate, fs, d, narrowband::BAND, 0.01);
     (
-        narrowband::find(&spectrum, &p.detections, ALPHA_LINES),
+        narrowband::find(&spectrum, &p.detections, &counter_hz, ALPHA_LINES),
         spectrum,
     )
 }

@@ -15,7 +15,11 @@
 //! ratio beyond the Bonferroni z over the bands searched (family-wise
 //! [`super::ALPHA_LINES`]), with the Hann periodogram's 1.94 bins per
 //! independent ordinate ([`BINS_PER_DOF`]). Bins within [`LINE_GUARD`] of a detected line are
-//! left out, so a line is not counted twice.
+//! left out, so a line is not counted twice. A band at a pulse counter's own
+//! line (the fundamental at the mean pulse rate, or a harmonic), or next to
+//! one, is not a candidate: the line's core is masked, but its Lorentzian
+//! skirts (the rate's random walk of phase) are in the recording and not in
+//! the model's spectrum, and would read as an excess of a few per cent.
 
 use statrs::distribution::{ContinuousCDF, Normal};
 
@@ -23,6 +27,8 @@ use super::line_search::{Detection, LineSpectrum};
 
 /// Bands per octave.
 const PER_OCTAVE: f64 = 8.0;
+/// A band's width relative to its lower edge, `2^(1/8) - 1`.
+pub(crate) const BAND: f64 = 0.090_507_732_665_257_66;
 /// Fewest usable bins in a band (a band of 1/8 octave at `f` holds about
 /// `0.09 f T` bins, so the search starts near 350 cycles per record).
 const MIN_BINS: usize = 32;
@@ -69,10 +75,25 @@ struct Band {
     n: usize,
 }
 
-/// The strongest narrowband excess of `spec` (None when no band counts).
-pub fn find(spec: &LineSpectrum, lines: &[Detection], alpha: f64) -> Option<Excess> {
+/// The strongest narrowband excess of `spec` (None when no band counts);
+/// `counter_hz` the frequencies of a pulse counter's own lines.
+pub fn find(
+    spec: &LineSpectrum,
+    lines: &[Detection],
+    counter_hz: &[f64],
+    alpha: f64,
+) -> Option<Excess> {
     let bands = bands(spec, lines);
-    let scored: Vec<Option<(f64, f64)>> = (0..bands.len()).map(|b| score(&bands, b)).collect();
+    let step = 2f64.powf(1.0 / PER_OCTAVE);
+    // the band that holds a counter line, and its neighbours
+    let at_counter = |b: &Band| {
+        counter_hz
+            .iter()
+            .any(|&f| b.lo_hz / step <= f && f <= b.hi_hz * step)
+    };
+    let scored: Vec<Option<(f64, f64)>> = (0..bands.len())
+        .map(|b| score(&bands, b).filter(|_| !at_counter(&bands[b])))
+        .collect();
     let tested = scored.iter().flatten().count();
     if tested == 0 {
         return None;
@@ -206,7 +227,7 @@ mod tests {
     #[test]
     fn a_resonance_is_found_where_it_is() {
         let s = spectrum(1 << 20, 100.0, resonance);
-        let e = find(&s, &[], 1e-3).expect("found");
+        let e = find(&s, &[], &[], 1e-3).expect("found");
         assert!((19.0..21.0).contains(&e.f_hz), "{e:?}");
         assert!(e.span_hz.0 < 20.0 && e.span_hz.1 > 20.0, "{e:?}");
         assert!(e.ratio > 5.0 && e.z > e.z_crit, "{e:?}");
@@ -224,7 +245,7 @@ mod tests {
         ];
         for (name, shape) in cases {
             let s = spectrum(1 << 20, 100.0, shape);
-            assert_eq!(find(&s, &[], 1e-3), None, "{name}");
+            assert_eq!(find(&s, &[], &[], 1e-3), None, "{name}");
         }
     }
 
@@ -236,7 +257,7 @@ mod tests {
             s.white[j] = 1e5;
         }
         assert!(
-            find(&s, &[], 1e-3).is_some(),
+            find(&s, &[], &[], 1e-3).is_some(),
             "a line alone raises its band"
         );
         let line = Detection {
@@ -246,6 +267,29 @@ mod tests {
             p: 0.0,
             n_searched: 1,
         };
-        assert_eq!(find(&s, &[line], 1e-3), None);
+        assert_eq!(find(&s, &[line], &[], 1e-3), None);
+    }
+
+    #[test]
+    fn the_skirts_of_a_counter_line_are_not_an_excess() {
+        // a Lorentzian of half-width 0.05 Hz at 20 Hz, its core masked
+        let skirt = |f: f64| 1.0 + 2.0 / (1.0 + ((f - 20.0) / 0.05).powi(2));
+        let mut s = spectrum(1 << 20, 100.0, skirt);
+        let k = (20.0 / s.df()) as usize;
+        s.usable[k - 20..=k + 20]
+            .iter_mut()
+            .for_each(|u| *u = false);
+        assert!(
+            find(&s, &[], &[], 1e-3).is_some(),
+            "the skirts raise their band"
+        );
+        assert_eq!(find(&s, &[], &[20.0], 1e-3), None);
+        // a resonance elsewhere is still found beside a counter line
+        let mut s = spectrum(1 << 20, 100.0, |f| skirt(f) * resonance(f * 2.0));
+        s.usable[k - 20..=k + 20]
+            .iter_mut()
+            .for_each(|u| *u = false);
+        let e = find(&s, &[], &[20.0], 1e-3).expect("the resonance");
+        assert!((9.5..10.5).contains(&e.f_hz), "{e:?}");
     }
 }

@@ -250,33 +250,16 @@ pub(crate) fn counter_lines(
     d: f64,
     df: f64,
 ) -> Vec<(f64, f64)> {
-    let tau0 = 1.0 / fs;
-    let f1 = mean_rate.abs() / d;
     let mut out = Vec::new();
-    // a rate word has no counter (its rounding is white at a noisy input)
-    if !(f1 > 0.0) || model.gyro.output == OutputKind::Rate {
+    let Some(c) = Counter::new(model, mean_rate, fs, d) else {
         return out;
-    }
-    let s = model.dither_sigma_arcsec() / d;
-    let sd_dither = model.dither_sigma_arcsec();
-    let arw = units::dpsh_to_arcsec_per_sqrt_s(model.noise.arw_dpsh.unwrap_or(0.0));
+    };
     for k in 1..=100_000usize {
         let kf = k as f64;
-        let damp = (-2.0 * PI * PI * kf * kf * s * s).exp();
-        if damp < 1e-6 {
+        let Some(Harmonic { f_true, p, bg, .. }) = c.harmonic(kf) else {
             break;
-        }
-        let f_true = kf * f1;
-        let a = d / (PI * kf) * 2.0 * (PI * f_true * tau0).sin().abs() / tau0 * damp;
-        let p = 0.5 * a * a;
-        let mut fa = f_true.rem_euclid(fs);
-        if fa > fs / 2.0 {
-            fa = fs - fa;
-        }
-        let bg = (2.0 * arw * arw
-            + 8.0 * sd_dither * sd_dither * (PI * fa * tau0).sin().powi(2) / tau0)
-            .max(1e-300);
-        let gamma = (2.0 * PI * kf * arw / d).powi(2) / (4.0 * PI);
+        };
+        let gamma = (2.0 * PI * kf * c.arw / d).powi(2) / (4.0 * PI);
         let width = gamma.max(kf * wander / d).max(df);
         let peak = p / (PI * width);
         if peak < 0.2 * bg {
@@ -296,6 +279,90 @@ pub(crate) fn counter_lines(
         out.push((f_true, reach + 3.0 * df + 4.0 * kf * wander / d));
     }
     out
+}
+
+/// A pulse counter's sawtooth, for its harmonics ([`counter_lines`]).
+struct Counter {
+    /// The fundamental, Hz; the dither residual in pulses and arcsec; the
+    /// white rate noise, arcsec/sqrt(s); the pulse weight, arcsec; tau0, s.
+    f1: f64,
+    s: f64,
+    sd_dither: f64,
+    arw: f64,
+    d: f64,
+    tau0: f64,
+    fs: f64,
+}
+
+/// One harmonic: its frequency (Hz), aliased into `[0, fs/2]`, its power
+/// in the rate ((arcsec/s)^2) and the continuum's density under it.
+struct Harmonic {
+    f_true: f64,
+    f_alias: f64,
+    p: f64,
+    bg: f64,
+}
+
+impl Counter {
+    /// `None` for a rate word (its rounding is white at a noisy input) or
+    /// no mean rate.
+    fn new(model: &GyroModel, mean_rate: f64, fs: f64, d: f64) -> Option<Counter> {
+        let f1 = mean_rate.abs() / d;
+        (f1 > 0.0 && model.gyro.output != OutputKind::Rate).then(|| Counter {
+            f1,
+            s: model.dither_sigma_arcsec() / d,
+            sd_dither: model.dither_sigma_arcsec(),
+            arw: units::dpsh_to_arcsec_per_sqrt_s(model.noise.arw_dpsh.unwrap_or(0.0)),
+            d,
+            tau0: 1.0 / fs,
+            fs,
+        })
+    }
+
+    /// Harmonic `k`; `None` once the dither has damped it below 1e-6.
+    fn harmonic(&self, k: f64) -> Option<Harmonic> {
+        let damp = (-2.0 * PI * PI * k * k * self.s * self.s).exp();
+        if damp < 1e-6 {
+            return None;
+        }
+        let (tau0, fs) = (self.tau0, self.fs);
+        let f_true = k * self.f1;
+        let a = self.d / (PI * k) * 2.0 * (PI * f_true * tau0).sin().abs() / tau0 * damp;
+        let mut fa = f_true.rem_euclid(fs);
+        if fa > fs / 2.0 {
+            fa = fs - fa;
+        }
+        let bg = (2.0 * self.arw * self.arw
+            + 8.0 * self.sd_dither * self.sd_dither * (PI * fa * tau0).sin().powi(2) / tau0)
+            .max(1e-300);
+        Some(Harmonic {
+            f_true,
+            f_alias: fa,
+            p: 0.5 * a * a,
+            bg,
+        })
+    }
+}
+
+/// The aliased frequencies (Hz) of the counter's harmonics whose power is at
+/// least `share` of the continuum's over `band` (relative width) about them,
+/// masked core or not: spread by the rate's wander they raise their band.
+pub(crate) fn counter_line_hz(
+    model: &GyroModel,
+    mean_rate: f64,
+    fs: f64,
+    d: f64,
+    band: f64,
+    share: f64,
+) -> Vec<f64> {
+    let Some(c) = Counter::new(model, mean_rate, fs, d) else {
+        return Vec::new();
+    };
+    (1..=100_000usize)
+        .map_while(|k| c.harmonic(k as f64))
+        .filter(|h| h.p >= share * h.bg * band * h.f_alias)
+        .map(|h| h.f_alias)
+        .collect()
 }
 
 /// Slow rate wander (arcsec/s): the wavelet energy of the levels below

@@ -218,10 +218,8 @@ fn a_response_to_a_temperature_ramp_is_the_thermal_term_not_a_rate_ramp() {
     let csv = simulate(
         dir.path(),
         "thermal_ramp",
-        &rlg(
-            "[thermal]\ntemp_c0 = 25.0\nramp_c_per_h = 3.0\n\
-             bias_sensitivity_dph_per_c = 0.05\nlag_s = 60.0\n",
-        ),
+        &rlg("[thermal]\ntemp_c0 = 25.0\nramp_c_per_h = 3.0\n\
+             bias_sensitivity_dph_per_c = 0.05\nlag_s = 60.0\n"),
         3600,
         37,
     );

@@ -581,7 +581,11 @@ mod tests {
         let mut y = s.rate_dph.clone();
         low.correction.apply_to_blocks(&s.t0_s, block_s, &mut y);
         let slope = |v: &[f64]| 1.0 - unexplained_by_line(v);
-        assert!(slope(&y) < 0.05, "r^2 of what remains on time {}", slope(&y));
+        assert!(
+            slope(&y) < 0.05,
+            "r^2 of what remains on time {}",
+            slope(&y)
+        );
     }
 
     #[test]

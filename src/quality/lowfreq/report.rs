@@ -61,9 +61,7 @@ impl Analysis<'_> {
 
     /// The largest lag searched.
     fn lag_top(&self) -> f64 {
-        *lag_grid(self.c.block_s, self.span_s)
-            .last()
-            .unwrap_or(&0.0)
+        *lag_grid(self.c.block_s, self.span_s).last().unwrap_or(&0.0)
     }
 
     /// The profile of effect `i` over its range, the others held.
@@ -137,8 +135,7 @@ impl Analysis<'_> {
         };
         let base = self.base(&effects);
         for (i, e) in effects.iter().enumerate() {
-            let (param, amp) =
-                intervals(&self.profile(chol, &effects, i), *e, fit.beta[base + i]);
+            let (param, amp) = intervals(&self.profile(chol, &effects, i), *e, fit.beta[base + i]);
             match e {
                 Effect::Warmup { .. } => {
                     out.warmup = Some(WarmupFit {
