@@ -191,6 +191,9 @@ fn pass(
         c.pulse_arcsec = None;
     }
     let mut pipe = Pipeline::new(&c)?;
+    if let Some(corr) = correction {
+        pipe.set_fitted_effects(corr.ramp_se_factor(), corr.ramp_joint_z());
+    }
     let mut block = Block::default();
     let mut out = PipelineOutput::default();
     let mut rates = Vec::new();

@@ -439,6 +439,10 @@ pub struct Pipeline {
     fill_rate: Vec<Range<u64>>,
     /// The data-quality stage, when on.
     quality: Option<Quality>,
+    /// [`EstimatorInput::ramp_se_factor`] (1 unless set) and
+    /// [`EstimatorInput::ramp_joint_z`].
+    ramp_se_factor: f64,
+    ramp_joint_z: Option<f64>,
 }
 
 /// The data-quality stage's parts that run inside the pipeline.
@@ -506,7 +510,19 @@ impl Pipeline {
                 davar: Davar::new(tau0_s),
                 taken: 0,
             }),
+            ramp_se_factor: 1.0,
+            ramp_joint_z: None,
         })
+    }
+
+    /// The statistics are of a rate from which effects fitted beside a ramp
+    /// were subtracted: the ramp's standard error is widened by `se_factor`
+    /// (at least 1), and a ramp is reported only when its z in the joint
+    /// fit, `joint_z`, passes too
+    /// ([`crate::quality::lowfreq::Correction::ramp_se_factor`], [`crate::quality::lowfreq::Correction::ramp_joint_z`]).
+    pub fn set_fitted_effects(&mut self, se_factor: f64, joint_z: Option<f64>) {
+        self.ramp_se_factor = se_factor.max(1.0);
+        self.ramp_joint_z = joint_z;
     }
 
     /// Samples through the statistics (those a glitch filter still holds are not).
@@ -821,6 +837,8 @@ impl Pipeline {
                 pulse_arcsec: d,
                 pulses_per_sample: self.ramp.mean() * self.tau0_s / d,
             }),
+            ramp_se_factor: self.ramp_se_factor,
+            ramp_joint_z: self.ramp_joint_z,
         };
         estimate::estimate(&input, opts)
     }

@@ -249,6 +249,15 @@ pub struct EstimatorInput<'a> {
     /// The pulse counter the angle comes from (`None` for rate words): its
     /// sawtooth readout error is told apart from white quantization noise.
     pub counter: Option<Counter>,
+    /// Factor (at least 1) on the ramp's standard error: effects fitted
+    /// beside a ramp and subtracted from the rate before these statistics
+    /// trade off against it (the data-quality stage's
+    /// `Correction::ramp_se_factor`); 1 for a record taken as it is.
+    pub ramp_se_factor: f64,
+    /// The ramp's z in the data-quality stage's joint fit with those effects
+    /// (`Correction::ramp_joint_z`): a ramp is reported only when it passes
+    /// there too. `None` for a record taken as it is.
+    pub ramp_joint_z: Option<f64>,
 }
 
 /// Full result: the coefficients plus the fit behind them.
@@ -553,7 +562,7 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         q2,
         &level_bounds,
         collapsed,
-        widen,
+        widen * input.ramp_se_factor.max(1.0),
     );
     EstimatorOutput {
         estimates: NoiseEstimates {
@@ -565,7 +574,8 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
                 ramp,
                 ramp_wide,
                 lf.ramp_col,
-                ramp_term.is_some_and(|t| t.included),
+                ramp_term.is_some_and(|t| t.included)
+                    && input.ramp_joint_z.is_none_or(|z| z * z >= opts.ci_lr),
                 opts.ci_lr,
             ),
         },

@@ -114,6 +114,10 @@ pub struct Correction {
     warmup: Option<(f64, f64)>,
     steps: Vec<(f64, f64)>,
     thermal: Option<ThermalCorrection>,
+    /// [`Correction::ramp_se_factor`] (`None`: 1).
+    ramp_se_factor: Option<f64>,
+    /// [`Correction::ramp_joint_z`].
+    ramp_joint_z: Option<f64>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -128,6 +132,27 @@ impl Correction {
     /// Whether it corrects a thermal response.
     pub fn has_thermal(&self) -> bool {
         self.thermal.is_some()
+    }
+
+    /// The factor (at least 1) on a rate ramp's standard error estimated on
+    /// the corrected rate: the effects were fitted beside a ramp, and the two
+    /// trade off (a slow warm-up or a step half-way through look much like
+    /// one), which a slope of the corrected rate, taken as if they were
+    /// known, does not see. The square root of the ramp's variance in the
+    /// joint fit over its variance beside the constant alone, under the
+    /// same fitted noise.
+    pub fn ramp_se_factor(&self) -> f64 {
+        self.ramp_se_factor.unwrap_or(1.0).max(1.0)
+    }
+
+    /// The rate ramp's z (estimate over standard error) in the joint fit of
+    /// the block means with the effects subtracted, under the fitted noise
+    /// (white, flicker, random walk): a ramp found on the corrected rate is
+    /// reported only when it passes here too, where its trade-off with the
+    /// effects' shapes is fitted rather than taken as known. `None` without
+    /// effects, or when a linear temperature's response took the ramp's place.
+    pub fn ramp_joint_z(&self) -> Option<f64> {
+        self.ramp_joint_z
     }
 
     /// Nothing to correct.
@@ -524,6 +549,47 @@ mod tests {
             clean.warmup.is_none() && clean.steps.is_empty(),
             "{clean:?}"
         );
+    }
+
+    #[test]
+    fn a_step_half_way_doubles_the_ramps_standard_error() {
+        // white block noise: the ramp's variance beside a step at the middle
+        // over its variance alone is 1 / (1 - r^2), r^2 = corr(t, step)^2 =
+        // 20^2 / ((160^2 - 1)/12 * 1/4) for 160 blocks: a factor of 2.0002
+        let (sd, block_s) = (0.8, 15.0);
+        let s = series(160, block_s, sd, 9, |_| 0.0);
+        let c = coarsen(&s).unwrap();
+        let n = c.len();
+        let a = Analysis {
+            noise: Noise::new(&c, white_for(sd, block_s)),
+            span_s: n as f64 * c.block_s,
+            c,
+            temp: None,
+            temp_linear: false,
+            series: &s,
+        };
+        let mut eye = vec![0.0; n * n];
+        (0..n).for_each(|i| eye[i * n + i] = 1.0);
+        let chol = super::super::gls::Cholesky::new(&eye, n).unwrap();
+        let effects = [Effect::Step {
+            at_s: a.span_s / 2.0,
+        }];
+        let joint = a.gls(&chol, &effects).unwrap();
+        let f = a.ramp_inflation(&chol, &effects, &joint).unwrap();
+        let r2 = 400.0 / ((160.0f64 * 160.0 - 1.0) / 12.0 * 0.25);
+        assert!((f - (1.0 / (1.0 - r2)).sqrt()).abs() < 1e-9, "{f}");
+        // through the analysis: a step found widens the ramp (here less: the
+        // fitted random walk already confounds a ramp), nothing found nothing
+        let stepped = series(160, block_s, sd, 9, |t| if t > 1200.0 { 8.0 } else { 0.0 });
+        let low = analyse(&stepped, white_for(sd, block_s)).unwrap();
+        assert_eq!(low.steps.len(), 1, "{low:?}");
+        assert!(low.correction.ramp_se_factor() > 1.1, "{low:?}");
+        let clean = analyse(
+            &series(160, block_s, sd, 2, |_| 0.0),
+            white_for(sd, block_s),
+        )
+        .unwrap();
+        assert_eq!(clean.correction.ramp_se_factor(), 1.0);
     }
 
     #[test]
