@@ -207,7 +207,17 @@ impl Analysis<'_> {
         let mut es = effects.to_vec();
         es.push(Effect::Thermal { lag_s: 0.0 });
         let i = es.len() - 1;
-        let prof = self.profile(chol, &es, i);
+        // a linear temperature's response is tested in place of the ramp,
+        // against the noise fitted without either (its random walk takes what
+        // it can of a trend): its interval is read under that noise too
+        let null = if self.temp_linear {
+            let mut x = self.columns(&es);
+            x.pop();
+            Some(self.noise.fit(&self.c.y, &x, self.span_s)?.chol)
+        } else {
+            None
+        };
+        let prof = self.profile(null.as_ref().unwrap_or(chol), &es, i);
         let best = prof.iter().min_by(|a, b| a.rss.total_cmp(&b.rss))?;
         es[i] = Effect::Thermal { lag_s: best.param };
         let (lag, amp) = intervals(&prof, es[i], best.amp);
