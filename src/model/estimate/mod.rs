@@ -574,8 +574,8 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
                 ramp,
                 ramp_wide,
                 lf.ramp_col,
-                ramp_term.is_some_and(|t| t.included)
-                    && input.ramp_joint_z.is_none_or(|z| z * z >= opts.ci_lr),
+                ramp_term.is_some_and(|t| t.included),
+                input.ramp_joint_z.is_none_or(|z| z * z >= opts.ci_lr),
                 opts.ci_lr,
             ),
         },
@@ -776,19 +776,24 @@ fn ramp_slope(input: &EstimatorInput, terms: &[SpectralTerm], theta: &[f64]) -> 
 /// out). Its interval and bound use the spread `wide`, with the unresolved
 /// terms at their upper bounds: the slope of one record cannot tell a ramp
 /// from the low-frequency noise the record does not exclude, so the interval
-/// may reach zero although the test found a ramp.
+/// may reach zero although the test found a ramp. `joint_ok`: the ramp also
+/// passes beside the effects subtracted from the rate
+/// ([`EstimatorInput::ramp_joint_z`]; true without).
 fn ramp_coefficient(
     ramp: Option<(f64, f64)>,
     wide: Option<(f64, f64)>,
     ramp_col: bool,
     col_kept: bool,
+    joint_ok: bool,
     ci_lr: f64,
 ) -> Coefficient {
     let z = 1.959_964;
     let to = units::arcsec_per_s2_to_dphh;
     let sd_wide = |sd: f64| wide.map_or(sd, |(_, w)| w.max(sd));
     match ramp {
-        Some((s, sd)) if sd > 0.0 && (s / sd).powi(2) >= ci_lr && (!ramp_col || col_kept) => {
+        Some((s, sd))
+            if sd > 0.0 && (s / sd).powi(2) >= ci_lr && (!ramp_col || col_kept) && joint_ok =>
+        {
             let w = sd_wide(sd);
             Coefficient {
                 value: Some(to(s)),
