@@ -114,10 +114,9 @@ pub struct Correction {
     warmup: Option<(f64, f64)>,
     steps: Vec<(f64, f64)>,
     thermal: Option<ThermalCorrection>,
-    /// [`Correction::ramp_se_factor`] (`None`: 1).
-    ramp_se_factor: Option<f64>,
-    /// [`Correction::ramp_joint_z`].
-    ramp_joint_z: Option<f64>,
+    /// ([`Correction::ramp_se_factor`], [`Correction::ramp_joint_z`]);
+    /// `None` without effects fitted beside the ramp.
+    ramp: Option<(f64, f64)>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -142,7 +141,7 @@ impl Correction {
     /// joint fit over its variance beside the constant alone, under the
     /// same fitted noise.
     pub fn ramp_se_factor(&self) -> f64 {
-        self.ramp_se_factor.unwrap_or(1.0).max(1.0)
+        self.ramp.map_or(1.0, |r| r.0.max(1.0))
     }
 
     /// The rate ramp's z (estimate over standard error) in the joint fit of
@@ -152,7 +151,7 @@ impl Correction {
     /// effects' shapes is fitted rather than taken as known. `None` without
     /// effects, or when a linear temperature's response took the ramp's place.
     pub fn ramp_joint_z(&self) -> Option<f64> {
-        self.ramp_joint_z
+        self.ramp.map(|r| r.1)
     }
 
     /// Nothing to correct.
@@ -304,7 +303,7 @@ impl Analysis<'_> {
     /// Whether the mean model with `effects` has the ramp column: always,
     /// unless a thermal response of a linear temperature took its place.
     fn has_ramp(&self, effects: &[Effect]) -> bool {
-        !(self.temp_linear && effects.iter().any(|e| matches!(e, Effect::Thermal { .. })))
+        !(self.temp_linear && has_thermal(effects))
     }
 
     /// How many columns come before the effects' (the constant, the ramp).
@@ -383,8 +382,7 @@ impl Analysis<'_> {
             let ats = (2..n - 2).map(|b| b as f64 * t).collect();
             add(1, ats, &|at_s| Effect::Step { at_s });
         }
-        let thermal = effects.iter().any(|e| matches!(e, Effect::Thermal { .. }));
-        if self.temp.is_some() && !self.temp_linear && !thermal {
+        if self.temp.is_some() && !self.temp_linear && !has_thermal(effects) {
             add(2, lag_grid(t, self.span_s), &|lag_s| Effect::Thermal {
                 lag_s,
             });
@@ -402,19 +400,9 @@ impl Analysis<'_> {
             let grid = NoiseGrid::new(&self.noise, &x, fitted.b2, fitted.k2, scale_b, scale_k);
             let mut best: Option<(f64, Effect)> = None;
             for (kind, params, cols) in self.candidates(&effects) {
-                let scan = grid.scan(params, cols);
-                let Some((i, lr)) = grid.best(&scan, &self.c.y) else {
+                let Some((p, ratio)) = self.test(&grid, &fitted, params, cols, round, kind) else {
                     continue;
                 };
-                // the threshold is at least one chi-square(1) test's: below
-                // it the scan's maximum cannot pass, whatever the replicas say
-                if lr <= scan::floor(ALPHA) {
-                    continue;
-                }
-                let seed = 0x5D_A7A ^ ((round as u64) << 8) ^ u64::from(kind);
-                let limit = grid.threshold(&scan, &fitted.chol, ALPHA, seed);
-                let ratio = lr / limit;
-                let p = scan.params[i];
                 let effect = match kind {
                     0 => Effect::Warmup { tau_s: p },
                     1 => Effect::Step { at_s: p },
@@ -440,6 +428,31 @@ impl Analysis<'_> {
 }
 
 impl Analysis<'_> {
+    /// One scan of candidates (`params`, their regressors `cols`) against
+    /// the null model of `grid` and `fitted`: the best candidate's shape
+    /// parameter and its likelihood ratio over the scan's threshold (seeded
+    /// by the round and the scan's `kind`); `None` below one chi-square(1)
+    /// test's level, which the scan's maximum cannot pass whatever the
+    /// replicas say.
+    fn test(
+        &self,
+        grid: &NoiseGrid,
+        fitted: &Fitted,
+        params: Vec<f64>,
+        cols: Vec<Vec<f64>>,
+        round: usize,
+        kind: u8,
+    ) -> Option<(f64, f64)> {
+        let scan = grid.scan(params, cols);
+        let (i, lr) = grid.best(&scan, &self.c.y)?;
+        if lr <= scan::floor(ALPHA) {
+            return None;
+        }
+        let seed = 0x5D_A7A ^ ((round as u64) << 8) ^ u64::from(kind);
+        let limit = grid.threshold(&scan, &fitted.chol, ALPHA, seed);
+        Some((scan.params[i], lr / limit))
+    }
+
     /// The thermal response of a linear temperature, tested in place of the
     /// ramp: the likelihood ratio against the mean model of `effects` without
     /// the ramp, over its threshold; `None` when there is nothing to test.
@@ -449,8 +462,7 @@ impl Analysis<'_> {
         round: usize,
         (scale_b, scale_k): (f64, f64),
     ) -> Option<(f64, Effect)> {
-        let thermal = effects.iter().any(|e| matches!(e, Effect::Thermal { .. }));
-        if !self.temp_linear || thermal {
+        if !self.temp_linear || has_thermal(effects) {
             return None;
         }
         let effect = Effect::Thermal { lag_s: 0.0 };
@@ -458,15 +470,14 @@ impl Analysis<'_> {
         let col = x.pop()?;
         let fitted = self.noise.fit(&self.c.y, &x, self.span_s)?;
         let grid = NoiseGrid::new(&self.noise, &x, fitted.b2, fitted.k2, scale_b, scale_k);
-        let scan = grid.scan(vec![0.0], vec![col]);
-        let (_, lr) = grid.best(&scan, &self.c.y)?;
-        if lr <= scan::floor(ALPHA) {
-            return None;
-        }
-        let seed = 0x5D_A7A ^ ((round as u64) << 8) ^ 3;
-        let limit = grid.threshold(&scan, &fitted.chol, ALPHA, seed);
-        Some((lr / limit, effect))
+        let (_, ratio) = self.test(&grid, &fitted, vec![0.0], vec![col], round, 3)?;
+        Some((ratio, effect))
     }
+}
+
+/// Whether `effects` hold a thermal response.
+fn has_thermal(effects: &[Effect]) -> bool {
+    effects.iter().any(|e| matches!(e, Effect::Thermal { .. }))
 }
 
 /// `n` points evenly spaced on a log scale from `lo` to `hi`.
@@ -575,7 +586,7 @@ mod tests {
             at_s: a.span_s / 2.0,
         }];
         let joint = a.gls(&chol, &effects).unwrap();
-        let f = a.ramp_inflation(&chol, &effects, &joint).unwrap();
+        let (f, _) = a.ramp_beside_effects(&chol, &effects, &joint).unwrap();
         let r2 = 400.0 / ((160.0f64 * 160.0 - 1.0) / 12.0 * 0.25);
         assert!((f - (1.0 / (1.0 - r2)).sqrt()).abs() < 1e-9, "{f}");
         // through the analysis: a step found widens the ramp (here less: the

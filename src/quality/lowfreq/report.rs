@@ -162,8 +162,7 @@ impl Analysis<'_> {
                 }
             }
         }
-        out.correction.ramp_se_factor = self.ramp_inflation(chol, &effects, &fit);
-        out.correction.ramp_joint_z = self.ramp_z(&effects, &fit);
+        out.correction.ramp = self.ramp_beside_effects(chol, &effects, &fit);
         out.steps
             .sort_by(|a, b| a.at_s.value.total_cmp(&b.at_s.value));
         if out.thermal.is_none() && self.temp.is_some() {
@@ -172,33 +171,24 @@ impl Analysis<'_> {
         Some(out)
     }
 
-    /// [`Correction::ramp_se_factor`]: `None` without effects, or when a
-    /// thermal response took the ramp's place (a linear temperature: the
-    /// ramp is attributed to it).
-    pub(super) fn ramp_inflation(
+    /// The ramp beside the effects, from their joint fit `joint`:
+    /// ([`Correction::ramp_se_factor`], [`Correction::ramp_joint_z`]).
+    /// `None` without effects, or when a thermal response took the ramp's
+    /// place (a linear temperature: the ramp is attributed to it).
+    pub(super) fn ramp_beside_effects(
         &self,
         chol: &Cholesky,
         effects: &[Effect],
         joint: &GlsFit,
-    ) -> Option<f64> {
+    ) -> Option<(f64, f64)> {
         if effects.is_empty() || !self.has_ramp(effects) {
             return None;
         }
         let alone = self.gls(chol, &[])?;
         let (pa, pj) = (alone.beta.len(), joint.beta.len());
         let (va, vj) = (alone.cov[pa + 1], joint.cov[pj + 1]);
-        (va > 0.0 && vj.is_finite()).then(|| (vj / va).sqrt().max(1.0))
-    }
-
-    /// [`Correction::ramp_joint_z`]: the ramp's z in the joint fit with the
-    /// effects (`None` without effects or without the ramp column).
-    fn ramp_z(&self, effects: &[Effect], joint: &GlsFit) -> Option<f64> {
-        if effects.is_empty() || !self.has_ramp(effects) {
-            return None;
-        }
-        let p = joint.beta.len();
-        let se = joint.cov[p + 1].max(0.0).sqrt();
-        (se > 0.0).then(|| joint.beta[1] / se)
+        (va > 0.0 && vj > 0.0 && vj.is_finite())
+            .then(|| ((vj / va).sqrt().max(1.0), joint.beta[1] / vj.sqrt()))
     }
 
     /// A temperature's response that did not pass its test: its estimate and
