@@ -146,8 +146,13 @@ pub fn run_from(
         .expect("the data-quality stage keeps block means");
     let davar = pipe.davar().map(|d| d.map());
     let (mut dq, correction) = quality::assess(&spikes, &series, fine);
-    let (final_pipe, mut analysis) = if correction.is_empty() {
+    let (final_pipe, mut analysis) = if correction.is_empty() && !correction.ramp_rejected() {
         (pipe, first)
+    } else if correction.is_empty() {
+        let mut p = pipe;
+        p.reject_ramp();
+        let a = p.analysis();
+        (p, a)
     } else {
         let mut again = Prefetch::new(input.stream()?)?;
         let p = pass(
@@ -193,6 +198,9 @@ fn pass(
     let mut pipe = Pipeline::new(&c)?;
     if let Some(corr) = correction {
         pipe.set_fitted_effects(corr.ramp_se_factor(), corr.ramp_joint_z());
+        if corr.ramp_rejected() {
+            pipe.reject_ramp();
+        }
     }
     let mut block = Block::default();
     let mut out = PipelineOutput::default();

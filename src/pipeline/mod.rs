@@ -440,9 +440,10 @@ pub struct Pipeline {
     /// The data-quality stage, when on.
     quality: Option<Quality>,
     /// [`EstimatorInput::ramp_se_factor`] (1 unless set) and
-    /// [`EstimatorInput::ramp_joint_z`].
+    /// [`EstimatorInput::ramp_joint_z`], [`EstimatorInput::ramp_rejected`].
     ramp_se_factor: f64,
     ramp_joint_z: Option<f64>,
+    ramp_rejected: bool,
 }
 
 /// The data-quality stage's parts that run inside the pipeline.
@@ -512,6 +513,7 @@ impl Pipeline {
             }),
             ramp_se_factor: 1.0,
             ramp_joint_z: None,
+            ramp_rejected: false,
         })
     }
 
@@ -523,6 +525,13 @@ impl Pipeline {
     pub fn set_fitted_effects(&mut self, se_factor: f64, joint_z: Option<f64>) {
         self.ramp_se_factor = se_factor.max(1.0);
         self.ramp_joint_z = joint_z;
+    }
+
+    /// The data-quality stage tested the rate ramp and rejected it
+    /// ([`crate::quality::lowfreq::Correction::ramp_rejected`]): the
+    /// estimates report it as a bound.
+    pub fn reject_ramp(&mut self) {
+        self.ramp_rejected = true;
     }
 
     /// Samples through the statistics (those a glitch filter still holds are not).
@@ -839,6 +848,7 @@ impl Pipeline {
             }),
             ramp_se_factor: self.ramp_se_factor,
             ramp_joint_z: self.ramp_joint_z,
+            ramp_rejected: self.ramp_rejected,
         };
         estimate::estimate(&input, opts)
     }

@@ -148,7 +148,10 @@ impl DataQuality {
                     (true, true) =>
                         "compensated; the temperature changed linearly, so a rate ramp of the gyro's own \
                          cannot be told from this response and is attributed to it (lag not identified)",
-                    (false, _) => "not significant, not compensated",
+                    (false, false) => "not significant, not compensated",
+                    (false, true) =>
+                        "not significant, not compensated; the temperature changed linearly, so this was \
+                         also the test of a rate ramp, which is reported as a bound",
                 }
             ));
         }

@@ -264,6 +264,33 @@ fn a_response_to_a_temperature_ramp_is_the_thermal_term_not_a_rate_ramp() {
     assert!(err.contains("changed linearly"), "{err}");
 }
 
+/// Under a chamber ramp whose response is within the noise, the thermal
+/// test was the ramp's test too (one regressor): it did not pass, so the
+/// estimator reports the ramp as a bound, not as found by its own looser z
+/// test (this gyro, from scripts/bench-quality's thermal set, was reported
+/// with a ramp of 3.39 deg/h/h [-0.47, 7.26], as the raw statistics still do).
+#[test]
+fn a_response_within_the_noise_under_a_chamber_ramp_reports_no_ramp() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = "[gyro]\nsample_rate_hz = 200\ninput_rate_dph = 9.541\noutput = \"rate\"\n\
+                 rate_lsb_dps = 0.00106\n[noise]\narw_dpsh = 0.041953\nbias_instability_dph = 0.37697\n\
+                 [thermal]\ntemp_c0 = 25.0\nramp_c_per_h = 2.8183\nbias_sensitivity_dph_per_c = 1.201913\n";
+    let csv = simulate(dir.path(), "chamber", model, 3600, 9022);
+    let (raw, _) = analyze(&csv, &[RATE, &["--raw-statistics"]].concat());
+    assert!(!not_found(&raw, "rate_ramp_dphh"), "{}", raw["estimates"]);
+    let (j, err) = analyze(&csv, RATE);
+    let t = &j["data_quality"]["thermal"];
+    assert_eq!(t["compensated"], false, "{t}");
+    assert_eq!(t["confounded_with_ramp"], true, "{t}");
+    assert!(covers(&t["bias_sensitivity_dph_per_c"], 1.201913), "{t}");
+    let r = &j["estimates"]["rate_ramp_dphh"];
+    // the response is a ramp of 1.2 deg/h per deg C x 2.82 deg C/h
+    assert!(r["value"].is_null(), "{r}");
+    assert!(r["upper95"].as_f64().unwrap() >= 1.201913 * 2.8183, "{r}");
+    assert!(not_found(&j, "rrw_dphsh"), "{}", j["estimates"]);
+    assert!(err.contains("reported as a bound"), "{err}");
+}
+
 #[test]
 fn clean_runs_report_nothing() {
     let dir = tempfile::tempdir().unwrap();

@@ -258,6 +258,11 @@ pub struct EstimatorInput<'a> {
     /// (`Correction::ramp_joint_z`): a ramp is reported only when it passes
     /// there too. `None` for a record taken as it is.
     pub ramp_joint_z: Option<f64>,
+    /// The data-quality stage tested the ramp and it did not pass
+    /// (`Correction::ramp_rejected`: a linear temperature's response, tested
+    /// in place of the ramp, was within the noise): the ramp is reported as
+    /// a bound, whatever the test here says. `false` for a record taken as it is.
+    pub ramp_rejected: bool,
 }
 
 /// Full result: the coefficients plus the fit behind them.
@@ -575,7 +580,7 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
                 ramp_wide,
                 lf.ramp_col,
                 ramp_term.is_some_and(|t| t.included),
-                input.ramp_joint_z.is_none_or(|z| z * z >= opts.ci_lr),
+                !input.ramp_rejected && input.ramp_joint_z.is_none_or(|z| z * z >= opts.ci_lr),
                 opts.ci_lr,
             ),
         },
@@ -778,7 +783,8 @@ fn ramp_slope(input: &EstimatorInput, terms: &[SpectralTerm], theta: &[f64]) -> 
 /// from the low-frequency noise the record does not exclude, so the interval
 /// may reach zero although the test found a ramp. `joint_ok`: the ramp also
 /// passes beside the effects subtracted from the rate
-/// ([`EstimatorInput::ramp_joint_z`]; true without).
+/// ([`EstimatorInput::ramp_joint_z`]; true without) and was not rejected by
+/// the stage ([`EstimatorInput::ramp_rejected`]).
 fn ramp_coefficient(
     ramp: Option<(f64, f64)>,
     wide: Option<(f64, f64)>,

@@ -48,6 +48,9 @@ pub const MAX_BLOCKS: usize = 160;
 pub const MIN_BLOCKS: usize = 16;
 /// False-alarm probability of each scan, per record.
 pub const ALPHA: f64 = 0.002;
+/// Level of the test a rate ramp passes before the estimates call it found
+/// ([`Correction::ramp_rejected`]): the estimator's own level, 95 %.
+pub const RAMP_ALPHA: f64 = 0.05;
 /// Most steps found.
 pub const MAX_STEPS: usize = 5;
 /// The profile likelihood's 95 % level (chi-square, 1 degree of freedom).
@@ -117,6 +120,8 @@ pub struct Correction {
     /// ([`Correction::ramp_se_factor`], [`Correction::ramp_joint_z`]);
     /// `None` without effects fitted beside the ramp.
     ramp: Option<(f64, f64)>,
+    /// [`Correction::ramp_rejected`].
+    ramp_rejected: bool,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -152,6 +157,15 @@ impl Correction {
     /// effects, or when a linear temperature's response took the ramp's place.
     pub fn ramp_joint_z(&self) -> Option<f64> {
         self.ramp.map(|r| r.1)
+    }
+
+    /// A linear temperature's response was tested in place of the rate ramp
+    /// (the two are one regressor) and did not pass: the ramp was tested
+    /// here, with a threshold calibrated on the fitted noise's own replicas,
+    /// and is not reported as found by a second, looser test of the same
+    /// slope. Nothing is subtracted for it.
+    pub fn ramp_rejected(&self) -> bool {
+        self.ramp_rejected
     }
 
     /// Nothing to correct.
@@ -443,14 +457,60 @@ impl Analysis<'_> {
         round: usize,
         kind: u8,
     ) -> Option<(f64, f64)> {
+        self.test_at(grid, fitted, (params, cols), round, kind, ALPHA)
+    }
+
+    /// [`Analysis::test`] at level `alpha`.
+    fn test_at(
+        &self,
+        grid: &NoiseGrid,
+        fitted: &Fitted,
+        (params, cols): (Vec<f64>, Vec<Vec<f64>>),
+        round: usize,
+        kind: u8,
+        alpha: f64,
+    ) -> Option<(f64, f64)> {
         let scan = grid.scan(params, cols);
         let (i, lr) = grid.best(&scan, &self.c.y)?;
-        if lr <= scan::floor(ALPHA) {
+        if lr <= scan::floor(alpha) {
             return None;
         }
         let seed = 0x5D_A7A ^ ((round as u64) << 8) ^ u64::from(kind);
-        let limit = grid.threshold(&scan, &fitted.chol, ALPHA, seed);
+        let limit = grid.threshold(&scan, &fitted.chol, alpha, seed);
         Some((scan.params[i], lr / limit))
+    }
+
+    /// One column `col` beside the mean model `x`, tested at level `alpha`
+    /// against the noise refitted without it (its flicker and random walk
+    /// take what they can of the column): its likelihood ratio over the
+    /// threshold, `None` below one chi-square(1) test's level.
+    fn test_column(
+        &self,
+        x: &[Vec<f64>],
+        col: Vec<f64>,
+        (round, kind, alpha): (usize, u8, f64),
+        (scale_b, scale_k): (f64, f64),
+    ) -> Option<f64> {
+        let fitted = self.noise.fit(&self.c.y, x, self.span_s)?;
+        let grid = NoiseGrid::new(&self.noise, x, fitted.b2, fitted.k2, scale_b, scale_k);
+        self.test_at(&grid, &fitted, (vec![0.0], vec![col]), round, kind, alpha)
+            .map(|(_, ratio)| ratio)
+    }
+
+    /// Whether the rate ramp beside `effects` passes the same kind of test
+    /// as the effects, at [`RAMP_ALPHA`]: the ramp column against the mean
+    /// model without it, under noise refitted without it. `true` when the
+    /// ramp column is not in the model (a linear temperature's response took
+    /// its place and was tested instead).
+    pub(super) fn ramp_passes(&self, effects: &[Effect]) -> bool {
+        if !self.has_ramp(effects) {
+            return true;
+        }
+        let mut x = self.columns(effects);
+        let col = x.remove(1);
+        let scales = Noise::scales(&self.c.y, self.span_s);
+        self.test_column(&x, col, (0, 4, RAMP_ALPHA), scales)
+            .is_some_and(|ratio| ratio > 1.0)
     }
 
     /// The thermal response of a linear temperature, tested in place of the
@@ -468,9 +528,7 @@ impl Analysis<'_> {
         let effect = Effect::Thermal { lag_s: 0.0 };
         let mut x = self.columns(&[effects, &[effect]].concat());
         let col = x.pop()?;
-        let fitted = self.noise.fit(&self.c.y, &x, self.span_s)?;
-        let grid = NoiseGrid::new(&self.noise, &x, fitted.b2, fitted.k2, scale_b, scale_k);
-        let (_, ratio) = self.test(&grid, &fitted, vec![0.0], vec![col], round, 3)?;
+        let ratio = self.test_column(&x, col, (round, 3, ALPHA), (scale_b, scale_k))?;
         Some((ratio, effect))
     }
 }
@@ -650,6 +708,7 @@ mod tests {
         let t = low.thermal.expect("a thermal fit");
         let c = t.bias_sensitivity_dph_per_c.ci95;
         assert!(t.compensated && t.confounded_with_ramp, "{t:?}");
+        assert!(!low.correction.ramp_rejected(), "compensated, not rejected");
         assert!(c[0] <= sens && sens <= c[1] && c[1] - c[0] < sens, "{t:?}");
         // the lag is not identified: its interval is the range searched
         assert_eq!(t.lag_s.ci95[0], 0.0);
@@ -677,6 +736,55 @@ mod tests {
             assert!(!t.compensated && t.confounded_with_ramp, "{seed}: {t:?}");
             assert!(c[0] <= 0.0 && 0.0 <= c[1], "{seed}: {t:?}");
             assert!(low.correction.is_empty(), "{seed}");
+            // the response's test was the ramp's: the ramp is not reported
+            assert!(low.correction.ramp_rejected(), "{seed}");
+        }
+    }
+
+    /// The rate ramp passes the stage's own test before the estimates call
+    /// it found: a ramp of 8 block sds over the record passes on every seed,
+    /// and white block noise rejects it at about the test's 5 % level.
+    #[test]
+    fn a_ramp_passes_the_stages_test_and_white_noise_does_not() {
+        let (sd, block_s, n) = (0.8, 15.0, 160);
+        let span = n as f64 * block_s;
+        for seed in 0..4 {
+            let s = series(n, block_s, sd, seed, |t| 8.0 * sd * t / span);
+            let low = analyse(&s, white_for(sd, block_s)).unwrap();
+            assert!(!low.correction.ramp_rejected(), "{seed}: {low:?}");
+        }
+        let passed = (100..140)
+            .filter(|&seed| {
+                let s = series(n, block_s, sd, seed, |_| 0.0);
+                !analyse(&s, white_for(sd, block_s))
+                    .unwrap()
+                    .correction
+                    .ramp_rejected()
+            })
+            .count();
+        assert!(
+            passed <= 6,
+            "white noise passed the ramp's test {passed}/40"
+        );
+    }
+
+    /// A cycling temperature's response is not the ramp's test: a gyro's own
+    /// ramp beside a temperature without a response is left found.
+    #[test]
+    fn a_cycling_temperature_without_a_response_leaves_the_ramp_found() {
+        let (sd, block_s, n) = (0.8, 15.0, 160);
+        let span = n as f64 * block_s;
+        for seed in 4..8 {
+            let mut s = series(n, block_s, sd, seed, |t| 8.0 * sd * t / span);
+            s.temp_c = Some(
+                (0..n)
+                    .map(|b| 25.0 + 2.0 * (std::f64::consts::TAU * 3.0 * b as f64 / n as f64).sin())
+                    .collect(),
+            );
+            let low = analyse(&s, white_for(sd, block_s)).unwrap();
+            let t = low.thermal.expect("a temperature gets a fit");
+            assert!(!t.compensated && !t.confounded_with_ramp, "{seed}: {t:?}");
+            assert!(!low.correction.ramp_rejected(), "{seed}");
         }
     }
 }

@@ -163,10 +163,12 @@ impl Analysis<'_> {
             }
         }
         out.correction.ramp = self.ramp_beside_effects(chol, &effects, &fit);
+        out.correction.ramp_rejected = !self.ramp_passes(&effects);
         out.steps
             .sort_by(|a, b| a.at_s.value.total_cmp(&b.at_s.value));
         if out.thermal.is_none() && self.temp.is_some() {
             out.thermal = self.thermal_not_significant(chol, &effects);
+            out.correction.ramp_rejected |= self.temp_linear;
         }
         Some(out)
     }

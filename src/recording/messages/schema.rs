@@ -167,7 +167,7 @@ fn data_quality_schema() -> Value {
             "bias_sensitivity_dph_per_c": interval("sensitivity, deg/h per deg C"),
             "lag_s": interval("lag, s"),
             "compensated": {"type": "boolean", "description": "the response is significant and the rate is compensated for it"},
-            "confounded_with_ramp": {"type": "boolean", "description": "the temperature changed linearly: its response was fitted in place of a rate ramp, which it cannot be told from, and the lag is not identified"},
+            "confounded_with_ramp": {"type": "boolean", "description": "the temperature changed linearly: its response was fitted in place of a rate ramp, which it cannot be told from (when the response is not significant, the ramp is reported as a bound), and the lag is not identified"},
         }),
     );
     let stationary = object(
