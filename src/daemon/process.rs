@@ -798,6 +798,9 @@ impl Run<'_> {
             if let Some(q) = self.p.quality.as_mut() {
                 if assess {
                     restart = q.assess(&self.p.pipeline, &a.estimates, false);
+                    if self.p.pipeline.set_ramp_rejected(q.ramp_rejected()) {
+                        a = self.p.pipeline.analysis();
+                    }
                     tracing::debug!(
                         gyro = self.out.telemetry.gyro.label(),
                         cost_s = (start.elapsed() - estimated).as_secs_f64(),
@@ -1010,6 +1013,9 @@ impl Run<'_> {
         let mut a = self.p.pipeline.analysis();
         if let Some(q) = self.p.quality.as_mut() {
             q.assess(&self.p.pipeline, &a.estimates, true);
+            if self.p.pipeline.set_ramp_rejected(q.ramp_rejected()) {
+                a = self.p.pipeline.analysis();
+            }
             a.data_quality = q.report();
         }
         self.publish_quality();

@@ -78,6 +78,9 @@ pub struct LiveQuality {
     /// statistics, which the live estimates still hold (a warm-up before the
     /// restart, bias steps, a thermal response), in words.
     held: Option<String>,
+    /// The latest assessment rejected the rate ramp
+    /// ([`crate::quality::lowfreq::Correction::ramp_rejected`]).
+    ramp_rejected: bool,
     /// Counter values published.
     outliers_published: u64,
     steps_published: u64,
@@ -95,6 +98,7 @@ impl LiveQuality {
             latest: None,
             settling: false,
             held: None,
+            ramp_rejected: false,
             outliers_published: 0,
             steps_published: 0,
         }
@@ -133,6 +137,7 @@ impl LiveQuality {
         self.settling = self.excluded.is_none() && settled == Some(false);
         let restart = !last && self.excluded.is_none() && settled == Some(true);
         self.held = (!restart && !correction.is_empty()).then(|| held(&dq, &correction));
+        self.ramp_rejected = !restart && correction.ramp_rejected();
         self.latest = Some(self.joined(dq));
         restart
     }
@@ -201,8 +206,15 @@ impl LiveQuality {
             d
         });
         self.settling = false;
+        self.ramp_rejected = false;
         self.base = at;
         self.next_at = (LOWFREQ_EVERY_S / self.tau0_s).round() as u64;
+    }
+
+    /// The latest assessment of the current statistics rejected the rate
+    /// ramp: their estimates report it as a bound, as `analyze` does.
+    pub fn ramp_rejected(&self) -> bool {
+        self.ramp_rejected
     }
 
     /// Seconds of the run the restart left out, if it happened.

@@ -150,7 +150,7 @@ pub fn run_from(
         (pipe, first)
     } else if correction.is_empty() {
         let mut p = pipe;
-        p.reject_ramp();
+        p.set_ramp_rejected(true);
         let a = p.analysis();
         (p, a)
     } else {
@@ -198,9 +198,7 @@ fn pass(
     let mut pipe = Pipeline::new(&c)?;
     if let Some(corr) = correction {
         pipe.set_fitted_effects(corr.ramp_se_factor(), corr.ramp_joint_z());
-        if corr.ramp_rejected() {
-            pipe.reject_ramp();
-        }
+        pipe.set_ramp_rejected(corr.ramp_rejected());
     }
     let mut block = Block::default();
     let mut out = PipelineOutput::default();

@@ -527,11 +527,11 @@ impl Pipeline {
         self.ramp_joint_z = joint_z;
     }
 
-    /// The data-quality stage tested the rate ramp and rejected it
+    /// Whether the data-quality stage tested the rate ramp and rejected it
     /// ([`crate::quality::lowfreq::Correction::ramp_rejected`]): the
-    /// estimates report it as a bound.
-    pub fn reject_ramp(&mut self) {
-        self.ramp_rejected = true;
+    /// estimates then report it as a bound. Returns whether that changed.
+    pub fn set_ramp_rejected(&mut self, rejected: bool) -> bool {
+        std::mem::replace(&mut self.ramp_rejected, rejected) != rejected
     }
 
     /// Samples through the statistics (those a glitch filter still holds are not).

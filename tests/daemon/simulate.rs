@@ -280,6 +280,68 @@ fn raw_statistics_leave_the_warmup_in() {
     assert!(v["last_estimates"].get("data_quality").is_none());
 }
 
+/// A ramp the data-quality stage's own test rejects (0.3 deg/h/h over 20
+/// min, within what the block means' noise can make) is a bound in the
+/// daemon's final estimates, as in `analyze` of the same stream; with
+/// `--raw-statistics` the estimator alone calls it found, its interval
+/// reaching zero.
+#[test]
+fn a_ramp_the_stage_rejects_is_a_bound_live_as_offline() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = defect_model(dir.path(), "ramp.toml", "rate_ramp_dphh = 0.3\n");
+    let ramp = |extra: &[&str]| {
+        let rec = dir.path().join(format!("rec{}", extra.len()));
+        run_to_end(&model, &rec, extra);
+        estimates(&only_recording(&rec))
+            .pop()
+            .unwrap()
+            .estimates
+            .rate_ramp_dphh
+    };
+    let (live, raw) = (ramp(&[]), ramp(&["--raw-statistics"]));
+    assert!(live.value.is_none(), "{live:?}");
+    let [lo, hi] = raw.ci95.expect("found by the estimator alone");
+    assert!(lo < 0.0 && 0.0 < hi, "{raw:?}");
+    let bound = live.upper95.expect("a bound");
+    assert!(
+        (bound / lo.abs().max(hi.abs()) - 1.0).abs() < 1e-9,
+        "{live:?} {raw:?}"
+    );
+    // analyze of the same stream (seed 1) reports the same bound
+    let csv = dir.path().join("ramp.csv");
+    let o = Command::new(env!("CARGO_BIN_EXE_sagnac"))
+        .args(["simulate", "--model"])
+        .arg(&model)
+        .args(["--duration-s", "1200", "--seed", "1", "--out"])
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = Command::new(env!("CARGO_BIN_EXE_sagnac"))
+        .args([
+            "analyze",
+            "--sample-rate-hz",
+            "200",
+            "--pulse-arcsec",
+            "1.21",
+            "--json",
+            "-",
+            "--input",
+        ])
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let off = &j["estimates"]["rate_ramp_dphh"];
+    assert!(off["value"].is_null(), "{off}");
+    let u = off["upper95"].as_f64().unwrap();
+    assert!(
+        (u / live.upper95.unwrap() - 1.0).abs() < 1e-9,
+        "{off} {live:?}"
+    );
+}
+
 /// Glitches of 5000-50000 deg/h, 10 a minute: counted live at `/metrics`
 /// (`sagnac_outliers_total`, apart from the lost samples) and in the
 /// recording's `data_quality.outliers`, excluded; with `--raw-statistics` the
