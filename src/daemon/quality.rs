@@ -125,7 +125,9 @@ impl LiveQuality {
             arw_dpsh: est.arw_dpsh.value.unwrap_or(0.0),
             quantization_arcsec: est.quantization_arcsec.value.unwrap_or(0.0),
         };
-        let (mut dq, correction) = quality::assess(spikes, &series, fine);
+        // the ramp is tested at every assessment: the estimates between two
+        // assessments may find one the stage has already rejected
+        let (mut dq, correction) = quality::assess(spikes, &series, fine, true);
         dq.stationary = pipe
             .davar()
             .and_then(|d| d.stationarity(fine.quantization_arcsec));
@@ -331,6 +333,7 @@ mod tests {
                 arw_dpsh: 0.0,
                 quantization_arcsec: 0.0,
             },
+            false,
         )
         .0;
         dq.warmup = Some(Warmup {

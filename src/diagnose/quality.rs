@@ -81,7 +81,7 @@ pub(crate) fn handle(model: &GyroModel, rec: &Recording) -> Result<Handled, Diag
     let series = pipe
         .block_series()
         .expect("the data-quality stage keeps block means");
-    let (dq, _) = quality::assess(&spikes, &series, fine);
+    let (dq, _) = quality::assess(&spikes, &series, fine, false);
     let mut recording = rec.clone();
     if spikes.excluded > 0 {
         exclude_glitches(&mut recording, counts, k);

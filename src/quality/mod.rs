@@ -171,12 +171,16 @@ impl DataQuality {
 /// in the block means, against the fine-scale noise `fine`), and the
 /// correction a second pass subtracts from the rate. The stationarity of what
 /// remains is the second pass's ([`davar::Davar::stationarity`]).
+/// `ramp_found`: the first pass's estimates found a rate ramp (the stage's
+/// own test of it, [`lowfreq::Correction::ramp_rejected`], is made only then
+/// or when effects are found: otherwise it could change nothing).
 pub fn assess(
     spikes: &spikes::SpikeReport,
     series: &blocks::BlockSeries,
     fine: lowfreq::FineNoise,
+    ramp_found: bool,
 ) -> (DataQuality, lowfreq::Correction) {
-    let low = lowfreq::analyse(series, fine).unwrap_or_default();
+    let low = lowfreq::analyse_for(series, fine, ramp_found).unwrap_or_default();
     let dq = DataQuality {
         outliers: Outliers::from_report(spikes, series.tau0_s),
         warmup: low.warmup.map(|w| Warmup {

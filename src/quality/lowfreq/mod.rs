@@ -230,11 +230,21 @@ struct Analysis<'a> {
     temp_linear: bool,
     series: &'a BlockSeries,
     span_s: f64,
+    /// Test the rate ramp even without effects ([`analyse_for`]).
+    test_ramp: bool,
 }
 
 /// Find, test and fit the slow effects of `series` (block means), given the
 /// fine-scale noise; `None` when the record is too short for it.
 pub fn analyse(series: &BlockSeries, fine: FineNoise) -> Option<LowFreq> {
+    analyse_for(series, fine, true)
+}
+
+/// [`analyse`]; the rate ramp's own test ([`Correction::ramp_rejected`]) is
+/// made when `test_ramp` or when effects are found, and is otherwise left
+/// out (a first pass that found no ramp, and nothing to correct: the test
+/// could change nothing).
+pub fn analyse_for(series: &BlockSeries, fine: FineNoise, test_ramp: bool) -> Option<LowFreq> {
     let c = coarsen(series)?;
     let temp = series
         .temp_c
@@ -254,6 +264,7 @@ pub fn analyse(series: &BlockSeries, fine: FineNoise) -> Option<LowFreq> {
         temp,
         temp_linear,
         series,
+        test_ramp,
     };
     let effects = a.select()?;
     a.report(effects)
@@ -636,6 +647,7 @@ mod tests {
             temp: None,
             temp_linear: false,
             series: &s,
+            test_ramp: true,
         };
         let mut eye = vec![0.0; n * n];
         (0..n).for_each(|i| eye[i * n + i] = 1.0);
@@ -766,6 +778,35 @@ mod tests {
             passed <= 6,
             "white noise passed the ramp's test {passed}/40"
         );
+    }
+
+    /// Without effects and without a ramp found by the first pass the
+    /// ramp's test is left out (it could change nothing); with effects it is
+    /// made whatever the first pass found.
+    #[test]
+    fn the_ramps_test_is_made_only_where_it_can_change_the_estimates() {
+        let (sd, block_s) = (0.8, 15.0);
+        let clean = series(160, block_s, sd, 100, |_| 0.0);
+        let f = white_for(sd, block_s);
+        assert!(
+            analyse_for(&clean, f, true)
+                .unwrap()
+                .correction
+                .ramp_rejected()
+        );
+        assert!(
+            !analyse_for(&clean, f, false)
+                .unwrap()
+                .correction
+                .ramp_rejected()
+        );
+        let span = 160.0 * block_s;
+        let stepped = series(160, block_s, sd, 100, |t| {
+            if t > span / 2.0 { 12.0 * sd } else { 0.0 }
+        });
+        let low = analyse_for(&stepped, f, false).unwrap();
+        assert_eq!(low.steps.len(), 1, "{low:?}");
+        assert!(low.correction.ramp_rejected(), "{low:?}");
     }
 
     /// A cycling temperature's response is not the ramp's test: a gyro's own

@@ -163,7 +163,8 @@ impl Analysis<'_> {
             }
         }
         out.correction.ramp = self.ramp_beside_effects(chol, &effects, &fit);
-        out.correction.ramp_rejected = !self.ramp_passes(&effects);
+        out.correction.ramp_rejected =
+            (self.test_ramp || !effects.is_empty()) && !self.ramp_passes(&effects);
         out.steps
             .sort_by(|a, b| a.at_s.value.total_cmp(&b.at_s.value));
         if out.thermal.is_none() && self.temp.is_some() {
