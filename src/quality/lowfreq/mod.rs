@@ -266,8 +266,8 @@ pub fn analyse_for(series: &BlockSeries, fine: FineNoise, test_ramp: bool) -> Op
         series,
         test_ramp,
     };
-    let effects = a.select()?;
-    a.report(effects)
+    let (effects, fitted) = a.select()?;
+    a.report(effects, fitted)
 }
 
 /// The block means at no more than [`MAX_BLOCKS`] blocks (whole merges of the
@@ -415,10 +415,12 @@ impl Analysis<'_> {
         out
     }
 
-    /// Steps 1-3 of the method: the effects the record holds.
-    fn select(&self) -> Option<Vec<Effect>> {
+    /// Steps 1-3 of the method: the effects the record holds, and the noise
+    /// fitted beside them.
+    fn select(&self) -> Option<(Vec<Effect>, Fitted)> {
         let mut effects: Vec<Effect> = Vec::new();
         let (scale_b, scale_k) = Noise::scales(&self.c.y, self.span_s);
+        let mut last = None;
         for round in 0..(MAX_STEPS + 2) {
             let x = self.columns(&effects);
             let fitted = self.fit(&effects)?;
@@ -445,10 +447,19 @@ impl Analysis<'_> {
             }
             match best {
                 Some((_, e)) => effects.push(e),
-                None => break,
+                None => {
+                    last = Some(fitted);
+                    break;
+                }
             }
         }
-        Some(effects)
+        // the last round's fit is beside all the effects, unless the rounds
+        // ran out with one more added
+        let fitted = match last {
+            Some(f) => f,
+            None => self.fit(&effects)?,
+        };
+        Some((effects, fitted))
     }
 }
 

@@ -2,7 +2,7 @@
 //! profile-likelihood intervals, and the correction of the rate.
 
 use super::super::gls::{Cholesky, GlsFit, gls};
-use super::model::golden_min;
+use super::model::{Fitted, golden_min};
 use super::{
     Analysis, CHI2_95, Correction, Effect, Interval, LowFreq, StepFit, ThermalCorrection,
     ThermalFit, WarmupFit, Z_975, lag_grid, log_grid,
@@ -118,14 +118,23 @@ impl Analysis<'_> {
     }
 
     /// Step 4: refine, fit, and report with intervals and the correction.
-    pub(super) fn report(&self, mut effects: Vec<Effect>) -> Option<LowFreq> {
-        for _ in 0..2 {
-            let chol = self.fit(&effects)?.chol;
-            for i in 0..effects.len() {
-                effects[i] = self.refine(&chol, &effects, i);
+    pub(super) fn report(&self, mut effects: Vec<Effect>, selected: Fitted) -> Option<LowFreq> {
+        // `selected` is the noise beside the effects as found; without
+        // effects nothing is refined and it is the fit
+        let fitted = if effects.is_empty() {
+            selected
+        } else {
+            let mut chol = selected.chol;
+            for pass in 0..2 {
+                if pass > 0 {
+                    chol = self.fit(&effects)?.chol;
+                }
+                for i in 0..effects.len() {
+                    effects[i] = self.refine(&chol, &effects, i);
+                }
             }
-        }
-        let fitted = self.fit(&effects)?;
+            self.fit(&effects)?
+        };
         let chol = &fitted.chol;
         let fit = self.gls(chol, &effects)?;
         let mut out = LowFreq {
