@@ -505,7 +505,8 @@ impl Analysis<'_> {
     /// One column `col` beside the mean model `x`, tested at level `alpha`
     /// against the noise refitted without it (its flicker and random walk
     /// take what they can of the column): its likelihood ratio over the
-    /// threshold, `None` below one chi-square(1) test's level.
+    /// threshold (0 below one chi-square(1) test's level); `None` when the
+    /// noise cannot be fitted without it.
     fn test_column(
         &self,
         x: &[Vec<f64>],
@@ -515,15 +516,16 @@ impl Analysis<'_> {
     ) -> Option<f64> {
         let fitted = self.noise.fit(&self.c.y, x, self.span_s)?;
         let grid = NoiseGrid::new(&self.noise, x, fitted.b2, fitted.k2, scale_b, scale_k);
-        self.test_at(&grid, &fitted, (vec![0.0], vec![col]), round, kind, alpha)
-            .map(|(_, ratio)| ratio)
+        let tested = self.test_at(&grid, &fitted, (vec![0.0], vec![col]), round, kind, alpha);
+        Some(tested.map_or(0.0, |(_, ratio)| ratio))
     }
 
     /// Whether the rate ramp beside `effects` passes the same kind of test
     /// as the effects, at [`RAMP_ALPHA`]: the ramp column against the mean
     /// model without it, under noise refitted without it. `true` when the
     /// ramp column is not in the model (a linear temperature's response took
-    /// its place and was tested instead).
+    /// its place and was tested instead), or when that noise cannot be
+    /// fitted (the stage then leaves the ramp to the estimator).
     pub(super) fn ramp_passes(&self, effects: &[Effect]) -> bool {
         if !self.has_ramp(effects) {
             return true;
@@ -532,7 +534,7 @@ impl Analysis<'_> {
         let col = x.remove(1);
         let scales = Noise::scales(&self.c.y, self.span_s);
         self.test_column(&x, col, (0, 4, RAMP_ALPHA), scales)
-            .is_some_and(|ratio| ratio > 1.0)
+            .is_none_or(|ratio| ratio > 1.0)
     }
 
     /// The thermal response of a linear temperature, tested in place of the
