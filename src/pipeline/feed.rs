@@ -148,28 +148,27 @@ pub fn run_from(
     // the stage's rejection of the ramp changes only a ramp found
     let ramp_found = first.estimates.rate_ramp_dphh.value.is_some();
     let (mut dq, correction) = quality::assess(&spikes, &series, fine, ramp_found);
-    let (final_pipe, mut analysis) =
-        if correction.is_empty() && !(correction.ramp_rejected() && ramp_found) {
-            (pipe, first)
-        } else if correction.is_empty() {
-            let mut p = pipe;
-            p.set_ramp_rejected(true);
-            let a = p.analysis();
-            (p, a)
-        } else {
-            let mut again = Prefetch::new(input.stream()?)?;
-            let p = pass(
-                input,
-                &mut again,
-                cfg,
-                &mut |_, _| {},
-                None,
-                Some(&correction),
-            )?
-            .0;
-            let a = p.analysis();
-            (p, a)
-        };
+    let (final_pipe, mut analysis) = if !correction.is_empty() {
+        let mut again = Prefetch::new(input.stream()?)?;
+        let p = pass(
+            input,
+            &mut again,
+            cfg,
+            &mut |_, _| {},
+            None,
+            Some(&correction),
+        )?
+        .0;
+        let a = p.analysis();
+        (p, a)
+    } else if correction.ramp_rejected() && ramp_found {
+        let mut p = pipe;
+        p.set_ramp_rejected(true);
+        let a = p.analysis();
+        (p, a)
+    } else {
+        (pipe, first)
+    };
     let q = analysis.estimates.quantization_arcsec.value.unwrap_or(0.0);
     dq.stationary = final_pipe.davar().and_then(|d| d.stationarity(q));
     analysis.data_quality = Some(dq.clone());

@@ -235,6 +235,21 @@ fn a_modelled_warm_up_leaves_no_ramp() {
     assert!(not_found(&j, "rrw_dphsh"), "{}", j["estimates"]);
 }
 
+/// `analyze` of a record under a chamber ramp, without and with the stage:
+/// the raw statistics find a ramp; the handled record's thermal fit is
+/// confounded with the ramp, `compensated` as given, and its sensitivity
+/// interval holds `sens`. The handled JSON and stderr.
+fn chamber_ramp(csv: &Path, flags: &[&str], compensated: bool, sens: f64) -> (Value, String) {
+    let (raw, _) = analyze(csv, &[flags, &["--raw-statistics"]].concat());
+    assert!(!not_found(&raw, "rate_ramp_dphh"), "{}", raw["estimates"]);
+    let (j, err) = analyze(csv, flags);
+    let t = &j["data_quality"]["thermal"];
+    assert_eq!(t["compensated"], compensated, "{t}");
+    assert_eq!(t["confounded_with_ramp"], true, "{t}");
+    assert!(covers(&t["bias_sensitivity_dph_per_c"], sens), "{t}");
+    (j, err)
+}
+
 /// A chamber that ramps instead of cycling: the response is a rate ramp, and
 /// the recorded temperature is preferred as its cause.
 #[test]
@@ -248,13 +263,8 @@ fn a_response_to_a_temperature_ramp_is_the_thermal_term_not_a_rate_ramp() {
         3600,
         37,
     );
-    let (raw, _) = analyze(&csv, &[RLG, &["--raw-statistics"]].concat());
-    assert!(!not_found(&raw, "rate_ramp_dphh"), "{}", raw["estimates"]);
-    let (j, err) = analyze(&csv, RLG);
+    let (j, err) = chamber_ramp(&csv, RLG, true, 0.05);
     let t = &j["data_quality"]["thermal"];
-    assert_eq!(t["compensated"], true, "{t}");
-    assert_eq!(t["confounded_with_ramp"], true, "{t}");
-    assert!(covers(&t["bias_sensitivity_dph_per_c"], 0.05), "{t}");
     assert!(covers(&t["lag_s"], 60.0), "{t}");
     assert!(
         not_found(&j, "rrw_dphsh") && not_found(&j, "rate_ramp_dphh"),
@@ -276,13 +286,7 @@ fn a_response_within_the_noise_under_a_chamber_ramp_reports_no_ramp() {
                  rate_lsb_dps = 0.00106\n[noise]\narw_dpsh = 0.041953\nbias_instability_dph = 0.37697\n\
                  [thermal]\ntemp_c0 = 25.0\nramp_c_per_h = 2.8183\nbias_sensitivity_dph_per_c = 1.201913\n";
     let csv = simulate(dir.path(), "chamber", model, 3600, 9022);
-    let (raw, _) = analyze(&csv, &[RATE, &["--raw-statistics"]].concat());
-    assert!(!not_found(&raw, "rate_ramp_dphh"), "{}", raw["estimates"]);
-    let (j, err) = analyze(&csv, RATE);
-    let t = &j["data_quality"]["thermal"];
-    assert_eq!(t["compensated"], false, "{t}");
-    assert_eq!(t["confounded_with_ramp"], true, "{t}");
-    assert!(covers(&t["bias_sensitivity_dph_per_c"], 1.201913), "{t}");
+    let (j, err) = chamber_ramp(&csv, RATE, false, 1.201913);
     let r = &j["estimates"]["rate_ramp_dphh"];
     // the response is a ramp of 1.2 deg/h per deg C x 2.82 deg C/h
     assert!(r["value"].is_null(), "{r}");

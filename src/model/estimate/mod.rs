@@ -258,10 +258,11 @@ pub struct EstimatorInput<'a> {
     /// (`Correction::ramp_joint_z`): a ramp is reported only when it passes
     /// there too. `None` for a record taken as it is.
     pub ramp_joint_z: Option<f64>,
-    /// The data-quality stage tested the ramp and it did not pass
-    /// (`Correction::ramp_rejected`: a linear temperature's response, tested
-    /// in place of the ramp, was within the noise): the ramp is reported as
-    /// a bound, whatever the test here says. `false` for a record taken as it is.
+    /// The data-quality stage tested the ramp against the block means' noise
+    /// refitted without it (or, under a linear temperature, the response in
+    /// its place) and it did not pass (`Correction::ramp_rejected`): the ramp
+    /// is reported as a bound, whatever the test here says. `false` for a
+    /// record taken as it is.
     pub ramp_rejected: bool,
 }
 
