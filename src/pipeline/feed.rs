@@ -181,8 +181,8 @@ pub fn run_from(
     })
 }
 
-/// One pass over the input; with a `correction`, the rate path on the
-/// corrected rate.
+/// One pass over the input; with a `correction`, the statistics are of the
+/// corrected rate ([`Pipeline::set_correction`]).
 fn pass(
     input: &Input,
     stream: &mut dyn BlockSource,
@@ -192,15 +192,14 @@ fn pass(
     correction: Option<&Correction>,
 ) -> Result<(Pipeline, StreamReport), PipelineError> {
     let meta = input.meta();
-    let exact = meta.integral && correction.is_none();
+    let exact = meta.integral;
     let mut c = cfg.clone();
     if !exact {
         c.pulse_arcsec = None;
     }
     let mut pipe = Pipeline::new(&c)?;
     if let Some(corr) = correction {
-        pipe.set_fitted_effects(corr.ramp_se_factor(), corr.ramp_joint_z());
-        pipe.set_ramp_rejected(corr.ramp_rejected());
+        pipe.set_correction(corr.clone())?;
     }
     let mut block = Block::default();
     let mut out = PipelineOutput::default();
@@ -221,13 +220,7 @@ fn pass(
                 rates.extend(block.counts.iter().map(|&c| c as f64 * k));
             }
         } else {
-            raw_rates(meta.integral, meta.unit, &block, pulse, tau0, &mut rates);
-            if let Some(corr) = correction {
-                for (i, r) in rates.iter_mut().enumerate() {
-                    let t = (first_sample + i as u64) as f64 * tau0;
-                    *r -= corr.mean_dph(t, t + tau0);
-                }
-            }
+            raw_rates(meta.unit, &block, pulse, tau0, &mut rates);
             pipe.push_rates_dph_filled(&rates, &block.filled, &mut out)?;
         }
         if let Some(tap) = tap.as_deref_mut() {
@@ -259,12 +252,7 @@ fn pass(
     Ok((pipe, stream.report()))
 }
 
-/// The block's samples as deg/h.
-fn raw_rates(integral: bool, unit: Unit, block: &Block, pulse: f64, tau0: f64, out: &mut Vec<f64>) {
-    if integral {
-        let k = pulse / tau0;
-        out.extend(block.counts.iter().map(|&c| c as f64 * k));
-    } else {
-        out.extend(block.values.iter().map(|&v| unit.to_dph(v, pulse, tau0)));
-    }
+/// The block's rate samples as deg/h.
+fn raw_rates(unit: Unit, block: &Block, pulse: f64, tau0: f64, out: &mut Vec<f64>) {
+    out.extend(block.values.iter().map(|&v| unit.to_dph(v, pulse, tau0)));
 }

@@ -40,6 +40,7 @@ use crate::model::estimate::{
 use crate::model::fit::{FitOptions, LevelObs};
 use crate::quality::blocks::BlockMeans;
 use crate::quality::davar::Davar;
+use crate::quality::lowfreq::Correction;
 use crate::quality::spikes::{Emitted, Series, SpikeFilter};
 
 pub mod axes;
@@ -444,6 +445,8 @@ pub struct Pipeline {
     ramp_se_factor: f64,
     ramp_joint_z: Option<f64>,
     ramp_rejected: bool,
+    /// What the data-quality stage subtracts from the rate ([`Self::set_correction`]).
+    correction: Option<Correction>,
 }
 
 /// The data-quality stage's parts that run inside the pipeline.
@@ -455,6 +458,16 @@ struct Quality {
     davar: Davar,
     /// Samples taken in (emitted or pending in the spike filter).
     taken: u64,
+}
+
+/// The Allan accumulators' configuration for `cfg`, values scaled by `scale`.
+fn allan_config(cfg: &PipelineConfig, scale: f64) -> StreamConfig {
+    StreamConfig {
+        tau0_s: 1.0 / cfg.sample_rate_hz,
+        full_overlap_cap: cfg.allan_cap,
+        scale,
+        ..StreamConfig::default()
+    }
 }
 
 /// Depth of the deep (rate) level accumulator.
@@ -471,12 +484,7 @@ impl Pipeline {
         qn.validate()?;
         let splitter = QnSplitter::new(&qn)?;
         let j = splitter.levels();
-        let scfg = |scale: f64| StreamConfig {
-            tau0_s,
-            full_overlap_cap: cfg.allan_cap,
-            scale,
-            ..StreamConfig::default()
-        };
+        let scfg = |scale: f64| allan_config(cfg, scale);
         let (raw_counts, raw_rate) = match cfg.pulse_arcsec {
             Some(d) => (Some(OctaveAllan::counts(scfg(d))?), None),
             None => (None, Some(OctaveAllan::freq(scfg(1.0))?)),
@@ -514,6 +522,7 @@ impl Pipeline {
             ramp_se_factor: 1.0,
             ramp_joint_z: None,
             ramp_rejected: false,
+            correction: None,
         })
     }
 
@@ -532,6 +541,42 @@ impl Pipeline {
     /// estimates then report it as a bound. Returns whether that changed.
     pub fn set_ramp_rejected(&mut self, rejected: bool) -> bool {
         std::mem::replace(&mut self.ramp_rejected, rejected) != rejected
+    }
+
+    /// The pulse counter whose readout error the statistics carry, at the
+    /// mean input it saw (with a correction, the corrected rate's mean plus
+    /// the correction's): its sawtooth corrects the quantization estimate
+    /// ([`crate::model::estimate::Counter`]).
+    fn counter(&self) -> Option<Counter> {
+        let seen_dph = match &self.correction {
+            Some(c) if self.samples > 0 => c.mean_dph(0.0, self.samples as f64 * self.tau0_s),
+            _ => 0.0,
+        };
+        self.cfg.pulse_arcsec.map(|d| Counter {
+            pulse_arcsec: d,
+            pulses_per_sample: (self.ramp.mean() + seen_dph) * self.tau0_s / d,
+        })
+    }
+
+    /// Subtract `correction` (the slow effects the data-quality stage fitted)
+    /// from the rate before the statistics: the second pass over a record,
+    /// set before its first sample. The effects it was fitted beside and its
+    /// verdict on the ramp go to the estimates. A counter keeps its glitch
+    /// test on the increments and its readout's sawtooth in the quantization
+    /// estimate; its raw Allan variance is then of the corrected rate.
+    pub fn set_correction(&mut self, correction: Correction) -> Result<(), PipelineError> {
+        assert_eq!(
+            self.samples_in(),
+            0,
+            "a correction is set before the first sample"
+        );
+        self.set_fitted_effects(correction.ramp_se_factor(), correction.ramp_joint_z());
+        self.set_ramp_rejected(correction.ramp_rejected());
+        if self.raw_counts.take().is_some() {
+            self.raw_rate = Some(OctaveAllan::freq(allan_config(&self.cfg, 1.0))?);
+        }
+        self.correction = Some(correction);
+        Ok(())
     }
 
     /// Samples through the statistics (those a glitch filter still holds are not).
@@ -662,7 +707,34 @@ impl Pipeline {
         let k = d / self.tau0_s;
         self.rate_buf.clear();
         self.rate_buf.extend(counts.iter().map(|&c| c as f64 * k));
+        if self.correction.is_some() {
+            self.correct_rate_buf();
+            self.push_raw_rate()
+                .expect("a counter's corrected rates are finite");
+        }
         self.process_rates(out);
+    }
+
+    /// Subtract the correction, if any, from `rate_buf` (this push's rates).
+    fn correct_rate_buf(&mut self) {
+        if let Some(c) = &self.correction {
+            let t0 = self.samples as f64 * self.tau0_s;
+            for (i, r) in self.rate_buf.iter_mut().enumerate() {
+                let t = t0 + i as f64 * self.tau0_s;
+                *r -= c.mean_dph(t, t + self.tau0_s);
+            }
+        }
+    }
+
+    /// `rate_buf` into the raw rate's Allan accumulator, its filled spans marked.
+    fn push_raw_rate(&mut self) -> Result<(), PipelineError> {
+        if let Some(a) = &mut self.raw_rate {
+            for r in &self.fill_abs {
+                a.mark_filled(r.start + 1..r.end + 1);
+            }
+            a.push_block(&self.rate_buf)?;
+        }
+        Ok(())
     }
 
     /// Push rates in deg/h (== arcsec/s) (rate input).
@@ -707,14 +779,10 @@ impl Pipeline {
         out: &mut PipelineOutput,
     ) -> Result<(), PipelineError> {
         self.set_filled(filled, rates.len());
-        if let Some(a) = &mut self.raw_rate {
-            for r in &self.fill_abs {
-                a.mark_filled(r.start + 1..r.end + 1);
-            }
-            a.push_block(rates)?;
-        }
         self.rate_buf.clear();
         self.rate_buf.extend_from_slice(rates);
+        self.correct_rate_buf();
+        self.push_raw_rate()?;
         self.process_rates(out);
         Ok(())
     }
@@ -842,10 +910,7 @@ impl Pipeline {
             angle_blocks: &angle_blocks,
             allan: &allan_obs,
             ramp: Some(self.ramp),
-            counter: self.cfg.pulse_arcsec.map(|d| Counter {
-                pulse_arcsec: d,
-                pulses_per_sample: self.ramp.mean() * self.tau0_s / d,
-            }),
+            counter: self.counter(),
             ramp_se_factor: self.ramp_se_factor,
             ramp_joint_z: self.ramp_joint_z,
             ramp_rejected: self.ramp_rejected,
@@ -955,5 +1020,53 @@ mod tests {
         let l = long.blocks.as_ref().unwrap();
         assert_eq!(l.span_log2, 17);
         assert!(l.sums[0].len() <= MAX_BLOCKS);
+    }
+    /// A counter's record with a warm-up, corrected (the data-quality
+    /// stage's second pass), keeps the counter's glitch test and readout: its
+    /// quantization is the raw record's (a smooth correction leaves the
+    /// fine scales alone) and nothing is taken for a glitch. The same rates
+    /// read as a rate gyro's lose the readout: the sawtooth lines of this
+    /// weakly dithered counter (d 0.76", Q 0.353", one pulse per 300
+    /// samples) then count as white noise.
+    #[test]
+    fn a_corrected_counter_keeps_its_glitch_test_and_readout() {
+        let model = crate::model::GyroModel::from_toml_str(
+            "[gyro]\nsample_rate_hz = 2000\ninput_rate_dph = -3.589\npulse_arcsec = 0.7583\n\
+             [noise]\nquantization_arcsec = 0.35298\narw_dpsh = 0.009762\nbias_instability_dph = 0.01206\n\
+             [noise.warmup]\namplitude_dph = -2.0\ntau_s = 300.0\n",
+            "test",
+        )
+        .unwrap();
+        let mut sim = crate::model::sim::Simulator::new(&model, 5, Some(600.0)).unwrap();
+        let mut counts = Vec::new();
+        sim.next_block(1_200_000, &mut counts);
+        let q = |p: &Pipeline| p.analysis().estimates.quantization_arcsec.value.unwrap();
+        let glitches = |p: &Pipeline| p.spike_report().unwrap().count;
+        let mut out = PipelineOutput::default();
+        let cfg = PipelineConfig::counts(2000.0, 0.7583);
+        let mut raw = Pipeline::new(&cfg).unwrap();
+        raw.push_counts(&counts, &mut out);
+        let mut corrected = Pipeline::new(&cfg).unwrap();
+        corrected
+            .set_correction(Correction::warmup(-2.0, 300.0))
+            .unwrap();
+        for c in counts.chunks(4099) {
+            corrected.push_counts(c, &mut out);
+        }
+        let (a, b) = (q(&raw), q(&corrected));
+        assert!((b / a - 1.0).abs() < 1e-4, "{a} {b}");
+        assert_eq!((glitches(&raw), glitches(&corrected)), (0, 0));
+        // the corrected rates read as a rate gyro's
+        let w = Correction::warmup(-2.0, 300.0);
+        let rates: Vec<f64> = (0..counts.len())
+            .map(|i| {
+                let t = i as f64 / 2000.0;
+                counts[i] as f64 * 0.7583 * 2000.0 - w.mean_dph(t, t + 1.0 / 2000.0)
+            })
+            .collect();
+        let mut as_rates = Pipeline::new(&PipelineConfig::rates(2000.0)).unwrap();
+        as_rates.push_rates_dph(&rates, &mut out).unwrap();
+        let c = q(&as_rates);
+        assert!((c / a - 1.0).abs() > 3e-4, "{a} {c}");
     }
 }

@@ -169,6 +169,14 @@ impl Correction {
         self.ramp_rejected
     }
 
+    /// One warm-up's settling, `amplitude_dph * exp(-t / tau_s)`, and nothing else.
+    pub fn warmup(amplitude_dph: f64, tau_s: f64) -> Correction {
+        Correction {
+            warmup: Some((amplitude_dph, tau_s)),
+            ..Correction::default()
+        }
+    }
+
     /// Nothing to correct.
     pub fn is_empty(&self) -> bool {
         self.warmup.is_none() && self.steps.is_empty() && self.thermal.is_none()
