@@ -483,7 +483,7 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
     }
     let tau0 = input.tau0_s;
     let std_terms = standard_terms(input.n_samples, tau0).to_vec();
-    let q2_first = quantization::q_from_angle(input, &std_terms, &[0.0; 4]).0;
+    let q2_first = quantization::q_from_angle(input, &std_terms, &[0.0; 4], false).q2;
     let Some(lf) = lf_setup(input, q2_first) else {
         return EstimatorOutput::insufficient();
     };
@@ -535,7 +535,8 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
             }
         })
         .collect();
-    let (q2, q2_sd) = quantization::q_from_angle(input, &terms, &theta_lf);
+    let q_read = quantization::q_from_angle(input, &terms, &theta_lf, true);
+    let q2 = q_read.q2;
     let widen = quality.widening();
     let theta = [q2.max(0.0), theta_lf[1], theta_lf[2], theta_lf[3]];
     // a collapsed fit bounds nothing: each term gets its per-level bound, as
@@ -572,7 +573,7 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
     );
     EstimatorOutput {
         estimates: NoiseEstimates {
-            quantization_arcsec: quantization::coefficient(q2, q2_sd * widen),
+            quantization_arcsec: quantization::coefficient(&q_read, widen),
             arw_dpsh: coef(1),
             bias_instability_dph: coef(2),
             rrw_dphsh: coef(3),

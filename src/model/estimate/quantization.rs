@@ -13,15 +13,25 @@ use crate::model::wvar::{Domain, LevelBasis, SpectralTerm};
 
 /// `(Q^2, its standard deviation)`, arcsec^2, with the low-frequency terms
 /// `terms[1..]` at `theta_lf[1..]` subtracted (`theta_lf[0]`, the white-angle
-/// nuisance, is not).
+/// nuisance, is not). `final_read`: the sum also ends at a level, past the
+/// counter's sawtooth lines, that holds far more than white quantization
+/// noise continued ([`MAX_EXCESS`]): low-frequency noise the fitted terms
+/// miss (a Gauss-Markov bias, terms fitted below their size) would
+/// otherwise be read as quantization. The first reading, which places the
+/// quantization band for the low-frequency fit, sums as far as the terms'
+/// share allows.
 pub(super) fn q_from_angle(
     input: &EstimatorInput,
     terms: &[SpectralTerm],
     theta_lf: &[f64],
-) -> (f64, f64) {
+    final_read: bool,
+) -> QReading {
     let angle: Vec<LevelObs> = input.angle_levels.iter().copied().filter(usable).collect();
     if angle.is_empty() {
-        return (0.0, f64::INFINITY);
+        return QReading {
+            q2: 0.0,
+            sd: f64::INFINITY,
+        };
     }
     let ids: Vec<u32> = angle.iter().map(|l| l.level).collect();
     let b = LevelBasis::new_in(
@@ -33,6 +43,11 @@ pub(super) fn q_from_angle(
         Domain::Angle,
     );
     let lf_share = |j: usize| -> f64 { (1..terms.len()).map(|k| theta_lf[k] * b.phi[j][k]).sum() };
+    let lines = match (&input.counter, final_read) {
+        (_, false) => u32::MAX,
+        (Some(c), true) => sawtooth::deepest_line_level(c),
+        (None, true) => 0,
+    };
     let mut jmax = 1u32;
     let (mut q2, mut var) = (0.0, 0.0);
     for (j, l) in angle.iter().enumerate() {
@@ -40,6 +55,13 @@ pub(super) fn q_from_angle(
         let lf = lf_share(j);
         if lf > 0.5 * l.mean_sq && l.level > 1 {
             // beyond the QN band: the angle here is mostly random walk
+            break;
+        }
+        if l.level > lines.max(2)
+            && w * (l.mean_sq - lf) > MAX_EXCESS * white_share(q2, jmax, l.level)
+        {
+            // beyond the counter's lines, far more than white QN continued:
+            // low-frequency noise the fitted terms do not hold
             break;
         }
         q2 += w * (l.mean_sq - lf);
@@ -74,28 +96,58 @@ pub(super) fn q_from_angle(
     var = var.max(batch_means_var(per_block));
     let q2 = q2 / norm;
     let q2 = match &input.counter {
-        // the counter's sawtooth lines, which q2 counts as if white;
-        // sawtooth::excess depends on q2 (the dither): a few fixed-point steps
-        Some(c) => {
-            let th = |k: usize| theta_lf.get(k).copied().unwrap_or(0.0).max(0.0);
-            let tau0 = input.tau0_s;
-            let step_var = th(1) * tau0;
-            // the rate's wander over one sawtooth period (arcsec/s): bias
-            // instability, and random walk over the period
-            let rate = c.pulses_per_sample.abs() * c.pulse_arcsec / tau0;
-            let period_s = tau0 / c.pulses_per_sample.abs().max(1e-300);
-            let wander = th(2).sqrt() + (th(3) * period_s / 3.0).sqrt();
-            let add_back = wander <= sawtooth::MAX_WANDER * rate;
-            let (n, lo) = (input.n_samples, input.dec_lo);
-            let mut q = q2;
-            for _ in 0..4 {
-                q = q2 - sawtooth::excess(c, q, step_var, jmax, lo, n, add_back);
-            }
-            q
-        }
+        Some(c) => sawtooth_corrected(input, c, q2, theta_lf, jmax),
         None => q2,
     };
-    (q2, var.sqrt() / norm)
+    QReading {
+        q2,
+        sd: var.sqrt() / norm,
+    }
+}
+
+/// A reading of `Q^2` from the angle-domain levels, arcsec^2.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct QReading {
+    pub q2: f64,
+    /// Its standard deviation.
+    pub sd: f64,
+}
+
+/// `q2` read from levels `1..=jmax` with the counter's sawtooth lines
+/// counted as they are ([`sawtooth::excess`], which depends on `q2`, the
+/// dither: a few fixed-point steps).
+fn sawtooth_corrected(
+    input: &EstimatorInput,
+    c: &sawtooth::Counter,
+    q2: f64,
+    theta_lf: &[f64],
+    jmax: u32,
+) -> f64 {
+    let th = |k: usize| theta_lf.get(k).copied().unwrap_or(0.0).max(0.0);
+    let tau0 = input.tau0_s;
+    let step_var = th(1) * tau0;
+    // the rate's wander over one sawtooth period (arcsec/s): bias
+    // instability, and random walk over the period
+    let rate = c.pulses_per_sample.abs() * c.pulse_arcsec / tau0;
+    let period_s = tau0 / c.pulses_per_sample.abs().max(1e-300);
+    let wander = th(2).sqrt() + (th(3) * period_s / 3.0).sqrt();
+    let add_back = wander <= sawtooth::MAX_WANDER * rate;
+    let (n, lo) = (input.n_samples, input.dec_lo);
+    let mut q = q2;
+    for _ in 0..4 {
+        q = q2 - sawtooth::excess(c, q, step_var, jmax, lo, n, add_back);
+    }
+    q
+}
+
+/// A level past the counter's lines holding more than this many times the
+/// share white quantization noise would give it ends the sum.
+const MAX_EXCESS: f64 = 2.0;
+
+/// The share of `Q^2` white quantization noise gives level `level`, with
+/// `q2` the sum over levels `1..=jmax`.
+fn white_share(q2: f64, jmax: u32, level: u32) -> f64 {
+    q2 / (1.0 - 2f64.powi(-(jmax as i32))) * 2f64.powi(-(level as i32))
 }
 
 /// Flyvbjerg-Petersen blocking: the batch-means variance of the mean grows
@@ -117,20 +169,22 @@ fn batch_means_var(mut batches: Vec<f64>) -> f64 {
 }
 
 /// Q as a coefficient: a variance estimate with a near-normal sampling law
-/// (thousands of coefficients); an upper bound when not significant.
-pub(super) fn coefficient(q2: f64, q2_sd: f64) -> Coefficient {
+/// (thousands of coefficients), its standard deviation widened by `widen`;
+/// an upper bound when not significant.
+pub(super) fn coefficient(r: &QReading, widen: f64) -> Coefficient {
     let z = 1.959_964;
-    if q2 > z * q2_sd {
+    let (q2, sd) = (r.q2, r.sd * widen);
+    if q2 > z * sd {
         Coefficient {
             value: Some(q2.sqrt()),
-            ci95: Some([(q2 - z * q2_sd).max(0.0).sqrt(), (q2 + z * q2_sd).sqrt()]),
+            ci95: Some([(q2 - z * sd).max(0.0).sqrt(), (q2 + z * sd).sqrt()]),
             upper95: None,
         }
     } else {
         Coefficient {
             value: None,
             ci95: None,
-            upper95: Some((q2.max(0.0) + 1.644_854 * q2_sd).sqrt()),
+            upper95: Some((q2.max(0.0) + 1.644_854 * sd).sqrt()),
         }
     }
 }

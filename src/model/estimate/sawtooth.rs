@@ -58,6 +58,18 @@ const MAX_HARMONICS: u32 = 4096;
 /// Grid of the line-shape integral for spread lines, points per cycle.
 const GRID: usize = 1 << 13;
 
+/// The deepest angle-domain level the counter's sawtooth fundamental, or
+/// the level next to it, holds (level `j` holds `2^-(j+1) .. 2^-j` cycles
+/// per sample); `u32::MAX` for a fundamental at zero frequency.
+pub fn deepest_line_level(c: &Counter) -> u32 {
+    let f = c.pulses_per_sample.abs().fract();
+    let f = f.min(1.0 - f);
+    if !(f > 0.0) {
+        return u32::MAX;
+    }
+    (1.0 / f).log2().floor() as u32 + 1
+}
+
 /// The sawtooth lines' over-count in `Q^2` (arcsec^2; negative for an
 /// under-count) for a quantization estimate `q2` read from levels
 /// `1..=levels` of the analysis filter `lo` over `n` samples, with
