@@ -531,7 +531,7 @@ impl Pipeline {
     /// (at least 1), and a ramp is reported only when its z in the joint
     /// fit, `joint_z`, passes too
     /// ([`crate::quality::lowfreq::Correction::ramp_se_factor`], [`crate::quality::lowfreq::Correction::ramp_joint_z`]).
-    pub fn set_fitted_effects(&mut self, se_factor: f64, joint_z: Option<f64>) {
+    fn set_fitted_effects(&mut self, se_factor: f64, joint_z: Option<f64>) {
         self.ramp_se_factor = se_factor.max(1.0);
         self.ramp_joint_z = joint_z;
     }

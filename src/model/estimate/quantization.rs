@@ -11,7 +11,7 @@ use super::{Coefficient, EstimatorInput, MIN_BATCHES, sawtooth, usable};
 use crate::model::fit::LevelObs;
 use crate::model::wvar::{Domain, LevelBasis, SpectralTerm};
 
-/// `(Q^2, its standard deviation)`, arcsec^2, with the low-frequency terms
+/// `Q^2` and its standard deviation, arcsec^2, with the low-frequency terms
 /// `terms[1..]` at `theta_lf[1..]` subtracted (`theta_lf[0]`, the white-angle
 /// nuisance, is not). `final_read`: the sum also ends at a level, past the
 /// counter's sawtooth lines, that holds far more than white quantization
