@@ -15,6 +15,7 @@
 //! updated model; an effect the model already has with parameters inside
 //! the found intervals is consistent.
 
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::ops::Range;
 
@@ -31,8 +32,9 @@ use crate::quality::spikes::{Emitted, Series, SpikeFilter};
 use crate::quality::{self, DataQuality};
 
 /// The recording as handled, the model it is compared with, and what was found.
-pub(crate) struct Handled {
-    pub recording: Recording,
+pub(crate) struct Handled<'a> {
+    /// The recording itself unless glitches were taken out of it.
+    pub recording: Cow<'a, Recording>,
     /// The model with the slow effects found (glitches left out: the
     /// recording is cleared of them).
     pub compared: GyroModel,
@@ -40,11 +42,11 @@ pub(crate) struct Handled {
     pub data_quality: Option<DataQuality>,
 }
 
-impl Handled {
+impl<'a> Handled<'a> {
     /// Nothing handled (`--raw-statistics`).
-    pub fn none(model: &GyroModel, rec: &Recording) -> Handled {
+    pub fn none(model: &GyroModel, rec: &'a Recording) -> Handled<'a> {
         Handled {
-            recording: rec.clone(),
+            recording: Cow::Borrowed(rec),
             compared: model.clone(),
             findings: Vec::new(),
             data_quality: None,
@@ -68,7 +70,10 @@ impl Handled {
 }
 
 /// Run the stage on `rec`, handle it, and turn what it found into findings.
-pub(crate) fn handle(model: &GyroModel, rec: &Recording) -> Result<Handled, DiagnoseError> {
+pub(crate) fn handle<'a>(
+    model: &GyroModel,
+    rec: &'a Recording,
+) -> Result<Handled<'a>, DiagnoseError> {
     let k = rec.pulse_arcsec * rec.sample_rate_hz;
     let counts = rec.output == OutputKind::Counts;
     let pipe = first_pass(rec, counts, k)?;
@@ -82,9 +87,9 @@ pub(crate) fn handle(model: &GyroModel, rec: &Recording) -> Result<Handled, Diag
         .block_series()
         .expect("the data-quality stage keeps block means");
     let (dq, _) = quality::assess(&spikes, &series, fine, false);
-    let mut recording = rec.clone();
+    let mut recording = Cow::Borrowed(rec);
     if spikes.excluded > 0 {
-        exclude_glitches(&mut recording, counts, k);
+        exclude_glitches(recording.to_mut(), counts, k);
     }
     let spike_amp_dph = if counts {
         spikes.max_abs * k
