@@ -531,6 +531,13 @@ pub fn sine_amplitude_ls(x: &[f64], dt_s: f64, f_hz: f64) -> f64 {
 
 /// `x` with its least-squares line removed.
 pub fn detrend(x: &[f64]) -> Vec<f64> {
+    let mut v = x.to_vec();
+    detrend_in_place(&mut v);
+    v
+}
+
+/// [`detrend`] in place.
+pub fn detrend_in_place(x: &mut [f64]) {
     let n = x.len() as f64;
     let c = 0.5 * (n - 1.0);
     let mean = x.iter().sum::<f64>() / n;
@@ -541,10 +548,9 @@ pub fn detrend(x: &[f64]) -> Vec<f64> {
         sxx += d * d;
     }
     let b = if sxx > 0.0 { sxy / sxx } else { 0.0 };
-    x.iter()
-        .enumerate()
-        .map(|(i, &v)| v - mean - b * (i as f64 - c))
-        .collect()
+    for (i, v) in x.iter_mut().enumerate() {
+        *v = *v - mean - b * (i as f64 - c);
+    }
 }
 
 /// `|X_k|^2`, `k = 0 ..= n/2`, of the Hann-windowed real series `x`. An

@@ -62,7 +62,7 @@ pub(crate) fn find(r: &Reference, rec: &Recording) -> LineFindings {
     let (fs, d) = (r.layout.fs_hz, r.layout.pulse_arcsec);
     let params = search_params();
     let rate = stats::counts_to_rate(&rec.counts, d, fs);
-    let scan = scan_lines(&r.model, &rate, fs, d, r.wander(), &params);
+    let scan = scan_lines(&r.model, rate, fs, d, r.wander(), &params);
     let found = line_findings(&scan, &r.model, params.half_width);
     LineFindings {
         periodogram: Some(Periodogram {
@@ -104,18 +104,20 @@ pub(crate) fn excess(
 }
 
 /// Scan the rate for lines against `model` (simulated at the recording's rate
-/// and pulse weight); `wander` is [`rate_wander`].
+/// and pulse weight); `wander` is [`rate_wander`]. The rate is detrended in
+/// place and kept as the scan's detrended rate.
 fn scan_lines(
     model: &GyroModel,
-    rate: &[f64],
+    rate: Vec<f64>,
     fs: f64,
     d: f64,
     wander: f64,
     params: &lines::SearchParams,
 ) -> LineScan {
     let mean_rate = rate.iter().sum::<f64>() / rate.len() as f64;
-    let x = lines::detrend(rate);
     let df = fs / rate.len() as f64;
+    let mut x = rate;
+    lines::detrend_in_place(&mut x);
     let masked = counter_lines(model, mean_rate, wander, fs, d, df);
     let spectrum = lines::LineSpectrum::new(&x, fs, &model_psd(model), &masked);
     let found = lines::search(&spectrum, params)
@@ -156,7 +158,7 @@ pub fn line_scan(model: &GyroModel, rec: &Recording, params: &lines::SearchParam
     let wvar: Vec<f64> = lv.iter().map(|t| t.2).collect();
     let mean_rate = rate.iter().sum::<f64>() / rate.len() as f64;
     let wander = rate_wander(&layout.levels, &wvar, fs, mean_rate.abs() / d);
-    scan_lines(&m, &rate, fs, d, wander, params)
+    scan_lines(&m, rate, fs, d, wander, params)
 }
 
 /// What the lines contribute to the diagnosis.

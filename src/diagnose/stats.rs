@@ -52,8 +52,19 @@ pub fn dwt_level_mean_squares(
     max_levels: u32,
     min_coef: usize,
 ) -> Vec<(u32, usize, f64)> {
+    dwt_level_mean_squares_of(x.to_vec(), lo, hi, max_levels, min_coef)
+}
+
+/// [`dwt_level_mean_squares`] of `a`, transformed in place (no copy of a
+/// whole record).
+pub fn dwt_level_mean_squares_of(
+    mut a: Vec<f64>,
+    lo: &[f64],
+    hi: &[f64],
+    max_levels: u32,
+    min_coef: usize,
+) -> Vec<(u32, usize, f64)> {
     let l = lo.len();
-    let mut a: Vec<f64> = x.to_vec();
     let mut len = a.len();
     let mut out = Vec::new();
     for level in 1..=max_levels {
@@ -514,15 +525,8 @@ pub fn compute(
     let fs = layout.fs_hz;
     let tau0 = 1.0 / fs;
     let d = layout.pulse_arcsec;
-    let rate = counts_to_rate(counts, d, fs);
-    let lv = dwt_level_mean_squares(
-        &rate,
-        &layout.lo,
-        &layout.hi,
-        layout.levels.len() as u32,
-        MIN_LEVEL_COEFS,
-    );
-    let wvar: Vec<f64> = lv.iter().map(|t| t.2).collect();
+    // one whole-record array beside the counts at a time: the phase, then
+    // the rate, which the wavelet transform takes over last
     let phase = Phase::Counts(counts_to_cumulative(counts));
     let dev = |stat: Stat, m: u64| -> f64 {
         allan::deviation(&phase, stat, tau0, m)
@@ -532,6 +536,7 @@ pub fn compute(
     let mvar: Vec<f64> = layout.ms.iter().map(|&m| dev(Stat::Mdev, m)).collect();
     let avar: Vec<f64> = layout.ms.iter().map(|&m| dev(Stat::Oadev, m)).collect();
     drop(phase);
+    let rate = counts_to_rate(counts, d, fs);
     let full = layout.welch.psd(&rate, fs);
     let psd: Vec<f64> = full[layout.k_lo..layout.k_hi].to_vec();
     let band_psd = band_means(layout, &psd);
@@ -542,8 +547,16 @@ pub fn compute(
         .iter()
         .map(|&fc| lowpass_kurtosis(&rate, tau0, fc, &layout.lo))
         .collect();
+    let lf_psd = layout.lf.psd(&rate);
+    let lv = dwt_level_mean_squares_of(
+        rate,
+        &layout.lo,
+        &layout.hi,
+        layout.levels.len() as u32,
+        MIN_LEVEL_COEFS,
+    );
     StatSet {
-        wvar,
+        wvar: lv.iter().map(|t| t.2).collect(),
         mvar,
         avar,
         psd,
@@ -553,7 +566,7 @@ pub fn compute(
         temp_slope,
         kurtosis,
         sines: Vec::new(),
-        lf_psd: layout.lf.psd(&rate),
+        lf_psd,
         two_level_llr: f64::NAN,
     }
 }
