@@ -95,7 +95,7 @@ impl Analysis<'_> {
 
     /// Golden-section refinement of effect `i`'s shape parameter about the
     /// best point of its profile.
-    fn refine(&self, chol: &Cholesky, effects: &[Effect], i: usize) -> Effect {
+    pub(super) fn refine(&self, chol: &Cholesky, effects: &[Effect], i: usize) -> Effect {
         let prof = self.profile(chol, effects, i);
         let Some(k) = (0..prof.len()).min_by(|&a, &b| prof[a].rss.total_cmp(&prof[b].rss)) else {
             return effects[i];

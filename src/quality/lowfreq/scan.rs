@@ -130,6 +130,15 @@ impl NoiseGrid {
         best_of(scan, &self.residuals(y))
     }
 
+    /// The null model's criterion for `y`: its smallest `-2 ln L` (up to a
+    /// constant) over the grid's noise points.
+    pub fn null_criterion(&self, y: &[f64]) -> f64 {
+        self.residuals(y)
+            .iter()
+            .map(|r| r.1)
+            .fold(f64::INFINITY, f64::min)
+    }
+
     /// The level the scan's maximum exceeds with probability `alpha` when the
     /// data follow the null covariance `null` (see the module docs).
     pub fn threshold(&self, scan: &Scan, null: &Cholesky, alpha: f64, seed: u64) -> f64 {
