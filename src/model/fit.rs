@@ -90,6 +90,13 @@ pub struct FitOptions {
     /// the rows it would have absorbed would pin the term of interest: the
     /// interval would be that of a model that knows the nuisance is absent.
     pub signed_in_profile: u64,
+    /// Terms that, dropped by model selection, are left free (>= 0) while
+    /// the intervals and bounds of the others are profiled (bit mask): a term
+    /// dropped below its threshold may still be there, and held at 0 it
+    /// would leave the others' intervals those of a model that knows it is
+    /// absent. Each interval is the union of the selected model's profile and
+    /// the profile with these terms free, about that model's own maximum.
+    pub free_in_profile: u64,
     /// Profile every readout-filter candidate of the estimator even when its
     /// coarse pass finds none within reach (default false: the coarse pass
     /// decides; true is the reference it is checked against).
@@ -106,6 +113,7 @@ impl Default for FitOptions {
             upper_lr: 2.705_543_454_095_404,
             always_keep: 0,
             signed_in_profile: 0,
+            free_in_profile: 0,
             full_filter_search: false,
         }
     }
@@ -494,6 +502,7 @@ fn profile_terms(
 ) -> Vec<TermFit> {
     let l_max = prob.loglik(theta);
     let mut terms = profile_with(prob, theta, active, lr, opts, widen, l_max);
+    free_dropped_terms(prob, theta, active, lr, opts, widen, &mut terms);
     if opts.signed_in_profile == 0 {
         return terms;
     }
@@ -522,6 +531,43 @@ fn profile_terms(
         }
     }
     terms
+}
+
+/// Widen `terms` (the selected model's profile about `theta`) to the union
+/// with the profile where the dropped terms of [`FitOptions::free_in_profile`]
+/// are free (>= 0), about that model's maximum. The freed terms' own bounds
+/// stay the selected model's.
+fn free_dropped_terms(
+    prob: &Problem,
+    theta: &[f64],
+    active: &[bool],
+    lr: &[f64],
+    opts: &FitOptions,
+    widen: &[f64],
+    terms: &mut [TermFit],
+) {
+    let freed: Vec<bool> = (0..prob.k)
+        .map(|j| !active[j] && opts.free_in_profile >> j & 1 == 1)
+        .collect();
+    if !freed.contains(&true) {
+        return;
+    }
+    let act: Vec<bool> = active.iter().zip(&freed).map(|(a, f)| *a || *f).collect();
+    let full = prob.maximise(&act, &vec![0.0; prob.k], Some(theta));
+    let l_full = prob.loglik(&full).max(prob.loglik(theta));
+    let wide = profile_with(prob, &full, &act, lr, opts, widen, l_full);
+    for ((t, w), f) in terms.iter_mut().zip(wide).zip(&freed) {
+        if *f {
+            continue;
+        }
+        if let (Some((lo, hi)), Some((wl, wh))) = (t.ci95.as_mut(), w.ci95) {
+            *lo = lo.min(wl);
+            *hi = hi.max(wh);
+        }
+        if let (Some(u), Some(wu)) = (t.upper95.as_mut(), w.upper95) {
+            *u = u.max(wu);
+        }
+    }
 }
 
 /// The profile intervals and bounds of [`profile_terms`] for one problem,
@@ -905,5 +951,48 @@ mod tests {
         // negatively correlated observations never narrow an interval
         let corr = vec![vec![1.0, -0.5], vec![-0.5, 1.0]];
         assert_eq!(godambe_factors(&prob, &[2.0], &[true], &corr), vec![1.0]);
+    }
+
+    /// A term dropped below its threshold although present (a rate random
+    /// walk the strict test leaves out): held at 0, the term it trades with
+    /// takes its rows and that term's interval leaves the truth; left free
+    /// in the profile, the interval holds the truth. Where the dropped term
+    /// is truly absent, freeing it changes no interval by more than it may.
+    #[test]
+    fn a_dropped_term_left_free_keeps_the_others_intervals_honest() {
+        // term 0 flat, term 1 rising over the rows
+        let shape1 = [0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9];
+        let phi: Vec<Vec<f64>> = shape1.iter().map(|&s| vec![1.0, s]).collect();
+        let edf = vec![400.0; shape1.len()];
+        let fit = |t1: f64, free: u64| {
+            let y: Vec<f64> = shape1.iter().map(|&s| 1.0 + t1 * s).collect();
+            let opts = FitOptions {
+                always_keep: 0b01,
+                strict: 0b10,
+                free_in_profile: free,
+                ..FitOptions::default()
+            };
+            fit_rows(&phi, &y, &edf, &|j, _| edf[j], &opts, None)
+        };
+        // present, below the strict threshold
+        let held = fit(0.12, 0);
+        assert!(!held.terms[1].included, "{:?}", held.terms);
+        let (lo, hi) = held.terms[0].ci95.unwrap();
+        assert!(
+            lo > 1.0 || hi < 1.0,
+            "the held interval holds the truth: [{lo}, {hi}]"
+        );
+        let freed = fit(0.12, 0b10);
+        let (lo, hi) = freed.terms[0].ci95.unwrap();
+        assert!(lo <= 1.0 && 1.0 <= hi, "[{lo}, {hi}]");
+        assert_eq!(freed.terms[0].theta, held.terms[0].theta);
+        assert_eq!(freed.terms[1].upper95, held.terms[1].upper95);
+        // absent: the interval may only widen, by the share term 1 could take
+        let (a, b) = (fit(0.0, 0), fit(0.0, 0b10));
+        let ((l0, h0), (l1, h1)) = (a.terms[0].ci95.unwrap(), b.terms[0].ci95.unwrap());
+        assert!(
+            l1 <= l0 && h1 >= h0 && h1 - l1 < 2.0 * (h0 - l0),
+            "[{l0}, {h0}] -> [{l1}, {h1}]"
+        );
     }
 }

@@ -609,6 +609,11 @@ fn fit_options(opts: &FitOptions, filtered: bool) -> FitOptions {
     // 2.5 % threshold in 3 of 119, while K's coverage on the RRW cases of
     // scripts/bench-bias-coverage is unchanged (26/30, 25/30).
     o.strict |= 1 << RRW_COL;
+    // RRW dropped below that threshold may still be there: held at 0, the
+    // flicker takes its power and bias instability's interval is that of a
+    // gyro known to have none (4 h records with RRW the fit dropped: BI
+    // 1.6-2.2x the truth, the interval off it)
+    o.free_in_profile |= 1 << RRW_COL;
     // The white-angle nuisance stays out of model selection, and so does the
     // filter's complement column: dropped at its zero boundary, it would be
     // held at 0 in N's profile, the fine (filtered) levels would then pin N as
