@@ -518,10 +518,18 @@ fn profile_terms(
     if 2.0 * (l_ref - l_max) > opts.ci_lr {
         return terms;
     }
-    for (t, w) in terms
-        .iter_mut()
-        .zip(profile_with(&signed, theta, active, lr, opts, widen, l_ref))
-    {
+    let wide = profile_with(&signed, theta, active, lr, opts, widen, l_ref);
+    union_with(&mut terms, wide, |_| true);
+    terms
+}
+
+/// Widen each interval and bound of `terms` to its union with `wide`'s, for
+/// the terms `i` where `take(i)`.
+fn union_with(terms: &mut [TermFit], wide: Vec<TermFit>, take: impl Fn(usize) -> bool) {
+    for (i, (t, w)) in terms.iter_mut().zip(wide).enumerate() {
+        if !take(i) {
+            continue;
+        }
         if let (Some((lo, hi)), Some((wl, wh))) = (t.ci95.as_mut(), w.ci95) {
             *lo = lo.min(wl);
             *hi = hi.max(wh);
@@ -530,7 +538,6 @@ fn profile_terms(
             *u = u.max(wu);
         }
     }
-    terms
 }
 
 /// Widen `terms` (the selected model's profile about `theta`) to the union
@@ -556,18 +563,7 @@ fn free_dropped_terms(
     let full = prob.maximise(&act, &vec![0.0; prob.k], Some(theta));
     let l_full = prob.loglik(&full).max(prob.loglik(theta));
     let wide = profile_with(prob, &full, &act, lr, opts, widen, l_full);
-    for ((t, w), f) in terms.iter_mut().zip(wide).zip(&freed) {
-        if *f {
-            continue;
-        }
-        if let (Some((lo, hi)), Some((wl, wh))) = (t.ci95.as_mut(), w.ci95) {
-            *lo = lo.min(wl);
-            *hi = hi.max(wh);
-        }
-        if let (Some(u), Some(wu)) = (t.upper95.as_mut(), w.upper95) {
-            *u = u.max(wu);
-        }
-    }
+    union_with(terms, wide, |i| !freed[i]);
 }
 
 /// The profile intervals and bounds of [`profile_terms`] for one problem,
@@ -894,21 +890,27 @@ mod tests {
         assert_eq!((lo2, hi2), (lo3, hi3));
     }
 
+    /// The exact observations of a flat term of 1 and a second term of
+    /// `theta1` with level shape `shape`, each row of EDF `edf`, fitted.
+    fn flat_and_shape(shape: &[f64], theta1: f64, edf: f64, opts: &FitOptions) -> LevelFit {
+        let phi: Vec<Vec<f64>> = shape.iter().map(|&s| vec![1.0, s]).collect();
+        let y: Vec<f64> = shape.iter().map(|&s| 1.0 + theta1 * s).collect();
+        let edf = vec![edf; shape.len()];
+        fit_rows(&phi, &y, &edf, &|j, _| edf[j], opts, None)
+    }
+
     /// A term whose deviance lies between the two thresholds stays at the
     /// default one and goes when it is held to the strict one; the other
     /// term's selection does not change.
     #[test]
     fn a_strict_term_needs_the_stricter_deviance() {
         let shape = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 2.0, 4.0, 8.0];
-        let phi: Vec<Vec<f64>> = shape.iter().map(|&s| vec![1.0, s]).collect();
-        let edf = vec![1.0e3; shape.len()];
         let fit = |rise: f64, strict: u64| {
-            let y: Vec<f64> = shape.iter().map(|&s| 1.0 + rise * s).collect();
             let opts = FitOptions {
                 strict,
                 ..FitOptions::default()
             };
-            fit_rows(&phi, &y, &edf, &|j, _| edf[j], &opts, None)
+            flat_and_shape(&shape, rise, 1.0e3, &opts)
         };
         // the rise whose deviance is about 3.3 (bisection on the default fit)
         let (mut a, mut b) = (0.0, 0.05);
@@ -962,17 +964,14 @@ mod tests {
     fn a_dropped_term_left_free_keeps_the_others_intervals_honest() {
         // term 0 flat, term 1 rising over the rows
         let shape1 = [0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9];
-        let phi: Vec<Vec<f64>> = shape1.iter().map(|&s| vec![1.0, s]).collect();
-        let edf = vec![400.0; shape1.len()];
         let fit = |t1: f64, free: u64| {
-            let y: Vec<f64> = shape1.iter().map(|&s| 1.0 + t1 * s).collect();
             let opts = FitOptions {
                 always_keep: 0b01,
                 strict: 0b10,
                 free_in_profile: free,
                 ..FitOptions::default()
             };
-            fit_rows(&phi, &y, &edf, &|j, _| edf[j], &opts, None)
+            flat_and_shape(&shape1, t1, 400.0, &opts)
         };
         // present, below the strict threshold
         let held = fit(0.12, 0);

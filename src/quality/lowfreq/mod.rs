@@ -588,16 +588,8 @@ impl Analysis<'_> {
             ..*self
         };
         let mut es = effects.to_vec();
-        let mut chol = fitted.chol.clone();
-        for pass in 0..2 {
-            if pass > 0 {
-                let Some(f) = null.fit(&es) else { break };
-                chol = f.chol;
-            }
-            for i in 0..es.len() {
-                es[i] = null.refine(&chol, &es, i);
-            }
-        }
+        // a noise that cannot be refitted leaves the shapes as far as refined
+        let _ = null.refine_all(fitted.chol.clone(), &mut es);
         let x0 = null.columns(&es);
         let grid0 = NoiseGrid::new(&self.noise, &x0, fitted.b2, fitted.k2, scale_b, scale_k);
         (grid.null_criterion(&self.c.y) - grid0.null_criterion(&self.c.y)).max(0.0)

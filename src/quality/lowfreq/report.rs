@@ -95,7 +95,7 @@ impl Analysis<'_> {
 
     /// Golden-section refinement of effect `i`'s shape parameter about the
     /// best point of its profile.
-    pub(super) fn refine(&self, chol: &Cholesky, effects: &[Effect], i: usize) -> Effect {
+    fn refine(&self, chol: &Cholesky, effects: &[Effect], i: usize) -> Effect {
         let prof = self.profile(chol, effects, i);
         let Some(k) = (0..prof.len()).min_by(|&a, &b| prof[a].rss.total_cmp(&prof[b].rss)) else {
             return effects[i];
@@ -117,6 +117,21 @@ impl Analysis<'_> {
         }
     }
 
+    /// Refine every effect's shape parameter in turn, twice, the noise
+    /// refitted between the passes (starting from `chol`); `None` when it
+    /// cannot be, the effects then as far as refined.
+    pub(super) fn refine_all(&self, mut chol: Cholesky, effects: &mut [Effect]) -> Option<()> {
+        for pass in 0..2 {
+            if pass > 0 {
+                chol = self.fit(effects)?.chol;
+            }
+            for i in 0..effects.len() {
+                effects[i] = self.refine(&chol, effects, i);
+            }
+        }
+        Some(())
+    }
+
     /// Step 4: refine, fit, and report with intervals and the correction.
     pub(super) fn report(&self, mut effects: Vec<Effect>, selected: Fitted) -> Option<LowFreq> {
         // `selected` is the noise beside the effects as found; without
@@ -124,15 +139,7 @@ impl Analysis<'_> {
         let fitted = if effects.is_empty() {
             selected
         } else {
-            let mut chol = selected.chol;
-            for pass in 0..2 {
-                if pass > 0 {
-                    chol = self.fit(&effects)?.chol;
-                }
-                for i in 0..effects.len() {
-                    effects[i] = self.refine(&chol, &effects, i);
-                }
-            }
+            self.refine_all(selected.chol, &mut effects)?;
             self.fit(&effects)?
         };
         let chol = &fitted.chol;
