@@ -335,7 +335,6 @@ impl SpikeFilter {
                 let len = (run.len() + 1) as f64;
                 for j in run.clone() {
                     v[j] = match (left, right) {
-                        (Some(a), Some(b)) if run.len() == 1 => 0.5 * (a + b),
                         (Some(a), Some(b)) => {
                             let w = (j + 1 - run.start) as f64 / len;
                             (1.0 - w) * a + w * b
@@ -461,7 +460,8 @@ fn rate_departure(
     let mut l = k;
     let left = loop {
         if l == 0 {
-            break if l + 1 == k || k == 0 {
+            // the sample before the buffer, past at most MAX_RUN filled ones
+            break if k <= MAX_RUN {
                 prev.map(|a| (a, -1.0))
             } else {
                 None
@@ -491,9 +491,6 @@ fn rate_departure(
         r += 1;
     };
     match (left, right) {
-        (Some((a, _)), Some((b, _))) if l + 1 == k && r == k + 1 || (k == 0 && r == 1) => {
-            v[k] - 0.5 * (a + b)
-        }
         (Some((a, xa)), Some((b, xb))) => {
             let w = (k as f64 - xa) / (xb - xa);
             v[k] - ((1.0 - w) * a + w * b)
