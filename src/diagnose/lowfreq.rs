@@ -92,7 +92,15 @@ impl LfLayout {
         let means: Vec<f64> = (0..LF_BLOCKS)
             .map(|i| rate[i * b..(i + 1) * b].iter().sum::<f64>() / b as f64)
             .collect();
-        let x = detrend(&means);
+        self.psd_of_means(&means)
+    }
+
+    /// [`LfLayout::psd`] from the rate's [`LF_BLOCKS`] block means.
+    pub fn psd_of_means(&self, means: &[f64]) -> Vec<f64> {
+        if self.bands.is_empty() {
+            return Vec::new();
+        }
+        let x = detrend(means);
         let w = hann();
         let sw2: f64 = w.iter().map(|v| v * v).sum();
         let bin = |k: usize| {

@@ -1,5 +1,6 @@
 //! Monte-Carlo reference: the model simulated with several seeds, each run
-//! reduced to the same statistics as the recording ([`super::stats::compute`]).
+//! reduced to the same statistics as the recording ([`super::stream`]), as it
+//! is simulated.
 //!
 //! The spread of the runs is the primary confidence band of every statistic:
 //! it captures what closed forms miss (the counter's sawtooth quantization at a
@@ -11,7 +12,9 @@
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
-use super::stats::{self, StatLayout, StatSet};
+use super::stats::{StatLayout, StatSet};
+use super::stream::refill::Refill;
+use super::stream::{CHUNK, Extras, StatStream};
 use super::two_level::TwoLevelProbe;
 use crate::model::config::OutputKind;
 use crate::model::{GyroModel, ModelError, Simulator};
@@ -62,8 +65,6 @@ pub struct McJob<'a> {
     /// All statistics (`false`: only the kurtosis statistics, for the
     /// random-telegraph alternative).
     pub full: bool,
-    /// Lines to re-estimate in each run: `(f0 Hz, search half-width Hz)`.
-    pub sine_probes: &'a [(f64, f64)],
     /// A term to evaluate the two-level likelihood ratio for, in each run.
     pub two_level: Option<TwoLevelProbe>,
     /// What the runs are for, and whom to tell of each one done.
@@ -125,53 +126,40 @@ pub fn run(job: &McJob, seeds: &[u64]) -> Result<Vec<StatSet>, ModelError> {
         .collect())
 }
 
+/// One run, simulated and reduced in [`CHUNK`]s: its memory does not grow
+/// with the record.
 fn one_run(job: &McJob, seed: u64) -> Result<StatSet, ModelError> {
-    let n = job.layout.n_samples;
-    let fs = job.layout.fs_hz;
-    let mut sim = Simulator::new(job.model, seed, Some(n as f64 / fs))?;
-    let mut counts = Vec::with_capacity(n);
-    if sim.output() == OutputKind::Rate {
-        rate_words(&mut sim, n, job.layout.pulse_arcsec, &mut counts);
-    } else {
-        sim.next_block(n, &mut counts);
+    let lay = job.layout;
+    let n = lay.n_samples;
+    let mut sim = Simulator::new(job.model, seed, Some(n as f64 / lay.fs_hz))?;
+    let rate_output = sim.output() == OutputKind::Rate;
+    let extras = Extras {
+        temp_c: job.temp_c,
+        lp_cutoffs_hz: job.lp_cutoffs_hz,
+        two_level: job.two_level,
+        full: job.full,
+    };
+    let mut stream = StatStream::new(lay, extras);
+    let mut refill = Refill::new(&lay.filled, n, lay.rate_words);
+    let (mut raw, mut out) = (Vec::with_capacity(CHUNK), Vec::with_capacity(CHUNK));
+    let (mut made, mut last) = (0, 0);
+    while made < n {
+        let want = CHUNK.min(n - made);
+        raw.clear();
+        if rate_output {
+            rate_words(&mut sim, want, lay.pulse_arcsec, &mut raw);
+        } else {
+            sim.next_block(want, &mut raw);
+        }
+        // duration rounding can in principle leave the run a sample short
+        raw.resize(want, raw.last().copied().unwrap_or(last));
+        last = raw[want - 1];
+        made += want;
+        out.clear();
+        refill.push(&raw, &mut out);
+        stream.push(&out);
     }
-    // duration rounding can in principle differ by one sample: pad or cut
-    counts.resize(n, counts.last().copied().unwrap_or(0));
-    stats::refill(&mut counts, &job.layout.filled, job.layout.rate_words);
-    let mut s = if job.full {
-        let mut s = stats::compute(job.layout, &counts, job.temp_c, job.lp_cutoffs_hz);
-        if !job.sine_probes.is_empty() {
-            let x = stats::centred_rate(&counts, job.layout.pulse_arcsec, fs);
-            let mag = stats::hann_fft_magnitude(&x);
-            s.sines = job
-                .sine_probes
-                .iter()
-                .map(|&(f0, hw)| {
-                    let fit = stats::refine_sine(&x, 1.0 / fs, f0, hw, &mag, 0.0);
-                    (fit.f_hz, fit.amp)
-                })
-                .collect();
-        }
-        s
-    } else {
-        let rate = stats::counts_to_rate(&counts, job.layout.pulse_arcsec, fs);
-        StatSet {
-            kurtosis: job
-                .lp_cutoffs_hz
-                .iter()
-                .map(|&fc| stats::lowpass_kurtosis(&rate, 1.0 / fs, fc, &job.layout.lo))
-                .collect(),
-            ..StatSet::default()
-        }
-    };
-    s.two_level_llr = match job.two_level {
-        Some(p) => {
-            let rate = stats::counts_to_rate(&counts, job.layout.pulse_arcsec, fs);
-            p.llr(&rate, 1.0 / fs, &job.layout.lo)
-        }
-        None => f64::NAN,
-    };
-    Ok(s)
+    Ok(stream.finish())
 }
 
 /// `n` rate words of a rate-output simulator in the recording's quantum

@@ -72,6 +72,7 @@ pub mod report;
 pub(crate) mod resonance;
 pub(crate) mod slopes;
 pub mod stats;
+pub mod stream;
 pub(crate) mod telegraph;
 pub mod two_level;
 pub(crate) mod types;

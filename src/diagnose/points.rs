@@ -72,7 +72,6 @@ pub fn mean_stats(runs: &[StatSet]) -> StatSet {
         slope: runs.iter().map(|s| s.slope).sum::<f64>() / r,
         temp_slope: None,
         kurtosis: avg(&|s| &s.kurtosis),
-        sines: Vec::new(),
         lf_psd: avg(&|s| &s.lf_psd),
         two_level_llr: runs.iter().map(|s| s.two_level_llr).sum::<f64>() / r,
     }

@@ -20,6 +20,7 @@ use super::mc;
 use super::mc::Progress;
 use super::points::{KTerm, all_points, kurtosis_scales};
 use super::stats::{self, StatLayout, StatSet};
+use super::stream::{self, Extras};
 use super::types::{DiagnoseError, DiagnoseOptions, Recording, check_recording};
 use crate::model::GyroModel;
 use crate::model::config::OutputKind;
@@ -108,7 +109,13 @@ impl Reference {
         let cutoffs_hz: Vec<f64> = ks.iter().map(|k| k.0).collect();
         let kurt_taus: Vec<(f64, f64)> = ks.iter().map(|k| k.1).collect();
         let kterms: Vec<KTerm> = ks.iter().map(|k| k.2).collect();
-        let mut obs = stats::compute(&layout, &rec.counts, temp, &cutoffs_hz);
+        let extras = Extras {
+            temp_c: temp,
+            lp_cutoffs_hz: &cutoffs_hz,
+            two_level: None,
+            full: true,
+        };
+        let mut obs = stream::reduce_counts(&layout, &rec.counts, extras);
         let ref_model = reference_model(model, rec, obs.mean_rate);
         mask_counter_lines(&mut layout, &ref_model, &obs);
         obs.band_psd = stats::band_means(&layout, &obs.psd);
@@ -122,7 +129,6 @@ impl Reference {
             lp_cutoffs_hz: &cutoffs_hz,
             threads,
             full: true,
-            sine_probes: &[],
             two_level: None,
             phase: "simulating the model",
             progress,
@@ -156,7 +162,6 @@ impl Reference {
             lp_cutoffs_hz: cutoffs_hz,
             threads: self.threads,
             full: true,
-            sine_probes: &[],
             two_level: None,
             phase: "simulating a candidate",
             progress: &self.progress,

@@ -25,7 +25,6 @@ use std::sync::Arc;
 use rustfft::num_complex::Complex64;
 use rustfft::{Fft, FftPlanner};
 
-use super::golden::golden_max;
 use super::lowfreq::LfLayout;
 use crate::allan::{self, Phase, Stat};
 use crate::model::estimate::RampAccumulator;
@@ -75,13 +74,7 @@ pub fn dwt_level_mean_squares_of(
         if n_out < min_coef {
             break;
         }
-        let ss = if l == 16 {
-            let lo16: &[f64; 16] = lo.try_into().expect("16 taps");
-            let hi16: &[f64; 16] = hi.try_into().expect("16 taps");
-            analysis_step16(&mut a, n_out, lo16, hi16)
-        } else {
-            analysis_step(&mut a, n_out, lo, hi)
-        };
+        let ss = analysis_step_any(&mut a, n_out, lo, hi, 0.0);
         len = n_out;
         out.push((level, n_out, ss / n_out as f64));
     }
@@ -89,11 +82,28 @@ pub fn dwt_level_mean_squares_of(
 }
 
 /// One analysis step in place: `a[n] <- sum lo[k] a[2n+k]` for `n < n_out`;
-/// returns the sum of squared details. In place is safe: `a[n]` is never
-/// read again (later windows start at `2n' > n`).
-fn analysis_step(a: &mut [f64], n_out: usize, lo: &[f64], hi: &[f64]) -> f64 {
+/// returns `ss` plus the squared details, added in order (so a stream that
+/// carries `ss` from call to call sums exactly as one whole call).
+pub(crate) fn analysis_step_any(
+    a: &mut [f64],
+    n_out: usize,
+    lo: &[f64],
+    hi: &[f64],
+    ss: f64,
+) -> f64 {
+    if lo.len() == 16 {
+        let lo16: &[f64; 16] = lo.try_into().expect("16 taps");
+        let hi16: &[f64; 16] = hi.try_into().expect("16 taps");
+        analysis_step16(a, n_out, lo16, hi16, ss)
+    } else {
+        analysis_step(a, n_out, lo, hi, ss)
+    }
+}
+
+/// [`analysis_step_any`] for any filter length. In place is safe: `a[n]` is
+/// never read again (later windows start at `2n' > n`).
+fn analysis_step(a: &mut [f64], n_out: usize, lo: &[f64], hi: &[f64], mut ss: f64) -> f64 {
     let l = lo.len();
-    let mut ss = 0.0;
     for n in 0..n_out {
         let w = &a[2 * n..2 * n + l];
         let mut s_lo = 0.0;
@@ -109,8 +119,13 @@ fn analysis_step(a: &mut [f64], n_out: usize, lo: &[f64], hi: &[f64]) -> f64 {
 }
 
 /// [`analysis_step`] for 16-tap filters (fixed size: the compiler unrolls it).
-fn analysis_step16(a: &mut [f64], n_out: usize, lo: &[f64; 16], hi: &[f64; 16]) -> f64 {
-    let mut ss = 0.0;
+fn analysis_step16(
+    a: &mut [f64],
+    n_out: usize,
+    lo: &[f64; 16],
+    hi: &[f64; 16],
+    mut ss: f64,
+) -> f64 {
     for n in 0..n_out {
         let w: &[f64; 16] = a[2 * n..2 * n + 16].try_into().expect("16 samples");
         let mut s_lo = [0.0f64; 4];
@@ -199,49 +214,81 @@ impl Welch {
     /// the segments of `x` (mean removed first). Two real segments share one
     /// complex FFT.
     pub fn psd(&self, x: &[f64], fs: f64) -> Vec<f64> {
-        let seg = self.seg;
-        let half = seg / 2;
+        let half = self.seg / 2;
         let k_seg = self.segments(x.len());
         let mut acc = vec![0.0; half + 1];
         if k_seg == 0 {
             return acc;
         }
         let mean = x.iter().sum::<f64>() / x.len() as f64;
-        let mut buf = vec![Complex64::new(0.0, 0.0); seg];
-        let mut scratch = vec![Complex64::new(0.0, 0.0); self.fft.get_inplace_scratch_len()];
+        let mut work = self.work();
         let mut s = 0;
         while s < k_seg {
-            let a = &x[s * half..s * half + seg];
-            let b = if s + 1 < k_seg {
-                Some(&x[(s + 1) * half..(s + 1) * half + seg])
-            } else {
-                None
-            };
-            for n in 0..seg {
-                let re = (a[n] - mean) * self.window[n];
-                let im = b.map_or(0.0, |b| (b[n] - mean) * self.window[n]);
-                buf[n] = Complex64::new(re, im);
-            }
-            self.fft.process_with_scratch(&mut buf, &mut scratch);
-            for k in 0..=half {
-                let xk = buf[k];
-                let xm = buf[(seg - k) % seg].conj();
-                let fa = (xk + xm) * 0.5;
-                acc[k] += fa.norm_sqr();
-                if b.is_some() {
-                    let fb = (xk - xm) * Complex64::new(0.0, -0.5);
-                    acc[k] += fb.norm_sqr();
-                }
-            }
+            let a = &x[s * half..s * half + self.seg];
+            let b = (s + 1 < k_seg).then(|| &x[(s + 1) * half..(s + 1) * half + self.seg]);
+            self.accumulate(a, b, mean, &mut work, &mut acc);
             s += 2;
         }
+        self.scale(&mut acc, k_seg, fs);
+        acc
+    }
+
+    /// Scratch for [`Welch::accumulate`].
+    pub(crate) fn work(&self) -> WelchWork {
+        WelchWork {
+            buf: vec![Complex64::new(0.0, 0.0); self.seg],
+            scratch: vec![Complex64::new(0.0, 0.0); self.fft.get_inplace_scratch_len()],
+        }
+    }
+
+    /// Add the periodograms of segment `a` and (when given) `b`, `offset`
+    /// removed, to `acc` (bins `0..=seg/2`, unscaled). The Hann window's
+    /// transform vanishes beyond bin 1, so an offset other than the mean
+    /// changes bins 0 and 1 only.
+    pub(crate) fn accumulate(
+        &self,
+        a: &[f64],
+        b: Option<&[f64]>,
+        offset: f64,
+        work: &mut WelchWork,
+        acc: &mut [f64],
+    ) {
+        let seg = self.seg;
+        let half = seg / 2;
+        let buf = &mut work.buf;
+        for n in 0..seg {
+            let re = (a[n] - offset) * self.window[n];
+            let im = b.map_or(0.0, |b| (b[n] - offset) * self.window[n]);
+            buf[n] = Complex64::new(re, im);
+        }
+        self.fft.process_with_scratch(buf, &mut work.scratch);
+        for k in 0..=half {
+            let xk = buf[k];
+            let xm = buf[(seg - k) % seg].conj();
+            let fa = (xk + xm) * 0.5;
+            acc[k] += fa.norm_sqr();
+            if b.is_some() {
+                let fb = (xk - xm) * Complex64::new(0.0, -0.5);
+                acc[k] += fb.norm_sqr();
+            }
+        }
+    }
+
+    /// Scale accumulated periodograms of `k_seg` segments to a one-sided PSD.
+    pub(crate) fn scale(&self, acc: &mut [f64], k_seg: usize, fs: f64) {
+        let half = self.seg / 2;
         let scale = 1.0 / (fs * self.wss * k_seg as f64);
         for (k, v) in acc.iter_mut().enumerate() {
             let one_sided = if k == 0 || k == half { 1.0 } else { 2.0 };
             *v *= scale * one_sided;
         }
-        acc
     }
+}
+
+/// Scratch buffers of one Welch FFT.
+pub(crate) struct WelchWork {
+    buf: Vec<Complex64>,
+    scratch: Vec<Complex64>,
 }
 
 /// A quarter-octave band of Welch bins.
@@ -298,24 +345,29 @@ pub fn refill(counts: &mut [i64], filled: &[Range<usize>], rate_words: bool) {
         if a >= b {
             continue;
         }
-        if rate_words {
-            let left = if a > 0 {
-                counts[a - 1]
-            } else {
-                counts[b.min(n - 1)]
-            };
-            let right = if b < n { counts[b] } else { left };
-            let len = (b - a + 1) as f64;
-            for (j, c) in counts[a..b].iter_mut().enumerate() {
-                let w = (j + 1) as f64 / len;
-                *c = ((1.0 - w) * left as f64 + w * right as f64).round() as i64;
-            }
-        } else {
-            let total: i64 = counts[a..b].iter().sum();
-            let shares = crate::dsp::gaps::spread_increment(total, (b - a) as u32);
-            for (c, s) in counts[a..b].iter_mut().zip(shares) {
-                *c = s;
-            }
+        let left = (a > 0).then(|| counts[a - 1]);
+        let right = (b < n).then(|| counts[b]);
+        fill_span(&mut counts[a..b], left, right, rate_words);
+    }
+}
+
+/// Make up one span's samples ([`refill`]) from its neighbours `left` (none
+/// at the record's start) and `right` (none at its end).
+pub(crate) fn fill_span(span: &mut [i64], left: Option<i64>, right: Option<i64>, rate_words: bool) {
+    if rate_words {
+        let last = *span.last().expect("a span is not empty");
+        let left = left.or(right).unwrap_or(last);
+        let right = right.unwrap_or(left);
+        let len = (span.len() + 1) as f64;
+        for (j, c) in span.iter_mut().enumerate() {
+            let w = (j + 1) as f64 / len;
+            *c = ((1.0 - w) * left as f64 + w * right as f64).round() as i64;
+        }
+    } else {
+        let total: i64 = span.iter().sum();
+        let shares = crate::dsp::gaps::spread_increment(total, span.len() as u32);
+        for (c, s) in span.iter_mut().zip(shares) {
+            *c = s;
         }
     }
 }
@@ -485,9 +537,6 @@ pub struct StatSet {
     pub temp_slope: Option<f64>,
     /// Excess kurtosis of the low-passed rate, one per requested cut-off.
     pub kurtosis: Vec<f64>,
-    /// Re-estimated sinusoids `(frequency Hz, amplitude arcsec/s)`, one per
-    /// requested probe (the parametric bootstrap of a fitted line).
-    pub sines: Vec<(f64, f64)>,
     /// Band means of the low-frequency periodogram, (arcsec/s)^2/Hz.
     pub lf_psd: Vec<f64>,
     /// Two-level likelihood ratio for the job's probe
@@ -565,7 +614,6 @@ pub fn compute(
         slope: ramp.slope_per_sample() / tau0,
         temp_slope,
         kurtosis,
-        sines: Vec::new(),
         lf_psd,
         two_level_llr: f64::NAN,
     }
@@ -604,13 +652,23 @@ pub fn regression_slope(x: &[f64], y: &[f64]) -> f64 {
 /// Gaussian low-pass (-3 dB at `fc`) by FFT; the ends (two filter widths) are
 /// dropped. Returns NaN when fewer than 16 samples remain.
 pub fn lowpass_kurtosis(rate: &[f64], tau0_s: f64, fc_hz: f64, lo: &[f64]) -> f64 {
-    // deepest level whose sample spacing still resolves 4 fc
+    let level = kurtosis_level(tau0_s, fc_hz);
+    let a = dwt_approximation(rate, lo, level);
+    lowpass_kurtosis_of(&a, tau0_s * 2f64.powi(level as i32), fc_hz)
+}
+
+/// The approximation level [`lowpass_kurtosis`] reads for `fc_hz`: the
+/// deepest whose sample spacing still resolves `4 fc`.
+pub fn kurtosis_level(tau0_s: f64, fc_hz: f64) -> u32 {
     let mut level = 0u32;
     while tau0_s * 2f64.powi(level as i32 + 1) <= 1.0 / (8.0 * fc_hz) {
         level += 1;
     }
-    let a = dwt_approximation(rate, lo, level);
-    let dt = tau0_s * 2f64.powi(level as i32);
+    level
+}
+
+/// [`lowpass_kurtosis`] from the approximation coefficients `a`, spaced `dt` s.
+pub fn lowpass_kurtosis_of(a: &[f64], dt: f64, fc_hz: f64) -> f64 {
     let n = a.len();
     if n < 32 {
         return f64::NAN;
@@ -660,23 +718,6 @@ pub fn excess_kurtosis(x: &[f64]) -> f64 {
     }
 }
 
-/// Hann-windowed DFT `sum w_k x_k e^{-2 pi i f k tau0}` of a centred series.
-pub fn dft_hann(x: &[f64], tau0: f64, f_hz: f64) -> Complex64 {
-    let n = x.len();
-    let step = Complex64::from_polar(1.0, -2.0 * PI * f_hz * tau0);
-    let mut ph = Complex64::new(1.0, 0.0);
-    let mut acc = Complex64::new(0.0, 0.0);
-    for (k, &v) in x.iter().enumerate() {
-        let w = 0.5 - 0.5 * (2.0 * PI * k as f64 / n as f64).cos();
-        acc += ph * (w * v);
-        ph *= step;
-        if k % 4096 == 4095 {
-            ph = Complex64::from_polar(1.0, -2.0 * PI * f_hz * tau0 * (k + 1) as f64);
-        }
-    }
-    acc
-}
-
 /// Plain DFT `sum x_k e^{-2 pi i f k tau0}` (the phasor re-anchored every
 /// 4096 samples against round-off).
 pub fn dft_plain(x: &[f64], tau0: f64, f: f64) -> Complex64 {
@@ -691,101 +732,4 @@ pub fn dft_plain(x: &[f64], tau0: f64, f: f64) -> Complex64 {
         }
     }
     acc
-}
-
-/// A sinusoid measured in the whole record: frequency, amplitude (arcsec/s)
-/// and their standard deviations given the background one-sided PSD `s_bg`.
-#[derive(Debug, Clone, Copy)]
-pub struct SineFit {
-    pub f_hz: f64,
-    pub amp: f64,
-    pub amp_sd: f64,
-    pub f_sd: f64,
-}
-
-/// Refine a line near `f0` (searching `+-half_width`) with the Hann DFT of the
-/// centred rate `x`; `fft_mag` is [`hann_fft_magnitude`] of `x` (the coarse
-/// peak), `s_bg` the one-sided background PSD at the line (for the analytic
-/// standard deviations: amplitude `sqrt(1.5 s_bg / T)`, Hann's 1.5-bin noise
-/// bandwidth; frequency from the Cramer-Rao bound, inflated by the same 1.5).
-pub fn refine_sine(
-    x: &[f64],
-    tau0: f64,
-    f0: f64,
-    half_width: f64,
-    fft_mag: &[f64],
-    s_bg: f64,
-) -> SineFit {
-    let n = x.len();
-    let size = fft_mag.len();
-    let fs = 1.0 / tau0;
-    let df = fs / size as f64;
-    let k0 = ((f0 - half_width) / df).floor().max(1.0) as usize;
-    let k1 = (((f0 + half_width) / df).ceil() as usize).min(size / 2);
-    let mut kb = k0;
-    for k in k0..=k1.max(k0) {
-        if fft_mag[k] > fft_mag[kb] {
-            kb = k;
-        }
-    }
-    let (a, b) = ((kb as f64 - 1.0) * df, (kb as f64 + 1.0) * df);
-    let val = |f: f64| dft_hann(x, tau0, f).norm();
-    let f = golden_max(&val, a, b, 24);
-    let mag = val(f);
-    let wsum = n as f64 / 2.0;
-    let xarg = PI * f * tau0;
-    let sinc = if xarg > 0.0 { xarg.sin() / xarg } else { 1.0 };
-    let amp = 2.0 * mag / wsum / sinc;
-    let t = n as f64 * tau0;
-    // Hann: ENBW 1.5 bins
-    let amp_sd = (1.5 * s_bg / t).sqrt() / sinc;
-    // The peak of the Hann-windowed DFT, linearised about the true frequency
-    // (x = A cos(w n + phi) + e, white e of variance s2, n centred):
-    // var(w) = 2 s2 sum(n^2 w_n^2) / (A^2 (sum(n^2 w_n))^2) rad^2/sample^2,
-    // the Cramer-Rao bound 24 s2 / (A^2 N^3) for a flat window; the Hann
-    // window's is 2.34 times that. s2 = s_bg fs / 2 (one-sided PSD).
-    let (mut s_nw2, mut s_nw) = (0.0, 0.0);
-    let c = 0.5 * (n as f64 - 1.0);
-    for k in 0..n {
-        let w = 0.5 - 0.5 * (2.0 * PI * k as f64 / n as f64).cos();
-        let m2 = (k as f64 - c).powi(2);
-        s_nw2 += m2 * w * w;
-        s_nw += m2 * w;
-    }
-    let s2 = 0.5 * s_bg * fs;
-    let var_w = 2.0 * s2 * s_nw2 / (amp.max(1e-300).powi(2) * s_nw.max(1e-300).powi(2));
-    let f_sd = var_w.sqrt() / (2.0 * PI * tau0);
-    SineFit {
-        f_hz: f,
-        amp,
-        amp_sd,
-        f_sd,
-    }
-}
-
-/// Magnitude of the FFT (size: next power of two of the length) of the
-/// Hann-windowed series `x`.
-pub fn hann_fft_magnitude(x: &[f64]) -> Vec<f64> {
-    let n = x.len();
-    let size = n.next_power_of_two();
-    let mut buf: Vec<Complex64> = x
-        .iter()
-        .enumerate()
-        .map(|(k, &v)| {
-            Complex64::new(
-                v * (0.5 - 0.5 * (2.0 * PI * k as f64 / n as f64).cos()),
-                0.0,
-            )
-        })
-        .collect();
-    buf.resize(size, Complex64::new(0.0, 0.0));
-    FftPlanner::new().plan_fft_forward(size).process(&mut buf);
-    buf.iter().map(|c| c.norm()).collect()
-}
-
-/// Centred rate (mean removed), arcsec/s.
-pub fn centred_rate(counts: &[i64], pulse_arcsec: f64, fs_hz: f64) -> Vec<f64> {
-    let rate = counts_to_rate(counts, pulse_arcsec, fs_hz);
-    let m = rate.iter().sum::<f64>() / rate.len().max(1) as f64;
-    rate.into_iter().map(|v| v - m).collect()
 }

@@ -62,10 +62,19 @@ impl TwoLevelProbe {
         if !(self.amp > 0.0 && self.mean_dwell_s > 0.0) {
             return f64::NAN;
         }
+        let y = dwt_approximation(rate, lo, self.level(tau0_s));
+        self.llr_of(y, tau0_s)
+    }
+
+    /// [`TwoLevelProbe::llr`] from the rate's approximation coefficients at
+    /// [`TwoLevelProbe::level`].
+    pub fn llr_of(&self, mut y: Vec<f64>, tau0_s: f64) -> f64 {
+        if !(self.amp > 0.0 && self.mean_dwell_s > 0.0) {
+            return f64::NAN;
+        }
         let level = self.level(tau0_s);
         let dt = self.block_s(tau0_s);
         let scale = 2f64.powf(-(level as f64) / 2.0);
-        let mut y = dwt_approximation(rate, lo, level);
         if y.len() < MIN_BLOCKS {
             return f64::NAN;
         }

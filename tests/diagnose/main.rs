@@ -12,4 +12,5 @@ mod null;
 mod rate;
 mod resonance;
 mod stats;
+mod stream;
 mod telegraph;
