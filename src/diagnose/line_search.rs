@@ -109,13 +109,9 @@ impl LineSpectrum {
         Self::whitened(psd, n, fs_hz, model_psd, masked)
     }
 
-    /// The same periodogram divided by another model's PSD, with other bins
-    /// masked (no new transform).
-    pub fn rewhitened(self, model_psd: &dyn Fn(f64) -> f64, masked: &[(f64, f64)]) -> LineSpectrum {
-        Self::whitened(self.psd, self.n, self.fs_hz, model_psd, masked)
-    }
-
-    fn whitened(
+    /// A periodogram `psd` of `n` samples (kept from [`LineSpectrum::new`])
+    /// divided by a model's PSD, with other bins masked: no new transform.
+    pub fn whitened(
         psd: Vec<f64>,
         n: usize,
         fs_hz: f64,

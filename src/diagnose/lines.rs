@@ -68,7 +68,9 @@ pub(crate) fn find(r: &Reference, rec: &Recording) -> LineFindings {
         periodogram: Some(Periodogram {
             detections: scan.lines.iter().map(|(det, _)| *det).collect(),
             mean_rate: scan.mean_rate,
-            spectrum: scan.spectrum,
+            n: scan.spectrum.n,
+            // the periodogram alone: each use whitens it by its own model
+            psd: scan.spectrum.psd,
         }),
         ..found
     }
@@ -77,7 +79,9 @@ pub(crate) fn find(r: &Reference, rec: &Recording) -> LineFindings {
 /// The line search's periodogram, kept for [`excess`].
 #[derive(Debug)]
 pub(crate) struct Periodogram {
-    spectrum: lines::LineSpectrum,
+    /// [`lines::LineSpectrum::psd`] of the `n`-sample record.
+    psd: Vec<f64>,
+    n: usize,
     mean_rate: f64,
     /// The lines detected (their bins are left out).
     detections: Vec<Detection>,
@@ -93,9 +97,10 @@ pub(crate) fn excess(
     model: &GyroModel,
 ) -> (Option<narrowband::Excess>, lines::LineSpectrum) {
     let (fs, d) = (r.layout.fs_hz, r.layout.pulse_arcsec);
-    let df = p.spectrum.df();
+    let df = fs / p.n as f64;
     let masked = counter_lines(model, p.mean_rate, r.wander(), fs, d, df);
-    let spectrum = p.spectrum.clone().rewhitened(&model_psd(model), &masked);
+    let spectrum =
+        lines::LineSpectrum::whitened(p.psd.clone(), p.n, fs, &model_psd(model), &masked);
     let counter_hz = counter_line_hz(model, p.mean_rate, fs, d, narrowband::BAND, 0.01);
     (
         narrowband::find(&spectrum, &p.detections, &counter_hz, ALPHA_LINES),

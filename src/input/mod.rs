@@ -552,6 +552,10 @@ impl Input {
         if !temps_complete {
             all.temp_c = Vec::new();
         }
+        // the vectors grew by doubling: give back what they will not use
+        all.counts.shrink_to_fit();
+        all.values.shrink_to_fit();
+        all.temp_c.shrink_to_fit();
         Ok((all, stream.report()))
     }
 }
