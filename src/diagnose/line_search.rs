@@ -552,7 +552,8 @@ pub fn detrend_in_place(x: &mut [f64]) {
 /// `|X_k|^2`, `k = 0 ..= n/2`, of the Hann-windowed real series `x`. An
 /// even length is transformed as `n/2` complex points (even samples real,
 /// odd imaginary) and the halves separated, in half the memory of a complex
-/// transform of the whole record.
+/// transform of the whole record; the transform itself is done in place
+/// ([`Dft`]).
 fn hann_power(x: &[f64]) -> Vec<f64> {
     let n = x.len();
     if n % 2 == 1 || n < 4 {
@@ -561,25 +562,108 @@ fn hann_power(x: &[f64]) -> Vec<f64> {
             .enumerate()
             .map(|(k, &v)| Complex64::new(v * hann(k, n), 0.0))
             .collect();
-        FftPlanner::new().plan_fft_forward(n).process(&mut buf);
-        return buf[..=n / 2].iter().map(|c| c.norm_sqr()).collect();
+        let at = Dft::run(&mut buf);
+        return (0..=n / 2).map(|k| buf[at.index(k)].norm_sqr()).collect();
     }
     let m = n / 2;
     let mut z: Vec<Complex64> = (0..m)
         .map(|j| Complex64::new(x[2 * j] * hann(2 * j, n), x[2 * j + 1] * hann(2 * j + 1, n)))
         .collect();
-    FftPlanner::new().plan_fft_forward(m).process(&mut z);
+    let at = Dft::run(&mut z);
     // X_k = E_k + w^k O_k, E_k = (Z_k + conj Z_{m-k}) / 2,
     // O_k = (Z_k - conj Z_{m-k}) / 2i, w = exp(-2 pi i / n)
     (0..=m)
         .map(|k| {
-            let (a, b) = (z[k % m], z[(m - k) % m].conj());
+            let (a, b) = (z[at.index(k % m)], z[at.index((m - k) % m)].conj());
             let e = (a + b) * 0.5;
             let o = (a - b) * Complex64::new(0.0, -0.5);
             let w = Complex64::from_polar(1.0, -2.0 * PI * k as f64 / n as f64);
             (e + w * o).norm_sqr()
         })
         .collect()
+}
+
+/// Where an in-place DFT left bin `k`: a long transform whose length splits
+/// into two factors near its square root is done by the four-step method
+/// (short transforms of columns, twiddles, short transforms of rows: no
+/// whole-length scratch or twiddle table beside the data), which leaves
+/// `X[k1 + m1 k2]` at `m2 k1 + k2`; any other in natural order.
+#[derive(Debug, Clone, Copy)]
+struct Dft {
+    /// `(m1, m2)`, or none for natural order.
+    split: Option<(usize, usize)>,
+}
+
+impl Dft {
+    /// Transform `z` in place.
+    fn run(z: &mut [Complex64]) -> Dft {
+        let split = four_step_split(z.len());
+        match split {
+            Some((m1, m2)) => four_step(z, m1, m2),
+            None => FftPlanner::new().plan_fft_forward(z.len()).process(z),
+        }
+        Dft { split }
+    }
+
+    fn index(&self, k: usize) -> usize {
+        match self.split {
+            Some((m1, m2)) => m2 * (k % m1) + k / m1,
+            None => k,
+        }
+    }
+}
+
+/// Factors `m = m1 m2`, `m1 <= m2` the largest factor not above `sqrt(m)`,
+/// for lengths from 2^20 whose `m1` is at least `sqrt(m) / 16`.
+fn four_step_split(m: usize) -> Option<(usize, usize)> {
+    if m < 1 << 20 {
+        return None;
+    }
+    let r = (m as f64).sqrt() as usize;
+    (r / 16..=r)
+        .rev()
+        .find(|&m1| m1 >= 2 && m % m1 == 0)
+        .map(|m1| (m1, m / m1))
+}
+
+/// Bailey's four-step DFT of `z` (length `m1 m2`, read as `m1` rows of
+/// `m2`): each column's length-`m1` transform, times `exp(-2 pi i j2 k1 / m)`,
+/// then each row's length-`m2` transform. Columns go eight at a time through
+/// a small buffer.
+fn four_step(z: &mut [Complex64], m1: usize, m2: usize) {
+    const COLS: usize = 8;
+    let m = m1 * m2;
+    let mut planner = FftPlanner::new();
+    let (f1, f2) = (planner.plan_fft_forward(m1), planner.plan_fft_forward(m2));
+    let scratch_len = f1
+        .get_inplace_scratch_len()
+        .max(f2.get_inplace_scratch_len());
+    let mut scratch = vec![Complex64::new(0.0, 0.0); scratch_len];
+    let mut cols = vec![Complex64::new(0.0, 0.0); COLS * m1];
+    let mut j2 = 0;
+    while j2 < m2 {
+        let w = COLS.min(m2 - j2);
+        for j1 in 0..m1 {
+            for c in 0..w {
+                cols[c * m1 + j1] = z[m2 * j1 + j2 + c];
+            }
+        }
+        f1.process_with_scratch(&mut cols[..w * m1], &mut scratch);
+        for c in 0..w {
+            let col = &mut cols[c * m1..(c + 1) * m1];
+            for (k1, v) in col.iter_mut().enumerate() {
+                let ph = -2.0 * PI * (((j2 + c) * k1) % m) as f64 / m as f64;
+                *v *= Complex64::from_polar(1.0, ph);
+            }
+        }
+        for k1 in 0..m1 {
+            for c in 0..w {
+                z[m2 * k1 + j2 + c] = cols[c * m1 + k1];
+            }
+        }
+        j2 += w;
+    }
+    f2.process_with_scratch(z, &mut scratch);
 }
 
 fn hann(k: usize, n: usize) -> f64 {
@@ -622,6 +706,29 @@ mod tests {
                     acc += Complex64::from_polar(v * hann(j, n), ph);
                 }
                 assert!((g - acc.norm_sqr()).abs() <= 1e-9 * peak, "n {n} k {k}");
+            }
+        }
+    }
+
+    /// The four-step transform is rustfft's whole-length one, on lengths that
+    /// split evenly, unevenly, and not at all (a prime: natural order).
+    #[test]
+    fn the_four_step_transform_is_the_whole_length_one() {
+        for m in [1usize << 20, 1_048_576 + 3 * 4096, 1_200_000, 1_048_583] {
+            let z0: Vec<Complex64> = (0..m)
+                .map(|k| {
+                    Complex64::new(((k * 7919) % 97) as f64 - 48.0, ((k * 104_729) % 89) as f64)
+                })
+                .collect();
+            let mut want = z0.clone();
+            FftPlanner::new().plan_fft_forward(m).process(&mut want);
+            let mut got = z0;
+            let at = Dft::run(&mut got);
+            assert_eq!(at.split.is_some(), m != 1_048_583, "m {m}");
+            let peak = want.iter().map(|c| c.norm()).fold(0.0, f64::max);
+            for (k, w) in want.iter().enumerate() {
+                let g = got[at.index(k)];
+                assert!((g - w).norm() <= 1e-12 * peak, "m {m} k {k}: {g} vs {w}");
             }
         }
     }
