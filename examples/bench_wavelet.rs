@@ -5,9 +5,10 @@
 //! 10 M) of a gyro-like rate signal (integer pulse counts of a 1.21" gyro at 1 kHz,
 //! as arcsec/s), depth LEVELS (default 10). When DATA_OUT is given (not `-`), the samples are
 //! written there as little-endian f64 for the PyWavelets side. Each case runs
-//! REPEATS times (default 3) and the best is kept. Prints one line per case:
-//! `name  M samples/s (wall)  M samples/s (cpu)`; CPU time is the thread's on-CPU
-//! time from /proc (Linux), which stays meaningful on a busy machine.
+//! REPEATS times (default 5). Prints one line per case: `name  M samples/s (wall,
+//! median of the runs)  (slowest-fastest)  M samples/s (cpu, median)`; CPU time
+//! is the thread's on-CPU time from /proc (Linux), which stays meaningful on a
+//! busy machine.
 
 use sagnac::dsp::{QnConfig, QnSplitter, StreamingBank, Wavelet};
 use std::io::Write;
@@ -43,30 +44,59 @@ fn signal(n: usize) -> Vec<f64> {
         .collect()
 }
 
-/// Best (wall, cpu) seconds over `repeats` runs of `f`.
-fn time<F: FnMut()>(repeats: usize, mut f: F) -> (f64, Option<f64>) {
-    let mut best = (f64::INFINITY, None::<f64>);
+/// Wall and CPU seconds of `repeats` runs of `f`.
+struct Runs {
+    wall: Vec<f64>,
+    cpu: Vec<f64>,
+}
+
+fn time<F: FnMut()>(repeats: usize, mut f: F) -> Runs {
+    let mut runs = Runs {
+        wall: Vec::new(),
+        cpu: Vec::new(),
+    };
     for _ in 0..repeats {
         let c0 = cpu_ns();
         let t0 = Instant::now();
         f();
-        let wall = t0.elapsed().as_secs_f64();
-        let cpu = match (c0, cpu_ns()) {
-            (Some(a), Some(b)) => Some((b - a) as f64 * 1e-9),
-            _ => None,
-        };
-        best.0 = best.0.min(wall);
-        best.1 = match (best.1, cpu) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
-        };
+        runs.wall.push(t0.elapsed().as_secs_f64());
+        if let (Some(a), Some(b)) = (c0, cpu_ns()) {
+            runs.cpu.push((b - a) as f64 * 1e-9);
+        }
     }
-    best
+    runs
 }
 
-fn report(name: &str, n: usize, (wall, cpu): (f64, Option<f64>)) {
-    let c = cpu.map_or("n/a".to_string(), |c| format!("{:.1}", n as f64 / c / 1e6));
-    println!("{name:<58} {:>8.1} {:>8}", n as f64 / wall / 1e6, c);
+fn median(v: &[f64]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let k = s.len() / 2;
+    if s.len() % 2 == 1 {
+        s[k]
+    } else {
+        0.5 * (s[k - 1] + s[k])
+    }
+}
+
+fn report(name: &str, n: usize, runs: Runs) {
+    let ms = |t: f64| n as f64 / t / 1e6;
+    let c = if runs.cpu.is_empty() {
+        "n/a".to_string()
+    } else {
+        format!("{:.1}", ms(median(&runs.cpu)))
+    };
+    let (slow, fast) = runs
+        .wall
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(a, b), &t| {
+            (a.min(ms(t)), b.max(ms(t)))
+        });
+    println!(
+        "{name:<58} {:>8.1} {:>13} {:>8}",
+        ms(median(&runs.wall)),
+        format!("({slow:.1}-{fast:.1})"),
+        c
+    );
 }
 
 fn main() {
@@ -74,7 +104,7 @@ fn main() {
     let n: usize = args.next().map_or(10_000_000, |s| s.parse().expect("N"));
     let levels: u32 = args.next().map_or(10, |s| s.parse().expect("LEVELS"));
     let data_out = args.next();
-    let repeats: usize = args.next().map_or(3, |s| s.parse().expect("REPEATS"));
+    let repeats: usize = args.next().map_or(5, |s| s.parse().expect("REPEATS"));
     let x = signal(n);
     if let Some(path) = data_out.filter(|p| !p.is_empty() && p != "-") {
         let mut f = std::io::BufWriter::new(std::fs::File::create(&path).expect("create DATA_OUT"));
@@ -83,7 +113,7 @@ fn main() {
         }
     }
     let w = Wavelet::by_name("sym8").expect("sym8");
-    println!("# sagnac, N = {n}, sym8, J = {levels}, best of {repeats}");
+    println!("# sagnac, N = {n}, sym8, J = {levels}, medians of {repeats} runs");
     let mut clean = Vec::with_capacity(n);
     let mut noise = Vec::with_capacity(n);
     for (block, label) in [(4096usize, "4096"), (1000, "1000"), (1, "1")] {

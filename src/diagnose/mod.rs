@@ -6,7 +6,8 @@
 //! [`diagnose`] is a short sequence of phases, one file each:
 //! 1. [`reference`]: the model simulated like the recording (same length,
 //!    rate, pulse weight and mean input), R Monte-Carlo runs; recording and
-//!    runs reduced to the same statistics ([`stats`], [`mc`]): sym8 wavelet
+//!    runs reduced to the same statistics as they stream past ([`stream`],
+//!    [`mc`]; the whole-record definitions are in [`stats`]): sym8 wavelet
 //!    variances of the rate, modified and raw Allan variances, the Welch
 //!    spectrum, the rate slope and the rate-on-temperature slope, the
 //!    low-passed rate's kurtosis. These see through the quantization noise

@@ -22,7 +22,7 @@
 use crate::allan::streaming::sample::Neumaier;
 
 /// Averaging factors up to this use every term.
-pub const FULL_OVERLAP_CAP: u64 = 1 << 16;
+pub const FULL_OVERLAP_CAP: u64 = 1 << 18;
 /// Terms per averaging factor of a strided octave (the stride is `m` over this).
 pub const STRIDED_TERMS: u64 = 1 << 12;
 /// Phase points processed per block (full-overlap octaves).
