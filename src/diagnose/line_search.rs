@@ -49,6 +49,7 @@
 //!    in `tests/diagnose/lines.rs`.
 
 use std::f64::consts::PI;
+use std::sync::Arc;
 
 use rustfft::FftPlanner;
 use rustfft::num_complex::Complex64;
@@ -83,8 +84,9 @@ pub struct LineSpectrum {
     pub fs_hz: f64,
     /// Samples in the record.
     pub n: usize,
-    /// One-sided PSD at `k / T`, `k = 0 ..= n/2`, (arcsec/s)^2/Hz.
-    pub psd: Vec<f64>,
+    /// One-sided PSD at `k / T`, `k = 0 ..= n/2`, (arcsec/s)^2/Hz (shared by
+    /// the spectra whitened from it).
+    pub psd: Arc<Vec<f64>>,
     /// The model's PSD at the same bins.
     pub model_psd: Vec<f64>,
     /// `psd / model_psd`.
@@ -103,16 +105,26 @@ impl LineSpectrum {
         model_psd: &dyn Fn(f64) -> f64,
         masked: &[(f64, f64)],
     ) -> LineSpectrum {
-        let n = x.len();
+        Self::of(x.len(), |i| x[i], fs_hz, model_psd, masked)
+    }
+
+    /// [`LineSpectrum::new`] of the series `x(0..n)`, read through a function.
+    pub fn of(
+        n: usize,
+        x: impl Fn(usize) -> f64,
+        fs_hz: f64,
+        model_psd: &dyn Fn(f64) -> f64,
+        masked: &[(f64, f64)],
+    ) -> LineSpectrum {
         let scale = 2.0 / (fs_hz * 0.375 * n as f64);
-        let psd: Vec<f64> = hann_power(x).into_iter().map(|p| p * scale).collect();
-        Self::whitened(psd, n, fs_hz, model_psd, masked)
+        let psd: Vec<f64> = hann_power(n, x).into_iter().map(|p| p * scale).collect();
+        Self::whitened(Arc::new(psd), n, fs_hz, model_psd, masked)
     }
 
     /// A periodogram `psd` of `n` samples (kept from [`LineSpectrum::new`])
     /// divided by a model's PSD, with other bins masked: no new transform.
     pub fn whitened(
-        psd: Vec<f64>,
+        psd: Arc<Vec<f64>>,
         n: usize,
         fs_hz: f64,
         model_psd: &dyn Fn(f64) -> f64,
@@ -225,16 +237,15 @@ pub struct Detection {
 pub fn search(spec: &LineSpectrum, params: &SearchParams) -> Vec<Detection> {
     let last = spec.white.len() - 1;
     let k_min = ((params.min_cycles).ceil() as usize).max(1);
-    let searched: Vec<usize> = (k_min..last)
-        .filter(|&k| spec.usable[k] && spec.white[k].is_finite())
-        .collect();
-    if searched.is_empty() {
+    // the bins searched, as an iterator: a list would be as long as the record
+    let searched = || (k_min..last).filter(|&k| spec.usable[k] && spec.white[k].is_finite());
+    if searched().next().is_none() {
         return Vec::new();
     }
-    let budget = OctaveBudget::new(&searched, k_min, params.alpha);
+    let budget = OctaveBudget::new(searched(), k_min, params.alpha);
     let level = block_levels(spec, 64);
     let mut hits: Vec<Detection> = Vec::new();
-    for &k in &searched {
+    for k in searched() {
         let ln_crit = budget.ln_crit(k);
         // pre-screen: a quarter of the large-n threshold against the block level
         let (w, lv) = (spec.white[k], level[k / 64]);
@@ -279,9 +290,9 @@ struct OctaveBudget {
 }
 
 impl OctaveBudget {
-    fn new(searched: &[usize], k_min: usize, alpha: f64) -> OctaveBudget {
+    fn new(searched: impl Iterator<Item = usize>, k_min: usize, alpha: f64) -> OctaveBudget {
         let mut counts: Vec<usize> = Vec::new();
-        for &k in searched {
+        for k in searched {
             let o = octave(k, k_min);
             if counts.len() <= o {
                 counts.resize(o + 1, 0);
@@ -534,40 +545,65 @@ pub fn detrend(x: &[f64]) -> Vec<f64> {
 
 /// [`detrend`] in place.
 pub fn detrend_in_place(x: &mut [f64]) {
-    let n = x.len() as f64;
-    let c = 0.5 * (n - 1.0);
-    let mean = x.iter().sum::<f64>() / n;
-    let (mut sxy, mut sxx) = (0.0, 0.0);
-    for (i, &v) in x.iter().enumerate() {
-        let d = i as f64 - c;
-        sxy += d * (v - mean);
-        sxx += d * d;
-    }
-    let b = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    let t = TrendLine::of(x.len(), |i| x[i]);
     for (i, v) in x.iter_mut().enumerate() {
-        *v = *v - mean - b * (i as f64 - c);
+        *v = t.residual(i, *v);
     }
 }
 
-/// `|X_k|^2`, `k = 0 ..= n/2`, of the Hann-windowed real series `x`. An
-/// even length is transformed as `n/2` complex points (even samples real,
+/// The least-squares line of a series `x(0), ..., x(n-1)`: what [`detrend`]
+/// removes, for a series read through a function (never held whole).
+#[derive(Debug, Clone, Copy)]
+pub struct TrendLine {
+    /// The series' mean.
+    pub mean: f64,
+    slope: f64,
+    centre: f64,
+}
+
+impl TrendLine {
+    /// The line of `x(0..n)`.
+    pub fn of(n: usize, x: impl Fn(usize) -> f64) -> TrendLine {
+        let nf = n as f64;
+        let c = 0.5 * (nf - 1.0);
+        let mean = (0..n).map(&x).sum::<f64>() / nf;
+        let (mut sxy, mut sxx) = (0.0, 0.0);
+        for i in 0..n {
+            let d = i as f64 - c;
+            sxy += d * (x(i) - mean);
+            sxx += d * d;
+        }
+        let b = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+        TrendLine {
+            mean,
+            slope: b,
+            centre: c,
+        }
+    }
+
+    /// Sample `i`, of value `v`, less the line.
+    #[inline]
+    pub fn residual(&self, i: usize, v: f64) -> f64 {
+        v - self.mean - self.slope * (i as f64 - self.centre)
+    }
+}
+
+/// `|X_k|^2`, `k = 0 ..= n/2`, of the Hann-windowed real series `x(0..n)`.
+/// An even length is transformed as `n/2` complex points (even samples real,
 /// odd imaginary) and the halves separated, in half the memory of a complex
 /// transform of the whole record; the transform itself is done in place
-/// ([`Dft`]).
-fn hann_power(x: &[f64]) -> Vec<f64> {
-    let n = x.len();
+/// ([`Dft`]), and the series is read through `x`, never held.
+fn hann_power(n: usize, x: impl Fn(usize) -> f64) -> Vec<f64> {
     if n % 2 == 1 || n < 4 {
-        let mut buf: Vec<Complex64> = x
-            .iter()
-            .enumerate()
-            .map(|(k, &v)| Complex64::new(v * hann(k, n), 0.0))
+        let mut buf: Vec<Complex64> = (0..n)
+            .map(|k| Complex64::new(x(k) * hann(k, n), 0.0))
             .collect();
         let at = Dft::run(&mut buf);
         return (0..=n / 2).map(|k| buf[at.index(k)].norm_sqr()).collect();
     }
     let m = n / 2;
     let mut z: Vec<Complex64> = (0..m)
-        .map(|j| Complex64::new(x[2 * j] * hann(2 * j, n), x[2 * j + 1] * hann(2 * j + 1, n)))
+        .map(|j| Complex64::new(x(2 * j) * hann(2 * j, n), x(2 * j + 1) * hann(2 * j + 1, n)))
         .collect();
     let at = Dft::run(&mut z);
     // X_k = E_k + w^k O_k, E_k = (Z_k + conj Z_{m-k}) / 2,
@@ -696,7 +732,7 @@ mod tests {
             let x: Vec<f64> = (0..n)
                 .map(|k| ((k * 7919) % 97) as f64 - 48.0 + (0.3 * k as f64).sin())
                 .collect();
-            let got = hann_power(&x);
+            let got = hann_power(n, |i| x[i]);
             assert_eq!(got.len(), n / 2 + 1);
             let peak = got.iter().cloned().fold(0.0, f64::max);
             for (k, g) in got.iter().enumerate() {
@@ -748,7 +784,7 @@ mod tests {
     #[test]
     fn the_octave_budget_spends_alpha_exactly() {
         let searched: Vec<usize> = (10..200_000).filter(|k| k % 7 != 3).collect();
-        let b = OctaveBudget::new(&searched, 10, 0.001);
+        let b = OctaveBudget::new(searched.iter().copied(), 10, 0.001);
         let total: f64 = searched
             .iter()
             .map(|&k| 1.0 / b.effective_bins(k) as f64)

@@ -18,6 +18,7 @@
 
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
+use std::sync::Arc;
 
 use statrs::distribution::{ContinuousCDF, Normal};
 
@@ -37,13 +38,19 @@ use crate::units;
 /// The whole-record line search of a recording ([`super::line_search`]).
 #[derive(Debug, Clone)]
 pub struct LineScan {
-    pub spectrum: lines::LineSpectrum,
+    /// The periodogram searched ([`lines::LineSpectrum::psd`]) of the
+    /// `n`-sample record at `fs_hz`.
+    pub psd: Arc<Vec<f64>>,
+    pub n: usize,
+    pub fs_hz: f64,
     /// Detected lines with their fits, strongest first.
     pub lines: Vec<(lines::Detection, lines::LineFit)>,
     /// The counter's line cores left out, `(f_true Hz, half-width Hz)`.
     pub masked: Vec<(f64, f64)>,
-    /// The rate (arcsec/s), mean and linear trend removed.
-    pub detrended_rate: Vec<f64>,
+    /// Each model sinusoid measured at its own frequency: the local continuum
+    /// PSD and the amplitude (arcsec/s); none outside the band searched or
+    /// without a local reference.
+    pub sine_checks: Vec<Option<(f64, f64)>>,
     /// The rate's mean (arcsec/s).
     pub mean_rate: f64,
 }
@@ -61,16 +68,15 @@ pub fn search_params() -> lines::SearchParams {
 pub(crate) fn find(r: &Reference, rec: &Recording) -> LineFindings {
     let (fs, d) = (r.layout.fs_hz, r.layout.pulse_arcsec);
     let params = search_params();
-    let rate = stats::counts_to_rate(&rec.counts, d, fs);
-    let scan = scan_lines(&r.model, rate, fs, d, r.wander(), &params);
-    let found = line_findings(&scan, &r.model, params.half_width);
+    let scan = scan_lines(&r.model, &rec.counts, fs, d, r.wander(), &params);
+    let found = line_findings(&scan, &r.model);
     LineFindings {
         periodogram: Some(Periodogram {
             detections: scan.lines.iter().map(|(det, _)| *det).collect(),
             mean_rate: scan.mean_rate,
-            n: scan.spectrum.n,
+            n: scan.n,
             // the periodogram alone: each use whitens it by its own model
-            psd: scan.spectrum.psd,
+            psd: scan.psd,
         }),
         ..found
     }
@@ -80,7 +86,7 @@ pub(crate) fn find(r: &Reference, rec: &Recording) -> LineFindings {
 #[derive(Debug)]
 pub(crate) struct Periodogram {
     /// [`lines::LineSpectrum::psd`] of the `n`-sample record.
-    psd: Vec<f64>,
+    psd: Arc<Vec<f64>>,
     n: usize,
     mean_rate: f64,
     /// The lines detected (their bins are left out).
@@ -108,36 +114,72 @@ pub(crate) fn excess(
     )
 }
 
-/// Scan the rate for lines against `model` (simulated at the recording's rate
-/// and pulse weight); `wander` is [`rate_wander`]. The rate is detrended in
-/// place and kept as the scan's detrended rate.
+/// Scan the rate of `counts` (pulse `d`, rate `fs`) for lines against
+/// `model` (simulated at the recording's rate and pulse weight); `wander` is
+/// [`rate_wander`]. The rate, its mean and linear trend removed, is read
+/// from the counts for the transform and held only for the line fits, once
+/// the whitened spectrum is reduced to its periodogram.
 fn scan_lines(
     model: &GyroModel,
-    rate: Vec<f64>,
+    counts: &[i64],
     fs: f64,
     d: f64,
     wander: f64,
     params: &lines::SearchParams,
 ) -> LineScan {
-    let mean_rate = rate.iter().sum::<f64>() / rate.len() as f64;
-    let df = fs / rate.len() as f64;
-    let mut x = rate;
-    lines::detrend_in_place(&mut x);
-    let masked = counter_lines(model, mean_rate, wander, fs, d, df);
-    let spectrum = lines::LineSpectrum::new(&x, fs, &model_psd(model), &masked);
-    let found = lines::search(&spectrum, params)
+    let n = counts.len();
+    let g = d * fs;
+    let rate = |i: usize| counts[i] as f64 * g;
+    let trend = lines::TrendLine::of(n, rate);
+    let x = |i: usize| trend.residual(i, rate(i));
+    let masked = counter_lines(model, trend.mean, wander, fs, d, fs / n as f64);
+    let mut spectrum = lines::LineSpectrum::of(n, x, fs, &model_psd(model), &masked);
+    let hw = params.half_width;
+    let detections: Vec<(lines::Detection, f64)> = lines::search(&spectrum, params)
         .into_iter()
-        .filter_map(|det| {
-            let s = spectrum.local_psd(det.f_hz, params.half_width)?;
-            Some((det, lines::fit_line(&x, fs, det.f_hz, s)))
+        .filter_map(|det| Some((det, spectrum.local_psd(det.f_hz, hw)?)))
+        .collect();
+    let t = spectrum.duration_s();
+    let sines = &model.noise.sinusoid;
+    let sine_refs: Vec<Option<f64>> = sines
+        .iter()
+        .map(|s| {
+            let f = 1.0 / s.period_s;
+            (f >= 2.0 / t && f < fs / 2.0)
+                .then(|| spectrum.local_psd(f, hw))
+                .flatten()
+        })
+        .collect();
+    let psd = std::mem::take(&mut spectrum.psd);
+    drop(spectrum);
+    let xs: Vec<f64> = (0..n).map(x).collect();
+    let lines = detections
+        .into_iter()
+        .map(|(det, s)| (det, lines::fit_line(&xs, fs, det.f_hz, s)))
+        .collect();
+    let sine_checks = sine_refs
+        .iter()
+        .zip(sines)
+        .map(|(r, s)| {
+            let f = 1.0 / s.period_s;
+            let xarg = PI * f / fs;
+            let sinc = xarg.sin() / xarg;
+            r.map(|s_loc| {
+                (
+                    s_loc,
+                    2.0 * lines::dft(&xs, 1.0 / fs, f).norm() / n as f64 / sinc,
+                )
+            })
         })
         .collect();
     LineScan {
-        spectrum,
-        lines: found,
+        psd,
+        n,
+        fs_hz: fs,
+        lines,
         masked,
-        detrended_rate: x,
-        mean_rate,
+        sine_checks,
+        mean_rate: trend.mean,
     }
 }
 
@@ -163,7 +205,8 @@ pub fn line_scan(model: &GyroModel, rec: &Recording, params: &lines::SearchParam
     let wvar: Vec<f64> = lv.iter().map(|t| t.2).collect();
     let mean_rate = rate.iter().sum::<f64>() / rate.len() as f64;
     let wander = rate_wander(&layout.levels, &wvar, fs, mean_rate.abs() / d);
-    scan_lines(&m, rate, fs, d, wander, params)
+    drop(rate);
+    scan_lines(&m, &rec.counts, fs, d, wander, params)
 }
 
 /// What the lines contribute to the diagnosis.
@@ -180,10 +223,10 @@ pub(crate) struct LineFindings {
 }
 
 /// Turn the scan's lines (and the model's sinusoids) into findings.
-fn line_findings(scan: &LineScan, model: &GyroModel, half_width: usize) -> LineFindings {
+fn line_findings(scan: &LineScan, model: &GyroModel) -> LineFindings {
     let sines = &model.noise.sinusoid;
     let z_check = compare::bonferroni_z(ALPHA_LINES, sines.len().max(1));
-    let df = scan.spectrum.df();
+    let df = scan.fs_hz / scan.n as f64;
     let mut handled = vec![false; sines.len()];
     let mut out = LineFindings::default();
     for (det, fit) in &scan.lines {
@@ -215,7 +258,7 @@ fn line_findings(scan: &LineScan, model: &GyroModel, half_width: usize) -> LineF
         out.findings.push(finding);
     }
     for (i, s) in sines.iter().enumerate().filter(|(i, _)| !handled[*i]) {
-        if let Some((f, extra)) = sine_amplitude_check(scan, i, s, half_width, z_check) {
+        if let Some((f, extra)) = sine_amplitude_check(scan, i, s, z_check) {
             out.sines.push((1.0 / s.period_s, extra));
             out.findings.push(f);
         }
@@ -341,20 +384,13 @@ fn sine_amplitude_check(
     scan: &LineScan,
     i: usize,
     s: &SinusoidParams,
-    half_width: usize,
     z_check: f64,
 ) -> Option<(Finding, f64)> {
-    let spec = &scan.spectrum;
-    let f = 1.0 / s.period_s;
-    let (fs, t) = (spec.fs_hz, spec.duration_s());
-    if f < 2.0 / t || f >= fs / 2.0 {
-        return None;
-    }
-    let s_loc = spec.local_psd(f, half_width)?;
-    let x = &scan.detrended_rate;
+    let (s_loc, amp) = scan.sine_checks[i]?;
+    let (f, fs) = (1.0 / s.period_s, scan.fs_hz);
+    let t = scan.n as f64 / fs;
     let xarg = PI * f / fs;
     let sinc = xarg.sin() / xarg;
-    let amp = 2.0 * lines::dft(x, 1.0 / fs, f).norm() / x.len() as f64 / sinc;
     let sd = (s_loc / t).sqrt() / sinc;
     let model_amp = units::dph_to_arcsec_per_s(s.amplitude_dph);
     let z = (amp - model_amp) / sd;

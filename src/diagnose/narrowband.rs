@@ -212,7 +212,7 @@ mod tests {
         LineSpectrum {
             fs_hz: fs,
             n,
-            psd: white.clone(),
+            psd: std::sync::Arc::new(white.clone()),
             model_psd: vec![1.0; half + 1],
             usable: (0..=half).map(|k| k > 0).collect(),
             white,

@@ -583,7 +583,7 @@ mod tests {
             model_psd: vec![m0; half + 1],
             white: psd.iter().map(|p| p / m0).collect(),
             usable: (0..=half).map(|k| k > 0).collect(),
-            psd,
+            psd: std::sync::Arc::new(psd),
         }
     }
 
