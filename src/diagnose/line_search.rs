@@ -89,8 +89,6 @@ pub struct LineSpectrum {
     pub psd: Arc<Vec<f64>>,
     /// The model's PSD at the same bins.
     pub model_psd: Vec<f64>,
-    /// `psd / model_psd`.
-    pub white: Vec<f64>,
     /// Bin usable (outside every masked interval, model PSD > 0).
     pub usable: Vec<bool>,
 }
@@ -133,11 +131,6 @@ impl LineSpectrum {
         let half = n / 2;
         let df = fs_hz / n as f64;
         let model_psd: Vec<f64> = (0..=half).map(|k| model_psd(k as f64 * df)).collect();
-        let white = psd
-            .iter()
-            .zip(&model_psd)
-            .map(|(p, m)| if *m > 0.0 { p / m } else { f64::NAN })
-            .collect();
         let mut usable: Vec<bool> = model_psd.iter().map(|m| *m > 0.0).collect();
         usable[0] = false;
         for &(f, hw) in masked {
@@ -148,9 +141,21 @@ impl LineSpectrum {
             n,
             psd,
             model_psd,
-            white,
             usable,
         }
+    }
+
+    /// The whitened ordinate `psd / model_psd` of bin `k` (NaN where the
+    /// model's PSD is not positive): computed, not stored.
+    #[inline]
+    pub fn white(&self, k: usize) -> f64 {
+        let m = self.model_psd[k];
+        if m > 0.0 { self.psd[k] / m } else { f64::NAN }
+    }
+
+    /// Bins `0 ..= n/2`.
+    pub fn bins(&self) -> usize {
+        self.model_psd.len()
     }
 
     /// Bin width `1 / T`, Hz.
@@ -165,13 +170,13 @@ impl LineSpectrum {
 
     /// The local reference of bin `k`: the median test of module step 2.
     pub fn reference(&self, k: usize, half_width: usize) -> Option<Reference> {
-        let last = self.white.len() - 1;
+        let last = self.bins() - 1;
         let reach = (2 * half_width + 1).min(k.saturating_sub(1)).min(last - k);
         let mut v: Vec<f64> = (3..=reach)
             .step_by(2)
             .flat_map(|o| [k - o, k + o])
-            .filter(|&j| self.usable[j] && self.white[j].is_finite())
-            .map(|j| self.white[j])
+            .filter(|&j| self.usable[j] && self.white(j).is_finite())
+            .map(|j| self.white(j))
             .collect();
         if v.is_empty() {
             return None;
@@ -185,7 +190,7 @@ impl LineSpectrum {
     /// The local continuum PSD at `f_hz` ((arcsec/s)^2/Hz): the reference
     /// median de-biased, times the model PSD (None without a reference).
     pub fn local_psd(&self, f_hz: f64, half_width: usize) -> Option<f64> {
-        let k = ((f_hz / self.df()).round() as usize).clamp(1, self.white.len() - 1);
+        let k = ((f_hz / self.df()).round() as usize).clamp(1, self.bins() - 1);
         let r = self.reference(k, half_width)?;
         Some(r.value / r.mean_order_stat() * self.model_psd[k])
     }
@@ -235,10 +240,10 @@ pub struct Detection {
 
 /// Search `spec` for lines (module step 2), strongest first.
 pub fn search(spec: &LineSpectrum, params: &SearchParams) -> Vec<Detection> {
-    let last = spec.white.len() - 1;
+    let last = spec.bins() - 1;
     let k_min = ((params.min_cycles).ceil() as usize).max(1);
     // the bins searched, as an iterator: a list would be as long as the record
-    let searched = || (k_min..last).filter(|&k| spec.usable[k] && spec.white[k].is_finite());
+    let searched = || (k_min..last).filter(|&k| spec.usable[k] && spec.white(k).is_finite());
     if searched().next().is_none() {
         return Vec::new();
     }
@@ -248,8 +253,8 @@ pub fn search(spec: &LineSpectrum, params: &SearchParams) -> Vec<Detection> {
     for k in searched() {
         let ln_crit = budget.ln_crit(k);
         // pre-screen: a quarter of the large-n threshold against the block level
-        let (w, lv) = (spec.white[k], level[k / 64]);
-        if !(w > 0.25 * -ln_crit * lv) || !is_local_max(&spec.white, k) {
+        let (w, lv) = (spec.white(k), level[k / 64]);
+        if !(w > 0.25 * -ln_crit * lv) || !is_local_max(spec, k) {
             continue;
         }
         let Some(r) = spec.reference(k, params.half_width) else {
@@ -328,16 +333,16 @@ fn octave(k: usize, k_min: usize) -> usize {
 /// Mean-free level per block of `b` bins: the block median of the usable
 /// whitened ordinates over `ln 2` (the global median where a block has none).
 fn block_levels(spec: &LineSpectrum, b: usize) -> Vec<f64> {
-    let blocks = spec.white.len().div_ceil(b);
+    let blocks = spec.bins().div_ceil(b);
     let mut out = Vec::with_capacity(blocks);
     let mut v = Vec::with_capacity(b);
     for i in 0..blocks {
         v.clear();
-        let hi = ((i + 1) * b).min(spec.white.len());
+        let hi = ((i + 1) * b).min(spec.bins());
         v.extend(
             (i * b..hi)
-                .filter(|&j| spec.usable[j] && spec.white[j].is_finite())
-                .map(|j| spec.white[j]),
+                .filter(|&j| spec.usable[j] && spec.white(j).is_finite())
+                .map(|j| spec.white(j)),
         );
         out.push(if v.len() >= 8 {
             let m = v.len() / 2;
@@ -358,9 +363,10 @@ fn block_levels(spec: &LineSpectrum, b: usize) -> Vec<f64> {
         .collect()
 }
 
-fn is_local_max(w: &[f64], k: usize) -> bool {
-    let left = k == 0 || !(w[k - 1] > w[k]);
-    let right = k + 1 >= w.len() || !(w[k + 1] > w[k]);
+fn is_local_max(spec: &LineSpectrum, k: usize) -> bool {
+    let w = spec.white(k);
+    let left = k == 0 || !(spec.white(k - 1) > w);
+    let right = k + 1 >= spec.bins() || !(spec.white(k + 1) > w);
     left && right
 }
 

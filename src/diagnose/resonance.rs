@@ -581,7 +581,6 @@ mod tests {
             fs_hz: fs,
             n,
             model_psd: vec![m0; half + 1],
-            white: psd.iter().map(|p| p / m0).collect(),
             usable: (0..=half).map(|k| k > 0).collect(),
             psd: std::sync::Arc::new(psd),
         }
