@@ -27,7 +27,8 @@ use super::locate::Located;
 use super::mc;
 use super::points::KTerm;
 use super::reference::Reference;
-use super::stats::{self, StatSet};
+use super::stats::StatSet;
+use super::stream::{self, Extras};
 use super::two_level::TwoLevelProbe;
 use super::types::{AddedTerm, ParameterChange};
 use super::types::{DiagnoseError, Recording, TelegraphTest};
@@ -276,12 +277,14 @@ pub(crate) fn test_new_gauss_markov(
     };
     let runs_gm = statistic_runs(&gm_model, "simulating the Gauss-Markov term")?;
     let runs_alt = statistic_runs(alt, "simulating a random telegraph")?;
-    let (fs, d) = (r.layout.fs_hz, r.layout.pulse_arcsec);
-    let obs = probe.llr(
-        &stats::counts_to_rate(&rec.counts, d, fs),
-        r.tau0_s(),
-        &r.layout.lo,
-    );
+    // the recording's statistic, reduced as its runs are (no whole-length rate)
+    let extras = Extras {
+        temp_c: None,
+        lp_cutoffs_hz: &[],
+        two_level: Some(probe),
+        full: false,
+    };
+    let obs = stream::reduce_counts(&r.layout, &rec.counts, extras).two_level_llr;
     let gl: Vec<f64> = runs_gm.iter().map(|s| s.two_level_llr).collect();
     let rl: Vec<f64> = runs_alt.iter().map(|s| s.two_level_llr).collect();
     let (choose, g, rt) = telegraph_decision(obs, &gl, &rl);
