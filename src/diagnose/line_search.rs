@@ -664,7 +664,7 @@ fn four_step_split(m: usize) -> Option<(usize, usize)> {
     let r = (m as f64).sqrt() as usize;
     (r / 16..=r)
         .rev()
-        .find(|&m1| m1 >= 2 && m % m1 == 0)
+        .find(|&m1| m1 >= 2 && m.is_multiple_of(m1))
         .map(|m1| (m1, m / m1))
 }
 

@@ -1,6 +1,8 @@
 //! The statistics the diagnosis compares, computed identically on the
 //! recording and on every Monte-Carlo run of the model (so that whatever the
-//! estimators do to quantization noise of any shape, the reference does too).
+//! estimators do to quantization noise of any shape, the reference does too):
+//! their whole-record definitions, and the layout and kernels
+//! [`super::stream`] computes them with as a record streams past.
 //!
 //! Per record ([`StatSet`], laid out by a [`StatLayout`]):
 //! * **wavelet variances**: mean squares of the sym8 detail coefficients of the
@@ -16,7 +18,7 @@
 //!   rate on the recording's temperature when there is one.
 //!
 //! Everything here is plain batch code on whole records; [`dwt_level_mean_squares`]
-//! and [`welch`] are checked against closed forms in `tests/diagnose/stats.rs`.
+//! and [`Welch`] are checked against closed forms in `tests/diagnose/stats.rs`.
 
 use std::f64::consts::PI;
 use std::ops::Range;

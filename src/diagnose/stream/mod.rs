@@ -205,7 +205,7 @@ fn lf_push(layout: &StatLayout, at: usize, rate: &[f64], b: &mut Broad) {
             break;
         }
         b.lf_open += r;
-        if (i + 1) % len == 0 {
+        if (i + 1).is_multiple_of(len) {
             b.lf_means.push(b.lf_open / len as f64);
             b.lf_open = 0.0;
         }
