@@ -423,7 +423,7 @@ pub fn fit_line(x: &[f64], fs_hz: f64, f0_hz: f64, s_local: f64) -> LineFit {
     let tau0 = 1.0 / fs_hz;
     let t = n as f64 * tau0;
     let df = 1.0 / t;
-    let w: Vec<f64> = (0..n).map(|k| taper(k, n)).collect();
+    let w = Taper::new(n);
     let power = |f: f64| dft_windowed(x, &w, tau0, f).norm_sqr();
     // grid over +-1 bin in eighths (the main lobe is +-1 bin wide), then
     // golden section over +-1/8 bin about the best grid point
@@ -458,15 +458,15 @@ struct WindowMoments {
     sum_m2w2: f64,
 }
 
-fn window_moments(w: &[f64]) -> WindowMoments {
-    let c = 0.5 * (w.len() as f64 - 1.0);
+fn window_moments(w: &Taper) -> WindowMoments {
+    let c = 0.5 * (w.n as f64 - 1.0);
     let mut m = WindowMoments {
         sum_w: 0.0,
         sum_w2: 0.0,
         sum_m2w: 0.0,
         sum_m2w2: 0.0,
     };
-    for (k, &v) in w.iter().enumerate() {
+    for (k, v) in (0..w.n).map(|k| (k, w.at(k))) {
         let m2 = (k as f64 - c).powi(2);
         m.sum_w += v;
         m.sum_w2 += v * v;
@@ -494,6 +494,48 @@ fn taper(k: usize, n: usize) -> f64 {
     }
 }
 
+/// [`taper`] over `n` samples, its cosine ends tabulated (the flat middle,
+/// 80 % of the record, is not stored).
+struct Taper {
+    n: usize,
+    left: Vec<f64>,
+    /// `right[j]` is sample `right_start + j`.
+    right: Vec<f64>,
+    right_start: usize,
+}
+
+impl Taper {
+    fn new(n: usize) -> Taper {
+        let left: Vec<f64> = (0..n)
+            .map(|k| taper(k, n))
+            .take_while(|&v| v != 1.0)
+            .collect();
+        let mut right_start = n;
+        while right_start > left.len() && taper(right_start - 1, n) != 1.0 {
+            right_start -= 1;
+        }
+        let right = (right_start..n).map(|k| taper(k, n)).collect();
+        Taper {
+            n,
+            left,
+            right,
+            right_start,
+        }
+    }
+
+    /// `taper(k, n)`.
+    #[inline]
+    fn at(&self, k: usize) -> f64 {
+        if k < self.left.len() {
+            self.left[k]
+        } else if k >= self.right_start {
+            self.right[k - self.right_start]
+        } else {
+            1.0
+        }
+    }
+}
+
 /// `sum_k x_k e^{-2 pi i f k tau0}` (rectangular window), the phasor re-anchored
 /// every 4096 samples.
 pub fn dft(x: &[f64], tau0: f64, f_hz: f64) -> Complex64 {
@@ -501,8 +543,8 @@ pub fn dft(x: &[f64], tau0: f64, f_hz: f64) -> Complex64 {
 }
 
 /// `sum_k w_k x_k e^{-2 pi i f k tau0}`.
-fn dft_windowed(x: &[f64], w: &[f64], tau0: f64, f_hz: f64) -> Complex64 {
-    dft_by(x, tau0, f_hz, |k, v| v * w[k])
+fn dft_windowed(x: &[f64], w: &Taper, tau0: f64, f_hz: f64) -> Complex64 {
+    dft_by(x, tau0, f_hz, |k, v| v * w.at(k))
 }
 
 fn dft_by(x: &[f64], tau0: f64, f_hz: f64, val: impl Fn(usize, f64) -> f64) -> Complex64 {
@@ -772,6 +814,21 @@ mod tests {
                 let g = got[at.index(k)];
                 assert!((g - w).norm() <= 1e-12 * peak, "m {m} k {k}: {g} vs {w}");
             }
+        }
+    }
+
+    /// The tabulated taper is the taper at every sample.
+    #[test]
+    fn the_tabulated_taper_is_the_taper() {
+        for n in [1usize, 2, 9, 10, 11, 1000, 1001, 65_537] {
+            let t = Taper::new(n);
+            for k in 0..n {
+                assert_eq!(t.at(k).to_bits(), taper(k, n).to_bits(), "n {n} k {k}");
+            }
+            assert!(
+                t.left.len() + t.right.len() <= n.div_ceil(4).max(2),
+                "n {n}"
+            );
         }
     }
 
