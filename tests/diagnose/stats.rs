@@ -236,14 +236,22 @@ fn chi_square_calibrated_z_and_trigamma() {
     }
 }
 
-#[test]
-fn monte_carlo_reference_does_not_depend_on_threads() {
-    let model = GyroModel::from_toml_str(
-        "[gyro]\nsample_rate_hz = 200.0\npulse_arcsec = 1.21\ninput_rate_dph = 9.0\n\
-         [noise]\nquantization_arcsec = 0.4\narw_dpsh = 0.002\n[[noise.gauss_markov]]\nsigma_dph = 0.05\ntau_c_s = 3.0\n",
+/// A 1.21" counter at `fs_hz` with Q, ARW and a Gauss-Markov term (Monte-Carlo jobs).
+pub fn gauss_markov_gyro(fs_hz: f64) -> GyroModel {
+    GyroModel::from_toml_str(
+        &format!(
+            "[gyro]\nsample_rate_hz = {fs_hz}\npulse_arcsec = 1.21\ninput_rate_dph = 9.0\n\
+             [noise]\nquantization_arcsec = 0.4\narw_dpsh = 0.002\n\
+             [[noise.gauss_markov]]\nsigma_dph = 0.05\ntau_c_s = 3.0\n"
+        ),
         "t",
     )
-    .unwrap();
+    .unwrap()
+}
+
+#[test]
+fn monte_carlo_reference_does_not_depend_on_threads() {
+    let model = gauss_markov_gyro(200.0);
     let layout = StatLayout::new(60_000, 200.0, 1.21);
     let seeds = [11u64, 12, 13, 14, 15];
     // each run done is reported once, with the phase and the number of runs

@@ -16,7 +16,7 @@ use sagnac::diagnose::stream::refill::Refill;
 use sagnac::diagnose::stream::welch::WelchStream;
 use sagnac::diagnose::stream::{Extras, StatStream};
 use sagnac::diagnose::two_level::TwoLevelProbe;
-use sagnac::model::{GyroModel, Simulator};
+use sagnac::model::Simulator;
 
 /// Counts with a slow input, a random walk in the rate and white noise.
 fn counts(n: usize, seed: u64) -> Vec<i64> {
@@ -268,12 +268,7 @@ fn streamed_statistic_set_equals_the_batch_one() {
 /// and reduced by the batch functions.
 #[test]
 fn a_monte_carlo_run_is_the_whole_simulated_records() {
-    let model = GyroModel::from_toml_str(
-        "[gyro]\nsample_rate_hz = 500.0\npulse_arcsec = 1.21\ninput_rate_dph = 9.0\n\
-         [noise]\nquantization_arcsec = 0.4\narw_dpsh = 0.002\n[[noise.gauss_markov]]\nsigma_dph = 0.05\ntau_c_s = 3.0\n",
-        "t",
-    )
-    .unwrap();
+    let model = super::stats::gauss_markov_gyro(500.0);
     let n = 300_000;
     let mut layout = StatLayout::new(n, 500.0, 1.21);
     layout.filled = vec![5..9, 70_000..70_003, 131_071..131_075];
