@@ -235,6 +235,54 @@ fn a_modelled_warm_up_leaves_no_ramp() {
     assert!(not_found(&j, "rrw_dphsh"), "{}", j["estimates"]);
 }
 
+/// `diagnose` of an RLG that warms up (0.3 deg/h, 600 s) and glitches,
+/// against its model without either: the warm-up and the spikes are named,
+/// and no ramp beside them. The stage rejects a ramp here; the warm-up it
+/// adds to the model is then the one fitted without a ramp (fitted beside
+/// it, the settling left a slope of 0.034 deg/h/h that the diagnosis named
+/// as a ramp at z = 4.0).
+#[test]
+fn diagnose_names_a_warm_up_and_no_ramp_beside_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = "[gyro]\nsample_rate_hz = 1000.0\npulse_arcsec = 1.21\ninput_rate_dph = 12.3\n\
+                [noise]\nquantization_arcsec = 0.35\narw_dpsh = 0.001\nbias_instability_dph = 0.002\n";
+    let truth = format!(
+        "{base}[noise.warmup]\namplitude_dph = 0.3\ntau_s = 600.0\n\
+         [noise.spikes]\nrate_per_h = 100.0\namplitude_dph = 20000.0\n"
+    );
+    let csv = simulate(dir.path(), "warm", &truth, 2400, 22);
+    let m = dir.path().join("base.toml");
+    std::fs::write(&m, base).unwrap();
+    let mut args = vec![
+        "diagnose",
+        "--model",
+        m.to_str().unwrap(),
+        "--input",
+        csv.to_str().unwrap(),
+    ];
+    args.extend_from_slice(RLG);
+    args.extend_from_slice(&["--json", "-"]);
+    let o = sagnac(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let terms: Vec<&str> = j["added_terms"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t["term"].as_str().unwrap())
+        .collect();
+    assert!(
+        terms.contains(&"warmup") && terms.contains(&"spikes"),
+        "{terms:?}"
+    );
+    assert!(!terms.contains(&"rate_ramp_dphh"), "{terms:?}");
+    let w = &j["data_quality"]["warmup"];
+    assert!(
+        covers(&w["amplitude_dph"], 0.3) && covers(&w["tau_s"], 600.0),
+        "{w}"
+    );
+}
+
 /// `analyze` of a record under a chamber ramp, without and with the stage:
 /// the raw statistics find a ramp; the handled record's thermal fit is
 /// confounded with the ramp, `compensated` as given, and its sensitivity

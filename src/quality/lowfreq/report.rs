@@ -133,6 +133,16 @@ impl Analysis<'_> {
     }
 
     /// Step 4: refine, fit, and report with intervals and the correction.
+    ///
+    /// When the rate ramp fails its test beside the effects
+    /// ([`Correction::ramp_rejected`]), the effects' values and the
+    /// correction are those refitted in the mean model without it: a ramp
+    /// the data do not support is not left to trade against a warm-up's time
+    /// constant or a step's size (a settling fitted beside a ramp leaves that
+    /// ramp in the rate it corrects). A rejected ramp is not shown absent,
+    /// so each interval spans both fits' (with the ramp and without). The
+    /// ramp's standard-error factor stays that of the fit beside the ramp,
+    /// so its bound is not read as if the effects were known.
     pub(super) fn report(&self, mut effects: Vec<Effect>, selected: Fitted) -> Option<LowFreq> {
         // `selected` is the noise beside the effects as found; without
         // effects nothing is refined and it is the fit
@@ -142,16 +152,51 @@ impl Analysis<'_> {
             self.refine_all(selected.chol, &mut effects)?;
             self.fit(&effects)?
         };
+        let fit = self.gls(&fitted.chol, &effects)?;
+        let ramp = self.ramp_beside_effects(&fitted.chol, &effects, &fit);
+        let rejected = (self.test_ramp || !effects.is_empty()) && !self.ramp_passes(&effects);
+        let beside = self.effects_report(&fitted, &effects, &fit)?;
+        let without = (rejected && !effects.is_empty() && self.has_ramp(&effects))
+            .then(|| self.without_ramp(fitted.chol.clone(), effects.clone()))
+            .flatten();
+        let mut out = match without {
+            Some(mut out) => {
+                out.widen_to(&beside);
+                out
+            }
+            None => beside,
+        };
+        out.correction.ramp = ramp;
+        out.correction.ramp_rejected = rejected;
+        if out.thermal.is_none() && self.temp.is_some() {
+            out.thermal = self.thermal_not_significant(&fitted.chol, &effects);
+            out.correction.ramp_rejected |= self.temp_linear;
+        }
+        Some(out)
+    }
+
+    /// The effects refined, fitted and reported in the mean model without
+    /// the ramp; `None` when that noise cannot be fitted.
+    fn without_ramp(&self, chol: Cholesky, mut effects: Vec<Effect>) -> Option<LowFreq> {
+        let null = self.without_ramp_column();
+        null.refine_all(chol, &mut effects)?;
+        let fitted = null.fit(&effects)?;
+        let fit = null.gls(&fitted.chol, &effects)?;
+        null.effects_report(&fitted, &effects, &fit)
+    }
+
+    /// Each effect's intervals and its part of the correction, under the
+    /// noise `fitted` and the joint fit `fit`.
+    fn effects_report(&self, fitted: &Fitted, effects: &[Effect], fit: &GlsFit) -> Option<LowFreq> {
         let chol = &fitted.chol;
-        let fit = self.gls(chol, &effects)?;
         let mut out = LowFreq {
             bias_instability_dph: fitted.b2.sqrt(),
             rrw_dphsh: fitted.k2.sqrt(),
             ..LowFreq::default()
         };
-        let base = self.base(&effects);
+        let base = self.base(effects);
         for (i, e) in effects.iter().enumerate() {
-            let (param, amp) = intervals(&self.profile(chol, &effects, i), *e, fit.beta[base + i]);
+            let (param, amp) = intervals(&self.profile(chol, effects, i), *e, fit.beta[base + i]);
             match e {
                 Effect::Warmup { .. } => {
                     out.warmup = Some(WarmupFit {
@@ -178,15 +223,8 @@ impl Analysis<'_> {
                 }
             }
         }
-        out.correction.ramp = self.ramp_beside_effects(chol, &effects, &fit);
-        out.correction.ramp_rejected =
-            (self.test_ramp || !effects.is_empty()) && !self.ramp_passes(&effects);
         out.steps
             .sort_by(|a, b| a.at_s.value.total_cmp(&b.at_s.value));
-        if out.thermal.is_none() && self.temp.is_some() {
-            out.thermal = self.thermal_not_significant(chol, &effects);
-            out.correction.ramp_rejected |= self.temp_linear;
-        }
         Some(out)
     }
 
@@ -312,6 +350,37 @@ impl Correction {
     pub fn apply_to_blocks(&self, t0: &[f64], block_s: f64, y: &mut [f64]) {
         for (v, &t) in y.iter_mut().zip(t0) {
             *v -= self.mean_dph(t, t + block_s);
+        }
+    }
+}
+
+impl Interval {
+    /// Widened to hold `other`'s interval too; the value kept.
+    fn widen_to(&mut self, other: &Interval) {
+        self.ci95 = [
+            self.ci95[0].min(other.ci95[0]),
+            self.ci95[1].max(other.ci95[1]),
+        ];
+    }
+}
+
+impl LowFreq {
+    /// Each effect's intervals widened to hold those of `other`, the same
+    /// effects fitted under another mean model (matched in order; the steps
+    /// by time).
+    fn widen_to(&mut self, other: &LowFreq) {
+        if let (Some(a), Some(b)) = (self.warmup.as_mut(), other.warmup.as_ref()) {
+            a.amplitude_dph.widen_to(&b.amplitude_dph);
+            a.tau_s.widen_to(&b.tau_s);
+        }
+        for (a, b) in self.steps.iter_mut().zip(&other.steps) {
+            a.at_s.widen_to(&b.at_s);
+            a.amplitude_dph.widen_to(&b.amplitude_dph);
+        }
+        if let (Some(a), Some(b)) = (self.thermal.as_mut(), other.thermal.as_ref()) {
+            a.bias_sensitivity_dph_per_c
+                .widen_to(&b.bias_sensitivity_dph_per_c);
+            a.lag_s.widen_to(&b.lag_s);
         }
     }
 }
