@@ -375,3 +375,37 @@ fn clean_runs_report_nothing() {
         }
     }
 }
+
+/// A flicker-dominated MEMS-like gyro over 4 h (100 Hz rate words behind a
+/// 14 Hz readout filter, bias instability 26.5 deg/h, no random walk; from
+/// scripts/bench-quality's four-hour set) whose longest-tau Allan points
+/// pass the random walk's inclusion test while its profile interval reaches
+/// zero: it was reported "found", 46 [0, 100] deg/h/sqrt(h). A random walk
+/// whose interval does not exclude zero is a bound.
+#[test]
+fn a_random_walk_whose_interval_reaches_zero_is_a_bound() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = "[gyro]\nsample_rate_hz = 100\ninput_rate_dph = 1.450\noutput = \"rate\"\n\
+                 rate_lsb_dps = 0.129\n[noise]\narw_dpsh = 1.867977\nbias_instability_dph = 26.54769\n\
+                 [readout_filter]\nkind = \"first_order\"\ncorner_hz = 14.13\n";
+    let csv = simulate(dir.path(), "flicker", model, 14400, 9545);
+    let (j, _) = analyze(
+        &csv,
+        &[
+            "--sample-rate-hz",
+            "100",
+            "--column",
+            "rate_dps",
+            "--unit",
+            "dps",
+        ],
+    );
+    let k = &j["estimates"]["rrw_dphsh"];
+    assert!(k["value"].is_null(), "{k}");
+    assert!(k["upper95"].as_f64().unwrap() > 0.0, "{k}");
+    assert!(
+        covers(&j["estimates"]["bias_instability_dph"], 26.54769),
+        "{}",
+        j["estimates"]
+    );
+}

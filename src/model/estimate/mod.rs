@@ -558,7 +558,21 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
                 *ci = filter_search::n2_interval(c, t.theta, *ci, opts.ci_lr);
             }
         }
-        term_coefficient(&widen_term(t, widen), CONV[i])
+        let t = widen_term(t, widen);
+        // RRW is found only where its interval (profiled with the other
+        // terms free, widened for a poor fit) excludes zero: its inclusion
+        // test rests on the few longest-tau points, where flicker scatter,
+        // an unfound step or a trend the model lacks raise the Allan
+        // variance as a random walk does, and an interval reaching zero
+        // says the data do not exclude a gyro without one
+        if i == RRW_COL && t.included && t.ci95.is_some_and(|(lo, _)| lo <= 0.0) {
+            return Coefficient {
+                value: None,
+                ci95: None,
+                upper95: t.ci95.map(|(_, hi)| CONV[i](hi)),
+            };
+        }
+        term_coefficient(&t, CONV[i])
     };
     let ramp_term = fit.terms.get(terms.len()).filter(|_| lf.ramp_col);
     let (ramp, ramp_wide) = ramp_slopes(
