@@ -259,7 +259,14 @@ impl SpikeFilter {
             } else {
                 0
             };
-            let found = local_maxima(&self.e, THRESHOLD_SIGMA * s, across);
+            // the sample after the window is a neighbour in the test (a
+            // glitch there makes its neighbour here depart by half of it),
+            // never an outlier of this window
+            self.e
+                .push(departure_after(&self.buf, self.prev, &self.filled, n, last));
+            let mut found = local_maxima(&self.e, THRESHOLD_SIGMA * s, across);
+            self.e.pop();
+            found.retain(|&k| k < n);
             if found.is_empty() {
                 break;
             }
@@ -443,6 +450,27 @@ fn statistic(
                 });
             }
         }
+    }
+}
+
+/// The statistic of the first sample after the window's `n` (NaN at the end
+/// of the stream, or when it cannot be formed yet).
+fn departure_after(
+    buf: &Buf,
+    prev: Option<f64>,
+    filled: &[Range<usize>],
+    n: usize,
+    last: bool,
+) -> f64 {
+    let bad = |k: usize| is_filled(filled, k);
+    if last || bad(n) {
+        return f64::NAN;
+    }
+    match buf {
+        Buf::Counts(v) if n + 1 < v.len() && !bad(n + 1) => 0.5 * (v[n] - v[n + 1]) as f64,
+        Buf::Counts(_) => f64::NAN,
+        Buf::Rates(v) if n < v.len() => rate_departure(v, prev, n, n, false, &bad),
+        Buf::Rates(_) => f64::NAN,
     }
 }
 
@@ -694,6 +722,40 @@ mod tests {
         assert_eq!(out.counts.iter().sum::<i64>(), total);
         assert_eq!(out.filled, vec![500..502, 9_000..9_002]);
         assert!(out.counts[500..502].iter().all(|v| (0..=1).contains(v)));
+    }
+
+    /// A glitch on a window's first sample: its neighbour before it, the
+    /// window's last, departs by half of it and must not be taken for it
+    /// (it was, and the glitch was counted twice for a counter, three times
+    /// for a rate word); on either side of the edge, one outlier where the
+    /// glitch is, and a pulse counter keeps its total.
+    #[test]
+    fn a_glitch_at_a_window_edge_is_one_outlier_where_it_is() {
+        for k in [
+            WINDOW - 2,
+            WINDOW - 1,
+            WINDOW,
+            WINDOW + 1,
+            2 * WINDOW,
+            3 * WINDOW - 1,
+        ] {
+            let mut r = ChaCha8Rng::seed_from_u64(k as u64);
+            let mut c: Vec<i64> = (0..30_000)
+                .map(|_| i64::from(r.random::<f64>() < 0.3))
+                .collect();
+            let total: i64 = c.iter().sum();
+            c[k] += 6;
+            c[k + 1] -= 6;
+            let (out, rep) = find_batch(Series::Counts, &c, &[]);
+            assert_eq!(rep.at, vec![k as u64], "counter glitch at {k}");
+            assert_eq!(out.filled, vec![k..k + 2], "counter glitch at {k}");
+            assert_eq!(out.counts.iter().sum::<i64>(), total);
+            let mut x = gauss(30_000, k as u64);
+            x[k] += 50.0;
+            let (out, rep) = find_batch(Series::Rates, &[], &x);
+            assert_eq!(rep.at, vec![k as u64], "rate glitch at {k}");
+            assert_eq!(out.filled, vec![k..k + 1], "rate glitch at {k}");
+        }
     }
 
     #[test]
