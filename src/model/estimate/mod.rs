@@ -526,15 +526,7 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
         Some(&corr),
     );
     let quality = FitQuality::of(&fit, rows.y.len(), usize::from(choice.is_some()));
-    let theta_lf: Vec<f64> = (0..terms.len())
-        .map(|k| {
-            if too_short || (saturated && k >= 2) {
-                0.0
-            } else {
-                fit.terms[k].theta
-            }
-        })
-        .collect();
+    let theta_lf = fitted_thetas(&fit, terms.len(), too_short, saturated);
     let q_read = quantization::q_from_angle(input, &terms, &theta_lf, true);
     let q2 = q_read.q2;
     let widen = quality.widening();
@@ -559,19 +551,7 @@ pub fn estimate(input: &EstimatorInput, opts: &FitOptions) -> EstimatorOutput {
             }
         }
         let t = widen_term(t, widen);
-        // RRW is found only where its interval (profiled with the other
-        // terms free, widened for a poor fit) excludes zero: its inclusion
-        // test rests on the few longest-tau points, where flicker scatter,
-        // an unfound step or a trend the model lacks raise the Allan
-        // variance as a random walk does, and an interval reaching zero
-        // says the data do not exclude a gyro without one
-        if i == RRW_COL && t.included && t.ci95.is_some_and(|(lo, _)| lo <= 0.0) {
-            return Coefficient {
-                value: None,
-                ci95: None,
-                upper95: t.ci95.map(|(_, hi)| CONV[i](hi)),
-            };
-        }
+        let t = if i == RRW_COL { rrw_supported(t) } else { t };
         term_coefficient(&t, CONV[i])
     };
     let ramp_term = fit.terms.get(terms.len()).filter(|_| lf.ramp_col);
@@ -758,6 +738,37 @@ fn widen_term(mut t: TermFit, s: f64) -> TermFit {
         if let Some(u) = t.upper95.as_mut() {
             *u *= s;
         }
+    }
+    t
+}
+
+/// The low-frequency fit's thetas of the first `n` terms; 0 where the record
+/// is too short for the fit, and beyond ARW where the fit is saturated.
+fn fitted_thetas(fit: &LevelFit, n: usize, too_short: bool, saturated: bool) -> Vec<f64> {
+    (0..n)
+        .map(|k| {
+            if too_short || (saturated && k >= 2) {
+                0.0
+            } else {
+                fit.terms[k].theta
+            }
+        })
+        .collect()
+}
+
+/// RRW as found only where its interval (profiled with the other terms
+/// free, widened for a poor fit) excludes zero, else bounded by the
+/// interval's upper end: its inclusion test rests on the few longest-tau
+/// points, where flicker scatter, an unfound step or a trend the model lacks
+/// raise the Allan variance as a random walk does, and an interval reaching
+/// zero says the data do not exclude a gyro without one.
+fn rrw_supported(mut t: TermFit) -> TermFit {
+    if let (true, Some((lo, hi))) = (t.included, t.ci95)
+        && lo <= 0.0
+    {
+        t.included = false;
+        t.ci95 = None;
+        t.upper95 = Some(hi);
     }
     t
 }
