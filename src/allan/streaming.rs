@@ -970,9 +970,20 @@ impl OctaveAllan<f64> {
             let (seg, tail) = rest.split_at(take);
             let bad = match self.kind {
                 InputKind::Freq => {
-                    let bad = first_non_finite(seg);
-                    let ok = &seg[..bad.unwrap_or(seg.len())];
-                    self.integ.integrate(self.samples, ok, &mut self.buf);
+                    // a non-finite sample makes every later phase point of
+                    // the segment non-finite (the running sums carry it), so
+                    // the segment is scanned only when its last point is
+                    let (saved, len0) = (self.integ, self.buf.len());
+                    self.integ.integrate(self.samples, seg, &mut self.buf);
+                    let bad = match self.buf.last() {
+                        Some(x) if !x.is_finite() => first_non_finite(seg),
+                        _ => None,
+                    };
+                    if let Some(i) = bad {
+                        self.integ = saved;
+                        self.buf.truncate(len0);
+                        self.integ.integrate(self.samples, &seg[..i], &mut self.buf);
+                    }
                     bad
                 }
                 _ => match first_non_finite(seg) {
