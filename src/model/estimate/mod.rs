@@ -763,7 +763,8 @@ fn fitted_thetas(fit: &LevelFit, n: usize, too_short: bool, saturated: bool) -> 
 /// raise the Allan variance as a random walk does, and an interval reaching
 /// zero says the data do not exclude a gyro without one.
 fn rrw_supported(mut t: TermFit) -> TermFit {
-    if let (true, Some((lo, hi))) = (t.included, t.ci95)
+    if t.included
+        && let Some((lo, hi)) = t.ci95
         && lo <= 0.0
     {
         t.included = false;
