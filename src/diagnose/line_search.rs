@@ -416,15 +416,21 @@ impl LineFit {
     }
 }
 
-/// Measure the line near `f0_hz` in the detrended rate `x` (module step 3);
+/// Measure the line near `f0_hz` in the detrended rate `x(0..n)` (module
+/// step 3), read through a function (the record is not held as a series);
 /// `s_local` is the continuum PSD at the line ([`LineSpectrum::local_psd`]).
-pub fn fit_line(x: &[f64], fs_hz: f64, f0_hz: f64, s_local: f64) -> LineFit {
-    let n = x.len();
+pub fn fit_line(
+    n: usize,
+    x: impl Fn(usize) -> f64,
+    fs_hz: f64,
+    f0_hz: f64,
+    s_local: f64,
+) -> LineFit {
     let tau0 = 1.0 / fs_hz;
     let t = n as f64 * tau0;
     let df = 1.0 / t;
     let w = Taper::new(n);
-    let power = |f: f64| dft_windowed(x, &w, tau0, f).norm_sqr();
+    let power = |f: f64| dft_by(n, tau0, f, |k| x(k) * w.at(k)).norm_sqr();
     // grid over +-1 bin in eighths (the main lobe is +-1 bin wide), then
     // golden section over +-1/8 bin about the best grid point
     let best = (-8..=8)
@@ -536,26 +542,21 @@ impl Taper {
     }
 }
 
-/// `sum_k x_k e^{-2 pi i f k tau0}` (rectangular window), the phasor re-anchored
-/// every 4096 samples.
-pub fn dft(x: &[f64], tau0: f64, f_hz: f64) -> Complex64 {
-    dft_by(x, tau0, f_hz, |_, v| v)
+/// `sum_k x_k e^{-2 pi i f k tau0}` (rectangular window) of `x(0..n)`, read
+/// through a function; the phasor re-anchored every 4096 samples.
+pub fn dft(n: usize, x: impl Fn(usize) -> f64, tau0: f64, f_hz: f64) -> Complex64 {
+    dft_by(n, tau0, f_hz, x)
 }
 
-/// `sum_k w_k x_k e^{-2 pi i f k tau0}`.
-fn dft_windowed(x: &[f64], w: &Taper, tau0: f64, f_hz: f64) -> Complex64 {
-    dft_by(x, tau0, f_hz, |k, v| v * w.at(k))
-}
-
-fn dft_by(x: &[f64], tau0: f64, f_hz: f64, val: impl Fn(usize, f64) -> f64) -> Complex64 {
+fn dft_by(n: usize, tau0: f64, f_hz: f64, val: impl Fn(usize) -> f64) -> Complex64 {
     let w = -2.0 * PI * f_hz * tau0;
     let step = Complex64::from_polar(1.0, w);
     let mut acc = Complex64::new(0.0, 0.0);
-    for (c, chunk) in x.chunks(4096).enumerate() {
-        let mut ph = Complex64::from_polar(1.0, w * (c * 4096) as f64);
+    for start in (0..n).step_by(4096) {
+        let mut ph = Complex64::from_polar(1.0, w * start as f64);
         let mut part = Complex64::new(0.0, 0.0);
-        for (i, &v) in chunk.iter().enumerate() {
-            part += ph * val(c * 4096 + i, v);
+        for k in start..(start + 4096).min(n) {
+            part += ph * val(k);
             ph *= step;
         }
         acc += part;

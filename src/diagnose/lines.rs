@@ -117,8 +117,7 @@ pub(crate) fn excess(
 /// Scan the rate of `counts` (pulse `d`, rate `fs`) for lines against
 /// `model` (simulated at the recording's rate and pulse weight); `wander` is
 /// [`rate_wander`]. The rate, its mean and linear trend removed, is read
-/// from the counts for the transform and held only for the line fits, once
-/// the whitened spectrum is reduced to its periodogram.
+/// from the counts by the transform and by each line fit, never held.
 fn scan_lines(
     model: &GyroModel,
     counts: &[i64],
@@ -152,10 +151,9 @@ fn scan_lines(
         .collect();
     let psd = std::mem::take(&mut spectrum.psd);
     drop(spectrum);
-    let xs: Vec<f64> = (0..n).map(x).collect();
     let lines = detections
         .into_iter()
-        .map(|(det, s)| (det, lines::fit_line(&xs, fs, det.f_hz, s)))
+        .map(|(det, s)| (det, lines::fit_line(n, x, fs, det.f_hz, s)))
         .collect();
     let sine_checks = sine_refs
         .iter()
@@ -167,7 +165,7 @@ fn scan_lines(
             r.map(|s_loc| {
                 (
                     s_loc,
-                    2.0 * lines::dft(&xs, 1.0 / fs, f).norm() / n as f64 / sinc,
+                    2.0 * lines::dft(n, x, 1.0 / fs, f).norm() / n as f64 / sinc,
                 )
             })
         })
