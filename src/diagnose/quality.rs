@@ -86,7 +86,9 @@ pub(crate) fn handle<'a>(
     let series = pipe
         .block_series()
         .expect("the data-quality stage keeps block means");
-    let (dq, _) = quality::assess(&spikes, &series, fine, false);
+    // a ramp the stage's test supports is looked at again as a warm-up or a
+    // step ([`quality::lowfreq`]): the diagnosis names the physics
+    let (dq, _) = quality::assess(&spikes, &series, fine, true);
     let mut recording = Cow::Borrowed(rec);
     if spikes.excluded > 0 {
         exclude_glitches(recording.to_mut(), counts, k);

@@ -51,6 +51,9 @@ pub const ALPHA: f64 = 0.002;
 /// Level of the test a rate ramp passes before the estimates call it found
 /// ([`Correction::ramp_rejected`]): the estimator's own level, 95 %.
 pub const RAMP_ALPHA: f64 = 0.05;
+/// False-alarm probability of the scans made again when nothing was found
+/// but a rate ramp passes the stage's test ([`Analysis::select`]).
+pub const RAMP_EFFECT_ALPHA: f64 = 0.01;
 /// Most steps found.
 pub const MAX_STEPS: usize = 5;
 /// The profile likelihood's 95 % level (chi-square, 1 degree of freedom).
@@ -429,18 +432,34 @@ impl Analysis<'_> {
     }
 
     /// Steps 1-3 of the method: the effects the record holds, and the noise
-    /// fitted beside them.
+    /// fitted beside them. When nothing is found at [`ALPHA`] but a rate
+    /// ramp passes the stage's test ([`Correction::ramp_rejected`]; asked
+    /// for by `test_ramp`), the scans run once more at [`RAMP_EFFECT_ALPHA`]:
+    /// a warm-up with a time constant of a third of the record, or a step,
+    /// is much like a ramp, and the ramp alone would be reported for it.
     fn select(&self) -> Option<(Vec<Effect>, Fitted)> {
-        let mut effects: Vec<Effect> = Vec::new();
+        let (effects, fitted) = self.grow(Vec::new(), ALPHA)?;
+        if !effects.is_empty() || !self.test_ramp || !self.ramp_passes(&effects) {
+            return Some((effects, fitted));
+        }
+        self.grow(effects, RAMP_EFFECT_ALPHA)
+    }
+
+    /// Rounds of step 3 from `effects`, the first at level `first_alpha`,
+    /// the others at [`ALPHA`].
+    fn grow(&self, mut effects: Vec<Effect>, first_alpha: f64) -> Option<(Vec<Effect>, Fitted)> {
         let (scale_b, scale_k) = Noise::scales(&self.c.y, self.span_s);
         let mut last = None;
         for round in 0..(MAX_STEPS + 2) {
+            let alpha = if round == 0 { first_alpha } else { ALPHA };
             let x = self.columns(&effects);
             let fitted = self.fit(&effects)?;
             let grid = NoiseGrid::new(&self.noise, &x, fitted.b2, fitted.k2, scale_b, scale_k);
             let mut best: Option<(f64, Effect)> = None;
             for (kind, params, cols) in self.candidates(&effects) {
-                let Some((p, ratio)) = self.test(&grid, &fitted, params, cols, round, kind) else {
+                let found = (params, cols);
+                let Some((p, ratio)) = self.test_at(&grid, &fitted, found, round, kind, alpha)
+                else {
                     continue;
                 };
                 let effect = match kind {
@@ -478,24 +497,11 @@ impl Analysis<'_> {
 
 impl Analysis<'_> {
     /// One scan of candidates (`params`, their regressors `cols`) against
-    /// the null model of `grid` and `fitted`: the best candidate's shape
-    /// parameter and its likelihood ratio over the scan's threshold (seeded
-    /// by the round and the scan's `kind`); `None` below one chi-square(1)
-    /// test's level, which the scan's maximum cannot pass whatever the
-    /// replicas say.
-    fn test(
-        &self,
-        grid: &NoiseGrid,
-        fitted: &Fitted,
-        params: Vec<f64>,
-        cols: Vec<Vec<f64>>,
-        round: usize,
-        kind: u8,
-    ) -> Option<(f64, f64)> {
-        self.test_at(grid, fitted, (params, cols), round, kind, ALPHA)
-    }
-
-    /// [`Analysis::test`] at level `alpha`.
+    /// the null model of `grid` and `fitted`, at level `alpha`: the best
+    /// candidate's shape parameter and its likelihood ratio over the scan's
+    /// threshold (seeded by the round and the scan's `kind`); `None` below
+    /// one chi-square(1) test's level, which the scan's maximum cannot pass
+    /// whatever the replicas say.
     fn test_at(
         &self,
         grid: &NoiseGrid,
