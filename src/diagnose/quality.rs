@@ -393,26 +393,33 @@ fn thermal_finding(model: &GyroModel, t: &quality::ThermalFit, rec: &Recording) 
         fmt_g(s.ci95[1]),
     );
     Some(match &model.thermal {
-        Some(m) => Finding {
-            edit: Edit::Thermal(th),
-            changes: vec![
-                ParameterChange {
-                    term: "thermal.bias_sensitivity_dph_per_c".into(),
-                    model: m.bias_sensitivity_dph_per_c,
-                    fitted: s.value,
-                    ci95: s.ci95,
-                },
-                ParameterChange {
+        Some(m) => {
+            let mut changes = vec![ParameterChange {
+                term: "thermal.bias_sensitivity_dph_per_c".into(),
+                model: m.bias_sensitivity_dph_per_c,
+                fitted: s.value,
+                ci95: s.ci95,
+            }];
+            // the model's lag stands where its interval holds it, or where
+            // the lag is not identified
+            if t.confounded_with_ramp || inside(m.lag_s, &lag) {
+                th.lag_s = m.lag_s;
+            } else {
+                changes.push(ParameterChange {
                     term: "thermal.lag_s".into(),
                     model: m.lag_s,
                     fitted: lag.value,
                     ci95: lag.ci95,
-                },
-            ],
-            added: None,
-            n_par: 2,
-            note,
-        },
+                });
+            }
+            Finding {
+                edit: Edit::Thermal(th),
+                changes,
+                added: None,
+                n_par: 2,
+                note,
+            }
+        }
         None => Finding {
             edit: Edit::Thermal(th),
             changes: Vec::new(),

@@ -319,7 +319,7 @@ fn intervals(prof: &[Point], e: Effect, amp: f64) -> (Interval, Interval) {
     };
     let inside: Vec<&Point> = prof.iter().filter(|p| p.rss - rss_min < level).collect();
     let p = e.param();
-    let (mut plo, mut phi) = (p, p);
+    let (mut plo, mut phi) = crossings(prof, p, rss_min, level);
     let (mut alo, mut ahi) = (amp, amp);
     for q in &inside {
         plo = plo.min(q.param);
@@ -343,6 +343,40 @@ fn intervals(prof: &[Point], e: Effect, amp: f64) -> (Interval, Interval) {
             ci95: [alo, ahi],
         },
     )
+}
+
+/// The shape parameter's interval between the profile's grid points: where
+/// the profile (ascending in the parameter) crosses `level` above its
+/// minimum `rss_min`, between the outermost point inside on each side of the
+/// estimate `p` (or `p` itself) and its neighbour outside, linearly in the
+/// square root of the rise (exact for a quadratic profile); at a grid end
+/// inside, that end. A profile that rises past the level within one grid
+/// step of the estimate gets that part of a step, not an interval of zero
+/// width.
+fn crossings(prof: &[Point], p: f64, rss_min: f64, level: f64) -> (f64, f64) {
+    let ins = |q: &Point| q.rss - rss_min < level;
+    let cross = |(pa, ra): (f64, f64), q: &Point| {
+        let (a, b) = ((ra - rss_min).max(0.0).sqrt(), (q.rss - rss_min).sqrt());
+        let t = if b > a {
+            ((level.sqrt() - a) / (b - a)).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        pa + t * (q.param - pa)
+    };
+    let end = |side: &mut dyn Iterator<Item = &Point>| {
+        let mut last = (p, rss_min);
+        for q in side {
+            if !ins(q) {
+                return cross(last, q);
+            }
+            last = (q.param, q.rss);
+        }
+        last.0
+    };
+    let lo = end(&mut prof.iter().rev().filter(|q| q.param < p));
+    let hi = end(&mut prof.iter().filter(|q| q.param > p));
+    (lo.min(p), hi.max(p))
 }
 
 impl Correction {
@@ -382,5 +416,56 @@ impl LowFreq {
                 .widen_to(&b.bias_sensitivity_dph_per_c);
             a.lag_s.widen_to(&b.lag_s);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn quadratic(grid: &[f64], centre: f64, c: f64) -> Vec<Point> {
+        grid.iter()
+            .map(|&x| Point {
+                param: x,
+                rss: 100.0 + c * (x - centre).powi(2),
+                amp: 1.0,
+                se: 0.1,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_sharp_profile_has_an_interval_between_its_grid_points() {
+        // rises by the 95 % level 4 away from the estimate 3, on a grid of step 10
+        let c = CHI2_95 / 16.0;
+        let grid: Vec<f64> = (0..10).map(|k| 10.0 * k as f64).collect();
+        let prof = quadratic(&grid, 3.0, c);
+        let (lo, hi) = crossings(&prof, 3.0, 100.0, CHI2_95);
+        // the grid's first point (0) is inside: the interval ends there
+        assert_eq!(lo, 0.0);
+        assert!((hi - 7.0).abs() < 1e-9, "{hi}");
+        // the estimate between two points both outside
+        let prof = quadratic(&grid, 45.0, c);
+        let (lo, hi) = crossings(&prof, 45.0, 100.0, CHI2_95);
+        assert!(
+            (lo - 41.0).abs() < 1e-9 && (hi - 49.0).abs() < 1e-9,
+            "{lo} {hi}"
+        );
+        // through `intervals`, whose minimum is the grid's (here 25 c above
+        // the estimate's): wider, within a grid step beyond the grid's
+        // points inside (40 and 50)
+        let (param, _) = intervals(&prof, Effect::Warmup { tau_s: 45.0 }, 1.0);
+        let [lo, hi] = param.ci95;
+        assert!(
+            (30.0..41.0).contains(&lo) && hi > 49.0 && hi <= 60.0,
+            "{lo} {hi}"
+        );
+        // a profile whose grid neighbours are both outside reads more than the estimate alone
+        let sharp = quadratic(&[0.0, 10.0, 20.0], 10.0, 1.0);
+        let (lo, hi) = crossings(&sharp, 10.0, 100.0, CHI2_95);
+        assert!(
+            (lo - (10.0 - CHI2_95.sqrt())).abs() < 1e-9
+                && (hi - (10.0 + CHI2_95.sqrt())).abs() < 1e-9
+        );
     }
 }
