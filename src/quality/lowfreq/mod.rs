@@ -457,8 +457,8 @@ impl Analysis<'_> {
             let grid = NoiseGrid::new(&self.noise, &x, fitted.b2, fitted.k2, scale_b, scale_k);
             let mut best: Option<(f64, Effect)> = None;
             for (kind, params, cols) in self.candidates(&effects) {
-                let found = (params, cols);
-                let Some((p, ratio)) = self.test_at(&grid, &fitted, found, round, kind, alpha)
+                let candidate = (params, cols);
+                let Some((p, ratio)) = self.test_at(&grid, &fitted, candidate, round, kind, alpha)
                 else {
                     continue;
                 };
